@@ -1,0 +1,42 @@
+"""GPS time (week, seconds of week) to UTC nanoseconds, with the leap-second table."""
+
+from __future__ import annotations
+
+import bisect
+import calendar
+
+GPS_EPOCH_UNIX_S = 315964800  # 1980-01-06T00:00:00Z
+NS = 1_000_000_000
+
+# UTC instants (Unix seconds) from which GPS - UTC equals the given count.
+_LEAPS: tuple[tuple[int, int], ...] = tuple(
+    (calendar.timegm((y, m, 1, 0, 0, 0)), n)
+    for (y, m, n) in (
+        (1981, 7, 1), (1982, 7, 2), (1983, 7, 3), (1985, 7, 4), (1988, 1, 5),
+        (1990, 1, 6), (1991, 1, 7), (1992, 7, 8), (1993, 7, 9), (1994, 7, 10),
+        (1996, 1, 11), (1997, 7, 12), (1999, 1, 13), (2006, 1, 14), (2009, 1, 15),
+        (2012, 7, 16), (2015, 7, 17), (2017, 1, 18),
+    )
+)
+_LEAP_STARTS = [u for u, _ in _LEAPS]
+
+
+def leap_seconds_at_utc(unix_s: float) -> int:
+    """GPS - UTC in seconds at a UTC instant."""
+    i = bisect.bisect_right(_LEAP_STARTS, unix_s)
+    return 0 if i == 0 else _LEAPS[i - 1][1]
+
+
+def gps_to_unix_ns(week: int, seconds_of_week: float) -> int:
+    """UTC nanoseconds since the Unix epoch for a GPS week and seconds of week."""
+    gps_ns = (GPS_EPOCH_UNIX_S + week * 604800) * NS + round(seconds_of_week * NS)
+    approx = gps_ns / NS
+    leap = leap_seconds_at_utc(approx - leap_seconds_at_utc(approx))
+    return gps_ns - leap * NS
+
+
+def unix_ns_to_gps(unix_ns: int) -> tuple[int, float]:
+    """GPS week and seconds of week for UTC nanoseconds (inverse of gps_to_unix_ns)."""
+    gps_ns = unix_ns + leap_seconds_at_utc(unix_ns / NS) * NS - GPS_EPOCH_UNIX_S * NS
+    week, rem = divmod(gps_ns, 604800 * NS)
+    return int(week), rem / NS

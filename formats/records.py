@@ -1,0 +1,31 @@
+"""Record types shared by every vendor decoder; imports nothing of ours."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+class FormatError(ValueError):
+    """A file or record that cannot be decoded at all."""
+
+
+@dataclass(frozen=True, slots=True)
+class Where:
+    """Where a record came from: byte offset, 1-based line (text formats) and host time."""
+
+    offset: int
+    line: int | None = None
+    host_time_ns: int | None = None
+
+    def describe(self) -> str:
+        """Human-readable position, e.g. 'line 12' or 'byte 4096'."""
+        return f"line {self.line}" if self.line is not None else f"byte {self.offset}"
+
+
+@dataclass(frozen=True, slots=True)
+class Reject:
+    """A record a decoder skipped: where it was, why, and whether a checksum failed."""
+
+    where: Where
+    reason: str
+    bad_checksum: bool = False

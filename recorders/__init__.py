@@ -1,0 +1,1 @@
+"""Turning a trial's vendor logs into one archive: one module per sensor family."""

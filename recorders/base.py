@@ -1,0 +1,65 @@
+"""The contract between the recording step and the sensor-family converters.
+
+A converter turns one log file's bytes into archive messages. It is a plain
+function ``convert(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]``
+registered in its family module's ``CONVERTERS`` mapping under the manifest's
+format name (``recorders.gps.CONVERTERS["nmea"]``). Converters never raise on
+bad records: they yield a `formats.records.Reject` and go on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from datetime import date
+from typing import Any, Callable, Iterator, Mapping
+
+from formats.records import Reject, Where
+
+NS = 1_000_000_000
+
+
+@dataclass(frozen=True)
+class LogContext:
+    """What a converter knows about the log it converts (from the manifest)."""
+
+    vehicle: str
+    role: str = "follower"
+    path: str = ""
+    trial_date: date | None = None
+    clock_offset_ns: int = 0
+    prefix: str = "auto"
+    # format-specific keys from the manifest's [[vehicles.logs]] table
+    options: Mapping[str, Any] = field(default_factory=dict)
+    # modem address -> vehicle name, for every vehicle in the trial
+    address_book: Mapping[int, str] = field(default_factory=dict)
+    sound_speed_mps: float = 1500.0
+
+    def vehicle_for_address(self, address: int | None) -> str:
+        """The vehicle name for a modem address, or 'addr<N>' when the manifest has none."""
+        if address is None or address < 0:
+            return ""
+        return self.address_book.get(address, f"addr{address}")
+
+
+@dataclass(frozen=True, slots=True)
+class Output:
+    """One archive message: full topic, protobuf message, log and publish times (ns, UTC)."""
+
+    topic: str
+    message: Any
+    log_time_ns: int
+    publish_time_ns: int
+    where: Where | None = None
+
+
+Converter = Callable[[bytes, LogContext], Iterator["Output | Reject"]]
+
+
+def output(ctx: LogContext, suffix: str, message: Any, t_ns: int, where: Where | None) -> Output:
+    """An Output on /<vehicle>/<suffix>; publish time is the host time when the log has one.
+
+    `t_ns` must already include the clock offset (see `recorders.clock`).
+    """
+    host = where.host_time_ns if where is not None else None
+    publish = host + ctx.clock_offset_ns if host is not None else t_ns
+    return Output(f"/{ctx.vehicle}/{suffix}", message, t_ns, publish, where)

@@ -1,0 +1,1 @@
+"""The replay engine, the estimator stack, metrics, views and the command line."""

@@ -1,0 +1,1 @@
+"""The estimator stack as plain numpy functions: one module per algorithm, no MCAP here."""

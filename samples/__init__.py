@@ -1,0 +1,1 @@
+"""The sample lake trial: its simulator and its generated logs."""
