@@ -1,0 +1,56 @@
+"""Parameters of the cooperative-localization stack, with STACK.md's defaults.
+
+Users give covariances in metres; the filter converts them to radians with the
+local radii (STACK.md section 1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+METHODS: tuple[str, ...] = (
+    "dead_reckoning", "ckf", "ackf", "chi_square", "dual_threshold",
+    "anfis", "anfis_aqpso", "anfis_compensation",
+)
+DETECTING_METHODS: tuple[str, ...] = (
+    "chi_square", "dual_threshold", "anfis", "anfis_aqpso", "anfis_compensation",
+)
+
+
+@dataclass(frozen=True)
+class AnfisConfig:
+    """ANFIS structure and training (STACK.md section 4, patent steps 3-4)."""
+
+    mfs_per_input: int = 2
+    rule_structure: str = "grid"        # "grid" (n^3 rules, genfis1) or "diagonal" (n rules, A.22)
+    epochs: int = 100
+    initial_step: float = 0.01
+    step_increase: float = 1.1          # after 4 consecutive error decreases
+    step_decrease: float = 0.9          # after 2 consecutive up-down oscillations
+    ridge: float = 1e-6                 # least-squares ridge for the consequents
+    model: str = "per_leader"           # "per_leader" or "shared"
+    threshold_rule: str = "3sigma"      # "3sigma", "t1", or "<k>sigma" e.g. "2.5sigma"
+    compensation_threshold_m: float = 9.0
+    # AQPSO-GA trainer
+    particles: int = 30
+    iterations: int = 100
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class StackConfig:
+    """Everything a run of the stack depends on; a run is a pure function of this and the data."""
+
+    p0_m: tuple[float, float] = (1.0, 1.0)       # initial position sigma north, east (m)
+    q_m_per_s: tuple[float, float] = (1.0, 1.0)  # process sigma north, east per second of DR (m)
+    r_m: float = 3.0                              # ranging sigma (m)
+    t1_m: float = 9.0                             # label threshold on |Z_gps - Z| (m)
+    training_window_s: float = 600.0              # t_a, from the trial start
+    chi_square_alpha: float = 0.01
+    isolation_cap: int = 6                        # consecutive isolations per leader before using R*
+    dual_threshold_cusum_h_m: float = 20.0        # CUSUM alarm level on the predicted error (m)
+    dual_threshold_cusum_k_m: float = 3.0         # CUSUM drift allowance (m)
+    dual_threshold_hidden: int = 8                # BP network hidden units
+    methods: tuple[str, ...] = METHODS
+    anfis: AnfisConfig = field(default_factory=AnfisConfig)
+    seed: int = 0
