@@ -1,0 +1,91 @@
+"""Show what is inside an archive: topics, time span, vehicles, attachments, diagnostics."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from datetime import datetime, timezone
+from typing import Any
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of `auvreplay info`."""
+    parser.add_argument("file", help="an MCAP archive")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def iso(ns: int | None) -> str | None:
+    """ISO 8601 UTC text for nanoseconds since the Unix epoch (None stays None)."""
+    if ns is None:
+        return None
+    dt = datetime.fromtimestamp(ns // 1_000_000_000, tz=timezone.utc)
+    frac = ns % 1_000_000_000
+    text = dt.strftime("%Y-%m-%dT%H:%M:%S")
+    return f"{text}.{frac:09d}Z".replace(".000000000Z", "Z")
+
+
+def describe(path: str) -> dict[str, Any]:
+    """The `info --json` object for an archive (DESIGN.md "Command line")."""
+    from formats.mcap_reader import ArchiveReader
+
+    with ArchiveReader(path) as reader:
+        summary = reader.summary()
+        trial = reader.metadata_json("trial") or {}
+        recording = reader.metadata_json("recording") or {}
+        runs = [n for n in summary.metadata_names if n == "run"]
+        problems = list(reader.problems)
+    files = recording.get("files", [])
+    return {
+        "file": str(path),
+        "topics": {t: {"count": v["count"], "schema": v["schema"]} for t, v in sorted(summary.topics.items())},
+        "messages": summary.message_count,
+        "attachments": [{"name": a.name, "size": a.size, "media_type": a.media_type} for a in summary.attachments],
+        "start": iso(summary.start_ns),
+        "end": iso(summary.end_ns),
+        "trial": trial.get("name"),
+        "vehicles": trial.get("vehicles", []),
+        "diagnostics": {
+            f["path"]: {k: f.get(k) for k in ("vehicle", "sensor", "format", "parsed", "skipped", "bad_checksum",
+                                               "out_of_order", "duplicates", "start", "end")}
+            for f in files
+        },
+        "metadata": summary.metadata_names,
+        "runs": len(runs),
+        "recovered": bool(problems),
+        "problems": problems,
+    }
+
+
+def _print_text(info: dict[str, Any]) -> None:
+    print(f"file:        {info['file']}")
+    if info["trial"]:
+        print(f"trial:       {info['trial']}")
+    print(f"span:        {info['start']} .. {info['end']}")
+    print(f"messages:    {info['messages']}")
+    for v in info["vehicles"]:
+        print(f"vehicle:     {v.get('name')} ({v.get('role')})" if isinstance(v, dict) else f"vehicle:     {v}")
+    print("topics:")
+    width = max((len(t) for t in info["topics"]), default=10)
+    for topic, t in info["topics"].items():
+        print(f"  {topic:<{width}}  {t['count']:>8}  {t['schema']}")
+    if info["attachments"]:
+        print("attachments:")
+        for a in info["attachments"]:
+            print(f"  {a['name']}  ({a['size']} bytes)")
+    if info["diagnostics"]:
+        print("logs:                                parsed  skipped  bad checksum")
+        for path, d in info["diagnostics"].items():
+            print(f"  {path:<34} {d['parsed']:>7}  {d['skipped']:>7}  {d['bad_checksum']:>12}")
+    for p in info["problems"]:
+        print(f"auvreplay info: warning: {p}", file=sys.stderr)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Print the archive description; exit 0 (a recovered damaged file still exits 0)."""
+    info = describe(args.file)
+    if args.json:
+        print(json.dumps(info, indent=2))
+    else:
+        _print_text(info)
+    return 0
