@@ -53,3 +53,14 @@ class DayClock:
 def gps_time_ns(week: int, seconds_of_week: float, offset_ns: int = 0) -> int:
     """UTC ns for GPS week/seconds with the log's clock offset applied."""
     return gps_to_unix_ns(week, seconds_of_week) + offset_ns
+
+
+def iso_utc(ns: int | None) -> str | None:
+    """ISO 8601 UTC text ('...Z') for ns since the Unix epoch; None stays None."""
+    if ns is None:
+        return None
+    from datetime import datetime, timezone
+
+    sec, frac = divmod(int(ns), NS)
+    text = datetime.fromtimestamp(sec, tz=timezone.utc).strftime("%Y-%m-%dT%H:%M:%S")
+    return f"{text}Z" if frac == 0 else f"{text}.{frac:09d}".rstrip("0") + "Z"

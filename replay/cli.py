@@ -14,9 +14,13 @@ from formats.records import FormatError
 
 from .errors import UserError
 
-# command name -> (module, one-line help); modules are imported only when run
+# command name -> (module, one-line help); modules are imported to build the parser,
+# so their top level stays light (heavy imports go inside run)
 COMMANDS: dict[str, tuple[str, str]] = {
+    "record": ("replay.commands.record", "archive a trial's logs into one MCAP file"),
     "info": ("replay.commands.info", "what is inside an archive"),
+    "unpack": ("replay.commands.unpack", "the original logs back, byte for byte"),
+    "formats": ("replay.commands.formats", "the vendor formats supported"),
 }
 
 

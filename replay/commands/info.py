@@ -5,24 +5,15 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from datetime import datetime, timezone
 from typing import Any
+
+from recorders.clock import iso_utc as iso
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `auvreplay info`."""
     parser.add_argument("file", help="an MCAP archive")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
-
-
-def iso(ns: int | None) -> str | None:
-    """ISO 8601 UTC text for nanoseconds since the Unix epoch (None stays None)."""
-    if ns is None:
-        return None
-    dt = datetime.fromtimestamp(ns // 1_000_000_000, tz=timezone.utc)
-    frac = ns % 1_000_000_000
-    text = dt.strftime("%Y-%m-%dT%H:%M:%S")
-    return f"{text}.{frac:09d}Z".replace(".000000000Z", "Z")
 
 
 def describe(path: str) -> dict[str, Any]:

@@ -1,0 +1,64 @@
+"""Getting the original logs back out of an archive, byte for byte, safely."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from dataclasses import dataclass, field
+from pathlib import Path, PurePosixPath
+
+
+@dataclass
+class UnpackResult:
+    """Files written, attachment names refused (unsafe), and checksum mismatches."""
+
+    written: list[Path] = field(default_factory=list)
+    refused: list[str] = field(default_factory=list)
+    mismatched: list[str] = field(default_factory=list)
+
+
+def safe_target(root: Path, name: str) -> Path | None:
+    """Where attachment `name` goes under `root`, or None if it would land outside it.
+
+    Archives come from other people's machines: absolute paths, drive letters,
+    '..' components, backslash tricks and symlinked parents are all refused.
+    """
+    if not name or "\x00" in name or "\\" in name or name.startswith("/") or ":" in name.split("/")[0]:
+        return None
+    parts = PurePosixPath(name).parts
+    if not parts or any(p in ("..", ".", "") for p in parts):
+        return None
+    target = root.joinpath(*parts)
+    real_root = os.path.realpath(root)
+    real_parent = os.path.realpath(target.parent)
+    if os.path.commonpath([real_root, real_parent]) != real_root:
+        return None
+    return target
+
+
+def unpack(archive_path: str | os.PathLike[str], target_dir: str | os.PathLike[str]) -> UnpackResult:
+    """Write every attachment under target_dir; refuse unsafe names, verify recorded sha256."""
+    from formats.mcap_reader import ArchiveReader
+
+    root = Path(target_dir)
+    root.mkdir(parents=True, exist_ok=True)
+    result = UnpackResult()
+    with ArchiveReader(archive_path) as reader:
+        recording = reader.metadata_json("recording") or {}
+        expected = {f["path"]: f.get("sha256", "") for f in recording.get("files", []) if isinstance(f, dict)}
+        for att in reader.attachments():
+            target = safe_target(root, att.name)
+            if target is None:
+                result.refused.append(att.name)
+                continue
+            target.parent.mkdir(parents=True, exist_ok=True)
+            # re-check once the parents exist: a symlinked directory may point elsewhere
+            if safe_target(root, att.name) is None or target.is_symlink():
+                result.refused.append(att.name)
+                continue
+            target.write_bytes(att.data)
+            result.written.append(target)
+            want = expected.get(att.name)
+            if want and hashlib.sha256(att.data).hexdigest() != want:
+                result.mismatched.append(att.name)
+    return result

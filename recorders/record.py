@@ -1,0 +1,170 @@
+"""The recording step: a manifest's logs into one archive, with a summary of what was dropped."""
+
+from __future__ import annotations
+
+import hashlib
+import mimetypes
+from dataclasses import asdict, dataclass, field
+from typing import Callable, Iterator
+
+from formats import schemas as S
+from formats.mcap_writer import ArchiveWriter
+from formats.records import FormatError, Reject
+
+from .base import NS, LogContext, Output
+from .clock import date_to_ns, iso_utc
+from .manifest import LogSpec, Manifest, ManifestError
+from .registry import converters
+
+LOG_LEVEL_WARNING = 3  # foxglove.Log.Level.WARNING
+Progress = Callable[[str, int, int], None]  # (file, bytes done, bytes total)
+
+
+@dataclass
+class FileStats:
+    """What one log file gave: records parsed, skipped, bad checksums, time span, order problems."""
+
+    path: str
+    vehicle: str
+    sensor: str
+    format: str
+    size: int = 0
+    sha256: str = ""
+    parsed: int = 0
+    messages: int = 0
+    skipped: int = 0
+    bad_checksum: int = 0
+    out_of_order: int = 0
+    duplicates: int = 0
+    start_ns: int | None = None
+    end_ns: int | None = None
+
+    def as_json(self) -> dict:
+        """The entry stored in the archive's `recording` metadata."""
+        out = asdict(self)
+        out["start"], out["end"] = iso_utc(self.start_ns), iso_utc(self.end_ns)
+        return out
+
+
+@dataclass
+class RecordingSummary:
+    """Per-file statistics of one recording."""
+
+    files: list[FileStats] = field(default_factory=list)
+
+    @property
+    def skipped(self) -> int:
+        """Records skipped over every file."""
+        return sum(f.skipped for f in self.files)
+
+
+def _context(manifest: Manifest, log: LogSpec) -> LogContext:
+    options = dict(log.options)
+    return LogContext(
+        vehicle=log.vehicle, role=manifest.role_of(log.vehicle), path=log.path, trial_date=manifest.date,
+        clock_offset_ns=round(log.clock_offset_s * NS), prefix=log.prefix, options=options,
+        address_book=manifest.address_book(),
+        sound_speed_mps=float(options.get("sound_speed_mps", manifest.sound_speed_mps)),
+    )
+
+
+def _diagnostic(log: LogSpec, reject: Reject, t_ns: int) -> S.Log:
+    return S.Log(timestamp=S.timestamp(t_ns), level=LOG_LEVEL_WARNING, name=log.vehicle, file=log.path,
+                 line=reject.where.line or 0,
+                 message=f"{log.path} {reject.where.describe()}: {reject.reason}")
+
+
+class _LogRecorder:
+    """Writes one log's outputs and diagnostics, keeping its statistics."""
+
+    def __init__(self, writer: ArchiveWriter, log: LogSpec, stats: FileStats, fallback_ns: int):
+        self.writer, self.log, self.stats = writer, log, stats
+        self.pending: list[Reject] = []  # rejects seen before any time is known
+        self.last_ns: dict[str, int] = {}
+        self.records: set[int] = set()
+        self.fallback_ns = fallback_ns
+
+    def add(self, item: Output | Reject) -> None:
+        if isinstance(item, Reject):
+            self.stats.skipped += 1
+            self.stats.bad_checksum += item.bad_checksum
+            if self.stats.end_ns is None:
+                self.pending.append(item)
+            else:
+                self.writer.write("/diagnostics", _diagnostic(self.log, item, self.stats.end_ns), self.stats.end_ns)
+            return
+        t = item.log_time_ns
+        self.writer.write(item.topic, item.message, t, item.publish_time_ns)
+        st = self.stats
+        st.messages += 1
+        self.records.add(item.where.offset if item.where is not None else st.messages)
+        prev = self.last_ns.get(item.topic)
+        if prev is not None and t < prev:
+            st.out_of_order += 1
+        elif prev is not None and t == prev:
+            st.duplicates += 1
+        self.last_ns[item.topic] = t
+        st.start_ns = t if st.start_ns is None else min(st.start_ns, t)
+        st.end_ns = t if st.end_ns is None else max(st.end_ns, t)
+        if self.pending:
+            self.flush(t)
+
+    def flush(self, t_ns: int) -> None:
+        for reject in self.pending:
+            self.writer.write("/diagnostics", _diagnostic(self.log, reject, t_ns), t_ns)
+        self.pending.clear()
+
+    def finish(self) -> None:
+        self.flush(self.stats.start_ns if self.stats.start_ns is not None else self.fallback_ns)
+        self.stats.parsed = len(self.records)
+
+
+def _trial_metadata(manifest: Manifest) -> dict:
+    return {
+        "name": manifest.name,
+        "date": manifest.date.isoformat() if manifest.date else "",
+        "vehicles": [{"name": v.name, "role": v.role, "modem_address": v.modem_address} for v in manifest.vehicles],
+        "modem_addresses": {str(a): n for a, n in manifest.address_book().items()},
+        "manifest": manifest.text,
+        "manifest_path": manifest.path.name,
+    }
+
+
+def _iter_outputs(convert, data: bytes, ctx: LogContext, log: LogSpec) -> Iterator[Output | Reject]:
+    try:
+        yield from convert(data, ctx)
+    except FormatError as exc:
+        raise ManifestError(f"{log.path}: {exc}") from exc
+
+
+def record(manifest: Manifest, output_path, progress: Progress | None = None) -> RecordingSummary:
+    """Record every log of the manifest into `output_path`; returns the per-file summary."""
+    table = converters()
+    for log in manifest.logs():
+        if (log.sensor, log.format) not in table:
+            known = sorted(f for s, f in table if s == log.sensor)
+            raise ManifestError(f"{manifest.path}: vehicle {log.vehicle!r}, log {log.path}: format {log.format!r} "
+                                f"is not a {log.sensor} format; known: {', '.join(known)}")
+    summary = RecordingSummary()
+    fallback = date_to_ns(manifest.date) if manifest.date else 0
+    with ArchiveWriter(output_path) as writer:
+        for log in manifest.logs():
+            data = (manifest.root / log.path).read_bytes()
+            stats = FileStats(log.path, log.vehicle, log.sensor, log.format, len(data), hashlib.sha256(data).hexdigest())
+            summary.files.append(stats)
+            media = mimetypes.guess_type(log.path)[0] or "application/octet-stream"
+            writer.add_attachment(log.path, data, media, fallback, fallback)
+            rec = _LogRecorder(writer, log, stats, fallback)
+            step = max(len(data) // 50, 1 << 16)
+            next_report = step
+            for item in _iter_outputs(table[(log.sensor, log.format)], data, _context(manifest, log), log):
+                rec.add(item)
+                if progress is not None and item.where is not None and item.where.offset >= next_report:
+                    progress(log.path, item.where.offset, len(data))
+                    next_report = item.where.offset + step
+            rec.finish()
+            if progress is not None:
+                progress(log.path, len(data), len(data))
+        writer.add_metadata("trial", _trial_metadata(manifest))
+        writer.add_metadata("recording", {"files": [f.as_json() for f in summary.files]})
+    return summary

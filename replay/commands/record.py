@@ -1,0 +1,72 @@
+"""Archive a trial: every log of the manifest into one MCAP file, with a summary table."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of `auvreplay record`."""
+    parser.add_argument("manifest", help="the trial manifest (TOML)")
+    parser.add_argument("-o", "--output", required=True, help="the archive to write (.mcap)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar, no table")
+
+
+class _ProgressBar:
+    """A one-line progress bar on stderr, drawn only on a terminal and at most 10 times a second."""
+
+    def __init__(self) -> None:
+        self.enabled = sys.stderr.isatty()
+        self.last = 0.0
+
+    def __call__(self, name: str, done: int, total: int) -> None:
+        now = time.monotonic()
+        if not self.enabled or (now - self.last < 0.1 and done < total):
+            return
+        self.last = now
+        frac = done / total if total else 1.0
+        bar = "#" * int(30 * frac)
+        sys.stderr.write(f"\r{name[-40:]:<40} [{bar:<30}] {100 * frac:5.1f}%")
+        if done >= total:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+
+
+def print_summary(summary, out=sys.stdout) -> None:
+    """The per-file table: parsed, skipped, bad checksum, time span."""
+    from recorders.clock import iso_utc
+
+    rows = [("file", "vehicle", "sensor/format", "parsed", "skipped", "bad crc", "start", "end")]
+    for f in summary.files:
+        rows.append((f.path, f.vehicle, f"{f.sensor}/{f.format}", str(f.parsed), str(f.skipped),
+                     str(f.bad_checksum), iso_utc(f.start_ns) or "-", iso_utc(f.end_ns) or "-"))
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    for k, r in enumerate(rows):
+        print("  ".join(c.rjust(w) if 3 <= i <= 5 else c.ljust(w) for i, (c, w) in enumerate(zip(r, widths))), file=out)
+        if k == 0:
+            print("  ".join("-" * w for w in widths), file=out)
+    for f in summary.files:
+        if f.out_of_order or f.duplicates:
+            print(f"note: {f.path}: {f.out_of_order} out-of-order and {f.duplicates} duplicated times kept as logged",
+                  file=out)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Record the trial; exit 0 even when records were skipped (they are counted and reported)."""
+    from recorders.manifest import ManifestError, load_manifest
+    from recorders.record import record
+
+    from ..errors import UserError
+
+    try:
+        manifest = load_manifest(args.manifest)
+        summary = record(manifest, args.output, progress=None if args.quiet else _ProgressBar())
+    except ManifestError as exc:
+        raise UserError(str(exc)) from exc
+    if not args.quiet:
+        print_summary(summary)
+        print(f"wrote {args.output}: {sum(f.messages for f in summary.files)} messages, "
+              f"{len(summary.files)} attachments, {summary.skipped} records skipped")
+    return 0

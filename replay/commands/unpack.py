@@ -1,0 +1,27 @@
+"""Give the original log files back from an archive, byte for byte."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of `auvreplay unpack`."""
+    parser.add_argument("file", help="an MCAP archive")
+    parser.add_argument("directory", help="where to write the logs (created if missing)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Unpack; exit 1 if any attachment was refused or failed its recorded checksum."""
+    from recorders.attachments import unpack
+
+    result = unpack(args.file, args.directory)
+    for path in result.written:
+        print(path)
+    for name in result.refused:
+        print(f"auvreplay unpack: refused attachment {name!r}: it would land outside {args.directory}",
+              file=sys.stderr)
+    for name in result.mismatched:
+        print(f"auvreplay unpack: {name}: sha256 differs from the one recorded", file=sys.stderr)
+    return 1 if result.refused or result.mismatched else 0
