@@ -1,0 +1,297 @@
+"""The sample lake trial's scenario: every number the simulator uses, with TOML in and out.
+
+Defaults follow the source lake trial (STACK.md section 8; seed A section 4,
+table 1): three boats, 1700 s, GPS 1.8 m RMS, DVL 0.2 kn, ranging sigma 3 m,
+two leaders pinged alternately, leader 1 stale 100-150 s and drifting
+1100-1170 s. Choices the sources leave open are made here once, before any
+detector is scored, and documented next to the value.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field, fields, is_dataclass, replace
+from pathlib import Path
+from typing import Any
+
+ANOMALY_KINDS = ("stale", "drift", "outlier", "dropout")
+NODE_FAULT_KINDS = ("delay", "phase", "both")
+
+
+@dataclass(frozen=True)
+class TrialConfig:
+    """Where and when: the lake, the UTC start, the length and the training window."""
+
+    name: str = "lake-trial"
+    date: str = "2016-10-12"
+    start_time_utc: str = "02:00:00"
+    duration_s: float = 1700.0
+    origin_lat_deg: float = 45.70
+    origin_lon_deg: float = 126.60
+    training_window_s: float = 600.0
+    followers: int = 1
+    truth_rate_hz: float = 10.0
+
+
+@dataclass(frozen=True)
+class GpsConfig:
+    """Single-point GPS (OEMV-2RT-2, 1.8 m RMS horizontal; seed A table 1)."""
+
+    rate_hz: float = 1.0
+    horizontal_rms_m: float = 1.8
+    vertical_sigma_m: float = 3.0
+    # single-point errors wander over tens of seconds; first-order Gauss-Markov
+    correlation_time_s: float = 30.0
+    buoy_rate_hz: float = 0.2
+
+
+@dataclass(frozen=True)
+class InsConfig:
+    """High-grade INS on leaders, low-grade on followers (heading bias + random walk)."""
+
+    rate_hz: float = 1.0
+    leader_heading_sigma_deg: float = 0.05
+    leader_position_sigma_m: float = 0.7
+    leader_position_correlation_s: float = 60.0
+    follower_heading_bias_deg: float = 1.5
+    follower_heading_walk_deg_per_sqrt_s: float = 0.03
+    follower_velocity_error_mps: float = 0.05
+    follower_velocity_correlation_s: float = 300.0
+    attitude_sigma_deg: float = 0.05
+
+
+@dataclass(frozen=True)
+class DvlConfig:
+    """Bottom-track DVL (DS-99, 0.2 kn accuracy; seed A table 1)."""
+
+    rate_hz: float = 1.0
+    leader_rate_hz: float = 0.5
+    sigma_mps: float = 0.2 * 1852.0 / 3600.0
+    beam_angle_deg: float = 30.0
+    lake_depth_m: float = 12.0
+    lake_depth_variation_m: float = 3.0
+
+
+@dataclass(frozen=True)
+class RangingConfig:
+    """Modem ranging: alternating leaders, round-trip pings from each follower.
+
+    The sources say 0.2 Hz per leader; their counts (345 and 348 ranges per
+    leader in 1700 s, 462 epochs in 600-1700 s) need one ping every ~2.4 s,
+    so the cycle is 4.8 s and dropouts bring the totals back to the source's.
+    """
+
+    ping_interval_s: float = 2.4
+    first_ping_s: float = 1.0
+    sound_speed_mps: float = 1450.0
+    range_sigma_m: float = 3.0
+    turnaround_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class UsblConfig:
+    """LBL/USBL buoy network hearing the follower (seed K section 4 parameters)."""
+
+    buoys: int = 4
+    layout_radius_m: float = 800.0 * math.sqrt(2.0)
+    interval_s: float = 5.0
+    first_s: float = 2.2
+    node_depth_m: float = 5.0
+    delay_sigma_s: float = 0.5e-3
+    phase_sigma_rad: float = 0.1
+    frequency_hz: float = 75_000.0
+    element_spacing_m: float = 0.18
+    max_range_m: float = 2830.0
+    abnormal_delay_prob: float = 0.02
+    abnormal_phase_prob: float = 0.01
+
+
+@dataclass(frozen=True)
+class NodeFault:
+    """A buoy whose delays and/or phases are abnormal (uniform, seed K) in [start, end]."""
+
+    node: str
+    kind: str
+    start_s: float
+    end_s: float
+
+
+@dataclass(frozen=True)
+class AnomalyEvent:
+    """One injected ranging anomaly on a follower-leader pair over [start, end] seconds.
+
+    stale: the modem repeats its last range; drift: the error ramps linearly
+    from 0 to `magnitude_m`; outlier: every epoch inside gets `magnitude_m`;
+    dropout: no reply at all.
+    """
+
+    leader: str
+    kind: str
+    start_s: float
+    end_s: float
+    magnitude_m: float = 0.0
+    follower: str = "follower"
+
+
+@dataclass(frozen=True)
+class NaturalAnomalies:
+    """Random anomalies of one leader's link, drawn from the seed (P: outliers, dropouts)."""
+
+    leader: str
+    stale_per_hour: float = 0.0
+    stale_min_s: float = 10.0
+    stale_max_s: float = 30.0
+    outlier_prob: float = 0.0
+    outlier_min_m: float = 12.0
+    outlier_max_m: float = 40.0
+    dropout_prob: float = 0.0
+
+
+def _default_events() -> tuple[AnomalyEvent, ...]:
+    return (
+        AnomalyEvent("leader1", "stale", 100.0, 150.0),
+        AnomalyEvent("leader1", "drift", 1100.0, 1170.0, 25.0),
+        # leader 2's stale segment has no time in the seed: one inside the
+        # training window (so a per-leader model sees one) and one after it
+        AnomalyEvent("leader2", "stale", 330.0, 370.0),
+        AnomalyEvent("leader2", "stale", 1460.0, 1490.0),
+    )
+
+
+def _default_natural() -> tuple[NaturalAnomalies, ...]:
+    # leader 1's modem was the flaky one in the source (51 of its 237 test
+    # epochs anomalous against 6 of 225 for leader 2, seed A section 4.2)
+    return (
+        NaturalAnomalies("leader1", stale_per_hour=30.0, stale_min_s=15.0, stale_max_s=45.0,
+                         outlier_prob=0.02, dropout_prob=0.02),
+        NaturalAnomalies("leader2", stale_per_hour=2.0, stale_min_s=10.0, stale_max_s=15.0,
+                         outlier_prob=0.002, dropout_prob=0.02),
+    )
+
+
+def _default_faults() -> tuple[NodeFault, ...]:
+    return (
+        NodeFault("buoy2", "delay", 400.0, 700.0),
+        NodeFault("buoy4", "both", 1200.0, 1350.0),
+    )
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """Everything `simulate_trial` needs besides the seed."""
+
+    trial: TrialConfig = field(default_factory=TrialConfig)
+    gps: GpsConfig = field(default_factory=GpsConfig)
+    ins: InsConfig = field(default_factory=InsConfig)
+    dvl: DvlConfig = field(default_factory=DvlConfig)
+    ranging: RangingConfig = field(default_factory=RangingConfig)
+    usbl: UsblConfig = field(default_factory=UsblConfig)
+    anomalies: tuple[AnomalyEvent, ...] = field(default_factory=_default_events)
+    natural: tuple[NaturalAnomalies, ...] = field(default_factory=_default_natural)
+    node_faults: tuple[NodeFault, ...] = field(default_factory=_default_faults)
+
+    def with_options(self, duration_s: float | None = None, followers: int | None = None) -> Scenario:
+        """A copy with the command-line overrides applied."""
+        trial = self.trial
+        if duration_s is not None:
+            trial = replace(trial, duration_s=float(duration_s))
+        if followers is not None:
+            trial = replace(trial, followers=int(followers))
+        return replace(self, trial=trial)
+
+
+_LISTS: dict[str, type] = {"anomalies": AnomalyEvent, "natural": NaturalAnomalies, "node_faults": NodeFault}
+_TABLES: dict[str, type] = {
+    "trial": TrialConfig, "gps": GpsConfig, "ins": InsConfig, "dvl": DvlConfig,
+    "ranging": RangingConfig, "usbl": UsblConfig,
+}
+
+
+class ScenarioError(ValueError):
+    """A scenario file that does not describe a valid scenario."""
+
+
+def _build(cls: type, table: dict[str, Any], where: str) -> Any:
+    names = {f.name: f for f in fields(cls)}
+    unknown = sorted(set(table) - set(names))
+    if unknown:
+        raise ScenarioError(f"{where}: unknown key(s) {', '.join(unknown)}")
+    # TOML writes 100 for 100.0; float fields take either
+    values = {
+        k: float(v) if names[k].type == "float" and isinstance(v, int) and not isinstance(v, bool) else v
+        for k, v in table.items()
+    }
+    try:
+        return cls(**values)
+    except TypeError as exc:
+        raise ScenarioError(f"{where}: {exc}") from None
+
+
+def scenario_from_dict(data: dict[str, Any]) -> Scenario:
+    """A Scenario from parsed TOML; missing tables keep their defaults, lists replace them."""
+    unknown = sorted(set(data) - set(_TABLES) - set(_LISTS))
+    if unknown:
+        raise ScenarioError(f"unknown table(s) {', '.join(unknown)}")
+    kwargs: dict[str, Any] = {}
+    for key, cls in _TABLES.items():
+        if key in data:
+            kwargs[key] = _build(cls, data[key], f"[{key}]")
+    for key, cls in _LISTS.items():
+        if key in data:
+            kwargs[key] = tuple(_build(cls, t, f"[[{key}]] #{i + 1}") for i, t in enumerate(data[key]))
+    scenario = Scenario(**kwargs)
+    validate(scenario)
+    return scenario
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read a scenario TOML file."""
+    try:
+        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{path}: {exc}") from None
+    return scenario_from_dict(data)
+
+
+def validate(scenario: Scenario) -> None:
+    """Raise ScenarioError when a value makes no sense."""
+    t = scenario.trial
+    if t.duration_s <= 0 or t.followers < 1 or t.truth_rate_hz <= 0:
+        raise ScenarioError("[trial]: duration_s > 0, followers >= 1 and truth_rate_hz > 0 are required")
+    if scenario.ranging.ping_interval_s <= 0 or scenario.usbl.interval_s <= 0:
+        raise ScenarioError("ping and USBL intervals must be > 0")
+    if not 3 <= scenario.usbl.buoys <= 12:
+        raise ScenarioError("[usbl]: buoys must be between 3 and 12")
+    for ev in scenario.anomalies:
+        if ev.kind not in ANOMALY_KINDS or ev.end_s < ev.start_s:
+            raise ScenarioError(f"[[anomalies]]: bad event {ev}")
+    for nf in scenario.node_faults:
+        if nf.kind not in NODE_FAULT_KINDS or nf.end_s < nf.start_s:
+            raise ScenarioError(f"[[node_faults]]: bad fault {nf}")
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(float(value)) if isinstance(value, float) else str(value)
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    raise TypeError(f"cannot write {value!r} to TOML")
+
+
+def _table_lines(obj: Any) -> list[str]:
+    return [f"{f.name} = {_fmt(getattr(obj, f.name))}" for f in fields(obj)]
+
+
+def scenario_to_toml(scenario: Scenario) -> str:
+    """The scenario as TOML text; deterministic (field order, repr of floats)."""
+    out = ["# auvreplay lake-trial scenario (samples/scenario.py documents every key)"]
+    for key in _TABLES:
+        out += ["", f"[{key}]", *_table_lines(getattr(scenario, key))]
+    for key in _LISTS:
+        for item in getattr(scenario, key):
+            assert is_dataclass(item)
+            out += ["", f"[[{key}]]", *_table_lines(item)]
+    return "\n".join(out) + "\n"

@@ -1,0 +1,166 @@
+"""Truth tracks of the lake trial's boats, and the local-frame geodesy they live in.
+
+Tracks are closed racetracks (straight legs and constant-rate turns) repeated
+for as long as the trial lasts, with a slow heading and speed wander and a
+small sideslip so they look like boats steered by people, not a plotter.
+Everything is built with cumulative sums over the whole time axis.
+"""
+
+from __future__ import annotations
+
+import math
+import zlib
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import lfilter
+
+RE_M = 6378137.0
+FLATTENING = 1.0 / 298.257
+
+
+def radii(lat_rad: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+    """Meridian and prime-vertical radii R_M, R_N (seed A eq. 3, STACK.md section 1)."""
+    s2 = np.sin(lat_rad) ** 2
+    return RE_M * (1 - 2 * FLATTENING + 3 * FLATTENING * s2), RE_M * (1 + FLATTENING * s2)
+
+
+@dataclass(frozen=True)
+class LocalFrame:
+    """East-north metres around an origin, scaled to degrees with the origin's radii.
+
+    One fixed scaling (not a projection) keeps the map exactly invertible;
+    over a 2 km lake it differs from the stack's mid-point radii by < 1e-5.
+    """
+
+    lat0_deg: float
+    lon0_deg: float
+
+    def _scale(self) -> tuple[float, float]:
+        rm, rn = radii(math.radians(self.lat0_deg))
+        return float(rm), float(rn) * math.cos(math.radians(self.lat0_deg))
+
+    def to_geodetic(self, east_m: np.ndarray, north_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Latitude and longitude in degrees for local east/north metres."""
+        b, a = self._scale()
+        return self.lat0_deg + np.degrees(north_m / b), self.lon0_deg + np.degrees(east_m / a)
+
+    def to_local(self, lat_deg: np.ndarray, lon_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Local east/north metres for latitude and longitude in degrees."""
+        b, a = self._scale()
+        return np.radians(lon_deg - self.lon0_deg) * a, np.radians(lat_deg - self.lat0_deg) * b
+
+
+def stream(seed: int, *names: str) -> np.random.Generator:
+    """An independent generator per purpose, so adding a vehicle never shifts another's noise."""
+    return np.random.default_rng([seed, *(zlib.crc32(n.encode()) for n in names)])
+
+
+def gauss_markov(rng: np.random.Generator, n: int, dt: float, sigma: float, tau: float) -> np.ndarray:
+    """First-order Gauss-Markov samples, stationary from the first sample."""
+    if n == 0 or sigma == 0:
+        return np.zeros(n)
+    phi = math.exp(-dt / tau)
+    w = rng.standard_normal(n) * sigma * math.sqrt(1 - phi * phi)
+    w[0] = rng.standard_normal() * sigma
+    return lfilter([1.0], [1.0, -phi], w)
+
+
+@dataclass(frozen=True)
+class Leg:
+    """A piece of a racetrack: duration, speed, and turn rate (deg/s, + = to starboard)."""
+
+    duration_s: float
+    speed_mps: float
+    turn_dps: float = 0.0
+
+
+@dataclass(frozen=True)
+class TrackPlan:
+    """A vehicle's closed track: start pose, transducer depth and the legs of one lap."""
+
+    start_east_m: float
+    start_north_m: float
+    heading_deg: float
+    depth_m: float
+    legs: tuple[Leg, ...]
+
+
+def default_plans(followers: int) -> dict[str, TrackPlan]:
+    """Leaders north and east of a follower racetrack, over about 1.2 x 0.8 km."""
+    plans = {
+        "leader1": TrackPlan(-200.0, 250.0, 90.0, 1.5, (
+            Leg(260, 2.3), Leg(60, 2.3, 3.0), Leg(260, 2.3), Leg(60, 2.3, 3.0))),
+        "leader2": TrackPlan(686.0, -500.0, 0.0, 1.5, (
+            Leg(300, 1.8), Leg(75, 1.8, -2.4), Leg(300, 1.8), Leg(75, 1.8, -2.4))),
+    }
+    for k in range(followers):
+        name = "follower" if k == 0 else f"follower{k + 1}"
+        # extra followers run the same racetrack 130 m further south
+        plans[name] = TrackPlan(-420.0, -100.0 - 130.0 * k, 90.0, 2.5, (
+            Leg(420, 2.0), Leg(90, 2.0, 2.0), Leg(420, 2.0), Leg(90, 2.0, 2.0)))
+    return plans
+
+
+@dataclass(frozen=True)
+class Track:
+    """Truth of one vehicle on the truth time axis (seconds from the trial start)."""
+
+    name: str
+    t_s: np.ndarray
+    east_m: np.ndarray
+    north_m: np.ndarray
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+    depth_m: np.ndarray
+    heading_deg: np.ndarray
+    roll_deg: np.ndarray
+    pitch_deg: np.ndarray
+    surge_mps: np.ndarray
+    sway_mps: np.ndarray
+    vel_north_mps: np.ndarray
+    vel_east_mps: np.ndarray
+    vel_down_mps: np.ndarray
+
+
+def _leg_profile(plan: TrackPlan, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Speed and turn rate at every time, the lap repeated."""
+    ends = np.cumsum([leg.duration_s for leg in plan.legs])
+    phase = np.mod(t, ends[-1])
+    idx = np.minimum(np.searchsorted(ends, phase, side="right"), len(ends) - 1)
+    speed = np.array([leg.speed_mps for leg in plan.legs])[idx]
+    turn = np.array([leg.turn_dps for leg in plan.legs])[idx]
+    return speed, turn
+
+
+def make_track(name: str, plan: TrackPlan, t: np.ndarray, frame: LocalFrame, seed: int) -> Track:
+    """A boat's truth track: the plan plus wander, integrated over the time axis."""
+    dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
+    rng = stream(seed, "track", name)
+    n = len(t)
+    speed, turn = _leg_profile(plan, t)
+    surge = speed + gauss_markov(rng, n, dt, 0.05, 60.0)
+    sway = gauss_markov(rng, n, dt, 0.05, 30.0)
+    wander = gauss_markov(rng, n, dt, 2.0, 30.0)
+    heading = plan.heading_deg + np.concatenate(([0.0], np.cumsum(turn[:-1]) * dt)) + wander
+    h = np.radians(heading)
+    vn = surge * np.cos(h) - sway * np.sin(h)
+    ve = surge * np.sin(h) + sway * np.cos(h)
+    north = plan.start_north_m + np.concatenate(([0.0], np.cumsum(vn[:-1]) * dt))
+    east = plan.start_east_m + np.concatenate(([0.0], np.cumsum(ve[:-1]) * dt))
+    lat, lon = frame.to_geodetic(east, north)
+    roll = gauss_markov(rng, n, dt, 1.5, 2.0)
+    pitch = gauss_markov(rng, n, dt, 0.8, 2.0)
+    return Track(name, t, east, north, lat, lon, np.full(n, plan.depth_m), np.mod(heading, 360.0),
+                 roll, pitch, surge, sway, vn, ve, np.zeros(n))
+
+
+def interp_track(track: Track, t: np.ndarray) -> dict[str, np.ndarray]:
+    """East, north, depth and heading of a track at arbitrary times (heading unwrapped first)."""
+    head = np.degrees(np.unwrap(np.radians(track.heading_deg)))
+    return {
+        "east_m": np.interp(t, track.t_s, track.east_m),
+        "north_m": np.interp(t, track.t_s, track.north_m),
+        "depth_m": np.interp(t, track.t_s, track.depth_m),
+        "heading_deg": np.mod(np.interp(t, track.t_s, head), 360.0),
+    }
