@@ -1,0 +1,509 @@
+"""NMEA 0183 GNSS sentences: GGA, RMC, ZDA, VTG, GST, HDT, THS, GLL from any talker.
+
+Decoding follows NMEA 0183 v4.10 field layouts (the same ones gpsd's
+"NMEA revealed" and the receiver manuals document). Real logs are messy, so:
+
+- any talker is accepted (GP, GN, GL, GA, GB, IN, HE, unknown ones too);
+  proprietary sentences (``$P...``), other standard types ($GPGSV, $GPGSA...)
+  and NovAtel ``#``/``%`` logs in the same file are skipped silently: they
+  belong to other decoders;
+- a line with no sentence at all (binary noise, a half-written line) is a
+  `Reject`; a failed checksum is a `Reject` with ``bad_checksum=True``;
+  a missing checksum is accepted; hex digits may be lowercase;
+- empty fields become NaN (floats) or -1 (counts), never zero;
+- host-timestamp prefixes are removed with `formats.lines.strip_prefix`.
+
+Checksums are checked against a prefix-XOR of the whole buffer computed once
+with numpy, so the per-line cost is two byte lookups instead of a Python loop
+(see bench/bench_nmea.py).
+
+Encoders (for the trial simulator and the round-trip tests) take the UTC time
+as integer nanoseconds and return a line ending in CRLF; empty fields are
+written for NaN values.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from datetime import date, datetime, timezone
+from typing import Iterator, Union
+
+import numpy as np
+
+from .lines import PREFIX_STYLES, strip_prefix
+from .records import Reject, Where
+from .sentence import nmea_checksum
+
+NAN = float("nan")
+KNOT_MPS = 1852.0 / 3600.0
+_DAY_CS = 8_640_000  # centiseconds per day
+
+
+@dataclass(frozen=True, slots=True)
+class Gga:
+    """GGA: fix time, position, quality, satellites, HDOP, altitude (MSL) and geoid separation."""
+
+    where: Where
+    talker: str
+    time_s: float  # seconds of the UTC day; NaN when empty
+    latitude: float
+    longitude: float
+    quality: int  # 0 invalid, 1 GPS, 2 DGPS, 4 RTK fixed, 5 RTK float, 6 DR...; -1 empty
+    satellites: int
+    hdop: float
+    altitude_msl_m: float
+    geoid_separation_m: float
+    dgps_age_s: float
+    dgps_station: str
+
+
+@dataclass(frozen=True, slots=True)
+class Rmc:
+    """RMC: time, validity, position, speed and course over ground, date, magnetic variation."""
+
+    where: Where
+    talker: str
+    time_s: float
+    valid: bool  # status 'A'
+    latitude: float
+    longitude: float
+    speed_knots: float
+    course_deg: float  # true
+    date: date | None
+    magnetic_variation_deg: float  # east positive
+    mode: str  # NMEA 2.3+ mode indicator ('' before 2.3)
+
+
+@dataclass(frozen=True, slots=True)
+class Zda:
+    """ZDA: UTC time and full date, local zone offset."""
+
+    where: Where
+    talker: str
+    time_s: float
+    date: date | None
+    zone_hours: int
+    zone_minutes: int
+
+
+@dataclass(frozen=True, slots=True)
+class Vtg:
+    """VTG: course (true, magnetic) and speed over ground; carries no time of its own."""
+
+    where: Where
+    talker: str
+    course_true_deg: float
+    course_magnetic_deg: float
+    speed_knots: float
+    speed_kmh: float
+    mode: str
+
+
+@dataclass(frozen=True, slots=True)
+class Gst:
+    """GST: pseudorange error statistics; 1-sigma errors in metres, ellipse orientation from true north."""
+
+    where: Where
+    talker: str
+    time_s: float
+    rms_m: float
+    semi_major_m: float
+    semi_minor_m: float
+    orientation_deg: float
+    lat_std_m: float
+    lon_std_m: float
+    alt_std_m: float
+
+
+@dataclass(frozen=True, slots=True)
+class Hdt:
+    """HDT: true heading in degrees; carries no time of its own."""
+
+    where: Where
+    talker: str
+    heading_deg: float
+
+
+@dataclass(frozen=True, slots=True)
+class Ths:
+    """THS: true heading and mode (A autonomous, E estimated, M manual, S simulator, V invalid)."""
+
+    where: Where
+    talker: str
+    heading_deg: float
+    mode: str
+
+
+@dataclass(frozen=True, slots=True)
+class Gll:
+    """GLL: position, time and validity."""
+
+    where: Where
+    talker: str
+    latitude: float
+    longitude: float
+    time_s: float
+    valid: bool
+    mode: str
+
+
+NmeaRecord = Union[Gga, Rmc, Zda, Vtg, Gst, Hdt, Ths, Gll]
+TIMED = (Gga, Rmc, Zda, Gst, Gll)
+
+
+# ---------------------------------------------------------------- field parsing
+
+
+def _float(s: str) -> float:
+    return float(s) if s else NAN
+
+
+def _int(s: str) -> int:
+    return int(s) if s else -1
+
+
+def _tod(s: str) -> float:
+    """Seconds of day from hhmmss[.sss]; NaN when empty."""
+    if not s:
+        return NAN
+    if len(s) < 6 or not s[:4].isdigit():
+        raise ValueError(f"time {s!r} is not hhmmss.ss")
+    h, m, sec = int(s[0:2]), int(s[2:4]), float(s[4:])
+    if h > 23 or m > 59 or not 0.0 <= sec < 61.0:
+        raise ValueError(f"time {s!r} out of range")
+    return h * 3600 + m * 60 + sec
+
+
+def _angle(s: str, hemi: str, neg: str, deg_digits: int, limit: float) -> float:
+    """Degrees from NMEA (d)ddmm.mmmm plus hemisphere; NaN when empty."""
+    if not s:
+        return NAN
+    dot = s.find(".")
+    if dot < 0:
+        dot = len(s)
+    if dot < 2 or dot > deg_digits + 2 or not s[:dot].isdigit():
+        raise ValueError(f"angle {s!r} is not (d)ddmm.mmmm")
+    minutes = float(s[dot - 2 :])
+    if minutes >= 60.0:
+        raise ValueError(f"angle {s!r} has {minutes} minutes")
+    value = (int(s[: dot - 2]) if dot > 2 else 0) + minutes / 60.0
+    if value > limit:
+        raise ValueError(f"angle {s!r} beyond {limit} degrees")
+    if hemi == neg:
+        return -value
+    if hemi and hemi not in "NE":
+        raise ValueError(f"hemisphere {hemi!r}")
+    return value
+
+
+def _lat(s: str, hemi: str) -> float:
+    return _angle(s, hemi, "S", 2, 90.0)
+
+
+def _lon(s: str, hemi: str) -> float:
+    return _angle(s, hemi, "W", 3, 180.0)
+
+
+def _ddmmyy(s: str) -> date | None:
+    if not s:
+        return None
+    if len(s) != 6 or not s.isdigit():
+        raise ValueError(f"date {s!r} is not ddmmyy")
+    yy = int(s[4:6])
+    # two-digit years: 80..99 -> 1980s/90s (GPS did not exist before 1980)
+    return date(2000 + yy if yy < 80 else 1900 + yy, int(s[2:4]), int(s[0:2]))
+
+
+def _need(fields: list[str], n: int, kind: str) -> None:
+    if len(fields) < n:
+        raise IndexError(f"truncated {kind}: {len(fields)} fields, {n} needed")
+
+
+def _opt(fields: list[str], i: int) -> str:
+    return fields[i] if len(fields) > i else ""
+
+
+# ---------------------------------------------------------------- per sentence
+
+
+def _gga(f: list[str], w: Where, t: str) -> Gga:
+    _need(f, 9, "GGA")
+    return Gga(
+        w, t, _tod(f[0]), _lat(f[1], f[2]), _lon(f[3], f[4]), _int(f[5]), _int(f[6]),
+        _float(f[7]), _float(f[8]), _float(_opt(f, 10)), _float(_opt(f, 12)), _opt(f, 13),
+    )
+
+
+def _rmc(f: list[str], w: Where, t: str) -> Rmc:
+    _need(f, 9, "RMC")
+    var = _float(_opt(f, 9))
+    if _opt(f, 10) == "W":
+        var = -var
+    return Rmc(
+        w, t, _tod(f[0]), f[1] == "A", _lat(f[2], f[3]), _lon(f[4], f[5]),
+        _float(f[6]), _float(f[7]), _ddmmyy(f[8]), var, _opt(f, 11),
+    )
+
+
+def _zda(f: list[str], w: Where, t: str) -> Zda:
+    _need(f, 4, "ZDA")
+    day = date(int(f[3]), int(f[2]), int(f[1])) if f[1] and f[2] and f[3] else None
+    return Zda(w, t, _tod(f[0]), day, _int(_opt(f, 4)), _int(_opt(f, 5)))
+
+
+def _vtg(f: list[str], w: Where, t: str) -> Vtg:
+    if len(f) >= 7 and f[1] in ("T", "") and f[3] in ("M", ""):
+        return Vtg(w, t, _float(f[0]), _float(f[2]), _float(f[4]), _float(f[6]), _opt(f, 8))
+    # NMEA 1.x layout without unit letters: course true, course magnetic, knots, km/h
+    _need(f, 4, "VTG")
+    return Vtg(w, t, _float(f[0]), _float(f[1]), _float(f[2]), _float(f[3]), "")
+
+
+def _gst(f: list[str], w: Where, t: str) -> Gst:
+    _need(f, 8, "GST")
+    return Gst(w, t, _tod(f[0]), *(_float(x) for x in f[1:8]))
+
+
+def _hdt(f: list[str], w: Where, t: str) -> Hdt:
+    _need(f, 1, "HDT")
+    return Hdt(w, t, _float(f[0]))
+
+
+def _ths(f: list[str], w: Where, t: str) -> Ths:
+    _need(f, 2, "THS")
+    return Ths(w, t, _float(f[0]), f[1])
+
+
+def _gll(f: list[str], w: Where, t: str) -> Gll:
+    _need(f, 4, "GLL")
+    status = _opt(f, 5)
+    return Gll(w, t, _lat(f[0], f[1]), _lon(f[2], f[3]), _tod(_opt(f, 4)), status == "A", _opt(f, 6))
+
+
+PARSERS = {
+    "GGA": _gga, "RMC": _rmc, "ZDA": _zda, "VTG": _vtg,
+    "GST": _gst, "HDT": _hdt, "THS": _ths, "GLL": _gll,
+}
+
+
+# ---------------------------------------------------------------- framing
+
+
+def _prefix_xor(data: bytes) -> bytes:
+    """prefix[i] = XOR of data[0..i]; the XOR of data[a:b] is prefix[b-1] ^ prefix[a-1]."""
+    if not data:
+        return b""
+    return np.bitwise_xor.accumulate(np.frombuffer(data, dtype=np.uint8)).tobytes()
+
+
+def _looks_novatel(text: str) -> bool:
+    for ch in "#%":
+        i = text.find(ch)
+        if i >= 0 and text[i + 1 : i + 2].isupper():
+            return True
+    return False
+
+
+def parse_sentence(text: str, where: Where, checksum: int | None = None) -> NmeaRecord | Reject | None:
+    """Decode one line's sentence: a record, a Reject, or None for sentences of other families.
+
+    `checksum` is the XOR of the characters between '$' and '*' when the
+    caller already knows it (decode() does); otherwise it is computed here.
+    """
+    start = text.find("$")
+    if start < 0:
+        return None if _looks_novatel(text) else Reject(where, "no NMEA sentence in line")
+    star = text.find("*", start)
+    if star >= 0:
+        given = text[star + 1 : star + 3]
+        body = text[start + 1 : star]
+        if len(given) < 2:
+            return Reject(where, "truncated checksum")
+        if checksum is None:
+            checksum = nmea_checksum(body)
+        try:
+            ok = int(given, 16) == checksum
+        except ValueError:
+            ok = False
+        if not ok:
+            return Reject(where, f"bad checksum {given!r}, computed {checksum:02X}", bad_checksum=True)
+    else:
+        body = text[start + 1 :].rstrip()
+    fields = body.split(",")
+    address = fields[0]
+    if len(address) < 3 or not (address.isascii() and address.isalnum()) or not address.isupper():
+        return Reject(where, f"malformed sentence address {address[:12]!r}")
+    if address[0] == "P":
+        return None  # proprietary: another decoder's business
+    parser = PARSERS.get(address[-3:])
+    if parser is None:
+        return None
+    try:
+        return parser(fields[1:], where, address[:-3])
+    except (ValueError, IndexError, OverflowError) as exc:
+        return Reject(where, f"bad {address[-3:]} sentence: {exc}")
+
+
+def decode(data: bytes, prefix: str = "auto") -> Iterator[NmeaRecord | Reject]:
+    """Stream every GNSS sentence record (or Reject) in a log, in file order."""
+    if prefix not in PREFIX_STYLES:
+        raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
+    pxor = _prefix_xor(data)
+    text_all = data.decode("latin-1")
+    offset = 0
+    strip = prefix != "none"
+    for number, raw in enumerate(text_all.split("\n"), start=1):
+        line_start = offset
+        offset += len(raw) + 1
+        text = raw.rstrip("\r")
+        if not text or text.isspace():
+            continue
+        host = None
+        if strip and text[0] not in "$#%":
+            rest, host = strip_prefix(text, prefix)
+            skipped = len(text) - len(rest)
+            text = rest
+        else:
+            skipped = 0
+        where = Where(line_start, number, host)
+        if text.count("$") > 1:
+            # noise holding a '$', or sentences glued together: try every start
+            yield from _split_starts(text, where)
+            continue
+        start = text.find("$")
+        star = text.find("*", start) if start >= 0 else -1
+        checksum = None
+        if star > start + 1:
+            a = line_start + skipped + start + 1  # first byte after '$'
+            b = line_start + skipped + star  # the '*'
+            checksum = pxor[b - 1] ^ pxor[a - 1]
+        result = parse_sentence(text, where, checksum)
+        if result is not None:
+            yield result
+
+
+def _split_starts(text: str, where: Where) -> Iterator[NmeaRecord | Reject]:
+    """Each '$'-started piece of a line on its own (the slow path, with the Python checksum)."""
+    for piece in text.split("$")[1:]:
+        result = parse_sentence("$" + piece, where)
+        if result is not None:
+            yield result
+
+
+# ---------------------------------------------------------------- encoders
+
+
+def _num(x: float, fmt: str) -> str:
+    return "" if x is None or not math.isfinite(x) else format(x, fmt)
+
+
+def _hhmmss(utc_ns: int) -> str:
+    cs = (utc_ns + 5_000_000) // 10_000_000 % _DAY_CS
+    h, rem = divmod(cs, 360_000)
+    m, rem = divmod(rem, 6_000)
+    return f"{h:02d}{m:02d}{rem // 100:02d}.{rem % 100:02d}"
+
+
+def _utc_date(utc_ns: int) -> date:
+    cs = (utc_ns + 5_000_000) // 10_000_000
+    return datetime.fromtimestamp(cs // 100, tz=timezone.utc).date()
+
+
+def _ddmm(value: float, deg_digits: int, hemis: str, decimals: int) -> tuple[str, str]:
+    if value is None or not math.isfinite(value):
+        return "", ""
+    scale = 10**decimals
+    units = round(abs(value) * 60.0 * scale)
+    deg, rem = divmod(units, 60 * scale)
+    text = f"{deg:0{deg_digits}d}{rem // scale:02d}.{rem % scale:0{decimals}d}"
+    return text, hemis[1] if value < 0 else hemis[0]
+
+
+def _body(address: str, fields: list[str]) -> str:
+    payload = ",".join([address, *fields])
+    return f"${payload}*{nmea_checksum(payload):02X}\r\n"
+
+
+def encode_gga(
+    utc_ns: int, latitude: float, longitude: float, *, quality: int = 1, satellites: int = 8,
+    hdop: float = 1.0, altitude_msl_m: float = 0.0, geoid_separation_m: float = 0.0,
+    dgps_age_s: float = NAN, dgps_station: str = "", talker: str = "GP", decimals: int = 5,
+) -> str:
+    """$--GGA line; lat/lon with `decimals` decimals of minutes, altitude and separation in m."""
+    lat, ns = _ddmm(latitude, 2, "NS", decimals)
+    lon, ew = _ddmm(longitude, 3, "EW", decimals)
+    fields = [
+        _hhmmss(utc_ns), lat, ns, lon, ew, "" if quality < 0 else str(quality),
+        "" if satellites < 0 else f"{satellites:02d}", _num(hdop, ".1f"),
+        _num(altitude_msl_m, ".2f"), "M", _num(geoid_separation_m, ".2f"), "M",
+        _num(dgps_age_s, ".1f"), dgps_station,
+    ]
+    return _body(talker + "GGA", fields)
+
+
+def encode_rmc(
+    utc_ns: int, latitude: float, longitude: float, *, speed_knots: float = 0.0,
+    course_deg: float = NAN, valid: bool = True, magnetic_variation_deg: float = NAN,
+    mode: str = "A", talker: str = "GP", decimals: int = 5,
+) -> str:
+    """$--RMC line with the date of `utc_ns`; speed in knots, course true degrees."""
+    lat, ns = _ddmm(latitude, 2, "NS", decimals)
+    lon, ew = _ddmm(longitude, 3, "EW", decimals)
+    d = _utc_date(utc_ns)
+    var = _num(abs(magnetic_variation_deg), ".1f") if math.isfinite(magnetic_variation_deg) else ""
+    var_dir = ("W" if magnetic_variation_deg < 0 else "E") if var else ""
+    fields = [
+        _hhmmss(utc_ns), "A" if valid else "V", lat, ns, lon, ew, _num(speed_knots, ".2f"),
+        _num(course_deg, ".2f"), f"{d.day:02d}{d.month:02d}{d.year % 100:02d}", var, var_dir, mode,
+    ]
+    return _body(talker + "RMC", fields)
+
+
+def encode_zda(utc_ns: int, *, talker: str = "GP") -> str:
+    """$--ZDA line (UTC time and date, zone 00:00)."""
+    d = _utc_date(utc_ns)
+    return _body(talker + "ZDA", [_hhmmss(utc_ns), f"{d.day:02d}", f"{d.month:02d}", f"{d.year:04d}", "00", "00"])
+
+
+def encode_gst(
+    utc_ns: int, *, lat_std_m: float, lon_std_m: float, alt_std_m: float = NAN,
+    rms_m: float = NAN, semi_major_m: float = NAN, semi_minor_m: float = NAN,
+    orientation_deg: float = NAN, talker: str = "GP",
+) -> str:
+    """$--GST line: 1-sigma errors in metres (latitude, longitude, altitude) and the error ellipse."""
+    values = (rms_m, semi_major_m, semi_minor_m, orientation_deg, lat_std_m, lon_std_m, alt_std_m)
+    return _body(talker + "GST", [_hhmmss(utc_ns), *(_num(v, ".3f") for v in values)])
+
+
+def encode_vtg(
+    course_true_deg: float, speed_knots: float, *, course_magnetic_deg: float = NAN,
+    mode: str = "A", talker: str = "GP",
+) -> str:
+    """$--VTG line (NMEA 2.3+ layout with unit letters and mode)."""
+    kmh = speed_knots * 1.852 if math.isfinite(speed_knots) else NAN
+    fields = [
+        _num(course_true_deg, ".2f"), "T", _num(course_magnetic_deg, ".2f"), "M",
+        _num(speed_knots, ".2f"), "N", _num(kmh, ".2f"), "K", mode,
+    ]
+    return _body(talker + "VTG", fields)
+
+
+def encode_hdt(heading_deg: float, *, talker: str = "GP") -> str:
+    """$--HDT line: true heading in degrees (3 decimals)."""
+    return _body(talker + "HDT", [_num(heading_deg, ".3f"), "T"])
+
+
+def encode_ths(heading_deg: float, mode: str = "A", *, talker: str = "GP") -> str:
+    """$--THS line: true heading and mode indicator."""
+    return _body(talker + "THS", [_num(heading_deg, ".3f"), mode])
+
+
+def encode_gll(
+    utc_ns: int, latitude: float, longitude: float, *, valid: bool = True, mode: str = "A",
+    talker: str = "GP", decimals: int = 5,
+) -> str:
+    """$--GLL line: position, time, status and mode."""
+    lat, ns = _ddmm(latitude, 2, "NS", decimals)
+    lon, ew = _ddmm(longitude, 3, "EW", decimals)
+    return _body(talker + "GLL", [lat, ns, lon, ew, _hhmmss(utc_ns), "A" if valid else "V", mode])
