@@ -1,0 +1,298 @@
+"""DVL logs to `auvreplay.DvlVelocity` on /<vehicle>/dvl, one converter per vendor format.
+
+Every message carries the VEHICLE velocity over ground (m/s) in the frame
+the data are in: PD0 from the fixed leader's EX coordinate bits (bottom-track
+values negated, RDI ship axes x starboard / y forward / z up turned into
+BODY_FRD x forward / y starboard / z down: see `formats.pd0.vehicle_velocity`),
+PD4/PD5 from their config byte, PD6 from the line used (BS, BE or BI), Nortek
+and Water Linked from the manifest option ``dvl_frame`` (default INSTRUMENT
+for Nortek, BODY_FRD for Water Linked, whose axes are the mounted frame).
+
+``beam_range_m`` holds slant ranges per beam (NaN without bottom);
+``altitude_m`` is the mean of the valid beams' vertical ranges (slant x cos of
+the beam angle: manifest ``beam_angle_deg``, else the PD0 fixed leader, else
+30°), or the vendor's own altitude where it reports one (Water Linked, PD6
+:BD). ``valid`` is true when every velocity component the format provides is
+good (and the vendor's own flag, where there is one, says so).
+
+Times: PD0 RTC (Y2K clock when present); PD4/PD5 time of day dated by
+`DayClock`; PD6 :TS; Nortek ping time (Unix); Water Linked time of validity.
+Formats or records without a time use the host-timestamp prefix, else the
+record is rejected. The manifest clock offset is added to every time; out of
+order or repeated times are kept as they come.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Iterator, Sequence
+
+from formats import nortek, pd0, pd4, pd6, waterlinked
+from formats.records import FormatError, Reject, Where
+from formats.schemas import DvlVelocity, timestamp
+
+from .base import Converter, LogContext, Output, output
+from .clock import DayClock
+
+NAN = math.nan
+FRAMES = {"BODY_FRD": DvlVelocity.BODY_FRD, "EARTH_NED": DvlVelocity.EARTH_NED,
+          "INSTRUMENT": DvlVelocity.INSTRUMENT}
+_ALIASES = {"BODY": "BODY_FRD", "FRD": "BODY_FRD", "SHIP": "BODY_FRD", "EARTH": "EARTH_NED",
+            "NED": "EARTH_NED", "XYZ": "INSTRUMENT"}
+_EARLIEST_US = 946_684_800 * 1_000_000  # 2000-01-01: a DVL clock before this was never set
+
+
+def frame_option(ctx: LogContext, default: str) -> str:
+    """The manifest's ``dvl_frame`` (case-insensitive, with aliases), else `default`."""
+    name = str(ctx.options.get("dvl_frame", default)).strip().upper()
+    name = _ALIASES.get(name, name)
+    if name not in FRAMES:
+        raise FormatError(f"manifest option dvl_frame={name!r} is not one of {sorted(FRAMES)}")
+    return name
+
+
+def beam_angle(ctx: LogContext, vendor: float | None = None) -> float:
+    """Beam angle (°) from the manifest, else the vendor's, else 30."""
+    if "beam_angle_deg" in ctx.options:
+        return float(ctx.options["beam_angle_deg"])
+    return vendor if vendor is not None and math.isfinite(vendor) else 30.0
+
+
+def ranges_from_vertical(vertical: Sequence[float], angle_deg: float) -> tuple[list[float], float]:
+    """(slant ranges, altitude) from per-beam vertical ranges; altitude = mean of valid ones."""
+    c = math.cos(math.radians(angle_deg))
+    good = [v for v in vertical if math.isfinite(v)]
+    return [v / c for v in vertical], (sum(good) / len(good) if good else NAN)
+
+
+def ranges_from_slant(slant: Sequence[float], angle_deg: float) -> tuple[list[float], float]:
+    """(slant ranges, altitude) with altitude = mean of valid slant ranges x cos(angle)."""
+    good = [s for s in slant if math.isfinite(s)]
+    alt = sum(good) / len(good) * math.cos(math.radians(angle_deg)) if good else NAN
+    return list(slant), alt
+
+
+def message(ctx: LogContext, t_ns: int, frame: str, velocity: Sequence[float], *,
+            error: float = NAN, ranges: Sequence[float] = (), altitude: float = NAN,
+            valid: bool | None = None, fom: float = NAN, sound_speed: float = NAN,
+            temperature: float = NAN, source: str = "") -> Any:
+    """A DvlVelocity; `valid` defaults to 'every given component is finite'."""
+    vx, vy, vz = velocity
+    if valid is None:
+        valid = all(math.isfinite(v) for v in velocity)
+    return DvlVelocity(
+        timestamp=timestamp(t_ns), frame_id=ctx.vehicle, frame=FRAMES[frame],
+        velocity_x_mps=vx, velocity_y_mps=vy, velocity_z_mps=vz, error_velocity_mps=error,
+        beam_range_m=list(ranges), altitude_m=altitude, valid=bool(valid),
+        figure_of_merit=fom, sound_speed_mps=sound_speed, source_format=source,
+        temperature_c=temperature,
+    )
+
+
+def _host_time(ctx: LogContext, where: Where) -> int | None:
+    return None if where.host_time_ns is None else where.host_time_ns + ctx.clock_offset_ns
+
+
+# --- Teledyne RDI ------------------------------------------------------------------------
+
+
+def convert_pd0(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """Teledyne RDI PD0 ensembles (bottom track); frame from the EX coordinate bits."""
+    fixed: pd0.FixedLeader | None = None
+    for rec in pd0.decode(data):
+        if isinstance(rec, Reject):
+            yield rec
+            continue
+        fixed = rec.fixed or fixed  # an ensemble without a fixed leader uses the last one
+        number = rec.variable.ensemble_number if rec.variable else "?"
+        if rec.time_ns is None:
+            yield Reject(rec.where, f"ensemble {number}: no variable leader or invalid RTC time")
+        elif rec.bottom_track is None:
+            yield Reject(rec.where, f"ensemble {number}: no bottom-track data")
+        elif fixed is None:
+            yield Reject(rec.where, f"ensemble {number}: no fixed leader yet (coordinates unknown)")
+        else:
+            yield _pd0_output(ctx, rec, fixed)
+
+
+def _pd0_output(ctx: LogContext, rec: pd0.Ensemble, fixed: pd0.FixedLeader) -> Output:
+    bt, var = rec.bottom_track, rec.variable
+    angle = beam_angle(ctx, fixed.beam_angle_deg)
+    frame, x, y, z, err = pd0.vehicle_velocity(fixed.coordinates, bt.velocity_mps, angle,
+                                               fixed.convex)
+    slant, alt = ranges_from_vertical(bt.range_m, angle)
+    t = rec.time_ns + ctx.clock_offset_ns
+    msg = message(ctx, t, frame, (x, y, z), error=err, ranges=slant, altitude=alt,
+                  sound_speed=var.sound_speed_mps, temperature=var.temperature_c, source="pd0")
+    return output(ctx, "dvl", msg, t, rec.where)
+
+
+def convert_pd4(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """Teledyne RDI PD4/PD5 binary; time of day dated with the trial date."""
+    clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
+    angle = beam_angle(ctx)
+    for rec in pd4.decode(data):
+        if isinstance(rec, Reject):
+            yield rec
+            continue
+        t = clock.resolve(rec.tod_s)
+        if t is None:
+            yield Reject(rec.where, "PD4/PD5 carry only a time of day: the manifest needs a trial date")
+            continue
+        frame, x, y, z, err = pd4.vehicle_velocity(rec.coordinates, rec.velocity_mps, angle)
+        slant, alt = ranges_from_vertical(rec.range_m, angle)
+        msg = message(ctx, t, frame, (x, y, z), error=err, ranges=slant, altitude=alt,
+                      sound_speed=rec.sound_speed_mps, temperature=rec.temperature_c,
+                      source="pd5" if rec.structure == 1 else "pd4")
+        yield output(ctx, "dvl", msg, t, rec.where)
+
+
+def convert_pd6(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """Teledyne RDI PD6/PD13 ASCII; BS (BODY_FRD) preferred, dvl_frame picks BS/BE/BI."""
+    choice = frame_option(ctx, "") if "dvl_frame" in ctx.options else None
+    angle = beam_angle(ctx)
+    for ens in pd6.ensembles(data, ctx.prefix):
+        if isinstance(ens, Reject):
+            yield ens
+            continue
+        vel = pd6.vehicle_velocity(ens, choice)
+        t = ens.time_ns
+        if vel is None:
+            yield Reject(ens.where, "PD6 ensemble without bottom-track velocity (:BI/:BS/:BE)")
+        elif t is None:
+            yield Reject(ens.where, "PD6 ensemble without a valid :TS time or host timestamp")
+        else:
+            yield output(ctx, "dvl", _pd6_message(ctx, ens, vel, t + ctx.clock_offset_ns, angle),
+                         t + ctx.clock_offset_ns, ens.where)
+
+
+def _pd6_message(ctx: LogContext, ens: pd6.Pd6Ensemble, vel: tuple, t: int, angle: float) -> Any:
+    frame, x, y, z, err, good = vel
+    ranges, alt = ranges_from_vertical(ens.ranges.range_m, angle) if ens.ranges else ([], NAN)
+    bd = ens.distances.get("BD")
+    if bd is not None and bd.range_m > 0:
+        alt = bd.range_m
+    ts = ens.timescale
+    return message(ctx, t, frame, (x, y, z), error=err, ranges=ranges, altitude=alt,
+                   valid=good and all(math.isfinite(v) for v in (x, y, z)),
+                   sound_speed=ts.sound_speed_mps if ts else NAN,
+                   temperature=ts.temperature_c if ts else NAN, source="pd6")
+
+
+# --- Nortek -------------------------------------------------------------------------------
+
+
+def convert_nortek(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """Nortek $PNORBT family; XYZ velocities in dvl_frame (default INSTRUMENT)."""
+    frame = frame_option(ctx, "INSTRUMENT")
+    angle = beam_angle(ctx)
+    beams: list[nortek.BeamReport] = []
+    for rec in nortek.decode(data, ctx.prefix):
+        if beams and (not isinstance(rec, nortek.BeamReport) or rec.time_ns != beams[0].time_ns):
+            yield from _nortek_beams(ctx, beams, angle)
+            beams = []
+        if isinstance(rec, Reject):
+            yield rec
+        elif isinstance(rec, nortek.BeamReport):
+            beams.append(rec)
+        elif isinstance(rec, nortek.SpeedReport):
+            yield _nortek_speed(ctx, rec)
+        else:
+            yield _nortek_velocity(ctx, rec, frame, angle)
+    if beams:
+        yield from _nortek_beams(ctx, beams, angle)
+
+
+def _nortek_velocity(ctx: LogContext, rec: nortek.VelocityReport, frame: str, angle: float
+                     ) -> Output | Reject:
+    t = rec.time_ns + ctx.clock_offset_ns if rec.time_ns is not None else _host_time(ctx, rec.where)
+    if t is None:
+        return Reject(rec.where, f"{rec.sentence}: invalid ping time and no host timestamp")
+    slant, alt = ranges_from_vertical(rec.distance_m, angle)
+    msg = message(ctx, t, frame, rec.velocity_mps, ranges=slant, altitude=alt,
+                  fom=rec.figure_of_merit, sound_speed=rec.sound_speed_mps,
+                  temperature=rec.temperature_c, source=f"nortek:{rec.sentence}")
+    return output(ctx, "dvl", msg, t, rec.where)
+
+
+def _nortek_speed(ctx: LogContext, rec: nortek.SpeedReport) -> Output | Reject:
+    t = _host_time(ctx, rec.where)
+    if t is None:
+        return Reject(rec.where, f"{rec.sentence} carries no time and the line has no host timestamp")
+    d = math.radians(rec.direction_deg)
+    vel = (rec.speed_mps * math.cos(d), rec.speed_mps * math.sin(d), NAN)
+    msg = message(ctx, t, "EARTH_NED", vel, altitude=rec.distance_m,
+                  valid=math.isfinite(vel[0]) and math.isfinite(vel[1]),
+                  fom=rec.figure_of_merit, source=f"nortek:{rec.sentence}")
+    return output(ctx, "dvl", msg, t, rec.where)
+
+
+def _nortek_beams(ctx: LogContext, beams: list[nortek.BeamReport], angle: float
+                  ) -> Iterator[Output | Reject]:
+    """Per-beam sentences of one ping: ranges and altitude only (beam velocities not rotated)."""
+    first = beams[0]
+    t = first.time_ns + ctx.clock_offset_ns if first.time_ns is not None else _host_time(ctx, first.where)
+    if t is None:
+        yield Reject(first.where, f"{first.sentence}: invalid date/time and no host timestamp")
+        return
+    vertical = [NAN] * 4
+    for b in beams:
+        if 1 <= b.beam <= 4:
+            vertical[b.beam - 1] = b.distance_m
+    slant, alt = ranges_from_vertical(vertical, angle)
+    msg = message(ctx, t, frame_option(ctx, "INSTRUMENT"), (NAN, NAN, NAN), ranges=slant,
+                  altitude=alt, valid=False, source=f"nortek:{first.sentence}")
+    yield output(ctx, "dvl", msg, t, first.where)
+
+
+# --- Water Linked -------------------------------------------------------------------------
+
+
+def convert_waterlinked(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """Water Linked wrz/wru (and wrx/wrt) serial or TCP JSON; dvl_frame default BODY_FRD."""
+    frame = frame_option(ctx, "BODY_FRD")
+    angle = beam_angle(ctx)
+    pending: waterlinked.VelocityReport | None = None
+    beams: dict[int, float] = {}
+    for rec in waterlinked.decode(data, ctx.prefix):
+        if isinstance(rec, Reject):
+            yield rec
+        elif isinstance(rec, waterlinked.VelocityReport):
+            if pending is not None:
+                yield _wl_output(ctx, pending, beams, frame, angle)
+            pending, beams = rec, {t.id: t.distance_m for t in rec.transducers}
+        elif isinstance(rec, waterlinked.TransducerReport):
+            beams[rec.id] = rec.distance_m  # serial wru lines follow their wrz
+        elif isinstance(rec, waterlinked.LegacyDistances):
+            beams.update(enumerate(rec.distance_m))
+    if pending is not None:
+        yield _wl_output(ctx, pending, beams, frame, angle)
+
+
+def _wl_output(ctx: LogContext, rec: waterlinked.VelocityReport, beams: dict[int, float],
+               frame: str, angle: float) -> Output | Reject:
+    tov = rec.time_of_validity_us
+    if tov is not None and tov >= _EARLIEST_US:
+        t: int | None = tov * 1000 + ctx.clock_offset_ns
+    else:
+        t = _host_time(ctx, rec.where)
+    if t is None:
+        return Reject(rec.where, f"{rec.source}: no time of validity (clock unset?) and no host timestamp")
+    slant = [beams.get(i, NAN) for i in range(max(4, len(beams)))] if beams else []
+    slant, alt = ranges_from_slant(slant, angle)
+    if math.isfinite(rec.altitude_m):
+        alt = rec.altitude_m
+    good = rec.valid and all(math.isfinite(v) for v in rec.velocity_mps)
+    msg = message(ctx, t, frame, rec.velocity_mps, ranges=slant, altitude=alt, valid=good,
+                  fom=rec.figure_of_merit, source=f"waterlinked:{rec.source}")
+    return output(ctx, "dvl", msg, t, rec.where)
+
+
+CONVERTERS: dict[str, Converter] = {
+    "pd0": convert_pd0,
+    "pd4": convert_pd4,
+    "pd5": convert_pd4,
+    "pd6": convert_pd6,
+    "nortek": convert_nortek,
+    "waterlinked": convert_waterlinked,
+}
