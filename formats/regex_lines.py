@@ -1,0 +1,189 @@
+"""User-defined line format: a Python regex with named groups (manifest format "regex").
+
+For modems without a public log format, such as the Teledyne Benthos ATM-88x
+used in the source lake trial, the user describes a range line with a
+regular expression. Recognised named groups:
+
+- ``time``: the measurement time, read with ``time_format``:
+  ``tod`` ("HH:MM:SS(.f)" or "HHMMSS(.f)", date from an optional ``date``
+  group "YYYY-MM-DD" or the trial date), ``iso8601``, or ``unix`` (seconds).
+  Without a ``time`` group the host-timestamp prefix gives the time.
+- ``source`` / ``destination``: the vehicle heard and the vehicle that
+  measured, as modem addresses (digits) or vehicle names.
+- ``travel_time_s`` (multiplied by ``travel_time_scale``, e.g. 0.5 for a
+  round-trip time, 0.0005 for a round trip written in milliseconds) and/or
+  ``range_m``; at least one of the two is required.
+- USBL lines may also use ``target``, ``bearing_deg``, ``elevation_deg``,
+  ``east_m``, ``north_m``, ``up_m``, ``phase_x_rad``, ``phase_y_rad``.
+
+Any other named group is kept as text in `RegexRecord.groups`.
+
+Example, an ATM-88x-style range line as a topside logger might write it::
+
+    12:00:05.200 Range 1 to 2 : 500.1 m (Round-trip 666.8 ms)
+
+    pattern = '(?P<time>\\d{2}:\\d{2}:\\d{2}(?:\\.\\d+)?) Range (?P<destination>\\d+) to
+               (?P<source>\\d+) : [\\d.]+ m \\(Round-trip (?P<travel_time_s>[\\d.]+) ms\\)'
+    time_format = "tod"
+    travel_time_scale = 0.0005      # milliseconds -> seconds, round trip -> one way
+
+(`EXAMPLE_PATTERN` below is that pattern, tested in tests/test_regex_lines.py.)
+Lines that do not match are Rejects ("no match"); a pattern that does not
+compile raises `FormatError`.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from datetime import date, datetime, timezone
+from typing import Iterator, Mapping
+
+from .lines import iter_lines
+from .records import FormatError, Reject, Where
+
+NS = 1_000_000_000
+TIME_FORMATS = ("tod", "iso8601", "unix")
+NUMERIC_GROUPS = (
+    "travel_time_s", "range_m", "bearing_deg", "elevation_deg",
+    "east_m", "north_m", "up_m", "phase_x_rad", "phase_y_rad",
+)
+EXAMPLE_PATTERN = (
+    r"(?P<time>\d{2}:\d{2}:\d{2}(?:\.\d+)?) Range (?P<destination>\d+) to (?P<source>\d+)"
+    r" : [\d.]+ m \(Round-trip (?P<travel_time_s>[\d.]+) ms\)"
+)
+EXAMPLE_SCALE = 0.0005
+
+_TOD = re.compile(r"(\d{2}):?(\d{2}):?(\d{2}(?:\.\d+)?)")
+_ISO = re.compile(r"(\d{4}-\d{2}-\d{2})[T ](\d{2}:\d{2}:\d{2})(?:[.,](\d+))?\s*(Z|[+-]\d{2}:?\d{2})?")
+
+
+@dataclass(frozen=True, slots=True)
+class RegexRecord:
+    """One matched line: its time (absolute or time of day), endpoints and numeric groups.
+
+    `time_ns` is UTC ns without the clock offset (iso8601/unix), `tod_s`
+    seconds since midnight (tod); both None when the line has no time group.
+    `values` holds every recognised numeric group (travel time already scaled).
+    """
+
+    where: Where
+    time_ns: int | None
+    tod_s: float | None
+    date: date | None
+    source: str
+    destination: str
+    values: Mapping[str, float] = field(default_factory=dict)
+    groups: Mapping[str, str] = field(default_factory=dict)
+
+    @property
+    def travel_time_s(self) -> float:
+        """One-way travel time in seconds (NaN when the line has none)."""
+        return self.values.get("travel_time_s", math.nan)
+
+    @property
+    def range_m(self) -> float:
+        """Range in metres as written on the line (NaN when absent)."""
+        return self.values.get("range_m", math.nan)
+
+
+def compile_pattern(pattern: object, require_range: bool = True) -> re.Pattern[str]:
+    """Compile a user pattern; FormatError with a clear message when it is unusable."""
+    if not isinstance(pattern, str) or not pattern:
+        raise FormatError("regex format: the manifest option 'pattern' must be a non-empty string")
+    try:
+        compiled = re.compile(pattern)
+    except re.error as exc:
+        raise FormatError(f"regex format: pattern does not compile: {exc}") from None
+    names = set(compiled.groupindex)
+    if require_range and not names & {"travel_time_s", "range_m"}:
+        raise FormatError("regex format: pattern needs a named group 'travel_time_s' or 'range_m'")
+    return compiled
+
+
+def parse_iso8601_ns(text: str) -> int:
+    """UTC ns of an ISO 8601 time ('2016-10-12T08:00:01.25Z'; no zone means UTC)."""
+    m = _ISO.fullmatch(text.strip())
+    if not m:
+        raise ValueError(f"not an ISO 8601 time: {text!r}")
+    dt = datetime.fromisoformat(f"{m.group(1)}T{m.group(2)}")
+    zone = m.group(4)
+    tz = timezone.utc if zone in (None, "Z") else datetime.fromisoformat("2000-01-01T00:00:00" + zone).tzinfo
+    frac = m.group(3) or ""
+    return int(dt.replace(tzinfo=tz).timestamp()) * NS + int((frac + "0" * 9)[:9])
+
+
+def parse_tod_s(text: str) -> float:
+    """Seconds since midnight of 'HH:MM:SS(.f)' or 'HHMMSS(.f)'."""
+    m = _TOD.fullmatch(text.strip())
+    if not m:
+        raise ValueError(f"not a time of day: {text!r}")
+    h, mi, s = int(m.group(1)), int(m.group(2)), float(m.group(3))
+    if h > 23 or mi > 59 or s >= 61:
+        raise ValueError(f"time of day out of range: {text!r}")
+    return h * 3600 + mi * 60 + s
+
+
+def _unix_ns(text: str) -> int:
+    whole, _, frac = text.strip().partition(".")
+    if not whole.lstrip("-").isdigit() or (frac and not frac.isdigit()):
+        raise ValueError(f"not Unix seconds: {text!r}")
+    sign = -1 if whole.startswith("-") else 1
+    return int(whole) * NS + sign * int((frac + "0" * 9)[:9]) if frac else int(whole) * NS
+
+
+def _finite(name: str, text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"group {name} is not finite: {text!r}")
+    return value
+
+
+def _times(g: Mapping[str, str], time_format: str) -> tuple[int | None, float | None, date | None]:
+    stamp = g.get("time")
+    day = date.fromisoformat(g["date"]) if g.get("date") else None
+    if not stamp:
+        return None, None, day
+    if time_format == "tod":
+        return None, parse_tod_s(stamp), day
+    if time_format == "iso8601":
+        return parse_iso8601_ns(stamp), None, day
+    return _unix_ns(stamp), None, day
+
+
+def _record(m: re.Match[str], where: Where, time_format: str, scale: float) -> RegexRecord | Reject:
+    g = {k: v for k, v in m.groupdict().items() if v is not None}
+    try:
+        time_ns, tod_s, day = _times(g, time_format)
+        values = {k: _finite(k, g[k]) for k in NUMERIC_GROUPS if g.get(k, "").strip()}
+    except (ValueError, OverflowError) as exc:
+        return Reject(where, f"bad field: {exc}")
+    if "travel_time_s" in values:
+        values["travel_time_s"] *= scale
+    if any(values.get(k, 0.0) < 0 for k in ("travel_time_s", "range_m")):
+        return Reject(where, "negative travel time or range")
+    source = g.get("source", g.get("target", "")).strip()
+    return RegexRecord(where, time_ns, tod_s, day, source, g.get("destination", "").strip(), values, g)
+
+
+def decode(
+    data: bytes,
+    pattern: str | re.Pattern[str],
+    time_format: str = "tod",
+    prefix: str = "auto",
+    travel_time_scale: float = 1.0,
+) -> Iterator[RegexRecord | Reject]:
+    """Match every line against the user pattern; non-matching lines are Rejects ('no match')."""
+    compiled = pattern if isinstance(pattern, re.Pattern) else compile_pattern(pattern)
+    if time_format not in TIME_FORMATS:
+        raise FormatError(f"regex format: time_format must be one of {TIME_FORMATS}, not {time_format!r}")
+    scale = float(travel_time_scale)
+    if not math.isfinite(scale) or scale <= 0:
+        raise FormatError(f"regex format: travel_time_scale must be a positive number, not {travel_time_scale!r}")
+    for line in iter_lines(data, prefix):
+        m = compiled.search(line.text)
+        if m is None:
+            yield Reject(line.where, "no match")
+            continue
+        yield _record(m, line.where, time_format, scale)
