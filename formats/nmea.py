@@ -163,7 +163,7 @@ def _int(s: str) -> int:
     return int(s) if s else -1
 
 
-def _tod(s: str) -> float:
+def parse_tod(s: str) -> float:
     """Seconds of day from hhmmss[.sss]; NaN when empty."""
     if not s:
         return NAN
@@ -230,7 +230,7 @@ def _opt(fields: list[str], i: int) -> str:
 def _gga(f: list[str], w: Where, t: str) -> Gga:
     _need(f, 9, "GGA")
     return Gga(
-        w, t, _tod(f[0]), _lat(f[1], f[2]), _lon(f[3], f[4]), _int(f[5]), _int(f[6]),
+        w, t, parse_tod(f[0]), _lat(f[1], f[2]), _lon(f[3], f[4]), _int(f[5]), _int(f[6]),
         _float(f[7]), _float(f[8]), _float(_opt(f, 10)), _float(_opt(f, 12)), _opt(f, 13),
     )
 
@@ -241,7 +241,7 @@ def _rmc(f: list[str], w: Where, t: str) -> Rmc:
     if _opt(f, 10) == "W":
         var = -var
     return Rmc(
-        w, t, _tod(f[0]), f[1] == "A", _lat(f[2], f[3]), _lon(f[4], f[5]),
+        w, t, parse_tod(f[0]), f[1] == "A", _lat(f[2], f[3]), _lon(f[4], f[5]),
         _float(f[6]), _float(f[7]), _ddmmyy(f[8]), var, _opt(f, 11),
     )
 
@@ -249,7 +249,7 @@ def _rmc(f: list[str], w: Where, t: str) -> Rmc:
 def _zda(f: list[str], w: Where, t: str) -> Zda:
     _need(f, 4, "ZDA")
     day = date(int(f[3]), int(f[2]), int(f[1])) if f[1] and f[2] and f[3] else None
-    return Zda(w, t, _tod(f[0]), day, _int(_opt(f, 4)), _int(_opt(f, 5)))
+    return Zda(w, t, parse_tod(f[0]), day, _int(_opt(f, 4)), _int(_opt(f, 5)))
 
 
 def _vtg(f: list[str], w: Where, t: str) -> Vtg:
@@ -262,7 +262,7 @@ def _vtg(f: list[str], w: Where, t: str) -> Vtg:
 
 def _gst(f: list[str], w: Where, t: str) -> Gst:
     _need(f, 8, "GST")
-    return Gst(w, t, _tod(f[0]), *(_float(x) for x in f[1:8]))
+    return Gst(w, t, parse_tod(f[0]), *(_float(x) for x in f[1:8]))
 
 
 def _hdt(f: list[str], w: Where, t: str) -> Hdt:
@@ -278,7 +278,7 @@ def _ths(f: list[str], w: Where, t: str) -> Ths:
 def _gll(f: list[str], w: Where, t: str) -> Gll:
     _need(f, 4, "GLL")
     status = _opt(f, 5)
-    return Gll(w, t, _lat(f[0], f[1]), _lon(f[2], f[3]), _tod(_opt(f, 4)), status == "A", _opt(f, 6))
+    return Gll(w, t, _lat(f[0], f[1]), _lon(f[2], f[3]), parse_tod(_opt(f, 4)), status == "A", _opt(f, 6))
 
 
 PARSERS = {
@@ -288,6 +288,8 @@ PARSERS = {
 
 
 # ---------------------------------------------------------------- framing
+
+Frame = tuple[str, list[str], Where]  # address, fields after it, where
 
 
 def _prefix_xor(data: bytes) -> bytes:
@@ -305,11 +307,11 @@ def _looks_novatel(text: str) -> bool:
     return False
 
 
-def parse_sentence(text: str, where: Where, checksum: int | None = None) -> NmeaRecord | Reject | None:
-    """Decode one line's sentence: a record, a Reject, or None for sentences of other families.
+def frame_line(text: str, where: Where, checksum: int | None = None) -> Frame | Reject | None:
+    """Frame one line's sentence: (address, fields, where), a Reject, or None for a NovAtel log.
 
     `checksum` is the XOR of the characters between '$' and '*' when the
-    caller already knows it (decode() does); otherwise it is computed here.
+    caller already knows it (iter_frames() does); otherwise it is computed here.
     """
     start = text.find("$")
     if start < 0:
@@ -334,6 +336,53 @@ def parse_sentence(text: str, where: Where, checksum: int | None = None) -> Nmea
     address = fields[0]
     if len(address) < 3 or not (address.isascii() and address.isalnum()) or not address.isupper():
         return Reject(where, f"malformed sentence address {address[:12]!r}")
+    return address, fields, where
+
+
+def iter_frames(data: bytes, prefix: str = "auto") -> Iterator[Frame | Reject]:
+    """Every NMEA-framed sentence of a log (checksum verified) or a Reject, in file order.
+
+    Shared by the NMEA, PHINS and $PASHR decoders. `fields[0]` is the address.
+    """
+    if prefix not in PREFIX_STYLES:
+        raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
+    pxor = _prefix_xor(data)
+    offset = 0
+    strip = prefix != "none"
+    for number, raw in enumerate(data.decode("latin-1").split("\n"), start=1):
+        line_start = offset
+        offset += len(raw) + 1
+        text = raw.rstrip("\r")
+        if not text or text.isspace():
+            continue
+        host = None
+        skipped = 0
+        if strip and text[0] not in "$#%":
+            rest, host = strip_prefix(text, prefix)
+            skipped = len(text) - len(rest)
+            text = rest
+        where = Where(line_start, number, host)
+        if text.count("$") > 1:
+            # noise holding a '$', or sentences glued together: every start on its own
+            for piece in text.split("$")[1:]:
+                result = frame_line("$" + piece, where)
+                if result is not None:
+                    yield result
+            continue
+        start = text.find("$")
+        star = text.find("*", start) if start >= 0 else -1
+        checksum = None
+        if star > start + 1:
+            base = line_start + skipped
+            checksum = pxor[base + star - 1] ^ pxor[base + start]
+        result = frame_line(text, where, checksum)
+        if result is not None:
+            yield result
+
+
+def parse_frame(frame: Frame) -> NmeaRecord | Reject | None:
+    """The record for a framed sentence; None for proprietary and other sentence types."""
+    address, fields, where = frame
     if address[0] == "P":
         return None  # proprietary: another decoder's business
     parser = PARSERS.get(address[-3:])
@@ -347,46 +396,11 @@ def parse_sentence(text: str, where: Where, checksum: int | None = None) -> Nmea
 
 def decode(data: bytes, prefix: str = "auto") -> Iterator[NmeaRecord | Reject]:
     """Stream every GNSS sentence record (or Reject) in a log, in file order."""
-    if prefix not in PREFIX_STYLES:
-        raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
-    pxor = _prefix_xor(data)
-    text_all = data.decode("latin-1")
-    offset = 0
-    strip = prefix != "none"
-    for number, raw in enumerate(text_all.split("\n"), start=1):
-        line_start = offset
-        offset += len(raw) + 1
-        text = raw.rstrip("\r")
-        if not text or text.isspace():
+    for item in iter_frames(data, prefix):
+        if type(item) is Reject:
+            yield item
             continue
-        host = None
-        if strip and text[0] not in "$#%":
-            rest, host = strip_prefix(text, prefix)
-            skipped = len(text) - len(rest)
-            text = rest
-        else:
-            skipped = 0
-        where = Where(line_start, number, host)
-        if text.count("$") > 1:
-            # noise holding a '$', or sentences glued together: try every start
-            yield from _split_starts(text, where)
-            continue
-        start = text.find("$")
-        star = text.find("*", start) if start >= 0 else -1
-        checksum = None
-        if star > start + 1:
-            a = line_start + skipped + start + 1  # first byte after '$'
-            b = line_start + skipped + star  # the '*'
-            checksum = pxor[b - 1] ^ pxor[a - 1]
-        result = parse_sentence(text, where, checksum)
-        if result is not None:
-            yield result
-
-
-def _split_starts(text: str, where: Where) -> Iterator[NmeaRecord | Reject]:
-    """Each '$'-started piece of a line on its own (the slow path, with the Python checksum)."""
-    for piece in text.split("$")[1:]:
-        result = parse_sentence("$" + piece, where)
+        result = parse_frame(item)  # type: ignore[arg-type]
         if result is not None:
             yield result
 

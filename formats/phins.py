@@ -1,0 +1,360 @@
+"""iXblue / Exail PHINS "standard" ASCII output: $HEHDT, the $PIXSE family and $PHTRO.
+
+Layouts from the PHINS interface library ("PHINS standard" protocol):
+
+    $HEHDT,x.xxx,T                       true heading, degrees
+    $PIXSE,ATITUD,r.rrr,p.ppp            roll (positive port up), pitch (positive bow down)
+    $PIXSE,POSITI,lat,lon,alt            degrees (+N), degrees 0..360 (+E), altitude m (+up)
+    $PIXSE,SPEED_,e,n,u                  east, north, up speed, m/s
+    $PIXSE,UTMWGS,C,nn,east,north,alt    UTM latitude zone letter, longitude zone, metres
+    $PIXSE,HEAVE_,surge,sway,heave       metres
+    $PIXSE,TIME__,hhmmss.ssssss          UTC time of day of the burst
+    $PIXSE,STDHRP,h,r,p                  1-sigma heading, roll, pitch, degrees
+    $PIXSE,STDPOS,lat,lon,alt            1-sigma latitude, longitude, altitude, metres
+    $PIXSE,STDSPD,e,n,u                  1-sigma speeds, m/s (same axis order as SPEED_)
+    $PIXSE,ALGSTS,lsb,msb                algorithm status, hex words
+    $PIXSE,STATUS,lsb,msb                system status, hex words
+    $PIXSE,HT_STS,word                   high-level status, hex
+    $PHTRO,p.pp,M|P,r.rr,B|T             pitch (M bow up, P bow down), roll (B port down, T port up)
+
+PHINS writes one burst of these per output epoch. Decoded angles keep the
+vendor's sign conventions, spelled out in the field names; POSITI's 0..360
+longitude is returned in [-180, 180). Heading sentences from any talker
+($HEHDT, $INHDT, $HETHS...) are accepted. Other $PIXSE sentences (DEPIN_,
+LOGDVL...) and other sentence types are skipped silently; lines without a
+sentence and bad checksums are Rejects.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, Iterator, Union
+
+from .nmea import NAN, parse_tod, iter_frames
+from .records import Reject, Where
+from .sentence import build
+
+
+@dataclass(frozen=True, slots=True)
+class Heading:
+    """$--HDT or $--THS: true heading in degrees (THS adds a mode letter, 'V' = invalid)."""
+
+    where: Where
+    talker: str
+    heading_deg: float
+    mode: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class Atitud:
+    """Roll and pitch in PHINS conventions."""
+
+    where: Where
+    roll_port_up_deg: float
+    pitch_bow_down_deg: float
+
+
+@dataclass(frozen=True, slots=True)
+class Positi:
+    """Position: latitude, longitude in [-180, 180), altitude (m, positive up)."""
+
+    where: Where
+    latitude: float
+    longitude: float
+    altitude_m: float
+
+
+@dataclass(frozen=True, slots=True)
+class Speed:
+    """Velocity in the local geographic frame, m/s."""
+
+    where: Where
+    east_mps: float
+    north_mps: float
+    up_mps: float
+
+
+@dataclass(frozen=True, slots=True)
+class Utmwgs:
+    """Position in UTM (WGS84)."""
+
+    where: Where
+    lat_zone: str
+    lon_zone: int
+    east_m: float
+    north_m: float
+    altitude_m: float
+
+
+@dataclass(frozen=True, slots=True)
+class Heave:
+    """Surge, sway and heave, metres."""
+
+    where: Where
+    surge_m: float
+    sway_m: float
+    heave_m: float
+
+
+@dataclass(frozen=True, slots=True)
+class Time:
+    """UTC time of day of the burst (seconds)."""
+
+    where: Where
+    time_s: float
+
+
+@dataclass(frozen=True, slots=True)
+class StdHrp:
+    """1-sigma heading, roll and pitch, degrees."""
+
+    where: Where
+    heading_std_deg: float
+    roll_std_deg: float
+    pitch_std_deg: float
+
+
+@dataclass(frozen=True, slots=True)
+class StdPos:
+    """1-sigma latitude (north), longitude (east) and altitude errors, metres."""
+
+    where: Where
+    lat_std_m: float
+    lon_std_m: float
+    altitude_std_m: float
+
+
+@dataclass(frozen=True, slots=True)
+class StdSpd:
+    """1-sigma speed errors, m/s (SPEED_'s axis order)."""
+
+    where: Where
+    east_std_mps: float
+    north_std_mps: float
+    up_std_mps: float
+
+
+@dataclass(frozen=True, slots=True)
+class StatusWords:
+    """ALGSTS, STATUS or HT_STS status words (msb is 0 for the one-word HT_STS)."""
+
+    where: Where
+    kind: str
+    lsb: int
+    msb: int
+
+
+@dataclass(frozen=True, slots=True)
+class Phtro:
+    """$PHTRO attitude with its direction letters turned into signs."""
+
+    where: Where
+    pitch_bow_up_deg: float
+    roll_port_up_deg: float
+
+
+PhinsRecord = Union[Heading, Atitud, Positi, Speed, Utmwgs, Heave, Time, StdHrp, StdPos, StdSpd, StatusWords, Phtro]
+
+
+def _f(s: str) -> float:
+    return float(s) if s else NAN
+
+
+def _three(f: list[str], n: int = 3) -> list[float]:
+    if len(f) < n:
+        raise IndexError(f"{len(f)} fields, {n} needed")
+    return [_f(x) for x in f[:n]]
+
+
+def wrap_longitude(lon: float) -> float:
+    """Longitude in [-180, 180) from any range (PHINS writes 0..360)."""
+    if not math.isfinite(lon) or -180.0 <= lon < 180.0:
+        return lon  # untouched, so that the common case keeps every digit
+    return (lon + 180.0) % 360.0 - 180.0
+
+
+def _words(kind: str) -> Callable[[list[str], Where], StatusWords]:
+    def parse(f: list[str], w: Where) -> StatusWords:
+        if not f or not f[0]:
+            raise IndexError("no status word")
+        return StatusWords(w, kind, int(f[0], 16), int(f[1], 16) if len(f) > 1 and f[1] else 0)
+
+    return parse
+
+
+def _positi(f: list[str], w: Where) -> Positi:
+    lat, lon, alt = _three(f)
+    if abs(lat) > 90.0 or not -360.0 <= lon <= 360.0:
+        raise ValueError(f"position {lat}, {lon} out of range")
+    return Positi(w, lat, wrap_longitude(lon), alt)
+
+
+def _utmwgs(f: list[str], w: Where) -> Utmwgs:
+    if len(f) < 5:
+        raise IndexError(f"{len(f)} fields, 5 needed")
+    return Utmwgs(w, f[0], int(f[1]) if f[1] else -1, _f(f[2]), _f(f[3]), _f(f[4]))
+
+
+def _time(f: list[str], w: Where) -> Time:
+    if not f:
+        raise IndexError("no time field")
+    return Time(w, parse_tod(f[0]))
+
+
+PIXSE: dict[str, Callable[[list[str], Where], PhinsRecord]] = {
+    "ATITUD": lambda f, w: Atitud(w, *_three(f, 2)),
+    "POSITI": _positi,
+    "SPEED_": lambda f, w: Speed(w, *_three(f)),
+    "UTMWGS": _utmwgs,
+    "HEAVE_": lambda f, w: Heave(w, *_three(f)),
+    "TIME__": _time,
+    "STDHRP": lambda f, w: StdHrp(w, *_three(f)),
+    "STDPOS": lambda f, w: StdPos(w, *_three(f)),
+    "STDSPD": lambda f, w: StdSpd(w, *_three(f)),
+    "ALGSTS": _words("ALGSTS"),
+    "STATUS": _words("STATUS"),
+    "HT_STS": _words("HT_STS"),
+}
+
+
+def _phtro(f: list[str], w: Where) -> Phtro:
+    if len(f) < 4:
+        raise IndexError(f"{len(f)} fields, 4 needed")
+    if f[1] not in ("M", "P", "") or f[3] not in ("B", "T", ""):
+        raise ValueError(f"direction letters {f[1]!r}, {f[3]!r}")
+    pitch, roll = _f(f[0]), _f(f[2])
+    return Phtro(w, -pitch if f[1] == "P" else pitch, -roll if f[3] == "B" else roll)
+
+
+def _parse(address: str, fields: list[str], where: Where) -> PhinsRecord | Reject | None:
+    try:
+        if address == "PIXSE":
+            parser = PIXSE.get(fields[1]) if len(fields) > 1 else None
+            return parser(fields[2:], where) if parser else None
+        if address == "PHTRO":
+            return _phtro(fields[1:], where)
+        if address[0] != "P" and address.endswith(("HDT", "THS")):
+            mode = fields[2] if address.endswith("THS") and len(fields) > 2 else ""
+            if len(fields) < 2:
+                raise IndexError("no heading field")
+            return Heading(where, address[:-3], _f(fields[1]), mode)
+    except (ValueError, IndexError, OverflowError) as exc:
+        return Reject(where, f"bad {address} {fields[1] if len(fields) > 1 else ''} sentence: {exc}".replace("  ", " "))
+    return None
+
+
+def decode(data: bytes, prefix: str = "auto") -> Iterator[PhinsRecord | Reject]:
+    """Stream every PHINS record (or Reject) in a log, in file order."""
+    for item in iter_frames(data, prefix):
+        if type(item) is Reject:
+            yield item
+            continue
+        address, fields, where = item  # type: ignore[misc]
+        result = _parse(address, fields, where)
+        if result is not None:
+            yield result
+
+
+# ---------------------------------------------------------------- encoders
+
+
+def _n(x: float, spec: str) -> str:
+    return format(x, spec) if math.isfinite(x) else ""
+
+
+def _hms(utc_ns: int) -> str:
+    us = (utc_ns + 500) // 1000 % 86_400_000_000
+    h, rem = divmod(us, 3_600_000_000)
+    m, rem = divmod(rem, 60_000_000)
+    return f"{h:02d}{m:02d}{rem // 1_000_000:02d}.{rem % 1_000_000:06d}"
+
+
+def encode_hehdt(heading_deg: float) -> str:
+    """$HEHDT line (true heading, 3 decimals)."""
+    return build("HEHDT", [_n(heading_deg % 360.0, ".3f"), "T"])
+
+
+def encode_atitud(roll_port_up_deg: float, pitch_bow_down_deg: float) -> str:
+    """$PIXSE,ATITUD line in PHINS sign conventions."""
+    return build("PIXSE", ["ATITUD", _n(roll_port_up_deg, ".3f"), _n(pitch_bow_down_deg, ".3f")])
+
+
+def encode_positi(latitude: float, longitude: float, altitude_m: float) -> str:
+    """$PIXSE,POSITI line; longitude written 0..360 as PHINS does."""
+    lon = _n(longitude % 360.0, ".8f")
+    if lon == "360.00000000":
+        lon = "0.00000000"
+    return build("PIXSE", ["POSITI", _n(latitude, ".8f"), lon, _n(altitude_m, ".3f")])
+
+
+def encode_speed(east_mps: float, north_mps: float, up_mps: float) -> str:
+    """$PIXSE,SPEED_ line (east, north, up)."""
+    return build("PIXSE", ["SPEED_", *(_n(v, ".3f") for v in (east_mps, north_mps, up_mps))])
+
+
+def encode_heave(surge_m: float, sway_m: float, heave_m: float) -> str:
+    """$PIXSE,HEAVE_ line."""
+    return build("PIXSE", ["HEAVE_", *(_n(v, ".3f") for v in (surge_m, sway_m, heave_m))])
+
+
+def encode_time(utc_ns: int) -> str:
+    """$PIXSE,TIME__ line (time of day, microseconds)."""
+    return build("PIXSE", ["TIME__", _hms(utc_ns)])
+
+
+def encode_stdhrp(heading_std_deg: float, roll_std_deg: float, pitch_std_deg: float) -> str:
+    """$PIXSE,STDHRP line."""
+    return build("PIXSE", ["STDHRP", *(_n(v, ".3f") for v in (heading_std_deg, roll_std_deg, pitch_std_deg))])
+
+
+def encode_stdpos(lat_std_m: float, lon_std_m: float, altitude_std_m: float) -> str:
+    """$PIXSE,STDPOS line."""
+    return build("PIXSE", ["STDPOS", *(_n(v, ".2f") for v in (lat_std_m, lon_std_m, altitude_std_m))])
+
+
+def encode_stdspd(east_std_mps: float, north_std_mps: float, up_std_mps: float) -> str:
+    """$PIXSE,STDSPD line."""
+    return build("PIXSE", ["STDSPD", *(_n(v, ".3f") for v in (east_std_mps, north_std_mps, up_std_mps))])
+
+
+def encode_status(kind: str, lsb: int, msb: int = 0) -> str:
+    """$PIXSE,ALGSTS / STATUS (two words) or HT_STS (one word) line."""
+    words = [f"{lsb:08X}"] if kind == "HT_STS" else [f"{lsb:08X}", f"{msb:08X}"]
+    return build("PIXSE", [kind, *words])
+
+
+def encode_phtro(pitch_bow_up_deg: float, roll_port_up_deg: float) -> str:
+    """$PHTRO line: magnitudes with M/P (bow up/down) and T/B (port up/down) letters."""
+    return build("PHTRO", [
+        _n(abs(pitch_bow_up_deg), ".2f"), "P" if pitch_bow_up_deg < 0 else "M",
+        _n(abs(roll_port_up_deg), ".2f"), "B" if roll_port_up_deg < 0 else "T",
+    ])
+
+
+def encode_epoch(
+    utc_ns: int, latitude: float, longitude: float, depth_m: float, heading_deg: float,
+    roll_deg: float, pitch_deg: float, velocity_north_mps: float, velocity_east_mps: float,
+    velocity_down_mps: float = 0.0, *, heading_std_deg: float = 0.01, roll_std_deg: float = 0.01,
+    pitch_std_deg: float = 0.01, position_std_north_m: float = 1.0, position_std_east_m: float = 1.0,
+    depth_std_m: float = 0.1, algsts: tuple[int, int] = (0x00000045, 0), status: tuple[int, int] = (0, 0),
+) -> str:
+    """One PHINS standard burst (12 lines, CRLF) from InsState-style values.
+
+    `roll_deg` is positive starboard down (= PHINS port up), `pitch_deg`
+    positive bow up (PHINS writes it negated); depth is positive down.
+    """
+    return "".join((
+        encode_hehdt(heading_deg),
+        encode_atitud(roll_deg, -pitch_deg + 0.0),
+        encode_positi(latitude, longitude, -depth_m + 0.0),
+        encode_speed(velocity_east_mps, velocity_north_mps, -velocity_down_mps + 0.0),
+        encode_heave(0.0, 0.0, 0.0),
+        encode_time(utc_ns),
+        encode_stdhrp(heading_std_deg, roll_std_deg, pitch_std_deg),
+        encode_stdpos(position_std_north_m, position_std_east_m, depth_std_m),
+        encode_stdspd(0.05, 0.05, 0.05),
+        encode_status("ALGSTS", *algsts),
+        encode_status("STATUS", *status),
+        encode_status("HT_STS", 0),
+    ))
