@@ -1,0 +1,50 @@
+"""The cooperative-localization methods by name: what filter each runs and which detector it uses.
+
+A plain typed mapping (STYLE.md convention 3). ANFIS detectors are imported
+only when such a method is built, so the rest of the stack works without them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from types import MappingProxyType
+
+from .chi_square import ChiSquareDetector
+from .config import DETECTING_METHODS, METHODS, StackConfig
+from .detector import Detector
+from .dual_threshold import DualThresholdDetector
+
+DetectorFactory = Callable[[StackConfig], Detector]
+
+FILTER_KINDS: Mapping[str, str] = MappingProxyType({
+    "dead_reckoning": "dr",      # dead reckoning only, never updated by ranges
+    "ckf": "ckf",                # CKF, every range used, no detection
+    "ackf": "ackf",              # adaptive CKF, every range used, no detection
+    **{name: "detect" for name in DETECTING_METHODS},   # ACKF with detection and isolation
+})
+"""Method name -> filter kind: 'dr', 'ckf', 'ackf' or 'detect'."""
+
+
+def _anfis(trainer: str, compensation: bool) -> DetectorFactory:
+    """A factory building an AnfisDetector, imported on first use."""
+    def build(config: StackConfig) -> Detector:
+        from .anfis_detector import AnfisDetector
+        return AnfisDetector(config, trainer=trainer, compensation=compensation)
+    return build
+
+
+DETECTOR_FACTORIES: Mapping[str, DetectorFactory] = MappingProxyType({
+    "chi_square": ChiSquareDetector,
+    "dual_threshold": DualThresholdDetector,
+    "anfis": _anfis("hybrid", False),
+    "anfis_aqpso": _anfis("aqpso_ga", False),
+    "anfis_compensation": _anfis("hybrid", True),
+})
+"""Detecting method name -> factory(config) -> a fresh, untrained Detector."""
+
+
+def filter_kind(method: str) -> str:
+    """The filter kind of a method name; ValueError for a name not in config.METHODS."""
+    if method not in FILTER_KINDS:
+        raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
+    return FILTER_KINDS[method]

@@ -1,0 +1,386 @@
+"""The side-by-side runner: every method of the stack driven push-style on the same data.
+
+Usage (STYLE.md convention 7: the engine pushes samples from an archive,
+the reproduction from the simulator's arrays)::
+
+    runner = CooperativeRunner(config, follower="follower", leaders=["leader1", "leader2"],
+                               start_time_s=t0, initial_lat_rad=lat0, initial_lon_rad=lon0)
+    runner.dead_reckon(t_s, forward_mps, lateral_mps, heading_rad, depth_m)   # each DVL/INS sample
+    runner.range_epoch(t_s, leader, leader_lat_rad, leader_lon_rad, leader_depth_m,
+                       slant_range_m, truth_range_m)                          # -> one EpochResult per method
+    results = runner.finish()
+
+Methods (``config.methods``): ``dead_reckoning`` (DR only), ``ckf``, ``ackf``
+(no detection) and one ACKF per detecting method, with isolation.
+
+Training: during the window ``start < t <= t_a = start + training_window_s``
+every detecting method runs its own ACKF without isolation and collects, per
+epoch with GPS truth, the features (f1, f2, f3), the signed range error
+Z - Z_gps and the label. At the first sample after t_a each detector is
+trained: with ``config.anfis.model == "per_leader"`` one instance per leader
+on that leader's epochs; with ``"shared"`` one instance on every leader's
+epochs, then copied per leader so that detectors with memory (the dual
+threshold's CUSUM) keep one memory per acoustic link. The choice applies to
+every trained detector, not only ANFIS. A detector that cannot be trained
+(no labelled epochs, or its training fails) is disabled, reported in
+``RunResults.training_errors``, and its method runs as a plain ACKF.
+
+After t_a a flagged epoch is isolated (A.33-A.35) unless the leader's cap of
+consecutive isolations is reached; past the cap it is used with R* and
+counted as capped. A compensation detector's correction replaces isolation:
+the range Z - correction is used. Detectors are reset after every alarm.
+
+Inputs that cannot be used are rejected and counted in ``rejected`` by
+reason, never raised: non-finite values, ranges <= 0, time going backwards
+(DR steps with Δt <= 0), unknown leaders, a leader on top of the follower.
+
+Open-loop ROC scores: every trained detector also scores, after the run,
+the features of the ``ackf`` method (no isolation, so the same features for
+every detector) with ``Detector.scores``; ``ackf`` runs internally even when
+not requested.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections import Counter
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from .ckf import RangeInnovation, State2, dr_predict, isolation_action, range_innovation, range_update
+from .config import StackConfig
+from .detector import Decision, Detector
+from .labels import UNKNOWN, label_one
+from .methods import DETECTOR_FACTORIES, DetectorFactory, filter_kind
+from .model import cov_radians_to_metres, metric_scales_scalar, slant_to_horizontal
+
+NAN = float("nan")
+
+
+@dataclass(frozen=True, slots=True)
+class EpochResult:
+    """One method's outcome at one range epoch, with its position estimate after the epoch."""
+
+    time_s: float
+    leader: str
+    method: str
+    flagged: bool
+    score: float
+    threshold: float
+    f1: float                 # |innovation| (m)
+    f2: float                 # squared Mahalanobis distance, unadapted P_zz
+    f3: float                 # adapted measurement variance R* (m²)
+    label: int                # 1 anomalous, 0 normal, -1 unknown
+    isolated: bool
+    capped: bool
+    compensated: bool
+    range_m: float            # horizontal range used (after slant conversion / compensation)
+    predicted_range_m: float
+    lat_rad: float
+    lon_rad: float
+    cov_nn_m2: float          # position covariance north-north, north-east, east-east (m²)
+    cov_ne_m2: float
+    cov_ee_m2: float
+
+
+@dataclass(frozen=True)
+class Track:
+    """A method's estimates after every DR step and epoch: times, [L, λ] and north-east covariances."""
+
+    t_s: np.ndarray
+    lat_rad: np.ndarray
+    lon_rad: np.ndarray
+    cov_m2: np.ndarray        # (n, 2, 2), north-east
+
+
+@dataclass(frozen=True)
+class RunResults:
+    """Everything a run produced, as arrays ready for DataFrames and for ``scoring``."""
+
+    methods: tuple[str, ...]
+    leaders: tuple[str, ...]
+    start_time_s: float
+    training_end_s: float
+    epochs: dict[str, np.ndarray]
+    tracks: dict[str, Track]
+    open_loop: dict[str, dict[str, np.ndarray]]
+    rejected: dict[str, int]
+    capped: dict[str, int]
+    clamped_ranges: int
+    trained: bool
+    training_errors: dict[str, str]
+
+    def epochs_frame(self) -> "pandas.DataFrame":  # noqa: F821 - pandas imported lazily
+        """The epochs table as a pandas DataFrame."""
+        import pandas as pd
+        return pd.DataFrame(self.epochs)
+
+
+@dataclass
+class _Method:
+    """Mutable per-method state inside the runner."""
+
+    name: str
+    kind: str
+    state: State2
+    detectors: dict[str, Detector | None] = field(default_factory=dict)
+    streak: Counter = field(default_factory=Counter)
+    capped: int = 0
+    train_rows: list[tuple[str, float, float, float, float, int]] = field(default_factory=list)
+
+
+def _cov_m2(s: State2, depth_m: float) -> tuple[float, float, float]:
+    """North-east covariance (nn, ne, ee) in m² of a radian state."""
+    b, a = metric_scales_scalar(s.lat, depth_m)
+    return s.p11 * b * b, s.p12 * b * a, s.p22 * a * a
+
+
+def _finite(*values: float) -> bool:
+    """True when every value is a finite number."""
+    return all(math.isfinite(v) for v in values)
+
+
+class CooperativeRunner:
+    """Runs every configured method side by side on pushed DR samples and range epochs."""
+
+    def __init__(
+        self, config: StackConfig, follower: str, leaders: Sequence[str], start_time_s: float,
+        initial_lat_rad: float, initial_lon_rad: float, initial_depth_m: float = 0.0,
+        factories: Mapping[str, DetectorFactory] = DETECTOR_FACTORIES,
+    ) -> None:
+        """Start every method at the initial position with P0 = diag(p0_m)² (m², converted to rad²)."""
+        self.config = config
+        self.follower = follower
+        self.leaders = tuple(leaders)
+        self.start_time_s = float(start_time_s)
+        self.training_end_s = self.start_time_s + config.training_window_s
+        self._factories = factories
+        self._r_var = config.r_m ** 2
+        b, a = metric_scales_scalar(initial_lat_rad, initial_depth_m)
+        s0 = State2(float(initial_lat_rad), float(initial_lon_rad),
+                    (config.p0_m[0] / b) ** 2, 0.0, (config.p0_m[1] / a) ** 2)
+        names = list(dict.fromkeys(config.methods))
+        self._reported = tuple(names)
+        if any(filter_kind(n) == "detect" for n in names) and "ackf" not in names:
+            names.append("ackf")    # the open-loop feature source for ROC curves
+        self._methods = [_Method(n, filter_kind(n), s0) for n in names]
+        self._t = self.start_time_s
+        self._t_dr = self.start_time_s
+        self._depth = float(initial_depth_m)
+        self._last_dr: tuple[float, float, float] = (0.0, 0.0, 0.0)   # forward, lateral, heading
+        self._trained = False
+        self.rejected: Counter = Counter()
+        self.clamped_ranges = 0
+        self.training_errors: dict[str, str] = {}
+        self._epochs: list[EpochResult] = []
+        self._ackf_epochs: list[EpochResult] = []
+        self._track: list[tuple[float, float, tuple[State2, ...]]] = []
+        self._record()
+
+    # ------------------------------------------------------------ pushing
+
+    def dead_reckon(self, t_s: float, forward_mps: float, lateral_mps: float, heading_rad: float,
+                    depth_m: float) -> bool:
+        """Advance every method by one DR sample (A.1, A.7-A.11); False when the sample was rejected."""
+        # plain floats: numpy scalars would make every scalar operation downstream several times slower
+        t_s, forward_mps, lateral_mps = float(t_s), float(forward_mps), float(lateral_mps)
+        heading_rad, depth_m = float(heading_rad), float(depth_m)
+        if not _finite(t_s, forward_mps, lateral_mps, heading_rad, depth_m):
+            self.rejected["dr_non_finite"] += 1
+            return False
+        if not (t_s > self._t_dr and t_s >= self._t):
+            self.rejected["dr_time_step_not_positive"] += 1
+            return False
+        self._maybe_train(t_s)
+        self._last_dr = (forward_mps, lateral_mps, heading_rad)
+        self._depth = depth_m
+        self._t_dr = t_s
+        if t_s > self._t:     # equal when a range epoch already propagated to this instant
+            self._propagate(t_s)
+            self._record()
+        return True
+
+    def range_epoch(
+        self, t_s: float, leader: str, leader_lat_rad: float, leader_lon_rad: float,
+        leader_depth_m: float, slant_range_m: float, truth_range_m: float = NAN,
+    ) -> list[EpochResult]:
+        """Process one range to a leader with every method; [] when the epoch was rejected."""
+        t_s, slant_range_m, truth_range_m = float(t_s), float(slant_range_m), float(truth_range_m)
+        leader_lat_rad, leader_lon_rad = float(leader_lat_rad), float(leader_lon_rad)
+        leader_depth_m = float(leader_depth_m)
+        reason = self._epoch_problem(t_s, leader, leader_lat_rad, leader_lon_rad, leader_depth_m,
+                                     slant_range_m)
+        if reason:
+            self.rejected[reason] += 1
+            return []
+        self._maybe_train(t_s)
+        if t_s > self._t:
+            self._propagate(t_s)     # the last DR sample's velocities carry to the ranging instant
+        z, clamped = slant_to_horizontal(slant_range_m, self._depth, leader_depth_m)
+        geo = (leader_lat_rad, leader_lon_rad, leader_depth_m)
+        innovations = [range_innovation(m.state, z, geo, self._depth, self._r_var) for m in self._methods]
+        if any(inn is None for inn in innovations):
+            self.rejected["degenerate_geometry"] += 1
+            return []
+        self.clamped_ranges += clamped
+        truth = truth_range_m if math.isfinite(truth_range_m) else NAN
+        label = label_one(z, truth, self.config.t1_m)
+        out = [self._method_epoch(m, inn, t_s, leader, z, geo, truth, label)
+               for m, inn in zip(self._methods, innovations)]
+        self._record()
+        self._ackf_epochs.extend(r for r in out if r.method == "ackf")
+        reported = [r for r in out if r.method in self._reported]
+        self._epochs.extend(reported)
+        return reported
+
+    def finish(self) -> RunResults:
+        """Collect epochs, tracks, open-loop scores and counters into a RunResults."""
+        columns = {f.name: np.array([getattr(e, f.name) for e in self._epochs]) for f in fields(EpochResult)}
+        if not self._epochs:
+            columns = {f.name: np.empty(0) for f in fields(EpochResult)}
+        return RunResults(
+            methods=self._reported, leaders=self.leaders, start_time_s=self.start_time_s,
+            training_end_s=self.training_end_s, epochs=columns, tracks=self._tracks(),
+            open_loop=self._open_loop(), rejected=dict(self.rejected),
+            capped={m.name: m.capped for m in self._methods if m.name in self._reported},
+            clamped_ranges=self.clamped_ranges, trained=self._trained,
+            training_errors=dict(self.training_errors),
+        )
+
+    # ------------------------------------------------------------ internals
+
+    def _epoch_problem(self, t_s: float, leader: str, lat: float, lon: float, depth: float,
+                       slant: float) -> str:
+        """Why an epoch cannot be used, or '' when it can."""
+        if leader not in self.leaders:
+            return "unknown_leader"
+        if not _finite(t_s, lat, lon, depth, slant):
+            return "range_non_finite"
+        if not slant > 0.0:
+            return "range_not_positive"
+        if t_s < self._t:
+            return "range_time_backwards"
+        return ""
+
+    def _propagate(self, t_s: float) -> None:
+        """Time update of every method from the current time to t_s with the last DR sample."""
+        dt = t_s - self._t
+        fwd, lat_v, hdg = self._last_dr
+        q = self.config.q_m_per_s
+        for m in self._methods:
+            m.state = dr_predict(m.state, dt, fwd, lat_v, hdg, self._depth, q)
+        self._t = t_s
+
+    def _record(self) -> None:
+        """Remember every method's estimate at the current time for the tracks."""
+        self._track.append((self._t, self._depth, tuple(m.state for m in self._methods)))
+
+    def _method_epoch(self, m: _Method, inn: RangeInnovation, t_s: float, leader: str, z: float,
+                      geo: tuple[float, float, float], truth: float, label: int) -> EpochResult:
+        """Apply one method's update rule to the epoch and describe the outcome."""
+        f1, f2, f3 = inn.features
+        decision = Decision(False, NAN, NAN)
+        action, used_inn, compensated = "update", inn, False
+        if m.kind == "dr":
+            f1 = f2 = f3 = NAN
+            action = "none"
+        elif m.kind == "detect" and t_s <= self.training_end_s:
+            if label != UNKNOWN:
+                m.train_rows.append((leader, f1, f2, f3, z - truth, label))
+        elif m.kind == "detect" and m.detectors.get(leader) is not None:
+            det = m.detectors[leader]
+            decision = det.decide(np.array([f1, f2, f3]))
+            action, used_inn, compensated = self._act(m, det, decision, inn, leader, z, geo)
+        if action in ("update", "capped"):
+            m.state = range_update(m.state, used_inn, self._r_var, adaptive=m.kind != "ckf")
+        nn, ne, ee = _cov_m2(m.state, self._depth)
+        return EpochResult(
+            t_s, leader, m.name, decision.flagged, decision.score, decision.threshold, f1, f2, f3, label,
+            action == "isolate", action == "capped", compensated, z - decision.correction_m * compensated,
+            inn.z_hat, m.state.lat, m.state.lon, nn, ne, ee)
+
+    def _act(self, m: _Method, det: Detector, decision: Decision, inn: RangeInnovation, leader: str,
+             z: float, geo: tuple[float, float, float]) -> tuple[str, RangeInnovation, bool]:
+        """Isolation with cap, or compensation, for a detecting method's decision."""
+        if decision.flagged:
+            det.reset()
+        if decision.flagged and decision.correction_m != 0.0 and math.isfinite(decision.correction_m):
+            m.streak[leader] = 0
+            fixed = range_innovation(m.state, z - decision.correction_m, geo, self._depth, self._r_var)
+            return "update", fixed if fixed is not None else inn, fixed is not None
+        action, m.streak[leader] = isolation_action(decision.flagged, m.streak[leader],
+                                                    self.config.isolation_cap)
+        m.capped += action == "capped"
+        return action, inn, False
+
+    def _maybe_train(self, t_s: float) -> None:
+        """Train every detector once, at the first sample after t_a."""
+        if self._trained or t_s <= self.training_end_s:
+            return
+        self._trained = True
+        for m in self._methods:
+            if m.kind == "detect":
+                m.detectors = self._train_method(m)
+
+    def _train_method(self, m: _Method) -> dict[str, Detector | None]:
+        """Trained detectors per leader for one method (per_leader or shared, see module doc)."""
+        rows = m.train_rows
+        leaders = np.array([r[0] for r in rows], dtype=object)
+        feats = np.array([r[1:4] for r in rows], dtype=float).reshape(-1, 3)
+        err = np.array([r[4] for r in rows], dtype=float)
+        labels = np.array([r[5] for r in rows], dtype=np.int8)
+        if self.config.anfis.model == "shared":
+            det = self._train_one(m.name, "all", feats, err, labels)
+            return {ld: copy.deepcopy(det) if det is not None else None for ld in self.leaders}
+        return {ld: self._train_one(m.name, ld, feats[leaders == ld], err[leaders == ld],
+                                    labels[leaders == ld]) for ld in self.leaders}
+
+    def _train_one(self, method: str, leader: str, feats: np.ndarray, err: np.ndarray,
+                   labels: np.ndarray) -> Detector | None:
+        """One detector trained on the given epochs, or None (recorded in training_errors)."""
+        key = f"{method}/{leader}"
+        if feats.shape[0] == 0:
+            self.training_errors[key] = "no labelled epochs in the training window"
+            return None
+        det = self._factories[method](self.config)
+        try:
+            det.train(feats, err, labels)
+        except Exception as exc:  # noqa: BLE001 - a detector that cannot train is disabled, the run goes on
+            self.training_errors[key] = f"{type(exc).__name__}: {exc}"
+            return None
+        return det
+
+    def _tracks(self) -> dict[str, Track]:
+        """Per reported method, its track with covariances in north-east m²."""
+        t = np.array([r[0] for r in self._track])
+        depth = np.array([r[1] for r in self._track])
+        states = np.array([r[2] for r in self._track], dtype=float)      # (n, methods, 5)
+        out = {}
+        for i, m in enumerate(self._methods):
+            if m.name not in self._reported:
+                continue
+            s = states[:, i, :]
+            p = np.stack([s[:, 2], s[:, 3], s[:, 3], s[:, 4]], axis=-1).reshape(-1, 2, 2)
+            out[m.name] = Track(t, s[:, 0].copy(), s[:, 1].copy(), cov_radians_to_metres(p, s[:, 0], depth))
+        return out
+
+    def _open_loop(self) -> dict[str, dict[str, np.ndarray]]:
+        """Open-loop scores of each trained detector on the ackf method's features after t_a."""
+        src = [e for e in self._ackf_epochs if e.time_s > self.training_end_s]
+        out = {}
+        for m in self._methods:
+            if m.kind != "detect" or m.name not in self._reported:
+                continue
+            score = np.full(len(src), np.nan)
+            for leader, det in m.detectors.items():
+                idx = [i for i, e in enumerate(src) if e.leader == leader]
+                if det is not None and idx:
+                    feats = np.array([[src[i].f1, src[i].f2, src[i].f3] for i in idx])
+                    score[idx] = det.scores(feats)
+            out[m.name] = {"time_s": np.array([e.time_s for e in src], dtype=float),
+                           "leader": np.array([e.leader for e in src], dtype=object),
+                           "label": np.array([e.label for e in src], dtype=np.int8), "score": score}
+        return out
