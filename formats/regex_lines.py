@@ -16,7 +16,9 @@ regular expression. Recognised named groups:
 - USBL lines may also use ``target``, ``bearing_deg``, ``elevation_deg``,
   ``east_m``, ``north_m``, ``up_m``, ``phase_x_rad``, ``phase_y_rad``.
 
-Any other named group is kept as text in `RegexRecord.groups`.
+Any other named group is kept as text in `RegexRecord.groups`. A line is
+matched after its host-timestamp prefix is removed, and when that fails, whole
+(so a pattern may read a leading timestamp that looks like a host prefix).
 
 Example, an ATM-88x-style range line as a topside logger might write it::
 
@@ -40,7 +42,7 @@ from dataclasses import dataclass, field
 from datetime import date, datetime, timezone
 from typing import Iterator, Mapping
 
-from .lines import iter_lines
+from .lines import PREFIX_STYLES, iter_lines, strip_prefix
 from .records import FormatError, Reject, Where
 
 NS = 1_000_000_000
@@ -176,14 +178,19 @@ def decode(
 ) -> Iterator[RegexRecord | Reject]:
     """Match every line against the user pattern; non-matching lines are Rejects ('no match')."""
     compiled = pattern if isinstance(pattern, re.Pattern) else compile_pattern(pattern)
+    if prefix not in PREFIX_STYLES:
+        raise FormatError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
     if time_format not in TIME_FORMATS:
         raise FormatError(f"regex format: time_format must be one of {TIME_FORMATS}, not {time_format!r}")
     scale = float(travel_time_scale)
     if not math.isfinite(scale) or scale <= 0:
         raise FormatError(f"regex format: travel_time_scale must be a positive number, not {travel_time_scale!r}")
-    for line in iter_lines(data, prefix):
-        m = compiled.search(line.text)
+    for raw in iter_lines(data, "none"):
+        rest, host_ns = strip_prefix(raw.text, prefix)
+        where = Where(raw.where.offset, raw.where.line, host_ns)
+        # a pattern may itself read the leading timestamp that looks like a host prefix
+        m = compiled.search(rest) or (compiled.search(raw.text) if host_ns is not None else None)
         if m is None:
-            yield Reject(line.where, "no match")
+            yield Reject(where, "no match")
             continue
-        yield _record(m, line.where, time_format, scale)
+        yield _record(m, where, time_format, scale)

@@ -1,0 +1,313 @@
+"""Acoustic-modem logs to ``/<vehicle>/modem/range`` (`auvreplay.AcousticRange`).
+
+The vehicle whose log it is measured the range (``destination``); ``source``
+is the vehicle heard, from the manifest's modem address book. Travel times in
+the archive are ONE WAY; ``range_m`` is the slant range travel time x sound
+speed (manifest option ``sound_speed_mps``, else the trial's sound speed).
+
+Time of a range (``log_time``): the middle of the acoustic exchange, i.e. the
+instant the heard modem transmitted its reply: the reception time minus the
+one-way travel time (two-way pings, EvoLogics propagation times and USBL fixes),
+or the reception time minus half the travel time (one-way time of arrival).
+Reception times come from the sentence when it has one (MM2 $CACMR, $CACST,
+$CATOA), else from the line's host timestamp; neither gives a Reject, never the
+wall clock. Records are kept in log order, duplicates and all.
+
+What each record produces (everything else is parsed, validated and counted):
+
+- micromodem: $CAMPR and $CACMR,PNR -> kind "ping". $CACST and $CATOA -> kind
+  "toa" only with manifest option ``owtt_period_s`` (synchronous one-way
+  ranging: transmissions on multiples of that period plus ``owtt_offset_s``;
+  travel time = time of arrival modulo the period; source = the packet's source,
+  for $CATOA the last modem heard). ``campr_travel_time = "round_trip"`` halves
+  $CAMPR times written as round trips (default "one_way", see formats.micromodem).
+- evologics: AT?T propagation-time replies -> kind "ping" to the modem last
+  delivered to or heard from; USBLLONG -> kind "usbl".
+- regex: every matched line -> kind "user" (the line's own time is used as is).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from typing import Any, Iterator, Mapping
+
+from formats import evologics as ev
+from formats import micromodem as mm
+from formats import regex_lines as rx
+from formats.records import FormatError, Reject, Where
+from formats.schemas import AcousticRange, timestamp
+
+from .base import Converter, LogContext, Output, output
+from .clock import DAY_NS, NS, DayClock
+
+SUFFIX = "modem/range"
+
+
+# ---- helpers shared with recorders.usbl
+
+def option_float(ctx: LogContext, key: str, default: float | None, positive: bool = True) -> float | None:
+    """A numeric manifest option, validated; FormatError names the option when it is unusable."""
+    value = ctx.options.get(key, default)
+    if value is None:
+        return None
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise FormatError(f"{ctx.path}: option {key} must be a number, not {value!r}") from None
+    if not math.isfinite(number) or (positive and number <= 0):
+        raise FormatError(f"{ctx.path}: option {key} must be a positive number, not {value!r}")
+    return number
+
+
+def option_choice(ctx: LogContext, key: str, choices: tuple[str, ...]) -> str:
+    """A manifest option restricted to `choices` (the first is the default)."""
+    value = ctx.options.get(key, choices[0])
+    if value not in choices:
+        raise FormatError(f"{ctx.path}: option {key} must be one of {choices}, not {value!r}")
+    return str(value)
+
+
+def sound_speed(ctx: LogContext) -> float:
+    """Sound speed (m/s) for this log: manifest option sound_speed_mps, else the trial's."""
+    c = option_float(ctx, "sound_speed_mps", ctx.sound_speed_mps)
+    assert c is not None
+    return c
+
+
+def host_time(ctx: LogContext, where: Where) -> int | None:
+    """The line's host time with the log's clock offset, or None."""
+    return None if where.host_time_ns is None else where.host_time_ns + ctx.clock_offset_ns
+
+
+def own_addresses(ctx: LogContext) -> frozenset[int]:
+    """The modem addresses the address book gives this log's vehicle."""
+    return frozenset(a for a, v in ctx.address_book.items() if v == ctx.vehicle)
+
+
+def own_address(ctx: LogContext) -> int:
+    """This vehicle's modem address when it has exactly one, else -1."""
+    own = own_addresses(ctx)
+    return next(iter(own)) if len(own) == 1 else -1
+
+
+def endpoint(ctx: LogContext, text: str) -> tuple[str, int]:
+    """(vehicle name, address) from a regex group holding an address or a vehicle name."""
+    text = text.strip()
+    if text.isdigit():
+        return ctx.vehicle_for_address(int(text)), int(text)
+    addresses = [a for a, v in ctx.address_book.items() if v == text]
+    return text, addresses[0] if len(addresses) == 1 else -1
+
+
+def usbl_reception_ns(ctx: LogContext, where: Where, current_s: float, measured_s: float) -> int | None:
+    """Host time of an EvoLogics USBL line moved back to the modem's measurement time."""
+    host = host_time(ctx, where)
+    if host is None:
+        return None
+    lag = current_s - measured_s
+    # the modem clock is its own; trust its lag only when it is plausible
+    return host - round(lag * NS) if 0.0 <= lag < 60.0 else host
+
+
+def acoustic_range(
+    ctx: LogContext, t_ns: int, where: Where, heard: tuple[str, int], measurer: tuple[str, int],
+    travel_s: float, kind: str, fmt: str, c: float,
+) -> Output:
+    """An AcousticRange Output on /<vehicle>/modem/range."""
+    msg = AcousticRange(
+        timestamp=timestamp(t_ns), source=heard[0], destination=measurer[0],
+        source_address=heard[1], destination_address=measurer[1], travel_time_s=travel_s,
+        range_m=travel_s * c, sound_speed_mps=c, kind=kind, source_format=fmt,
+    )
+    return output(ctx, SUFFIX, msg, t_ns, where)
+
+
+# ---- Micro-Modem
+
+@dataclass(frozen=True)
+class _MmOptions:
+    round_trip: bool
+    period_s: float | None
+    offset_s: float
+    c: float
+
+
+def _mm_options(ctx: LogContext) -> _MmOptions:
+    round_trip = option_choice(ctx, "campr_travel_time", ("one_way", "round_trip")) == "round_trip"
+    offset = option_float(ctx, "owtt_offset_s", 0.0, positive=False)
+    return _MmOptions(round_trip, option_float(ctx, "owtt_period_s", None), offset or 0.0, sound_speed(ctx))
+
+
+def _ping(ctx: LogContext, rec: mm.PingReply, own: frozenset[int], c: float) -> Output | Reject:
+    heard, measurer = rec.src, rec.dest
+    if own and heard in own and measurer not in own:
+        heard, measurer = measurer, heard  # firmware that writes the pinger first
+    elif own and measurer not in own:
+        return Reject(rec.where, f"ping reply between modems {heard} and {measurer}: neither is {ctx.vehicle}'s")
+    arrival = rec.utc_ns + ctx.clock_offset_ns if rec.utc_ns is not None else host_time(ctx, rec.where)
+    if arrival is None:
+        return Reject(rec.where, "no time: the ping reply carries none and the line has no host timestamp")
+    t = arrival - round(rec.one_way_travel_time_s * NS)
+    return acoustic_range(
+        ctx, t, rec.where, (ctx.vehicle_for_address(heard), heard), (ctx.vehicle, measurer),
+        rec.one_way_travel_time_s, "ping", "micromodem", c,
+    )
+
+
+def _toa(ctx: LogContext, where: Where, arrival: int | None, src: int | None, opts: _MmOptions) -> Output | Reject:
+    if arrival is None:
+        return Reject(where, "no date: time of arrival without a trial date or a modem date")
+    if src is None:
+        return Reject(where, "time of arrival before any packet says which modem sent it")
+    assert opts.period_s is not None
+    tod_s = ((arrival - ctx.clock_offset_ns) % DAY_NS) / NS
+    travel = (tod_s - opts.offset_s) % opts.period_s
+    t = arrival - round(travel * NS / 2)
+    heard = (ctx.vehicle_for_address(src), src)
+    return acoustic_range(ctx, t, where, heard, (ctx.vehicle, own_address(ctx)), travel, "toa", "micromodem", opts.c)
+
+
+def _set_date(clock: DayClock, rec: mm.TransmitStats | mm.Clock) -> None:
+    if isinstance(rec, mm.TransmitStats):
+        clock.set_date(rec.date, rec.tod_s)
+        return
+    dt = datetime.fromtimestamp(rec.utc_ns // NS, tz=timezone.utc)
+    clock.set_date(dt.date(), (rec.utc_ns % DAY_NS) / NS)
+
+
+def _micromodem(data: bytes, ctx: LogContext, opts: _MmOptions) -> Iterator[Output | Reject]:
+    clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
+    own = own_addresses(ctx)
+    last_src: int | None = None
+    for rec in mm.decode(data, ctx.prefix, opts.round_trip):
+        if isinstance(rec, Reject):
+            yield rec
+        elif isinstance(rec, mm.PingReply):
+            yield _ping(ctx, rec, own, opts.c)
+        elif isinstance(rec, (mm.TransmitStats, mm.Clock)):
+            _set_date(clock, rec)
+        elif isinstance(rec, (mm.CycleInit, mm.ReceivedData, mm.PingHeard)) and rec.src not in own:
+            last_src = rec.src
+        elif isinstance(rec, mm.ReceiveStats):
+            last_src = rec.src
+            if opts.period_s is not None:
+                yield _toa(ctx, rec.where, clock.resolve(rec.tod_s), rec.src, opts)
+        elif isinstance(rec, mm.TimeOfArrival) and opts.period_s is not None:
+            arrival = clock.resolve(rec.tod_s) if rec.tod_s is not None else rec.utc_ns + ctx.clock_offset_ns  # type: ignore[operator]
+            yield _toa(ctx, rec.where, arrival, last_src, opts)
+
+
+def convert_micromodem(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """WHOI Micro-Modem log -> ranges (options are checked before the first record)."""
+    return _micromodem(data, ctx, _mm_options(ctx))
+
+
+# ---- EvoLogics S2C
+
+def _evologics(data: bytes, ctx: LogContext, c: float) -> Iterator[Output | Reject]:
+    me = (ctx.vehicle, own_address(ctx))
+    for rec in ev.decode(data, ctx.prefix):
+        if isinstance(rec, Reject):
+            yield rec
+        elif isinstance(rec, ev.PropagationTime):
+            host = host_time(ctx, rec.where)
+            if rec.peer is None:
+                yield Reject(rec.where, "propagation time before any delivery or reception names the peer")
+            elif host is None:
+                yield Reject(rec.where, "no time: EvoLogics line without host timestamp")
+            else:
+                tt = rec.propagation_time_us * 1e-6
+                heard = (ctx.vehicle_for_address(rec.peer), rec.peer)
+                yield acoustic_range(ctx, host - round(tt * NS), rec.where, heard, me, tt, "ping", "evologics", c)
+        elif isinstance(rec, ev.UsblLong):
+            arrival = usbl_reception_ns(ctx, rec.where, rec.current_time_s, rec.measurement_time_s)
+            if arrival is None:
+                yield Reject(rec.where, "no time: EvoLogics line without host timestamp")
+                continue
+            tt = rec.propagation_time_us * 1e-6
+            heard = (ctx.vehicle_for_address(rec.address), rec.address)
+            yield acoustic_range(ctx, arrival - round(tt * NS), rec.where, heard, me, tt, "usbl", "evologics", c)
+
+
+def convert_evologics(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """EvoLogics S2C log -> ranges from propagation times and USBL fixes."""
+    return _evologics(data, ctx, sound_speed(ctx))
+
+
+# ---- user-defined lines
+
+@dataclass(frozen=True)
+class RegexOptions:
+    """A regex log's compiled pattern and reading options, checked up front."""
+
+    pattern: Any
+    time_format: str
+    scale: float
+    c: float
+
+
+def regex_options(ctx: LogContext, require_range: bool = True) -> RegexOptions:
+    """Compile and check the manifest's regex options (FormatError with a clear message)."""
+    pattern = rx.compile_pattern(ctx.options.get("pattern"), require_range)
+    time_format = option_choice(ctx, "time_format", rx.TIME_FORMATS)
+    scale = option_float(ctx, "travel_time_scale", 1.0)
+    assert scale is not None
+    return RegexOptions(pattern, time_format, scale, sound_speed(ctx))
+
+
+def regex_time(ctx: LogContext, rec: rx.RegexRecord, clock: DayClock) -> int | Reject:
+    """Absolute time (clock offset applied) of a regex record, or a Reject saying why not."""
+    if rec.time_ns is not None:
+        return rec.time_ns + ctx.clock_offset_ns
+    if rec.tod_s is not None:
+        if rec.date is not None:
+            clock.set_date(rec.date)
+        t = clock.resolve(rec.tod_s)
+        return t if t is not None else Reject(rec.where, "no date: time of day without a trial date")
+    host = host_time(ctx, rec.where)
+    return host if host is not None else Reject(rec.where, "no time: no time group and no host timestamp")
+
+
+def travel_and_range(values: Mapping[str, float], c: float) -> tuple[float, float]:
+    """(one-way travel time, slant range) from a line's travel time or, failing that, its range."""
+    tt = values.get("travel_time_s", math.nan)
+    if math.isfinite(tt):
+        return tt, tt * c
+    r = values.get("range_m", math.nan)
+    return r / c, r
+
+
+def _regex(data: bytes, ctx: LogContext, opts: RegexOptions) -> Iterator[Output | Reject]:
+    clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
+    for rec in rx.decode(data, opts.pattern, opts.time_format, ctx.prefix, opts.scale):
+        if isinstance(rec, Reject):
+            yield rec
+            continue
+        t = regex_time(ctx, rec, clock)
+        tt, _ = travel_and_range(rec.values, opts.c)
+        if isinstance(t, Reject):
+            yield t
+        elif not math.isfinite(tt):
+            yield Reject(rec.where, "no travel time or range on the line")
+        elif not rec.source:
+            yield Reject(rec.where, "no source: the pattern's 'source' group did not match")
+        else:
+            measurer = endpoint(ctx, rec.destination) if rec.destination else (ctx.vehicle, own_address(ctx))
+            yield acoustic_range(ctx, t, rec.where, endpoint(ctx, rec.source), measurer, tt, "user", "regex", opts.c)
+
+
+def convert_regex(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """User-pattern log -> ranges; a bad pattern raises FormatError at once."""
+    opts = regex_options(ctx)
+    if "source" not in opts.pattern.groupindex:
+        raise FormatError(f"{ctx.path}: regex format: a modem pattern needs a named group 'source'")
+    return _regex(data, ctx, opts)
+
+
+CONVERTERS: dict[str, Converter] = {
+    "micromodem": convert_micromodem,
+    "evologics": convert_evologics,
+    "regex": convert_regex,
+}

@@ -1,0 +1,199 @@
+"""USBL logs to ``/<node>/usbl`` (`auvreplay.UsblObservation`).
+
+The node is the vehicle whose log it is (a buoy or ship carrying the USBL
+head); the target comes from the modem address book. Angles are degrees
+(bearing true, clockwise from north; elevation up from horizontal), relative
+positions ENU metres, travel time one way; missing values are NaN.
+
+EvoLogics: the USBLLONG, USBLANGLES and USBLPHYD lines of one measurement
+(same target, modem measurement times within 1 ms) become ONE observation:
+position, range and bearing from USBLLONG (bearing = atan2(E, N)), direction
+from USBLANGLES when there is no full fix, and phase differences from
+USBLPHYD when the manifest gives the carrier frequency ``carrier_hz``
+(phase = 2 pi f x element delay; element layout in formats.evologics). A
+USBLPHYD without a fix still gives an observation with only its phases.
+``bearing_convention`` = "enu" (default) or "compass" says how USBLANGLES
+bearings are measured. Time: the line's host time moved back by the modem's
+own lag (current - measurement time) and by the one-way travel time, i.e. the
+instant the target transmitted (see recorders.modem). USBLPHYP is parsed only.
+
+regex: groups ``target`` (or ``source``), any of ``travel_time_s``, ``range_m``,
+``bearing_deg``, ``elevation_deg``, ``east_m``, ``north_m``, ``up_m``,
+``phase_x_rad``, ``phase_y_rad``; bearing and elevation are derived from E/N/U
+when the line has a position but no angles.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Iterator, Mapping
+
+from formats import evologics as ev
+from formats import regex_lines as rx
+from formats.records import FormatError, Reject
+from formats.schemas import UsblObservation, timestamp
+
+from .base import Converter, LogContext, Output, output
+from .clock import NS, DayClock
+from .modem import (
+    RegexOptions, endpoint, option_choice, option_float, regex_options, regex_time, sound_speed,
+    travel_and_range, usbl_reception_ns,
+)
+
+SUFFIX = "usbl"
+NAN = math.nan
+_MATCH_S = 1e-3  # USBLPHYD's measurement time differs from USBLLONG's by a microsecond or so
+
+
+def _angles(east: float, north: float, up: float) -> tuple[float, float]:
+    """(bearing, elevation) in degrees of an ENU vector; NaN when it has no direction."""
+    horizontal = math.hypot(east, north)
+    if not math.isfinite(horizontal) or (horizontal == 0 and up == 0):
+        return NAN, NAN
+    return math.degrees(math.atan2(east, north)) % 360.0, math.degrees(math.atan2(up, horizontal))
+
+
+def observation(t_ns: int, node: str, target: str, fmt: str, v: Mapping[str, float]) -> UsblObservation:
+    """A UsblObservation from named values (missing ones NaN)."""
+    g = lambda k: float(v.get(k, NAN))  # noqa: E731
+    return UsblObservation(
+        timestamp=timestamp(t_ns), node=node, target=target, travel_time_s=g("travel_time_s"),
+        range_m=g("range_m"), bearing_deg=g("bearing_deg"), elevation_deg=g("elevation_deg"),
+        phase_x_rad=g("phase_x_rad"), phase_y_rad=g("phase_y_rad"), relative_east_m=g("east_m"),
+        relative_north_m=g("north_m"), relative_up_m=g("up_m"), source_format=fmt,
+        integrity=g("integrity"), rssi_db=g("rssi_db"),
+    )
+
+
+# ---- EvoLogics
+
+UsblRecord = ev.UsblLong | ev.UsblAngles | ev.UsblPhaseDelays
+
+
+@dataclass
+class _Group:
+    """The USBL lines of one measurement, in the order they were logged."""
+
+    first: UsblRecord
+    parts: dict[type, UsblRecord] = field(default_factory=dict)
+
+    def accepts(self, rec: UsblRecord) -> bool:
+        return (
+            rec.address == self.first.address and type(rec) not in self.parts
+            and abs(rec.measurement_time_s - self.first.measurement_time_s) <= _MATCH_S
+        )
+
+
+@dataclass(frozen=True)
+class _UsblOptions:
+    carrier_hz: float | None
+    convention: str
+    c: float
+
+
+def _values(group: _Group, opts: _UsblOptions) -> dict[str, float]:
+    v: dict[str, float] = {}
+    fix = group.parts.get(ev.UsblLong)
+    ang = group.parts.get(ev.UsblAngles)
+    phyd = group.parts.get(ev.UsblPhaseDelays)
+    if isinstance(fix, ev.UsblLong):
+        tt = fix.propagation_time_us * 1e-6
+        v.update(travel_time_s=tt, range_m=tt * opts.c, east_m=fix.east_m, north_m=fix.north_m, up_m=fix.up_m)
+        v["bearing_deg"], v["elevation_deg"] = _angles(fix.east_m, fix.north_m, fix.up_m)
+        v.update(integrity=fix.integrity, rssi_db=fix.rssi_db)
+    elif isinstance(ang, ev.UsblAngles):
+        v["bearing_deg"] = ev.bearing_from_vendor(ang.bearing_rad, opts.convention)
+        v["elevation_deg"] = math.degrees(ang.elevation_rad)
+        v.update(integrity=ang.integrity, rssi_db=ang.rssi_db)
+    if isinstance(phyd, ev.UsblPhaseDelays) and opts.carrier_hz is not None:
+        v["phase_x_rad"], v["phase_y_rad"] = ev.phases_from_delays(phyd.delays_ns, opts.carrier_hz)
+    return v
+
+
+def _emit(ctx: LogContext, group: _Group, opts: _UsblOptions) -> Output | Reject:
+    first = group.first
+    arrival = usbl_reception_ns(ctx, first.where, first.current_time_s, first.measurement_time_s)
+    if arrival is None:
+        return Reject(first.where, "no time: EvoLogics line without host timestamp")
+    v = _values(group, opts)
+    t = arrival - round(v.get("travel_time_s", 0.0) * NS)
+    msg = observation(t, ctx.vehicle, ctx.vehicle_for_address(first.address), "evologics", v)
+    return output(ctx, SUFFIX, msg, t, first.where)
+
+
+def _evologics(data: bytes, ctx: LogContext, opts: _UsblOptions) -> Iterator[Output | Reject]:
+    group: _Group | None = None
+    for rec in ev.decode(data, ctx.prefix):
+        if isinstance(rec, Reject):
+            yield rec
+        elif isinstance(rec, (ev.UsblLong, ev.UsblAngles, ev.UsblPhaseDelays)):
+            if group is not None and group.accepts(rec):
+                group.parts[type(rec)] = rec
+                continue
+            if group is not None:
+                yield _emit(ctx, group, opts)
+            group = _Group(rec, {type(rec): rec})
+    if group is not None:
+        yield _emit(ctx, group, opts)
+
+
+def convert_evologics(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """EvoLogics USBL log -> one UsblObservation per measurement."""
+    opts = _UsblOptions(
+        option_float(ctx, "carrier_hz", None),
+        option_choice(ctx, "bearing_convention", ("enu", "compass")),
+        sound_speed(ctx),
+    )
+    return _evologics(data, ctx, opts)
+
+
+# ---- user-defined lines
+
+_USBL_VALUES = ("travel_time_s", "range_m", "bearing_deg", "elevation_deg", "east_m", "north_m", "up_m",
+                "phase_x_rad", "phase_y_rad")
+
+
+def _regex_values(values: Mapping[str, float], c: float) -> dict[str, float]:
+    v = dict(values)
+    if "travel_time_s" in v or "range_m" in v:
+        v["travel_time_s"], v["range_m"] = travel_and_range(values, c)
+    if "bearing_deg" not in v and {"east_m", "north_m"} <= v.keys():
+        v["bearing_deg"], elevation = _angles(v["east_m"], v["north_m"], v.get("up_m", 0.0))
+        if "up_m" in v:
+            v.setdefault("elevation_deg", elevation)
+    return v
+
+
+def _regex(data: bytes, ctx: LogContext, opts: RegexOptions) -> Iterator[Output | Reject]:
+    clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
+    for rec in rx.decode(data, opts.pattern, opts.time_format, ctx.prefix, opts.scale):
+        if isinstance(rec, Reject):
+            yield rec
+            continue
+        t = regex_time(ctx, rec, clock)
+        if isinstance(t, Reject):
+            yield t
+        elif not rec.source:
+            yield Reject(rec.where, "no target: the pattern's 'target' group did not match")
+        else:
+            v = _regex_values(rec.values, opts.c)
+            msg = observation(t, ctx.vehicle, endpoint(ctx, rec.source)[0], "regex", v)
+            yield output(ctx, SUFFIX, msg, t, rec.where)
+
+
+def convert_regex(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """User-pattern USBL log -> observations; a bad pattern raises FormatError at once."""
+    opts = regex_options(ctx, require_range=False)
+    names = set(opts.pattern.groupindex)
+    if not names & {"target", "source"}:
+        raise FormatError(f"{ctx.path}: regex format: a USBL pattern needs a named group 'target'")
+    if not names & set(_USBL_VALUES):
+        raise FormatError(f"{ctx.path}: regex format: a USBL pattern needs a measurement group, one of {_USBL_VALUES}")
+    return _regex(data, ctx, opts)
+
+
+CONVERTERS: dict[str, Converter] = {
+    "evologics": convert_evologics,
+    "regex": convert_regex,
+}
