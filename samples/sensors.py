@@ -44,6 +44,8 @@ class GpsSeries:
     sigma_m: float
     hdop: np.ndarray
     satellites: np.ndarray
+    speed_mps: np.ndarray
+    course_deg: np.ndarray
 
 
 def simulate_gps(track: Track, cfg: GpsConfig, frame: LocalFrame, duration_s: float,
@@ -59,7 +61,11 @@ def simulate_gps(track: Track, cfg: GpsConfig, frame: LocalFrame, duration_s: fl
     lat, lon = frame.to_geodetic(east, north)
     hdop = np.round(0.9 + 0.2 * np.abs(gauss_markov(rng, len(t), dt, 1.0, 120.0)), 1)
     sats = 9 + np.round(gauss_markov(rng, len(t), dt, 1.0, 300.0)).astype(int)
-    return GpsSeries(t, lat, lon, alt, east, north, sigma, hdop, np.clip(sats, 5, 12))
+    # Doppler velocity: a few cm/s of noise, unlike differenced positions
+    ve = _at(track, t, track.vel_east_mps) + rng.standard_normal(len(t)) * 0.03
+    vn = _at(track, t, track.vel_north_mps) + rng.standard_normal(len(t)) * 0.03
+    course = np.mod(np.degrees(np.arctan2(ve, vn)), 360.0)
+    return GpsSeries(t, lat, lon, alt, east, north, sigma, hdop, np.clip(sats, 5, 12), np.hypot(ve, vn), course)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,199 @@
+"""Writing a simulated trial to disk: vendor logs, manifest, truth, labels and the scenario.
+
+Each log is written with the vendor encoders of `formats/` (the same code the
+decoders are tested against), as the instrument or its data logger would
+write it. Output is byte-identical for the same scenario and seed: fixed
+float formatting, vehicles in manifest order, no wall-clock time anywhere.
+
+Directory layout::
+
+    README.md             what is here
+    trial.toml            the manifest (DESIGN.md "Trial manifest")
+    scenario.toml         the scenario used, `auvreplay simulate --scenario` reads it back
+    truth.csv             every vehicle's true track at `truth_csv_rate_hz`
+    ranges.csv            every ranging epoch: true and measured range, GPS range, label
+    usbl.csv              every USBL node epoch: true and measured delay/phases, abnormal flags
+    anomalies.csv         injected anomaly intervals (scenario and natural), labelled by kind
+    <vehicle>/<sensor>.log
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from . import logs_acoustic, logs_nav
+from .scenario import scenario_to_toml
+from .simulator import SimulatedTrial
+
+TRUTH_CSV_RATE_HZ = 1.0
+
+# (sensor, format, file name, writer, manifest options); writer(trial, vehicle name) -> bytes
+LogPlan = tuple[str, str, str, Callable[[SimulatedTrial, str], bytes], dict]
+
+
+def _plans(trial: SimulatedTrial, name: str, role: str) -> list[LogPlan]:
+    """Which logs each vehicle carries and in which vendor format."""
+    c = trial.scenario.ranging.sound_speed_mps
+    modem_opts = {"sound_speed_mps": c}
+    if role == "buoy":
+        return [
+            ("gps", "nmea", "gps.log", logs_nav.nmea_gps, {}),
+            ("usbl", "evologics", "usbl.log", logs_acoustic.evologics_usbl,
+             {"sound_speed_mps": c, "carrier_hz": trial.scenario.usbl.frequency_hz}),
+        ]
+    if name == "leader2":
+        gps: LogPlan = ("gps", "novatel", "gps.log", logs_nav.novatel_gps, {})
+    else:
+        gps = ("gps", "nmea", "gps.log", logs_nav.nmea_gps, {})
+    if role == "leader":
+        ins: LogPlan = ("ins", "phins", "ins.log", logs_nav.phins_ins, {})
+    else:
+        ins = ("ins", "novatel", "ins.log", logs_nav.novatel_ins, {})
+    return [gps, ins, ("dvl", "pd0", "dvl.pd0", logs_nav.pd0_dvl, {}),
+            ("modem", "micromodem", "modem.log", logs_acoustic.micromodem_log, modem_opts)]
+
+
+def _fmt_value(v: object) -> str:
+    if isinstance(v, str):
+        return f'"{v}"'
+    if isinstance(v, float):
+        return repr(v)
+    return str(v)
+
+
+def manifest_text(trial: SimulatedTrial) -> str:
+    """The trial manifest (TOML) for the logs `write_trial` writes."""
+    t = trial.scenario.trial
+    out = [
+        "# Simulated lake trial written by `auvreplay simulate` (samples/).",
+        f"# seed = {trial.seed}; truth in truth.csv, ranges.csv, usbl.csv; labels in anomalies.csv",
+        "[trial]", f'name = "{t.name}"', f'date = "{t.date}"',
+        f"sound_speed_mps = {trial.scenario.ranging.sound_speed_mps!r}", "",
+    ]
+    for name, role, address in _roster(trial):
+        out += ["[[vehicles]]", f'name = "{name}"', f'role = "{role}"', f"modem_address = {address}"]
+        if role == "buoy":
+            b = next(b for b in trial.buoys if b.name == name)
+            out += [f"latitude = {b.lat_deg:.8f}", f"longitude = {b.lon_deg:.8f}", f"depth_m = {b.depth_m!r}"]
+        out.append("")
+        for sensor, fmt, fname, _, opts in _plans(trial, name, role):
+            out += ["[[vehicles.logs]]", f'sensor = "{sensor}"', f'format = "{fmt}"',
+                    f'path = "{name}/{fname}"', "clock_offset_s = 0.0"]
+            out += [f"{k} = {_fmt_value(v)}" for k, v in opts.items()]
+            out.append("")
+    return "\n".join(out)
+
+
+def _roster(trial: SimulatedTrial) -> list[tuple[str, str, int]]:
+    return [(v.name, v.role, v.modem_address) for v in trial.vehicles] + [
+        (b.name, "buoy", b.modem_address) for b in trial.buoys]
+
+
+def truth_csv(trial: SimulatedTrial) -> str:
+    """True tracks of every vehicle at TRUTH_CSV_RATE_HZ, fixed decimals (1 cm, 1 mm/s)."""
+    rows = ["vehicle,t_s,latitude_deg,longitude_deg,depth_m,heading_deg,velocity_north_mps,velocity_east_mps"]
+    step = max(int(round(trial.scenario.trial.truth_rate_hz / TRUTH_CSV_RATE_HZ)), 1)
+    for v in trial.vehicles:
+        tr = v.track
+        idx = np.arange(0, len(tr.t_s), step)
+        cols = np.column_stack([tr.t_s, tr.lat_deg, tr.lon_deg, tr.depth_m, tr.heading_deg,
+                                tr.vel_north_mps, tr.vel_east_mps])[idx]
+        fmt = "{},{:.1f},{:.7f},{:.7f},{:.2f},{:.2f},{:.3f},{:.3f}"
+        rows += [fmt.format(v.name, *row) for row in cols]
+    return "\n".join(rows) + "\n"
+
+
+def ranges_csv(trial: SimulatedTrial) -> str:
+    """Every ranging epoch: measured vs true slant range, the GPS range and the label."""
+    r = trial.ranges
+    kinds = {0: "", 1: "stale", 2: "drift", 3: "outlier"}
+    rows = ["t_s,follower,leader,range_true_m,range_m,travel_time_s,z_m,z_gps_m,label,injected"]
+    for i in range(len(r.t_s)):
+        rows.append(f"{r.t_s[i]:.1f},{r.follower[i]},{r.leader[i]},{r.range_true_m[i]:.3f},{r.range_m[i]:.3f},"
+                    f"{r.travel_time_s[i]:.6f},{r.z_m[i]:.3f},{r.z_gps_m[i]:.3f},{r.label[i]},"
+                    f"{kinds[int(r.injected[i])]}")
+    return "\n".join(rows) + "\n"
+
+
+def usbl_csv(trial: SimulatedTrial) -> str:
+    """Every node's observation of every beacon: true and measured delay and phases, flags."""
+    u = trial.usbl
+    rows = ["t_s,node,target,delay_true_s,delay_s,phase_x_true_rad,phase_x_rad,phase_y_true_rad,phase_y_rad,"
+            "abnormal_delay,abnormal_phase"]
+    for i in range(len(u.t_s)):
+        for j, node in enumerate(u.nodes):
+            rows.append(f"{u.t_s[i]:.1f},{node},{u.target},{u.delay_true_s[i, j]:.7f},{u.delay_s[i, j]:.7f},"
+                        f"{u.phase_x_true_rad[i, j]:.4f},{u.phase_x_rad[i, j]:.4f},{u.phase_y_true_rad[i, j]:.4f},"
+                        f"{u.phase_y_rad[i, j]:.4f},{int(u.abnormal_delay[i, j])},{int(u.abnormal_phase[i, j])}")
+    return "\n".join(rows) + "\n"
+
+
+def anomalies_csv(trial: SimulatedTrial) -> str:
+    """Injected anomaly intervals: who measured, which link, kind, [start, end] s and UTC."""
+    rows = ["vehicle,leader,kind,start_s,end_s,start_utc,end_utc,origin,magnitude_m"]
+    for iv in trial.intervals:
+        a, b = (logs_acoustic.iso(int(trial.t_ns(x))) for x in (iv.start_s, iv.end_s))
+        rows.append(f"{iv.vehicle},{iv.leader},{iv.kind},{iv.start_s:.1f},{iv.end_s:.1f},{a},{b},{iv.origin},"
+                    f"{iv.magnitude_m:.2f}")
+    return "\n".join(rows) + "\n"
+
+
+def readme(trial: SimulatedTrial) -> str:
+    """A short description of the trial directory."""
+    t = trial.scenario.trial
+    r = trial.ranges
+    test = r.t_s > t.training_window_s
+    lines = [
+        f"# {t.name}: a simulated lake trial (seed {trial.seed})",
+        "",
+        "Written by `auvreplay simulate` (package `samples`); `auvreplay record trial.toml -o trial.mcap`",
+        "archives it. Nothing here was measured: the scenario (`scenario.toml`) follows the source lake",
+        "trial described in STACK.md section 8.",
+        "",
+        f"- {t.date} from {t.start_time_utc} UTC, {t.duration_s:g} s, around {t.origin_lat_deg:g} N "
+        f"{t.origin_lon_deg:g} E",
+        "- vehicles: " + ", ".join(f"{v.name} ({v.role}, modem {v.modem_address})" for v in trial.vehicles),
+        "- USBL buoys: " + ", ".join(f"{b.name} (address {b.modem_address})" for b in trial.buoys),
+        f"- {len(r.t_s)} ranges, {int(test.sum())} after the {t.training_window_s:g} s training window, "
+        f"{int(r.label[test].sum())} of them labelled anomalous (|Z_gps - Z| > 9 m)",
+        "",
+        "Files: `trial.toml` (manifest), `scenario.toml`, `<vehicle>/*.log|.pd0` (vendor logs),",
+        "`truth.csv` (true tracks, 1 Hz), `ranges.csv` (every ranging epoch: true and measured range,",
+        "GPS range, label, injected kind), `usbl.csv` (every node observation: true and measured delay",
+        "and phases, abnormal flags), `anomalies.csv` (injected intervals; times in seconds from the",
+        "start and UTC). Seconds in the CSVs count from the trial start.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def render(trial: SimulatedTrial) -> dict[str, bytes]:
+    """Every file of the trial directory: relative POSIX path -> bytes."""
+    files: dict[str, bytes] = {
+        "README.md": readme(trial).encode(),
+        "trial.toml": manifest_text(trial).encode(),
+        "scenario.toml": scenario_to_toml(trial.scenario).encode(),
+        "truth.csv": truth_csv(trial).encode(),
+        "ranges.csv": ranges_csv(trial).encode(),
+        "usbl.csv": usbl_csv(trial).encode(),
+        "anomalies.csv": anomalies_csv(trial).encode(),
+    }
+    for name, role, _ in _roster(trial):
+        for _, _, fname, write, _ in _plans(trial, name, role):
+            files[f"{name}/{fname}"] = write(trial, name)
+    return files
+
+
+def write_trial(trial: SimulatedTrial, out_dir: str | Path) -> list[Path]:
+    """Write the trial directory; returns the paths written (sorted)."""
+    root = Path(out_dir)
+    written = []
+    for rel, data in sorted(render(trial).items()):
+        path = root / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(data)
+        written.append(path)
+    return written
+
