@@ -171,6 +171,8 @@ def wrap_longitude(lon: float) -> float:
     """Longitude in [-180, 180) from any range (PHINS writes 0..360)."""
     if not math.isfinite(lon) or -180.0 <= lon < 180.0:
         return lon  # untouched, so that the common case keeps every digit
+    if 180.0 <= lon < 540.0:
+        return lon - 360.0  # exact for 0..360 input (Sterbenz), unlike the modulo below
     return (lon + 180.0) % 360.0 - 180.0
 
 

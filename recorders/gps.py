@@ -1,0 +1,280 @@
+"""GNSS logs into ``/<vehicle>/gps`` (foxglove.LocationFix) and ``/<vehicle>/gps/status``.
+
+Epochs. A receiver writes several sentences per fix (GGA, RMC, GST, VTG...)
+and the order varies between receivers (GST often comes after GGA). The
+converter therefore groups consecutive records into epochs before emitting
+(`group_epochs`): a record joins the open epoch unless its sentence type is
+already in it or it carries a time of day different from the epoch's.
+Records without a time (VTG, HDT, THS) join the epoch they arrive in. Each
+epoch gives at most one LocationFix and one GnssStatus; a duplicated or
+out-of-order epoch is kept as it is, never merged or reordered.
+
+Position. GGA, else GLL (status A), else RMC (status A); never two fixes per
+epoch. GGA quality 0 or an empty position gives a GnssStatus but no fix.
+Altitude is the ellipsoidal height (MSL altitude plus geoid separation) when
+the separation is given, else the MSL altitude; NovAtel likewise.
+
+Covariance (ENU, m²). GST of the same epoch: diag(lon σ², lat σ², alt σ²),
+DIAGONAL_KNOWN; NovAtel BESTPOS σ the same way. Else, from GGA's HDOP:
+horizontal σ = HDOP × UERE split equally on east and north
+(σ_E² = σ_N² = (HDOP·UERE)²/2), vertical σ = 2·HDOP·UERE (VDOP is not in
+GGA; about twice HDOP is typical), APPROXIMATED. UERE depends on the fix
+quality (`UERE_M`) unless the log's manifest entry sets ``uere_m``. Else
+NaN and UNKNOWN.
+
+Time. NMEA time of day plus the date of the last RMC/ZDA (or the manifest's
+trial date), with midnight rollover (`recorders.clock.DayClock`); an epoch
+with no time of its own takes the host-timestamp prefix; NovAtel GPS
+week/seconds go through the leap-second table. The log's clock offset is
+added to all of them. A time of day without any date is rejected.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable, Hashable, Iterable, Iterator, TypeVar
+
+from formats import nmea, novatel
+from formats import schemas as S
+from formats.records import Reject
+
+from .base import Converter, LogContext, Output, output
+from .clock import DayClock
+
+R = TypeVar("R")
+NAN = float("nan")
+
+# User-equivalent range error (m, 1 sigma) by GGA fix quality, for HDOP-based covariance
+UERE_M: dict[int, float] = {1: 4.0, 2: 1.0, 3: 4.0, 4: 0.05, 5: 0.5, 6: 10.0, 7: 4.0, 8: 4.0, 9: 2.0}
+DEFAULT_UERE_M = 4.0
+
+# NovAtel position type -> GGA-style fix quality (NovAtel's own GPGGA mapping)
+NOVATEL_QUALITY: dict[str, int] = {
+    "NONE": 0, "SINGLE": 1, "INS_PSRSP": 1, "PSRDIFF": 2, "WAAS": 2, "INS_SBAS": 2, "INS_PSRDIFF": 2,
+    "L1_INT": 4, "WIDE_INT": 4, "NARROW_INT": 4, "INS_RTKFIXED": 4, "RTK_DIRECT_INS": 4,
+    "L1_FLOAT": 5, "IONOFREE_FLOAT": 5, "NARROW_FLOAT": 5, "INS_RTKFLOAT": 5, "PPP_CONVERGING": 5,
+    "PPP": 5, "INS_PPP": 5, "INS_PPP_CONVERGING": 5, "PPP_BASIC": 5, "PPP_BASIC_CONVERGING": 5,
+    "PROPAGATED": 6, "FIXEDPOS": 7,
+}
+
+
+def group_epochs(
+    items: Iterable[R | Reject], key: Callable[[R], tuple[str, Hashable | None]]
+) -> Iterator[list[R] | Reject]:
+    """Consecutive records as epochs; `key` gives (kind, time or None). Rejects pass straight through.
+
+    An epoch closes when a record's kind is already in it, or when the
+    record has a time and the epoch has a different one.
+    """
+    epoch: list[R] = []
+    kinds: set[str] = set()
+    epoch_time: Hashable | None = None
+    for item in items:
+        if type(item) is Reject:
+            yield item
+            continue
+        kind, t = key(item)  # type: ignore[arg-type]
+        if epoch and (kind in kinds or (t is not None and epoch_time is not None and t != epoch_time)):
+            yield epoch
+            epoch, kinds, epoch_time = [], set(), None
+        epoch.append(item)  # type: ignore[arg-type]
+        kinds.add(kind)
+        if epoch_time is None:
+            epoch_time = t
+    if epoch:
+        yield epoch
+
+
+def host_time_ns(records: Iterable[object], ctx: LogContext) -> int | None:
+    """The first host-timestamp prefix among the records, plus the clock offset."""
+    for rec in records:
+        host = rec.where.host_time_ns  # type: ignore[attr-defined]
+        if host is not None:
+            return host + ctx.clock_offset_ns
+    return None
+
+
+# ---------------------------------------------------------------- NMEA
+
+
+def nmea_key(rec: nmea.NmeaRecord) -> tuple[str, int | None]:
+    """Epoch key of an NMEA record: its sentence type and time of day in ms (None if untimed)."""
+    t = getattr(rec, "time_s", NAN)
+    return type(rec).__name__, (round(t * 1000) if t == t else None)
+
+
+def nmea_update_date(by: dict[type, object], clock: DayClock) -> None:
+    """Give the clock the date of the epoch's ZDA, else of a valid RMC (an invalid RMC's date may be stale)."""
+    for cls in (nmea.Zda, nmea.Rmc):
+        rec = by.get(cls)
+        if rec is not None and rec.date is not None and (cls is nmea.Zda or rec.valid):  # type: ignore[attr-defined]
+            clock.set_date(rec.date, rec.time_s)  # type: ignore[attr-defined]
+            return
+
+
+def nmea_epoch_time(by: dict[type, object], epoch: list, clock: DayClock, ctx: LogContext) -> int | Reject:
+    """UTC ns (offset applied) of an NMEA epoch, updating the clock's date; a Reject when unknown."""
+    nmea_update_date(by, clock)
+    for rec in epoch:
+        t = getattr(rec, "time_s", NAN)
+        if t == t:
+            resolved = clock.resolve(t)
+            if resolved is None:
+                return Reject(rec.where, f"no date for time of day {t:.3f} s: no RMC/ZDA date yet "
+                                         "and no [trial] date in the manifest")
+            return resolved
+    host = host_time_ns(epoch, ctx)
+    if host is None:
+        return Reject(epoch[0].where, "no time: the epoch has no timed sentence and no host timestamp")
+    return host
+
+
+def nmea_position(by: dict[type, object]) -> nmea.Gga | nmea.Gll | nmea.Rmc | None:
+    """The epoch's position record: GGA with a fix, else a valid GLL, else a valid RMC."""
+    g = by.get(nmea.Gga)
+    if g is not None and g.quality != 0 and g.latitude == g.latitude and g.longitude == g.longitude:  # type: ignore[attr-defined]
+        return g  # type: ignore[return-value]
+    for cls in (nmea.Gll, nmea.Rmc):
+        rec = by.get(cls)
+        if rec is not None and rec.valid and rec.latitude == rec.latitude and rec.longitude == rec.longitude:  # type: ignore[attr-defined]
+            return rec  # type: ignore[return-value]
+    return None
+
+
+def _covariance(by: dict[type, object], ctx: LogContext) -> tuple[tuple[float, ...] | None, int]:
+    gst = by.get(nmea.Gst)
+    if gst is not None and gst.lat_std_m == gst.lat_std_m and gst.lon_std_m == gst.lon_std_m:  # type: ignore[attr-defined]
+        e, n, u = gst.lon_std_m, gst.lat_std_m, gst.alt_std_m  # type: ignore[attr-defined]
+        return (e * e, 0.0, 0.0, 0.0, n * n, 0.0, 0.0, 0.0, u * u), S.COVARIANCE_DIAGONAL_KNOWN
+    g = by.get(nmea.Gga)
+    if g is not None and g.hdop == g.hdop and g.quality > 0:  # type: ignore[attr-defined]
+        uere = float(ctx.options.get("uere_m", UERE_M.get(g.quality, DEFAULT_UERE_M)))  # type: ignore[attr-defined]
+        h = g.hdop * uere  # type: ignore[attr-defined]
+        return (h * h / 2, 0.0, 0.0, 0.0, h * h / 2, 0.0, 0.0, 0.0, 4 * h * h), S.COVARIANCE_APPROXIMATED
+    return None, S.COVARIANCE_UNKNOWN
+
+
+def nmea_motion(by: dict[type, object]) -> tuple[float, float, float]:
+    """Speed over ground (m/s), course (deg true) and heading (deg true) of an epoch, NaN when absent."""
+    vtg, rmc = by.get(nmea.Vtg), by.get(nmea.Rmc)
+    speed = course = NAN
+    if vtg is not None:
+        speed, course = vtg.speed_knots * nmea.KNOT_MPS, vtg.course_true_deg  # type: ignore[attr-defined]
+    elif rmc is not None and rmc.valid:  # type: ignore[attr-defined]
+        speed, course = rmc.speed_knots * nmea.KNOT_MPS, rmc.course_deg  # type: ignore[attr-defined]
+    heading = NAN
+    hdt, ths = by.get(nmea.Hdt), by.get(nmea.Ths)
+    if hdt is not None:
+        heading = hdt.heading_deg  # type: ignore[attr-defined]
+    elif ths is not None and ths.mode != "V":  # type: ignore[attr-defined]
+        heading = ths.heading_deg  # type: ignore[attr-defined]
+    return speed, course, heading
+
+
+def _nmea_outputs(epoch: list, ctx: LogContext, clock: DayClock) -> Iterator[Output | Reject]:
+    by = {type(r): r for r in epoch}
+    if len(by) == 1 and nmea.Zda in by:
+        nmea_update_date(by, clock)  # a date-only epoch: nothing to emit, but the date counts
+        return
+    t = nmea_epoch_time(by, epoch, clock, ctx)
+    if type(t) is Reject:
+        yield t
+        return
+    pos = nmea_position(by)
+    where = pos.where if pos is not None else epoch[0].where
+    if pos is not None:
+        alt = NAN
+        if type(pos) is nmea.Gga:
+            sep = pos.geoid_separation_m
+            alt = pos.altitude_msl_m + sep if sep == sep else pos.altitude_msl_m
+        cov, kind = _covariance(by, ctx)
+        fix = S.location_fix(t, ctx.vehicle, pos.latitude, pos.longitude, alt, cov, kind)  # type: ignore[arg-type]
+        yield output(ctx, "gps", fix, t, where)  # type: ignore[arg-type]
+    g = by.get(nmea.Gga)
+    speed, course, heading = nmea_motion(by)
+    status = S.GnssStatus(
+        timestamp=S.timestamp(t), frame_id=ctx.vehicle,  # type: ignore[arg-type]
+        fix_quality=g.quality if g is not None else -1, satellites=g.satellites if g is not None else -1,
+        hdop=g.hdop if g is not None else NAN,
+        source_format="nmea:" + ",".join(type(r).__name__.upper() for r in epoch),
+        speed_over_ground_mps=speed, course_over_ground_deg=course, heading_deg=heading,
+    )
+    yield output(ctx, "gps/status", status, t, where)  # type: ignore[arg-type]
+
+
+def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """NMEA 0183 GNSS sentences (GGA, RMC, GLL, GST, VTG, ZDA, HDT, THS; any talker)."""
+    clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
+    for epoch in group_epochs(nmea.decode(data, ctx.prefix), nmea_key):
+        if type(epoch) is Reject:
+            yield epoch
+        else:
+            yield from _nmea_outputs(epoch, ctx, clock)  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------- NovAtel
+
+
+def novatel_key(rec: novatel.NovatelRecord) -> tuple[str, tuple[int, int]]:
+    """Epoch key of a NovAtel record: its log and GPS time in ms."""
+    week, sow = (rec.week, rec.seconds) if isinstance(rec, novatel.InsPva) else (rec.header.week, rec.header.seconds)
+    return type(rec).__name__, (week, round(sow * 1000) if math.isfinite(sow) else -1)
+
+
+def novatel_time(epoch: list, ctx: LogContext) -> int | Reject:
+    """UTC ns (offset applied) of a NovAtel epoch from its GPS time, else the host time."""
+    t = novatel.record_time_ns(epoch[0])
+    if t is not None:
+        return t + ctx.clock_offset_ns
+    host = host_time_ns(epoch, ctx)
+    if host is None:
+        return Reject(epoch[0].where, "no time: GPS week 0 or unknown time status, and no host timestamp")
+    return host
+
+
+def _source(rec: novatel.NovatelRecord) -> str:
+    h = rec.header
+    return h.message + ("B" if h.encoding.startswith("binary") else "A")
+
+
+def _novatel_outputs(epoch: list, ctx: LogContext) -> Iterator[Output | Reject]:
+    t = novatel_time(epoch, ctx)
+    if type(t) is Reject:
+        yield t
+        return
+    by = {type(r): r for r in epoch}
+    bp: novatel.BestPos | None = by.get(novatel.BestPos)  # type: ignore[assignment]
+    bv: novatel.BestVel | None = by.get(novatel.BestVel)  # type: ignore[assignment]
+    where = epoch[0].where
+    if bp is not None and bp.solution_status == "SOL_COMPUTED" and bp.position_type != "NONE":
+        u = bp.undulation_m
+        alt = bp.height_msl_m + u if u == u else bp.height_msl_m
+        e, n, h = bp.lon_std_m, bp.lat_std_m, bp.height_std_m
+        cov = (e * e, 0.0, 0.0, 0.0, n * n, 0.0, 0.0, 0.0, h * h)
+        fix = S.location_fix(t, ctx.vehicle, bp.latitude, bp.longitude, alt, cov, S.COVARIANCE_DIAGONAL_KNOWN)
+        yield output(ctx, "gps", fix, t, bp.where)  # type: ignore[arg-type]
+        where = bp.where
+    speed = course = NAN
+    if bv is not None and bv.solution_status == "SOL_COMPUTED":
+        speed, course = bv.horizontal_speed_mps, bv.track_deg
+    status = S.GnssStatus(
+        timestamp=S.timestamp(t), frame_id=ctx.vehicle,  # type: ignore[arg-type]
+        fix_quality=NOVATEL_QUALITY.get(bp.position_type, -1) if bp is not None else -1,
+        satellites=bp.satellites_used if bp is not None else -1, hdop=NAN,
+        source_format="novatel:" + ",".join(_source(r) for r in epoch),
+        speed_over_ground_mps=speed, course_over_ground_deg=course, heading_deg=NAN,
+    )
+    yield output(ctx, "gps/status", status, t, where)  # type: ignore[arg-type]
+
+
+def convert_novatel(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """NovAtel BESTPOS/BESTVEL logs, ASCII (long or short header) or binary."""
+    records = (r for r in novatel.decode(data, ctx.prefix) if isinstance(r, (Reject, novatel.BestPos, novatel.BestVel)))
+    for epoch in group_epochs(records, novatel_key):
+        if type(epoch) is Reject:
+            yield epoch
+        else:
+            yield from _novatel_outputs(epoch, ctx)  # type: ignore[arg-type]
+
+
+CONVERTERS: dict[str, Converter] = {"nmea": convert_nmea, "novatel": convert_novatel}
