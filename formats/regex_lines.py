@@ -56,6 +56,7 @@ EXAMPLE_PATTERN = (
     r" : [\d.]+ m \(Round-trip (?P<travel_time_s>[\d.]+) ms\)"
 )
 EXAMPLE_SCALE = 0.0005
+_EPOCH_MIN_NS, _EPOCH_MAX_NS = 0, 7258118400 * NS  # 1970-01-01, 2200-01-01
 
 _TOD = re.compile(r"(\d{2}):?(\d{2}):?(\d{2}(?:\.\d+)?)")
 _ISO = re.compile(r"(\d{4}-\d{2}-\d{2})[T ](\d{2}:\d{2}:\d{2})(?:[.,](\d+))?\s*(Z|[+-]\d{2}:?\d{2})?")
@@ -149,9 +150,10 @@ def _times(g: Mapping[str, str], time_format: str) -> tuple[int | None, float | 
         return None, None, day
     if time_format == "tod":
         return None, parse_tod_s(stamp), day
-    if time_format == "iso8601":
-        return parse_iso8601_ns(stamp), None, day
-    return _unix_ns(stamp), None, day
+    t = parse_iso8601_ns(stamp) if time_format == "iso8601" else _unix_ns(stamp)
+    if not _EPOCH_MIN_NS <= t < _EPOCH_MAX_NS:
+        raise ValueError(f"time outside 1970-2200: {stamp!r}")
+    return t, None, day
 
 
 def _record(m: re.Match[str], where: Where, time_format: str, scale: float) -> RegexRecord | Reject:

@@ -191,7 +191,8 @@ def test_no_input_makes_a_converter_raise(data: bytes) -> None:
     usbl_regex = {"pattern": r"(?P<time>\S+) (?P<target>\S+) (?P<bearing_deg>\S+)"}
     for conv, opts in (
         (modem.convert_micromodem, {"owtt_period_s": 1.0}), (modem.convert_evologics, {}),
-        (modem.convert_regex, regex), (usbl.convert_evologics, {"carrier_hz": 26000}),
+        (modem.convert_regex, regex), (modem.convert_regex, {**regex, "time_format": "unix"}),
+        (modem.convert_regex, {**regex, "time_format": "iso8601"}), (usbl.convert_evologics, {"carrier_hz": 26000}),
         (usbl.convert_regex, usbl_regex),
     ):
         for out in conv(data, ctx(options=opts)):

@@ -32,6 +32,8 @@ def test_iso_unix_and_date_group() -> None:
     (rec,) = rx.decode(b"2016-10-13 235959.5 1 0.2\n", r"(?P<date>\S+) (?P<time>\S+) (?P<source>\d) (?P<travel_time_s>\S+)")
     assert rec.date == date(2016, 10, 13) and rec.tod_s == pytest.approx(86399.5)
     assert rx.parse_iso8601_ns("2016-10-12T10:00:00+02:00") == 1476259200_000_000_000
+    (bad,) = rx.decode(b"99999999999999999999,3,1.0\n", r"(?P<time>\d+),(?P<source>\d+),(?P<range_m>\S+)", "unix")
+    assert isinstance(bad, Reject) and "outside 1970-2200" in bad.reason
 
 
 def test_no_match_bad_values_and_missing_time_group() -> None:
