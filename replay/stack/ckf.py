@@ -149,6 +149,11 @@ def _chol2(p11: float, p12: float, p22: float) -> tuple[float, float, float]:
     return l11, l21, math.sqrt(d if d > floor else floor)
 
 
+def _finite(*values: float) -> bool:
+    """True when every value is a finite number."""
+    return all(math.isfinite(v) for v in values)
+
+
 def _range(lat: float, lon: float, depth: float, llat: float, llon: float, ldepth: float) -> float:
     """Scalar horizontal range with common mid-point radii (model.horizontal_range, A.4 amended)."""
     b, a = metric_scales_scalar(0.5 * (lat + llat), 0.5 * (depth + ldepth))
@@ -202,19 +207,24 @@ def range_innovation(
 ) -> RangeInnovation | None:
     """Cubature range prediction (A.12-A.17), innovation (A.28) and adaptive factor (A.30-A.31).
 
-    ``leader`` = (lat rad, lon rad, depth m). Returns None when the inputs are
-    not finite or the predicted range is below MIN_PREDICTED_RANGE_M.
+    ``leader`` = (lat rad, lon rad, depth m). Returns None when an input is
+    not finite, P is not positive, or the range at the mean h(x̂) is below
+    MIN_PREDICTED_RANGE_M (the leader on top of the follower).
     """
+    llat, llon, ldep = leader
+    if not (_finite(z, llat, llon, ldep, depth_m, *s) and s.p11 > 0.0 and s.p22 > 0.0):
+        return None
+    lat, lon = s.lat, s.lon
+    if _range(lat, lon, depth_m, llat, llon, ldep) < MIN_PREDICTED_RANGE_M:
+        return None
     l11, l21, l22 = _chol2(s.p11, s.p12, s.p22)
     d1l, d1o, d2o = _SQRT2 * l11, _SQRT2 * l21, _SQRT2 * l22         # points of A.13
-    lat, lon = s.lat, s.lon
-    llat, llon, ldep = leader
     z1 = _range(lat + d1l, lon + d1o, depth_m, llat, llon, ldep)
     z2 = _range(lat, lon + d2o, depth_m, llat, llon, ldep)
     z3 = _range(lat - d1l, lon - d1o, depth_m, llat, llon, ldep)
     z4 = _range(lat, lon - d2o, depth_m, llat, llon, ldep)
     z_hat = 0.25 * (z1 + z2 + z3 + z4)
-    if not (math.isfinite(z_hat) and math.isfinite(z) and z_hat >= MIN_PREDICTED_RANGE_M):
+    if not math.isfinite(z_hat):
         return None
     e1, e2, e3, e4 = z1 - z_hat, z2 - z_hat, z3 - z_hat, z4 - z_hat
     pzz = 0.25 * (e1 * e1 + e2 * e2 + e3 * e3 + e4 * e4) + r_var      # centred sum (A.16)
@@ -223,6 +233,8 @@ def range_innovation(
     res = z - z_hat
     rr = res * res
     eta = 1.0 if rr <= pzz else pzz / rr
+    if not (math.isfinite(rr) and eta > 0.0):     # absurd ranges: R* would overflow
+        return None
     return RangeInnovation(z_hat, res, pzz, pxz_lat, pxz_lon, eta, r_var / eta)
 
 
@@ -239,7 +251,7 @@ def range_update(s: State2, inn: RangeInnovation, r_var: float, adaptive: bool, 
     # P - K P_zz Kᵀ with K = P_xz / P_zz equals P - P_xz P_xzᵀ / P_zz
     out = State2(s.lat + k0 * inn.residual, s.lon + k1 * inn.residual,
                  s.p11 - k0 * inn.pxz_lat, s.p12 - k0 * inn.pxz_lon, s.p22 - k1 * inn.pxz_lon)
-    if not (all(map(math.isfinite, out)) and out.p11 > 0.0 and out.p22 > 0.0):
+    if not (_finite(*out) and out.p11 > 0.0 and out.p22 > 0.0):
         return s
     return out
 

@@ -88,11 +88,12 @@ def horizontal_range(
 
 def slant_to_horizontal(slant_m: float, depth_m: float, leader_depth_m: float) -> tuple[float, bool]:
     """Horizontal range sqrt(r² - Δh²) from a slant range (A.4); (0, True) when clamped, never NaN."""
-    dz = depth_m - leader_depth_m
-    sq = slant_m * slant_m - dz * dz
-    if not sq > 0.0:  # also catches NaN from non-finite inputs
+    dz = abs(depth_m - leader_depth_m)
+    r = abs(slant_m)
+    if not (r > dz and slant_m > 0.0):  # also catches NaN from non-finite inputs
         return 0.0, True
-    return math.sqrt(sq), False
+    q = dz / r                          # r·sqrt(1 - q²) cannot overflow where r² - Δh² would
+    return r * math.sqrt((1.0 - q) * (1.0 + q)), False
 
 
 def radian_scaling(lat_rad: np.ndarray | float, depth_m: np.ndarray | float) -> np.ndarray:
