@@ -30,7 +30,8 @@ class LocalFrame:
     """East-north metres around an origin, scaled to degrees with the origin's radii.
 
     One fixed scaling (not a projection) keeps the map exactly invertible;
-    over a 2 km lake it differs from the stack's mid-point radii by < 1e-5.
+    over a 2 km lake it differs from the stack's mid-point radii by about
+    1e-5 (1 cm per km), far below any sensor's noise.
     """
 
     lat0_deg: float
