@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 import struct
 from dataclasses import dataclass, field
+from functools import lru_cache
 from datetime import datetime, timezone
 from typing import Iterator, Sequence
 
@@ -172,6 +173,12 @@ def parse_fixed(buf: bytes, start: int, length: int) -> FixedLeader | None:
     )
 
 
+@lru_cache(maxsize=16)
+def _fixed_cached(raw: bytes) -> FixedLeader | None:
+    # the fixed leader repeats byte for byte in every ensemble of a deployment
+    return parse_fixed(raw, 0, len(raw))
+
+
 def parse_variable(buf: bytes, start: int, length: int) -> VariableLeader | None:
     """Variable leader; the Y2K RTC (bytes 57-64) is used when present and plausible."""
     if length < _VAR.size:
@@ -235,7 +242,7 @@ def _parse_ensemble(buf: bytes, i: int, nbytes: int, ndt: int, profiles: bool) -
         tid = buf[start] | buf[start + 1] << 8
         ids.append(tid)
         if tid == FIXED_ID:
-            fixed = parse_fixed(buf, start, length)
+            fixed = _fixed_cached(buf[start : start + length])
         elif tid == VARIABLE_ID:
             variable = parse_variable(buf, start, length)
         elif tid == BOTTOM_ID:
