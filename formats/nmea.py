@@ -431,7 +431,7 @@ def _ddmm(value: float, deg_digits: int, hemis: str, decimals: int) -> tuple[str
     units = round(abs(value) * 60.0 * scale)
     deg, rem = divmod(units, 60 * scale)
     text = f"{deg:0{deg_digits}d}{rem // scale:02d}.{rem % scale:0{decimals}d}"
-    return text, hemis[1] if value < 0 else hemis[0]
+    return text, hemis[1] if value < 0 and units else hemis[0]  # no "S" for a value that rounds to 0
 
 
 def _body(address: str, fields: list[str]) -> str:
