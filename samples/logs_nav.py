@@ -12,7 +12,7 @@ import numpy as np
 
 from formats import nmea, novatel, pd0, phins
 
-from .sensors import GEOID_SEPARATION_M, LAKE_MSL_M, GpsSeries
+from .sensors import GEOID_SEPARATION_M, GpsSeries
 from .simulator import SimulatedTrial
 
 MPS_TO_KNOTS = 3600.0 / 1852.0
@@ -63,30 +63,44 @@ def novatel_gps(trial: SimulatedTrial, name: str) -> bytes:
     return "".join(out).encode("ascii")
 
 
+def _phins_burst(t_ns: int, lat: float, lon: float, depth: float, heading: float, roll: float, pitch: float,
+                 vn: float, ve: float, vd: float, std_h: float, std_att: float, std_pos: float) -> str:
+    """The PHINS sentences the leaders were configured to output, in PHINS burst order."""
+    return "".join((
+        phins.encode_hehdt(heading),
+        phins.encode_atitud(roll, -pitch + 0.0),  # PHINS pitch is positive bow down
+        phins.encode_positi(lat, lon, -depth + 0.0),
+        phins.encode_speed(ve, vn, -vd + 0.0),
+        phins.encode_time(t_ns),
+        phins.encode_stdhrp(std_h, std_att, std_att),
+        phins.encode_stdpos(std_pos, std_pos, 0.1),
+        phins.encode_status("ALGSTS", 0x00000045, 0),
+    ))
+
+
 def phins_ins(trial: SimulatedTrial, name: str) -> bytes:
-    """A leader's PHINS standard bursts, one per INS epoch."""
-    v = trial.vehicle(name)
-    s = v.ins
-    cfg = trial.scenario.ins
+    """A leader's PHINS standard bursts, one per INS epoch (altitude relative to the lake surface)."""
+    s = trial.vehicle(name).ins
+    att = trial.scenario.ins.attitude_sigma_deg
     t_ns = trial.t_ns(s.t_s)
-    out = [
-        phins.encode_epoch(
-            int(t_ns[i]), float(s.lat_deg[i]), float(s.lon_deg[i]), float(s.depth_m[i]), float(s.heading_deg[i]),
-            float(s.roll_deg[i]), float(s.pitch_deg[i]), float(s.vel_north_mps[i]), float(s.vel_east_mps[i]),
-            float(s.vel_down_mps[i]), heading_std_deg=s.heading_std_deg, roll_std_deg=cfg.attitude_sigma_deg,
-            pitch_std_deg=cfg.attitude_sigma_deg, position_std_north_m=float(s.position_std_m[i]),
-            position_std_east_m=float(s.position_std_m[i]))
-        for i in range(len(s.t_s))
-    ]
+    cols = np.column_stack([s.lat_deg, s.lon_deg, s.depth_m, s.heading_deg, s.roll_deg, s.pitch_deg,
+                            s.vel_north_mps, s.vel_east_mps, s.vel_down_mps, s.position_std_m])
+    out = [_phins_burst(int(t_ns[i]), *(float(x) for x in row[:9]), s.heading_std_deg, att, float(row[9]))
+           for i, row in enumerate(cols)]
     return "".join(out).encode("ascii")
 
 
 def novatel_ins(trial: SimulatedTrial, name: str) -> bytes:
-    """A follower's low-grade SPAN solution as #INSPVAXA (heights above the lake's MSL datum)."""
+    """A follower's low-grade SPAN solution as #INSPVAXA.
+
+    Heights are relative to the lake surface as vertical datum (as the INS
+    units of a lake trial are set up to report depth), so that
+    -(height - undulation) is the transducer depth.
+    """
     s = trial.vehicle(name).ins
     cfg = trial.scenario.ins
     t_ns = trial.t_ns(s.t_s)
-    height = LAKE_MSL_M - s.depth_m
+    height = GEOID_SEPARATION_M - s.depth_m
     out = [
         novatel.encode_inspvaxa(
             int(t_ns[i]), float(s.lat_deg[i]), float(s.lon_deg[i]), float(height[i]),
