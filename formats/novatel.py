@@ -349,28 +349,38 @@ def _binary_record(name: str, values: tuple, w: Where, h: Header) -> NovatelReco
     )
 
 
+def _resync(data: bytes, pos: int) -> int:
+    """Where to look after a damaged binary log at `pos`: the next sync or ASCII log line, else the end."""
+    sync = _next_sync(data, pos + 1)
+    stop = len(data) if sync < 0 else sync
+    for i in range(pos + 1, stop):
+        if data[i] in b"#%" and data[i + 1 : i + 2].isupper():
+            return i
+    return stop
+
+
 def parse_binary(data: bytes, pos: int) -> tuple[NovatelRecord | Reject | None, int]:
-    """The binary log at `pos` (a sync) and the offset after it; a Reject resumes one byte on."""
+    """The binary log at `pos` (a sync) and the offset after it; after a Reject, the next place to look."""
     where = Where(pos)
     short = data[pos + 2] == 0x13
     hdr_len = _HDR_SHORT.size if short else (data[pos + 3] if pos + 3 < len(data) else 28)
     if pos + max(hdr_len, 12) > len(data) or hdr_len < 12:
-        return Reject(where, "truncated NovAtel binary header"), pos + 1
+        return Reject(where, "truncated NovAtel binary header"), _resync(data, pos)
     if short:
         _, length, msg_id, week, ms = _HDR_SHORT.unpack_from(data, pos)
         status, port, seq, idle, rx, reserved, sw = "", "", 0, NAN, 0, 0, 0
     else:
         if hdr_len < _HDR_LONG.size:
-            return Reject(where, f"NovAtel binary header length {hdr_len}"), pos + 1
+            return Reject(where, f"NovAtel binary header length {hdr_len}"), _resync(data, pos)
         (_, _, msg_id, _, port_id, length, seq, idle_raw, ts, week, ms, rx, reserved, sw) = _HDR_LONG.unpack_from(data, pos)
         status, port, idle = TIME_STATUS.get(ts, str(ts)), PORTS.get(port_id, str(port_id)), idle_raw / 2.0
     end = pos + hdr_len + length
     if end + 4 > len(data):
-        return Reject(where, "truncated NovAtel binary log"), pos + 1
+        return Reject(where, "truncated NovAtel binary log"), _resync(data, pos)
     given = int.from_bytes(data[end : end + 4], "little")
     computed = crc32(data[pos:end])
     if given != computed:
-        return Reject(where, f"bad CRC {given:08x}, computed {computed:08x}", bad_checksum=True), pos + 1
+        return Reject(where, f"bad CRC {given:08x}, computed {computed:08x}", bad_checksum=True), _resync(data, pos)
     name = MESSAGE_IDS.get(msg_id)
     if name is None:
         return None, end + 4
