@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import anomalies as an
-from .scenario import Scenario
+from .scenario import AnomalyEvent, Scenario
 from .sensors import GpsSeries, InsSeries, grid
 from .trajectories import LocalFrame, Track, interp_track, stream
 
@@ -80,7 +80,7 @@ def _interp_fix(gps: GpsSeries, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _link(scenario: Scenario, follower: Track, leader: Track, t: np.ndarray, seed: int,
-          events: list) -> dict[str, np.ndarray]:
+          events: list[AnomalyEvent]) -> dict[str, np.ndarray]:
     f, l = interp_track(follower, t), interp_track(leader, t)
     true = np.sqrt((f["east_m"] - l["east_m"]) ** 2 + (f["north_m"] - l["north_m"]) ** 2
                    + (f["depth_m"] - l["depth_m"]) ** 2)

@@ -10,6 +10,7 @@ the vehicles' GPS fixes, Z the measured range made horizontal.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
@@ -47,7 +48,7 @@ def _stale_starts(rng: np.random.Generator, per_hour: float, duration_s: float) 
 
 
 def natural_events(nat: NaturalAnomalies, follower: str, t_epochs: np.ndarray, duration_s: float,
-                   seed: int, scripted: list[AnomalyEvent] = ()) -> list[AnomalyEvent]:
+                   seed: int, scripted: Sequence[AnomalyEvent] = ()) -> list[AnomalyEvent]:
     """Random stale segments, outliers and dropouts of one follower-leader link.
 
     Drawn stale segments that would overlap a scripted event are dropped, so
