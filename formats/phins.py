@@ -328,9 +328,11 @@ def encode_status(kind: str, lsb: int, msb: int = 0) -> str:
 
 def encode_phtro(pitch_bow_up_deg: float, roll_port_up_deg: float) -> str:
     """$PHTRO line: magnitudes with M/P (bow up/down) and T/B (port up/down) letters."""
+    pitch, roll = _n(abs(pitch_bow_up_deg), ".2f"), _n(abs(roll_port_up_deg), ".2f")
+    # the letter follows the written magnitude: no "P" for a pitch that rounds to 0.00
     return build("PHTRO", [
-        _n(abs(pitch_bow_up_deg), ".2f"), "P" if pitch_bow_up_deg < 0 else "M",
-        _n(abs(roll_port_up_deg), ".2f"), "B" if roll_port_up_deg < 0 else "T",
+        pitch, "P" if pitch_bow_up_deg < 0 and pitch.strip("0.") else "M",
+        roll, "B" if roll_port_up_deg < 0 and roll.strip("0.") else "T",
     ])
 
 
