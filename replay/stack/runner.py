@@ -250,6 +250,10 @@ class CooperativeRunner:
             training_errors=dict(self.training_errors),
         )
 
+    def detectors(self, method: str) -> dict[str, Detector | None]:
+        """The trained detector per leader of a detecting method ({} before t_a); for views and tests."""
+        return next((dict(m.detectors) for m in self._methods if m.name == method), {})
+
     # ------------------------------------------------------------ internals
 
     def _epoch_problem(self, t_s: float, leader: str, lat: float, lon: float, depth: float,
