@@ -236,3 +236,10 @@ def test_minmax_and_normalize() -> None:
     np.testing.assert_allclose(hi, [10.0, 6.0, 1.0])     # flat and empty columns get a unit span
     z = A.normalize(np.array([[-5.0, 5.5, 2.0], [20.0, 5.0, 0.5]]), lo, hi)
     np.testing.assert_allclose(z, [[0.0, 0.5, 1.0], [1.0, 0.0, 0.5]])
+
+
+def test_output_surface_matches_predict() -> None:
+    m = random_model(np.random.default_rng(11))
+    u, v, z = A.output_surface(m, pair=(0, 2), fixed=0.3, resolution=7)
+    assert u.shape == (7,) and z.shape == (7, 7)
+    assert z[2, 5] == pytest.approx(A.predict(m, np.array([[u[2], 0.3, v[5]]]))[0], rel=1e-12)

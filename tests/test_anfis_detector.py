@@ -189,3 +189,10 @@ def test_diagonal_structure_from_config() -> None:
     det.train(x, err, bad.astype(int))
     assert det.model is not None and det.model.n_rules == 3
     assert det.snapshot().rule_structure == "diagonal"
+
+
+def test_surface(trained: AnfisDetector) -> None:
+    u, v, z = trained.surface((0, 1), fixed=0.0, resolution=5)
+    assert z.shape == (5, 5) and u[0] == 0.0 and v[-1] == 1.0
+    corner = trained.input_min + (trained.input_max - trained.input_min) * np.array([1.0, 0.0, 0.0])
+    assert z[-1, 0] == pytest.approx(trained.scores(corner[None])[0], rel=1e-9)

@@ -211,6 +211,21 @@ def predict(model: AnfisModel, x: np.ndarray) -> np.ndarray:
     return (wbar * rule_outputs(x, model.consequents)).sum(axis=-1)
 
 
+def output_surface(model: AnfisModel, pair: tuple[int, int] = (0, 1), fixed: float | np.ndarray = 0.5,
+                   resolution: int = 25, lo: float = 0.0, hi: float = 1.0
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Output over a grid of two inputs, the others held at ``fixed``: u (K,), v (K,), z (K, K) with z[i, j] at (u[i], v[j]).
+
+    The ANFIS input-output surface of A Fig. 12, for the mesh view.
+    """
+    u = np.linspace(lo, hi, resolution)
+    uu, vv = np.meshgrid(u, u, indexing="ij")
+    x = np.empty((uu.size, model.inputs))
+    x[:] = np.broadcast_to(np.asarray(fixed, dtype=float), (model.inputs,))
+    x[:, pair[0]], x[:, pair[1]] = uu.ravel(), vv.ravel()
+    return u, u.copy(), predict(model, x).reshape(resolution, resolution)
+
+
 def rmse(model: AnfisModel, x: np.ndarray, y: np.ndarray) -> float:
     """Root-mean-square error of the model on (x, y)."""
     return float(np.sqrt(np.mean((predict(model, x) - y) ** 2)))

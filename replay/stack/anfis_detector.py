@@ -28,6 +28,7 @@ from .anfis import (
     minmax_bounds,
     normalize,
     normalized_firing,
+    output_surface,
     predict,
     rule_outputs,
     train_hybrid,
@@ -208,6 +209,13 @@ class AnfisDetector:
         if feats.ndim == 1:
             parts = tuple(p[0] for p in parts)
         return Explanation(*parts)
+
+    def surface(self, pair: tuple[int, int] = (0, 1), fixed: float | np.ndarray = 0.5,
+                resolution: int = 25) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Output surface over two normalized inputs (others at ``fixed``), for the mesh view (A Fig. 12)."""
+        if self.result is None:
+            raise RuntimeError("surface() needs a trained model")
+        return output_surface(self.result.model, pair, fixed, resolution)
 
     def snapshot(self, epoch: int | None = None) -> ModelSnapshot:
         """The final model (``epoch=None``: the best epoch, with its threshold) or one history row."""
