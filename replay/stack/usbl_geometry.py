@@ -84,7 +84,7 @@ def circle_intersections(
     # rounding can push exactly tangent circles a hair apart; keep them as tangent
     tol = 1e-12 * np.maximum(np.maximum(ri**2, rj**2), dist**2)
     meet = (h2 >= -tol) & (ri >= 0.0) & (rj >= 0.0) & apart
-    h = np.sqrt(np.where(meet, h2, 0.0))
+    h = np.sqrt(np.where(meet, np.maximum(h2, 0.0), 0.0))
     unit = delta / safe[:, None]
     normal = np.stack([-unit[:, 1], unit[:, 0]], axis=-1)
     foot = node_xy[i] + along[..., None] * unit
