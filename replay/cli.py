@@ -22,6 +22,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "unpack": ("replay.commands.unpack", "the original logs back, byte for byte"),
     "formats": ("replay.commands.formats", "the vendor formats supported"),
     "simulate": ("replay.commands.simulate", "write a synthetic lake trial: vendor logs, manifest, truth"),
+    "reproduce": ("replay.commands.reproduce", "the papers' tables and figures (kmcdf)"),
 }
 
 
