@@ -150,8 +150,8 @@ def _chol2(p11: float, p12: float, p22: float) -> tuple[float, float, float]:
 
 
 def _finite(*values: float) -> bool:
-    """True when every value is a finite number."""
-    return all(math.isfinite(v) for v in values)
+    """True when every value is a finite number (a NaN or inf anywhere makes the sum non-finite)."""
+    return math.isfinite(sum(values))
 
 
 def _range(lat: float, lon: float, depth: float, llat: float, llon: float, ldepth: float) -> float:

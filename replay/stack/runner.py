@@ -47,6 +47,7 @@ import math
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
+from itertools import chain
 
 import numpy as np
 
@@ -139,8 +140,8 @@ def _cov_m2(s: State2, depth_m: float) -> tuple[float, float, float]:
 
 
 def _finite(*values: float) -> bool:
-    """True when every value is a finite number."""
-    return all(math.isfinite(v) for v in values)
+    """True when every value is a finite number (a NaN or inf anywhere makes the sum non-finite)."""
+    return math.isfinite(sum(values))
 
 
 class CooperativeRunner:
@@ -177,7 +178,9 @@ class CooperativeRunner:
         self.training_errors: dict[str, str] = {}
         self._epochs: list[EpochResult] = []
         self._ackf_epochs: list[EpochResult] = []
-        self._track: list[tuple[float, float, tuple[State2, ...]]] = []
+        self._track_t: list[float] = []
+        self._track_depth: list[float] = []
+        self._track_states: list[State2] = []        # len(methods) per record, flattened at finish
         self._record()
 
     # ------------------------------------------------------------ pushing
@@ -280,7 +283,9 @@ class CooperativeRunner:
 
     def _record(self) -> None:
         """Remember every method's estimate at the current time for the tracks."""
-        self._track.append((self._t, self._depth, tuple(m.state for m in self._methods)))
+        self._track_t.append(self._t)
+        self._track_depth.append(self._depth)
+        self._track_states.extend([m.state for m in self._methods])
 
     def _method_epoch(self, m: _Method, inn: RangeInnovation, t_s: float, leader: str, z: float,
                       geo: tuple[float, float, float], truth: float, label: int) -> EpochResult:
@@ -359,9 +364,10 @@ class CooperativeRunner:
 
     def _tracks(self) -> dict[str, Track]:
         """Per reported method, its track with covariances in north-east m²."""
-        t = np.array([r[0] for r in self._track])
-        depth = np.array([r[1] for r in self._track])
-        states = np.array([r[2] for r in self._track], dtype=float)      # (n, methods, 5)
+        t = np.array(self._track_t)
+        depth = np.array(self._track_depth)
+        flat = np.fromiter(chain.from_iterable(self._track_states), dtype=float, count=5 * len(self._track_states))
+        states = flat.reshape(t.size, len(self._methods), 5)
         out = {}
         for i, m in enumerate(self._methods):
             if m.name not in self._reported:
