@@ -21,6 +21,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "info": ("replay.commands.info", "what is inside an archive"),
     "unpack": ("replay.commands.unpack", "the original logs back, byte for byte"),
     "formats": ("replay.commands.formats", "the vendor formats supported"),
+    "view": ("replay.commands.view", "open a recording (.rrd) or an archive (.mcap) in Rerun"),
     "simulate": ("replay.commands.simulate", "write a synthetic lake trial: vendor logs, manifest, truth"),
     "reproduce": ("replay.commands.reproduce", "the papers' tables and figures (kmcdf)"),
 }

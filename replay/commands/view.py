@@ -1,0 +1,52 @@
+"""Open a recording (.rrd) or an archive (.mcap, which Rerun reads natively) in Rerun.
+
+The native viewer needs a display ($DISPLAY or $WAYLAND_DISPLAY); without one,
+and without --web, the command prints the command to run elsewhere and exits 0.
+--web serves Rerun's web viewer bound to 127.0.0.1 only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shlex
+from collections.abc import Mapping
+from pathlib import Path
+
+from ..errors import UserError
+
+SUFFIXES = (".rrd", ".mcap")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of `auvreplay view`."""
+    parser.add_argument("file", help="a Rerun recording (.rrd) or an MCAP archive (.mcap)")
+    parser.add_argument("--web", action="store_true", help="serve the web viewer on 127.0.0.1 instead")
+
+
+def has_display(env: Mapping[str, str]) -> bool:
+    """Whether a native window can open: an X11 or Wayland display is set."""
+    return bool(env.get("DISPLAY") or env.get("WAYLAND_DISPLAY"))
+
+
+def check_file(name: str) -> Path:
+    """The file to open, or a UserError saying why it cannot be."""
+    path = Path(name)
+    if path.suffix.lower() not in SUFFIXES:
+        raise UserError(f"{name}: expected an .rrd recording or an .mcap archive")
+    if not path.is_file():
+        raise UserError(f"{name}: no such file")
+    return path
+
+
+def run(args: argparse.Namespace) -> int:
+    """Open the file in Rerun and wait for it; print the command instead when there is no display."""
+    path = check_file(args.file)
+    from replay.views import open_viewer, viewer_command
+
+    if not args.web and not has_display(os.environ):
+        cmd = shlex.join(viewer_command(path))
+        print(f"auvreplay view: no display ($DISPLAY / $WAYLAND_DISPLAY unset); on a machine with one, run:\n"
+              f"  {cmd}\nor serve the web viewer on 127.0.0.1 with:\n  auvreplay view {shlex.quote(str(path))} --web")
+        return 0
+    return open_viewer(path, web=args.web)
