@@ -250,6 +250,19 @@ def test_leader_without_training_truth_is_reported_and_run_goes_on() -> None:
     assert late and not any(r.flagged for r in late)
 
 
+def test_run_without_epochs_scores_cleanly() -> None:
+    runner = CooperativeRunner(CONFIG, "f", ["leader1"], 0.0, LAT, LON)
+    for k in range(1, 400):
+        runner.dead_reckon(float(k), 1.0, 0.0, 0.0, 0.0)
+    res = runner.finish()
+    assert not res.epochs["time_s"].size and res.trained and set(res.training_errors) == {
+        "chi_square/leader1", "dual_threshold/leader1"}
+    gps_t = np.arange(0.0, 400.0)
+    scores = score_run(res, gps_t, LAT + gps_t / B0, np.full(gps_t.size, LON))
+    assert scores["chi_square"]["tp"] == 0 and scores["chi_square"]["auc"] is None
+    assert scores["dead_reckoning"]["error_p50_m"] < 1e-3         # radii vary over the 400 m run
+
+
 def test_factories_mapping_is_the_default() -> None:
     runner = CooperativeRunner(CONFIG, "f", ["leader1"], 0.0, LAT, LON)
     assert runner._factories is DETECTOR_FACTORIES

@@ -28,6 +28,7 @@ FILTER_KINDS: Mapping[str, str] = MappingProxyType({
 def _anfis(trainer: str, compensation: bool) -> DetectorFactory:
     """A factory building an AnfisDetector, imported on first use."""
     def build(config: StackConfig) -> Detector:
+        """A fresh AnfisDetector for this trainer and mode."""
         from .anfis_detector import AnfisDetector
         return AnfisDetector(config, trainer=trainer, compensation=compensation)
     return build

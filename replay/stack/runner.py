@@ -48,6 +48,7 @@ from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from itertools import chain
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -57,6 +58,9 @@ from .detector import Decision, Detector
 from .labels import UNKNOWN, label_one
 from .methods import DETECTOR_FACTORIES, DetectorFactory, filter_kind
 from .model import cov_radians_to_metres, metric_scales_scalar, slant_to_horizontal
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 NAN = float("nan")
 
@@ -114,8 +118,8 @@ class RunResults:
     trained: bool
     training_errors: dict[str, str]
 
-    def epochs_frame(self) -> "pandas.DataFrame":  # noqa: F821 - pandas imported lazily
-        """The epochs table as a pandas DataFrame."""
+    def epochs_frame(self) -> pd.DataFrame:
+        """The epochs table as a pandas DataFrame (pandas imported on first use)."""
         import pandas as pd
         return pd.DataFrame(self.epochs)
 

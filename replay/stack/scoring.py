@@ -44,6 +44,7 @@ class Confusion:
     def rates(self) -> dict[str, float | None]:
         """Accuracy, precision, recall, FPR, FNR (A.36-A.40); None where the denominator is 0."""
         def ratio(num: int, den: int) -> float | None:
+            """num / den, or None for an empty denominator."""
             return num / den if den else None
         total = self.tp + self.tn + self.fp + self.fn
         return {
@@ -69,14 +70,15 @@ def roc_curve(labels: np.ndarray, scores: np.ndarray) -> tuple[np.ndarray, np.nd
 
     Epochs with label -1 are ignored; a NaN score never flags (ranked below
     every finite score). Tied scores make one point, so a tie is a diagonal
-    segment. Empty arrays when either class is absent.
+    segment. Empty arrays when either class is absent or no score is finite
+    (an untrained detector has no curve).
     """
     labels = np.asarray(labels)
     scores = np.asarray(scores, dtype=float)
     keep = (labels == 0) | (labels == 1)
     y, s = labels[keep] == 1, np.where(np.isfinite(scores[keep]), scores[keep], -np.inf)
     n_pos, n_neg = int(y.sum()), int((~y).sum())
-    if n_pos == 0 or n_neg == 0:
+    if n_pos == 0 or n_neg == 0 or not np.isfinite(s).any():
         empty = np.empty(0)
         return empty, empty.copy(), empty.copy()
     order = np.argsort(-s, kind="stable")
