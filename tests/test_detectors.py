@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from replay.stack import labels
@@ -129,6 +129,7 @@ def test_untrained_dual_threshold_is_a_chi_square_test() -> None:
     assert not det.decide(np.array([20.0, 6.0, 9.0])).flagged
 
 
+@settings(deadline=None)
 @given(st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=3, max_size=3))
 def test_detectors_never_raise(values: list[float]) -> None:
     f = np.array(values)
