@@ -68,8 +68,8 @@ def perron_weights(dist: FloatArray, mask: BoolArray) -> FloatArray:
     matrix) normalized to sum 1. Masked-out rows and columns are zero, so the
     Perron vector of the whole matrix lives on the mask (diag(B) = 1 there).
     """
-    amax = masked_max(dist, mask)
     both = mask[..., :, None] & mask[..., None, :]
+    amax = np.max(np.where(both, dist, 0.0), axis=(-2, -1))
     scale = np.where(amax > 0.0, amax, 1.0)[..., None, None]
     support = np.where(both, 1.0 - dist / scale, 0.0)
     _, vectors = np.linalg.eigh(support)
@@ -98,8 +98,7 @@ def kmeans2_1d(weights: FloatArray, mask: BoolArray) -> BoolArray:
     sse = (q1 - s1**2 / left) + (q2 - s2**2 / np.where(right > 0, right, 1.0))
     sse = np.where((right >= 1) & (left <= n - 1), sse, np.inf)
     split = np.argmin(sse, axis=-1)[..., None] + 1     # size of the low cluster
-    rank = np.empty_like(order)
-    np.put_along_axis(rank, order, np.arange(m)[None, :].repeat(order.shape[0], 0), axis=-1)
+    rank = np.argsort(order, axis=-1)
     return mask & (rank >= split)
 
 
@@ -193,15 +192,15 @@ def ml_fix(
     w = np.where(normal & np.isfinite(meas), 1.0 / sig**2, 0.0)
     meas = np.nan_to_num(meas)
     xy = np.nan_to_num(start_xy.astype(np.float64))
-    info = np.zeros((xy.shape[0], 2, 2))
+    cov = np.full((xy.shape[0], 2, 2), np.nan)
     for _ in range(params.ml_iterations):
         pred, jac = _measurement_model(xy, node_xy, params.kappa_d0)
         jw = jac * w[..., None]
-        info = np.einsum("tki,tkj->tij", jw, jac)
-        grad = np.einsum("tki,tk->ti", jw, meas - pred)
-        cov = _inverse_2x2(info)
-        xy = xy + np.nan_to_num(np.einsum("tij,tj->ti", cov, grad))
-    cov = _inverse_2x2(info)
+        cov = _inverse_2x2(np.einsum("tki,tkj->tij", jw, jac))
+        step = np.nan_to_num(np.einsum("tij,tki,tk->tj", cov, jw, meas - pred))
+        xy = xy + step
+        if np.max(np.abs(step), initial=0.0) < 1e-7:   # converged: cov is at the final point
+            break
     bad = ~np.isfinite(cov[:, 0, 0])
     xy[bad] = np.nan
     return xy, cov
@@ -297,14 +296,13 @@ def kmcdf_epoch(
     valid, c1 = batch.valid[0], batch.clustering.cluster1[0]
     clusters = np.where(valid, np.where(c1, 1, 2), 0).astype(np.intp)
     weights = np.where(valid, batch.clustering.weights[0], 0.0)
+    layout, xy = batch.layout, batch.fixes[0].tolist()
+    kinds, cl, wt = layout.kinds.tolist(), clusters.tolist(), weights.tolist()
     fixes = tuple(
-        PreliminaryFix(
-            kind=KIND_NAMES[int(batch.layout.kinds[m])],
-            nodes=tuple(int(k) for k in batch.layout.nodes[m] if k >= 0),
-            parameters=tuple(int(p) for p in np.nonzero(batch.layout.incidence[m])[0]),
-            xy=(float(batch.fixes[0, m, 0]), float(batch.fixes[0, m, 1])),
-            cluster=int(clusters[m]), weight=float(weights[m]))
-        for m in np.nonzero(valid)[0])
+        PreliminaryFix(kind=KIND_NAMES[kinds[m]], nodes=layout.node_sets[m],
+                       parameters=layout.parameter_sets[m], xy=(xy[m][0], xy[m][1]),
+                       cluster=cl[m], weight=wt[m])
+        for m in np.nonzero(valid)[0].tolist())
     normal = batch.normal[0]
     return KmcdfFix(
         position_xy=batch.position[0], covariance=batch.covariance[0],

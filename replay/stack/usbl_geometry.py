@@ -14,6 +14,7 @@ parameter i, its x phase difference N + i, its y phase difference 2N + i.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from itertools import combinations
 
 import numpy as np
@@ -145,10 +146,16 @@ class FixLayout:
     incidence: BoolArray             # (M, 3N) fix m uses parameter p
     pairs: NDArray[np.intp]          # (C(N,2), 2)
     triples: NDArray[np.intp]        # (C(N,3), 3)
+    node_sets: tuple[tuple[int, ...], ...]       # per fix, the nodes it uses
+    parameter_sets: tuple[tuple[int, ...], ...]  # per fix, the parameters it uses
 
 
+@lru_cache(maxsize=16)
 def fix_layout(n_nodes: int) -> FixLayout:
-    """The subsets of seed 003 section 3.1, in order: N USBL, C(N,2) bearing, C(N,2) circle, C(N,3) triple."""
+    """The subsets of seed 003 section 3.1, in order: N USBL, C(N,2) bearing, C(N,2) circle, C(N,3) triple.
+
+    Cached per N: the result is shared, so its arrays are made read-only.
+    """
     n = n_nodes
     pairs = np.array(list(combinations(range(n), 2)), dtype=np.intp).reshape(-1, 2)
     triples = np.array(list(combinations(range(n), 3)), dtype=np.intp).reshape(-1, 3)
@@ -163,7 +170,11 @@ def fix_layout(n_nodes: int) -> FixLayout:
     for m, (_, used_nodes, params) in enumerate(rows):
         nodes[m, : len(used_nodes)] = used_nodes
         incidence[m, list(params)] = True
-    return FixLayout(kinds, nodes, incidence, pairs, triples)
+    for array in (kinds, nodes, incidence, pairs, triples):
+        array.flags.writeable = False
+    node_sets = tuple(tuple(int(k) for k in r[1]) for r in rows)
+    parameter_sets = tuple(tuple(sorted(int(p) for p in r[2])) for r in rows)
+    return FixLayout(kinds, nodes, incidence, pairs, triples, node_sets, parameter_sets)
 
 
 def preliminary_fixes(
