@@ -186,9 +186,10 @@ def _log_guides(rec: rr.RecordingStream, run: Run, follower: str, scale: float) 
 
 def cdf_scale(errors: list[pd.DataFrame]) -> dict[str, float]:
     """Per follower, the 99th percentile of every error (all runs): the CDF plot's x extent, so it is square."""
-    frame = pd.concat([e for e in errors if not e.empty and "error_m" in e], ignore_index=True) if errors else None
-    if frame is None or frame.empty:
+    usable = [e for e in errors if not e.empty and "error_m" in e and "follower" in e]
+    if not usable:
         return {}
+    frame = pd.concat(usable, ignore_index=True)
     out = {}
     for follower, rows in frame.groupby("follower"):
         v = floats(rows, "error_m")

@@ -1,0 +1,301 @@
+"""The Rerun views: a saved .rrd read back with Rerun's own reader holds every view's entities and values."""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from replay.review_data import ReviewData
+from tests.review_fixtures import FOLLOWER, LEADERS, synthetic_review
+
+rr = pytest.importorskip("rerun")
+from rerun.chunk import RrdReader  # noqa: E402
+
+from replay import views  # noqa: E402
+from replay.commands import view as view_cmd  # noqa: E402
+from replay.errors import UserError  # noqa: E402
+from replay.stack.anfis import AnfisModel, predict  # noqa: E402
+from replay.views_anfis import SURFACE_GRID, grid_triangles, history_of, surface  # noqa: E402
+from replay.views_series import CDF_SNAPSHOTS, PERCENTILES, expanding_quantiles  # noqa: E402
+from replay.views_tracks import decimate  # noqa: E402
+
+N_EPOCHS, ANFIS_EPOCHS = 40, 6
+
+
+class Rrd:
+    """The temporal rows and static cells of every entity of a saved recording, and its blueprint."""
+
+    def __init__(self, path: Path) -> None:
+        reader = RrdReader(path)
+        self.temporal: dict[str, list] = defaultdict(list)
+        self.static: dict[str, list] = defaultdict(list)
+        for chunk in reader.stream().to_chunks():
+            (self.static if chunk.is_static else self.temporal)[chunk.entity_path].append(chunk.to_record_batch())
+        self.view_names: set[str] = set()
+        self.view_classes: list[str] = []
+        for chunk in reader.stream(store=reader.blueprints()[0]).to_chunks():
+            batch = chunk.to_record_batch()
+            if "ViewBlueprint:display_name" in batch.schema.names:
+                self.view_names.update(v[0] for v in batch.column("ViewBlueprint:display_name").to_pylist() if v)
+                self.view_classes += [v[0] for v in batch.column("ViewBlueprint:class_identifier").to_pylist()]
+        self.recordings = reader.recordings()
+
+    def cells(self, entity: str, column: str) -> list:
+        """Per temporal row, the list of instances of one component, in time order."""
+        rows = []
+        for batch in self.temporal.get(entity, []):
+            if column in batch.schema.names:
+                times = batch.column("time").to_pylist() if "time" in batch.schema.names else [None] * batch.num_rows
+                rows += list(zip(times, batch.column(column).to_pylist(), strict=True))
+        rows.sort(key=lambda r: (r[0] is None, r[0] or 0))
+        return [r[1] for r in rows]
+
+    def rows(self, entity: str) -> int:
+        """Number of temporal rows of an entity."""
+        return sum(b.num_rows for b in self.temporal.get(entity, []))
+
+    def times_ns(self, entity: str) -> np.ndarray:
+        """The `time` index of an entity's rows, as int ns, sorted."""
+        out = [b.column("time").cast("int64").to_numpy() for b in self.temporal.get(entity, [])
+               if "time" in b.schema.names]
+        return np.sort(np.concatenate(out)) if out else np.zeros(0, dtype=np.int64)
+
+
+@pytest.fixture(scope="module")
+def review() -> ReviewData:
+    return synthetic_review(7, n_epochs=N_EPOCHS, anfis_epochs=ANFIS_EPOCHS)
+
+
+@pytest.fixture(scope="module")
+def rrd(review: ReviewData, tmp_path_factory: pytest.TempPathFactory) -> Rrd:
+    path = tmp_path_factory.mktemp("views") / "one.rrd"
+    assert views.save_rrd([review], path) == path
+    assert not path.with_name(path.name + ".partial").exists()
+    return Rrd(path)
+
+
+def test_recording_id_and_timeline_are_deterministic(rrd: Rrd, review: ReviewData) -> None:
+    assert [r.recording_id for r in rrd.recordings] == ["auvreplay:run-a"]
+    gps = review.tracks[(review.tracks.vehicle == FOLLOWER) & (review.tracks.source == "gps")]
+    expected = review.trial_start_ns + np.round(gps.t_s.to_numpy() * 1e9).astype(np.int64)
+    np.testing.assert_array_equal(rrd.times_ns("/run-a/map/follower/gps/position"), np.sort(expected))
+
+
+def test_map_and_local_plot_hold_every_track(rrd: Rrd, review: ReviewData) -> None:
+    for (vehicle, source), rows in review.tracks.groupby(["vehicle", "source"]):
+        for view in ("map", "local"):
+            assert rrd.rows(f"/run-a/{view}/{vehicle}/{source}/position") == len(rows), (view, vehicle, source)
+            assert f"/run-a/{view}/{vehicle}/{source}/track" in rrd.static
+    pos = rrd.cells("/run-a/map/leader1/gps/position", "GeoPoints:positions")
+    rows = review.tracks[(review.tracks.vehicle == "leader1") & (review.tracks.source == "gps")].sort_values("t_s")
+    np.testing.assert_allclose(np.array([p[0] for p in pos]), rows[["lat_deg", "lon_deg"]].to_numpy(), atol=1e-9)
+    local = np.array([p[0] for p in rrd.cells("/run-a/local/leader1/gps/position", "Points2D:positions")])
+    np.testing.assert_allclose(local[:, 0], rows.east_m, rtol=1e-6)
+    np.testing.assert_allclose(local[:, 1], -rows.north_m, rtol=1e-6)       # 2D views draw y down
+
+
+def test_range_circles_one_per_epoch_around_the_leader(rrd: Rrd, review: ReviewData) -> None:
+    for leader in LEADERS:
+        rows = review.ranges[review.ranges.leader == leader].sort_values("t_s")
+        entity = f"/run-a/local/ranges/{FOLLOWER}/{leader}"
+        half = np.array([c[0] for c in rrd.cells(entity, "Ellipses2D:half_sizes")])
+        centre = np.array([c[0] for c in rrd.cells(entity, "Ellipses2D:centers")])
+        assert len(half) == len(rows)
+        np.testing.assert_allclose(half[:, 0], rows.horizontal_m, rtol=1e-6)
+        np.testing.assert_allclose(half[:, 1], rows.horizontal_m, rtol=1e-6)
+        np.testing.assert_allclose(centre[:, 0], rows.leader_east_m, rtol=1e-6)
+
+
+def test_time_series_ranges_features_anfis_and_lanes(rrd: Rrd, review: ReviewData) -> None:
+    det = review.detections
+    methods = sorted(det.method.unique())
+    for k, leader in enumerate(sorted(LEADERS)):
+        rows = review.ranges[review.ranges.leader == leader].sort_values("t_s")
+        measured = [c[0] for c in rrd.cells(f"/run-a/series/range/{FOLLOWER}/{leader}/measured", "Scalars:scalars")]
+        np.testing.assert_allclose(measured, rows.measured_m)
+        assert rrd.rows(f"/run-a/series/residual/{FOLLOWER}/{leader}") == len(rows)
+        for feature in ("f1_innovation_m", "f2_mahalanobis2", "f3_r_adapted_m2"):
+            assert rrd.rows(f"/run-a/series/{feature}/{FOLLOWER}/{leader}") == len(rows)
+        base = k * (len(methods) + 2)
+        for lane, method in enumerate(methods, start=1):
+            m_rows = det[(det.leader == leader) & (det.method == method)].sort_values("t_s")
+            lane_v = np.array([c[0] for c in rrd.cells(f"/run-a/series/lanes/{FOLLOWER}/{leader}/{method}",
+                                                        "Scalars:scalars")])
+            np.testing.assert_allclose(lane_v, base + lane + 0.8 * m_rows.flagged.to_numpy())
+        truth = np.array([c[0] for c in rrd.cells(f"/run-a/series/lanes/{FOLLOWER}/{leader}/truth",
+                                                   "Scalars:scalars")])
+        assert int(np.sum(truth > base + 0.5)) == int((det[(det.leader == leader) & (det.method == methods[0])]
+                                                       .label == 1).sum())
+        for method in ("anfis", "anfis_aqpso"):
+            for series in ("output", "T2"):
+                assert rrd.rows(f"/run-a/series/anfis/{FOLLOWER}/{leader}/{method}/{series}") == len(rows)
+    assert not any("/series/anfis/" in e and "/chi_square/" in e for e in rrd.temporal)
+
+
+def test_error_cdf_grows_with_readable_percentiles(rrd: Rrd, review: ReviewData) -> None:
+    errors = review.errors[(review.errors.method == "ckf")].sort_values("t_s")
+    n_snap = min(errors.t_s.nunique(), CDF_SNAPSHOTS)
+    curves = rrd.cells(f"/run-a/cdf/{FOLLOWER}/ckf/curve", "LineStrips2D:strips")
+    assert len(curves) == n_snap and all(len(c) == 1 for c in curves)
+    last = np.array(curves[-1][0])
+    np.testing.assert_allclose(last[:, 0], np.quantile(errors.error_m, np.linspace(0, 1, last.shape[0])), rtol=1e-5)
+    assert np.all(np.diff(last[:, 0]) >= 0) and np.all(np.diff(last[:, 1]) <= 0)
+    marks = rrd.cells(f"/run-a/cdf/{FOLLOWER}/ckf/percentiles", "Points2D:positions")
+    assert len(marks) == n_snap and all(len(m) == len(PERCENTILES) for m in marks)
+    np.testing.assert_allclose([p[0] for p in marks[-1]], np.quantile(errors.error_m, PERCENTILES), rtol=1e-5)
+    table = rrd.cells(f"/run-a/cdf/{FOLLOWER}/table", "TextDocument:text")
+    assert len(table) == n_snap
+    assert f"| ckf | {np.quantile(errors.error_m, 0.5):.2f} |" in table[-1][0]
+    for method in review.errors.method.unique():
+        assert rrd.rows(f"/run-a/series/error/{FOLLOWER}/{method}") == (review.errors.method == method).sum()
+
+
+def test_anfis_training_and_explanations(rrd: Rrd, review: ReviewData) -> None:
+    for leader in LEADERS:
+        base = f"/run-a/anfis/anfis_{leader}"
+        for d in (1, 2, 3):
+            mf = rrd.cells(f"{base}/training/mf/in{d}", "LineStrips2D:strips")
+            assert len(mf) == ANFIS_EPOCHS + 1                    # every epoch, and the kept one on `time`
+            assert all(len(strips) == 2 for strips in mf)         # two MFs per input
+            assert f"{base}/explain/mf/in{d}/curves" in rrd.static
+        surf = rrd.cells(f"{base}/training/surface", "Mesh3D:vertex_positions")
+        assert len(surf) == ANFIS_EPOCHS + 1 and all(len(s) == SURFACE_GRID**2 for s in surf)
+        assert rrd.rows(f"{base}/training/rmse") == ANFIS_EPOCHS
+        ex = review.anfis_explain[review.anfis_explain.model == f"anfis/{leader}"].sort_values("t_s")
+        firing = rrd.cells(f"{base}/explain/firing", "LineStrips2D:strips")
+        assert len(firing) == len(ex) and all(len(f) == 8 for f in firing)
+        heights = np.array([[-bar[1][1] for bar in f] for f in firing])
+        np.testing.assert_allclose(heights, np.stack(ex.firing.to_numpy()), rtol=1e-6)
+        grades = rrd.cells(f"{base}/explain/mf/in1/grade", "Points2D:positions")
+        np.testing.assert_allclose([[-p[1] for p in g] for g in grades], [m[0] for m in ex.memberships], rtol=1e-6)
+        verdicts = [t[0] for t in rrd.cells(f"{base}/explain/verdict", "TextDocument:text")]
+        assert len(verdicts) == len(ex)
+        for text, flagged in zip(verdicts, ex.flagged, strict=True):
+            assert ("**flagged**" in text) == bool(flagged) and "Strongest rules: R" in text
+
+
+def test_kmcdf_epochs_and_events(rrd: Rrd, review: ReviewData) -> None:
+    for method in ("kmcdf1", "kmcdf2"):
+        rows = review.kmcdf[review.kmcdf.method == method].sort_values("t_s")
+        fixes = rrd.cells(f"/run-a/kmcdf/{FOLLOWER}/{method}/fixes", "Points2D:positions")
+        assert [len(f) for f in fixes] == [len(v) for v in rows.fixes_east_m]
+        colors = rrd.cells(f"/run-a/kmcdf/{FOLLOWER}/{method}/fixes", "Points2D:colors")
+        kept = [sum(c == colors[i][0] for c in colors[i]) for i in range(len(colors))]
+        assert len(kept) == len(rows)
+        assert rrd.rows(f"/run-a/kmcdf/{FOLLOWER}/{method}/final") == len(rows)
+        assert [len(n) for n in rrd.cells(f"/run-a/kmcdf/{FOLLOWER}/{method}/nodes", "Points2D:positions")] == \
+            [4] * len(rows)
+    texts = [t[0] for t in rrd.cells("/run-a/events", "TextLog:text")]
+    assert sorted(texts) == sorted(review.events.text)
+
+
+def test_blueprint_saved_with_every_view(rrd: Rrd) -> None:
+    names = rrd.view_names
+    for expected in ("Map: GPS truth and every track", "Local east/north (m), range circles", "Events",
+                     "Ranges measured / true (m)", "ANFIS output vs T2 (m)", "Rule firing strengths",
+                     "Why (not) flagged", "Output surface (f3 at median)", "Horizontal error vs GPS (m)"):
+        assert expected in names
+    assert any(n.startswith("Error CDF of follower") for n in names)
+    assert any(n.startswith("Detection lanes") for n in names)
+    assert sum(n.startswith("KMCDF follower/") for n in names) == 2
+    assert {"Map", "2D", "3D", "TimeSeries", "TextLog", "TextDocument"} <= set(rrd.view_classes)
+
+
+def test_two_runs_compared_in_one_recording(review: ReviewData, tmp_path: Path) -> None:
+    other = synthetic_review(8, n_epochs=20, anfis_epochs=3, run_id="run-a")    # same id: still kept apart
+    out = Rrd(views.save_rrd([review, other], tmp_path / "two.rrd"))
+    assert out.rows("/run-a/map/follower/ckf/position") == (review.tracks.source == "ckf").sum()
+    assert out.rows("/run-a_1/map/follower/ckf/position") == (other.tracks.source == "ckf").sum()
+    context = out.static["/run-a_1"][0].column("AnnotationContext:context").to_pylist()[0][0]
+    labels = {c["class_description"]["info"]["label"]: c["class_id"] for c in context}
+    assert labels["ckf [run-a_1]"] == 4 and labels["gps [run-a_1]"] == 1
+    assert any(n.endswith("[run-a_1]") for n in out.view_names)
+    assert any(t.startswith("[run-a_1] ") for t in (x[0] for x in out.cells("/run-a_1/events", "TextLog:text")))
+
+
+def test_empty_review_still_makes_a_recording(tmp_path: Path) -> None:
+    empty = ReviewData(run_id="nothing", trial="t", trial_start_ns=0, origin_lat_deg=0.0, origin_lon_deg=0.0)
+    out = Rrd(views.save_rrd([empty], tmp_path / "empty.rrd"))
+    assert "/nothing" in out.static and not out.temporal
+    with pytest.raises(ValueError):
+        views.build_recording([])
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(0, 100, allow_nan=False), min_size=1, max_size=30), st.integers(1, 6))
+def test_expanding_quantiles_match_numpy(values: list[float], n_at: int) -> None:
+    v = np.array(values)
+    t = np.arange(v.size, dtype=float)
+    at = np.linspace(-1, v.size, n_at)
+    probs = np.array([0.0, 0.1, 0.5, 0.9, 0.95, 1.0])
+    got = expanding_quantiles(t, v, at, probs)
+    for i, a in enumerate(at):
+        seen = v[t <= a]
+        if seen.size == 0:
+            assert np.isnan(got[i]).all()
+        else:
+            np.testing.assert_allclose(got[i], np.quantile(seen, probs), rtol=1e-12, atol=1e-12)
+
+
+@given(st.integers(1, 20_000), st.integers(2, 500))
+def test_decimate_keeps_ends_and_limit(n: int, limit: int) -> None:
+    idx = decimate(n, limit)
+    assert idx[0] == 0 and idx[-1] == n - 1 and idx.size <= max(limit, 1) and np.all(np.diff(idx) > 0)
+
+
+def test_surface_is_the_stacks_anfis_output(review: ReviewData) -> None:
+    rows = review.anfis_epochs[review.anfis_epochs.model == "anfis/leader1"]
+    h = history_of(rows)
+    assert h is not None and h.a.shape == (ANFIS_EPOCHS, 3, 2) and h.rules.shape == (8, 3)
+    x, out = surface(h, 0.3)
+    for e in (0, ANFIS_EPOCHS - 1):
+        model = AnfisModel(h.a[e], h.b[e], h.c[e], h.consequents[e], h.rules, "grid")
+        np.testing.assert_allclose(out[e], predict(model, x), rtol=1e-12)
+    alt = rows.assign(params=[{"a": np.asarray(p["membership"])[..., 0], "b": np.asarray(p["membership"])[..., 1],
+                               "c": np.asarray(p["membership"])[..., 2], "consequents": p["consequents"]}
+                              for p in rows.params])
+    np.testing.assert_allclose(history_of(alt).c, h.c)
+    assert history_of(rows.assign(params=[{"nonsense": 1}] * len(rows))) is None
+
+
+def test_grid_triangles_cover_the_grid() -> None:
+    tri = grid_triangles(4)
+    assert tri.shape == (18, 3) and tri.max() == 15 and tri.min() == 0
+    assert len({tuple(sorted(t)) for t in tri}) == 18
+    assert set(itertools.chain.from_iterable(tri.tolist())) == set(range(16))
+
+
+def test_view_command_without_display_prints_the_command(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                         capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "x.rrd"
+    path.write_bytes(b"")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    parser = argparse.ArgumentParser()
+    view_cmd.add_arguments(parser)
+    assert view_cmd.run(parser.parse_args([str(path)])) == 0
+    out = capsys.readouterr().out
+    assert "no display" in out and str(path) in out and "--web" in out
+
+
+def test_view_command_rejects_bad_files(tmp_path: Path) -> None:
+    with pytest.raises(UserError, match="no such file"):
+        view_cmd.check_file(str(tmp_path / "missing.rrd"))
+    (tmp_path / "notes.txt").write_text("x")
+    with pytest.raises(UserError, match="expected an .rrd"):
+        view_cmd.check_file(str(tmp_path / "notes.txt"))
+    assert view_cmd.has_display({"WAYLAND_DISPLAY": "wayland-0"}) and not view_cmd.has_display({"DISPLAY": ""})
+
+
+def test_web_viewer_binds_loopback_only(tmp_path: Path) -> None:
+    cmd = views.viewer_command(tmp_path / "a.mcap", web=True)
+    assert Path(cmd[0]).name == "rerun" and cmd[1].endswith("a.mcap")
+    assert cmd[cmd.index("--bind") + 1] == "127.0.0.1" and "--web-viewer" in cmd
+    assert "--bind" not in views.viewer_command(tmp_path / "a.rrd")
