@@ -211,7 +211,7 @@ def save_png(result: KmcdfReproduction, path: str | Path) -> None:
     axes[0].set_ylabel("success probability (%)")
     axes[-1].legend(fontsize=7, loc="lower left")
     fig.suptitle(f"KMCDF vs delay-only baselines ({result.trials} trials per point, "
-                 f"phase noise {result.phase_noise_rad:g} rad)")
+                 f"phase noise {result.phase_noise_rad:g} rad; open diamonds: the paper)")
     fig.tight_layout()
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
