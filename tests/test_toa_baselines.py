@@ -112,6 +112,8 @@ def test_ear_voting_finds_the_cell_of_the_majority() -> None:
     res = tb.ear(NODES, r, ring_width_m=4.5)
     assert res.normal[0].tolist() == [False] + [True] * 5
     assert np.hypot(*(res.position[0] - target[0])) < 2.0
+    shifted = tb.ear(NODES + 5000.0, r, ring_width_m=4.5, field_centre_xy=(5000.0, 5000.0))
+    assert np.hypot(*(shifted.position[0] - target[0] - 5000.0)) < 2.0
 
 
 def test_run_baseline_uses_the_papers_constants() -> None:

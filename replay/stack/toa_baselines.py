@@ -139,12 +139,14 @@ def _ring_hits(node_xy: FloatArray, ranges: FloatArray, centres: FloatArray, hal
 
 def ear(
     node_xy: FloatArray, ranges: FloatArray, ring_width_m: float, *,
-    field_half_width_m: float = 1000.0, split: int = 10, levels: int = 3, max_cells: int = 16,
+    field_half_width_m: float = 1000.0, field_centre_xy: tuple[float, float] = (0.0, 0.0),
+    split: int = 10, levels: int = 3, max_cells: int = 16,
 ) -> BaselineResult:
     """Voting-based location estimation with iterative refinement (Liu, Ning, Liu, Wang, Du 2008).
 
     Each reference votes for the square cells its ring (measured range +-
-    W/2) meets. The field (seed 003: the +-1000 m square) is cut into
+    W/2) meets. The field (seed 003: the +-1000 m square about the origin;
+    elsewhere, a square that surely holds the target) is cut into
     `split` x `split` cells; the cells with the highest vote (up to
     `max_cells` on ties) are cut again, `levels` times (200 m, 20 m, 2 m
     cells by default). The estimate is the mean of the winning finest cells;
@@ -153,7 +155,7 @@ def ear(
     t = ranges.shape[0]
     grid = (np.arange(split) + 0.5) / split - 0.5                     # sub-cell centre offsets
     sub = np.stack(np.meshgrid(grid, grid, indexing="ij"), -1).reshape(-1, 2)
-    centres = np.zeros((t, 1, 2))
+    centres = np.broadcast_to(np.asarray(field_centre_xy, dtype=np.float64), (t, 1, 2))
     keep = np.ones((t, 1), dtype=bool)
     size = 2.0 * field_half_width_m
     for _ in range(levels):
