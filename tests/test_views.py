@@ -15,16 +15,15 @@ from hypothesis import strategies as st
 from replay.review_data import ReviewData
 from tests.review_fixtures import FOLLOWER, LEADERS, synthetic_review
 
-rr = pytest.importorskip("rerun")
-from rerun.chunk import RrdReader  # noqa: E402
+from rerun.chunk import RrdReader
 
-from replay import views  # noqa: E402
-from replay.commands import view as view_cmd  # noqa: E402
-from replay.errors import UserError  # noqa: E402
-from replay.stack.anfis import AnfisModel, predict  # noqa: E402
-from replay.views_anfis import SURFACE_GRID, grid_triangles, history_of, surface  # noqa: E402
-from replay.views_series import CDF_SNAPSHOTS, PERCENTILES, expanding_quantiles  # noqa: E402
-from replay.views_tracks import decimate  # noqa: E402
+from replay import views
+from replay.commands import view as view_cmd
+from replay.errors import UserError
+from replay.stack.anfis import AnfisModel, predict
+from replay.views_anfis import SURFACE_GRID, grid_triangles, history_of, surface
+from replay.views_series import CDF_SNAPSHOTS, PERCENTILES, expanding_quantiles
+from replay.views_tracks import decimate
 
 N_EPOCHS, ANFIS_EPOCHS = 40, 6
 
