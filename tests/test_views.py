@@ -186,8 +186,8 @@ def test_kmcdf_epochs_and_events(rrd: Rrd, review: ReviewData) -> None:
         fixes = rrd.cells(f"/run-a/kmcdf/{FOLLOWER}/{method}/fixes", "Points2D:positions")
         assert [len(f) for f in fixes] == [len(v) for v in rows.fixes_east_m]
         colors = rrd.cells(f"/run-a/kmcdf/{FOLLOWER}/{method}/fixes", "Points2D:colors")
-        kept = [sum(c == colors[i][0] for c in colors[i]) for i in range(len(colors))]
-        assert len(kept) == len(rows)
+        green = (60 << 24) | (200 << 16) | (90 << 8) | 255                  # cluster 1 (C1, kept), RGBA packed
+        assert [sum(c == green for c in row) for row in colors] == [sum(k == 1 for k in v) for v in rows.fixes_cluster]
         assert rrd.rows(f"/run-a/kmcdf/{FOLLOWER}/{method}/final") == len(rows)
         assert [len(n) for n in rrd.cells(f"/run-a/kmcdf/{FOLLOWER}/{method}/nodes", "Points2D:positions")] == \
             [4] * len(rows)
