@@ -19,6 +19,9 @@ from .errors import UserError
 COMMANDS: dict[str, tuple[str, str]] = {
     "record": ("replay.commands.record", "archive a trial's logs into one MCAP file"),
     "info": ("replay.commands.info", "what is inside an archive"),
+    "replay": ("replay.commands.replay", "replay an archive through every method side by side"),
+    "compare": ("replay.commands.compare", "two replay runs side by side"),
+    "export": ("replay.commands.export", "one topic to CSV or Parquet"),
     "unpack": ("replay.commands.unpack", "the original logs back, byte for byte"),
     "formats": ("replay.commands.formats", "the vendor formats supported"),
     "view": ("replay.commands.view", "open a recording (.rrd) or an archive (.mcap) in Rerun"),

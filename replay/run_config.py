@@ -29,7 +29,8 @@ class EngineConfig:
     rate: float = 0.0                             # 0 = as fast as possible; X = X times real time
     lag_s: float = 5.0                            # how far the engine looks ahead for leader positions
     max_gap_s: float = 3.0                        # longest gap to interpolate a position across
-    usbl_group_s: float = 0.05                    # observations of one ping: same emission time within this
+    node_max_gap_s: float = 30.0                  # moored USBL buoys report GPS seldom; they barely move
+    usbl_group_s: float = 2.5                     # observations of one ping: within this of the first
     kmcdf: bool = True                            # USBL epochs through KMCDF
     kmcdf_rho_m: float = 30.0
     kmcdf_phase_noise_rad: float = 0.1

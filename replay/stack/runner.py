@@ -89,6 +89,7 @@ class EpochResult:
     cov_nn_m2: float          # position covariance north-north, north-east, east-east (m²)
     cov_ne_m2: float
     cov_ee_m2: float
+    truth_range_m: float = NAN   # horizontal range from the GPS fixes (NaN without truth)
 
 
 @dataclass(frozen=True)
@@ -154,15 +155,22 @@ class CooperativeRunner:
     def __init__(
         self, config: StackConfig, follower: str, leaders: Sequence[str], start_time_s: float,
         initial_lat_rad: float, initial_lon_rad: float, initial_depth_m: float = 0.0,
-        factories: Mapping[str, DetectorFactory] = DETECTOR_FACTORIES,
+        factories: Mapping[str, DetectorFactory] = DETECTOR_FACTORIES, keep_history: bool = True,
     ) -> None:
-        """Start every method at the initial position with P0 = diag(p0_m)² (m², converted to rad²)."""
+        """Start every method at the initial position with P0 = diag(p0_m)² (m², converted to rad²).
+
+        With ``keep_history=False`` (the replay engine over long archives) the
+        runner keeps no tracks and no epochs, so its memory does not grow with
+        the mission; the caller takes them from `range_epoch` and `estimates`.
+        Only the compact open-loop features after t_a are kept for the ROC.
+        """
         self.config = config
         self.follower = follower
         self.leaders = tuple(leaders)
         self.start_time_s = float(start_time_s)
         self.training_end_s = self.start_time_s + config.training_window_s
         self._factories = factories
+        self.keep_history = keep_history
         self._r_var = config.r_m ** 2
         b, a = metric_scales_scalar(initial_lat_rad, initial_depth_m)
         s0 = State2(float(initial_lat_rad), float(initial_lon_rad),
@@ -181,7 +189,7 @@ class CooperativeRunner:
         self.clamped_ranges = 0
         self.training_errors: dict[str, str] = {}
         self._epochs: list[EpochResult] = []
-        self._ackf_epochs: list[EpochResult] = []
+        self._open_features: list[tuple[float, str, int, float, float, float]] = []  # ackf, after t_a
         self._track_t: list[float] = []
         self._track_depth: list[float] = []
         self._track_states: list[State2] = []        # len(methods) per record, flattened at finish
@@ -238,9 +246,12 @@ class CooperativeRunner:
         out = [self._method_epoch(m, inn, t_s, leader, z, geo, truth, label)
                for m, inn in zip(self._methods, innovations)]
         self._record()
-        self._ackf_epochs.extend(r for r in out if r.method == "ackf")
+        if t_s > self.training_end_s:
+            self._open_features.extend((r.time_s, r.leader, r.label, r.f1, r.f2, r.f3)
+                                       for r in out if r.method == "ackf")
         reported = [r for r in out if r.method in self._reported]
-        self._epochs.extend(reported)
+        if self.keep_history:
+            self._epochs.extend(reported)
         return reported
 
     def finish(self) -> RunResults:
@@ -256,6 +267,16 @@ class CooperativeRunner:
             clamped_ranges=self.clamped_ranges, trained=self._trained,
             training_errors=dict(self.training_errors),
         )
+
+    @property
+    def trained(self) -> bool:
+        """True once the detectors were trained (first sample after t_a)."""
+        return self._trained
+
+    def estimates(self) -> dict[str, tuple[float, float, float, float, float]]:
+        """Each reported method's current estimate: lat, lon (rad), covariance nn, ne, ee (m²)."""
+        return {m.name: (m.state.lat, m.state.lon, *_cov_m2(m.state, self._depth))
+                for m in self._methods if m.name in self._reported}
 
     def detectors(self, method: str) -> dict[str, Detector | None]:
         """The trained detector per leader of a detecting method ({} before t_a); for views and tests."""
@@ -287,6 +308,8 @@ class CooperativeRunner:
 
     def _record(self) -> None:
         """Remember every method's estimate at the current time for the tracks."""
+        if not self.keep_history:
+            return
         self._track_t.append(self._t)
         self._track_depth.append(self._depth)
         self._track_states.extend([m.state for m in self._methods])
@@ -313,7 +336,7 @@ class CooperativeRunner:
         return EpochResult(
             t_s, leader, m.name, decision.flagged, decision.score, decision.threshold, f1, f2, f3, label,
             action == "isolate", action == "capped", compensated, z - decision.correction_m * compensated,
-            inn.z_hat, m.state.lat, m.state.lon, nn, ne, ee)
+            inn.z_hat, m.state.lat, m.state.lon, nn, ne, ee, truth)
 
     def _act(self, m: _Method, det: Detector, decision: Decision, inn: RangeInnovation, leader: str,
              z: float, geo: tuple[float, float, float]) -> tuple[str, RangeInnovation, bool]:
@@ -383,18 +406,19 @@ class CooperativeRunner:
 
     def _open_loop(self) -> dict[str, dict[str, np.ndarray]]:
         """Open-loop scores of each trained detector on the ackf method's features after t_a."""
-        src = [e for e in self._ackf_epochs if e.time_s > self.training_end_s]
+        src = self._open_features
+        leaders = np.array([e[1] for e in src], dtype=object)
+        feats_all = np.array([e[3:6] for e in src], dtype=float).reshape(-1, 3)
         out = {}
         for m in self._methods:
             if m.kind != "detect" or m.name not in self._reported:
                 continue
             score = np.full(len(src), np.nan)
             for leader, det in m.detectors.items():
-                idx = [i for i, e in enumerate(src) if e.leader == leader]
-                if det is not None and idx:
-                    feats = np.array([[src[i].f1, src[i].f2, src[i].f3] for i in idx])
-                    score[idx] = det.scores(feats)
-            out[m.name] = {"time_s": np.array([e.time_s for e in src], dtype=float),
-                           "leader": np.array([e.leader for e in src], dtype=object),
-                           "label": np.array([e.label for e in src], dtype=np.int8), "score": score}
+                idx = np.nonzero(leaders == leader)[0]
+                if det is not None and idx.size:
+                    score[idx] = det.scores(feats_all[idx])
+            out[m.name] = {"time_s": np.array([e[0] for e in src], dtype=float),
+                           "leader": leaders,
+                           "label": np.array([e[2] for e in src], dtype=np.int8), "score": score}
         return out

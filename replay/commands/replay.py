@@ -1,0 +1,45 @@
+"""Replay an archive through every method side by side; results MCAP, metrics CSV/JSON, optional .rrd."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of `auvreplay replay`."""
+    parser.add_argument("archive", help="a trial archive (.mcap) from `auvreplay record`")
+    parser.add_argument("-c", "--config", help="configuration TOML (defaults: STACK.md)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override one parameter, e.g. --set r_m=2.5 --set anfis.epochs=50")
+    parser.add_argument("--window", nargs=2, type=float, metavar=("T0", "T1"),
+                        help="replay only [T0, T1] seconds from the trial start")
+    parser.add_argument("--rate", type=float, help="pace at X times real time (default: as fast as possible)")
+    parser.add_argument("-o", "--output", help="results archive (default: <archive>-replay-<run>.mcap)")
+    parser.add_argument("--rrd", help="also save a Rerun recording of the run")
+    parser.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the replay and print the metrics table (or JSON)."""
+    from replay.metrics import format_table
+    from replay.run import replay_archive
+    from replay.run_config import load_config
+
+    config = load_config(args.config, args.set, tuple(args.window) if args.window else None, args.rate)
+    outcome = replay_archive(args.archive, config, args.output, review=bool(args.rrd))
+    if args.rrd:
+        from replay.views import save_rrd
+
+        save_rrd([outcome.review], args.rrd)
+    if args.json:
+        print(json.dumps(outcome.metrics, indent=2, sort_keys=True))
+    else:
+        for note in outcome.notes:
+            print(f"note: {note}", file=sys.stderr)
+        print(f"run {outcome.run_id}: {outcome.metrics['epochs']} scored epochs after t_a "
+              f"({outcome.metrics['anomalous']} anomalous), {outcome.messages} messages in {outcome.wall_s:.2f} s")
+        print(format_table(outcome.metrics))
+        print(f"results: {outcome.output}" + (f"; recording: {args.rrd}" if args.rrd else ""))
+    return 0

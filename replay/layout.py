@@ -1,0 +1,96 @@
+"""Who is in a trial archive and what each vehicle can run: followers, leaders, buoys, topics.
+
+Roles come from the archive's `trial` metadata; when it is missing, they are
+guessed from the topics (a vehicle with DVL and modem ranges is a follower,
+one with USBL observations a buoy, the rest leaders) and the guess is reported.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass(frozen=True)
+class FollowerPlan:
+    """What the engine can do for one follower, and why not the rest."""
+
+    name: str
+    runnable: bool
+    leaders: tuple[str, ...]
+    heading_topic: str | None
+    notes: tuple[str, ...] = ()
+
+
+@dataclass
+class TrialLayout:
+    """Vehicles by role, the topics each has, and the per-follower plans."""
+
+    roles: dict[str, str]
+    topics: dict[str, int]                         # topic -> message count
+    followers: list[FollowerPlan] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    def has(self, vehicle: str, sensor: str) -> bool:
+        """True when /<vehicle>/<sensor> holds messages."""
+        return self.topics.get(f"/{vehicle}/{sensor}", 0) > 0
+
+    def by_role(self, role: str) -> list[str]:
+        """Vehicle names with a role, in archive order."""
+        return [v for v, r in self.roles.items() if r == role]
+
+
+def _guess_roles(topics: dict[str, int]) -> dict[str, str]:
+    vehicles: dict[str, set[str]] = {}
+    for topic in topics:
+        parts = topic.strip("/").split("/")
+        if len(parts) >= 2 and parts[0] not in ("replay", "diagnostics"):
+            vehicles.setdefault(parts[0], set()).add("/".join(parts[1:]))
+    roles = {}
+    for name, sensors in vehicles.items():
+        if "usbl" in sensors:
+            roles[name] = "buoy"
+        elif "dvl" in sensors or "modem/range" in sensors:
+            roles[name] = "follower"
+        else:
+            roles[name] = "leader"
+    return roles
+
+
+def plan_trial(trial_meta: dict | None, topics: dict[str, int]) -> TrialLayout:
+    """Work out roles and per-follower plans, with one note per thing that cannot run."""
+    vehicles = (trial_meta or {}).get("vehicles") or []
+    if vehicles:
+        roles = {v["name"]: v.get("role", "leader") for v in vehicles if isinstance(v, dict) and "name" in v}
+        layout = TrialLayout(roles, dict(topics))
+    else:
+        layout = TrialLayout(_guess_roles(topics), dict(topics))
+        layout.notes.append("no trial metadata: roles guessed from topics "
+                            + ", ".join(f"{v}={r}" for v, r in layout.roles.items()))
+    leaders = layout.by_role("leader")
+    for f in layout.by_role("follower"):
+        layout.followers.append(_plan_follower(layout, f, leaders))
+    for leader in leaders:
+        if not (layout.has(leader, "ins") or layout.has(leader, "gps")):
+            layout.notes.append(f"leader {leader}: no INS and no GPS: its ranges cannot be used")
+    return layout
+
+
+def _plan_follower(layout: TrialLayout, name: str, leaders: list[str]) -> FollowerPlan:
+    notes: list[str] = []
+    usable = tuple(ld for ld in leaders if layout.has(ld, "ins") or layout.has(ld, "gps"))
+    runnable = True
+    if not layout.has(name, "dvl"):
+        notes.append(f"follower {name}: no /{name}/dvl: nothing can run for this follower")
+        runnable = False
+    heading = f"/{name}/ins" if layout.has(name, "ins") else None
+    if heading is None and runnable:
+        notes.append(f"follower {name}: no /{name}/ins heading: body-frame DVL cannot be dead-reckoned; "
+                     "only earth-frame DVL velocities will be used")
+    if not layout.has(name, "gps") and not layout.has(name, "ins"):
+        notes.append(f"follower {name}: no GPS and no INS position: no initial fix, nothing can run")
+        runnable = False
+    elif not layout.has(name, "gps"):
+        notes.append(f"follower {name}: no /{name}/gps: no labels and no errors; detectors cannot be trained")
+    if not layout.has(name, "modem/range"):
+        notes.append(f"follower {name}: no /{name}/modem/range: dead reckoning only")
+    return FollowerPlan(name, runnable, usable, heading, tuple(notes))

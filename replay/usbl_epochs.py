@@ -1,0 +1,100 @@
+"""LBL/USBL epochs from an archive: one ping heard by several buoys, positioned by KMCDF.
+
+The recorder dates a USBL observation at the target's transmission
+(reception minus the measured delay), so an abnormal delay shifts its time
+by up to Rmax/c. Observations of one target within `usbl_group_s` of the
+epoch's first one form that epoch (default 2.5 s: half the usual ping
+interval); a node heard again starts a new epoch. Buoy
+positions come from the buoys' GPS at the reception time, in local
+east/north metres around a fixed origin.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections import Counter
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from .follower import VehicleTracks
+from .stack.kmcdf import KmcdfFix, KmcdfParams, kmcdf_epoch
+from .stack.model import horizontal_offset_m
+
+
+@dataclass(frozen=True)
+class UsblEpoch:
+    """One target's epoch: emission time, node names and positions, delays, phases, and the KMCDF fix."""
+
+    t_s: float
+    target: str
+    nodes: tuple[str, ...]
+    node_en: np.ndarray           # (N, 2) east, north metres
+    delays_s: np.ndarray
+    phase_x: np.ndarray
+    phase_y: np.ndarray
+    fix: KmcdfFix
+    params: KmcdfParams
+
+
+class UsblEpochBuilder:
+    """Groups UsblObservation messages into epochs and positions each with KMCDF."""
+
+    def __init__(self, tracks: dict[str, VehicleTracks], origin: tuple[float, float], group_s: float,
+                 params: KmcdfParams, max_gap_s: float, on_epoch: Callable[[UsblEpoch], None]):
+        self.tracks, self.origin, self.group_s = tracks, origin, group_s
+        self.params, self.max_gap_s, self.on_epoch = params, max_gap_s, on_epoch
+        self.counts: Counter = Counter()
+        self._open: dict[str, list[tuple[float, str, Any, float]]] = {}
+
+    def add(self, t_s: float, msg: Any) -> None:
+        """Add one observation (message time t_s); closes the target's previous epoch when it ended."""
+        travel = msg.travel_time_s if math.isfinite(msg.travel_time_s) else msg.range_m / self.params.sound_speed_mps
+        if not math.isfinite(travel) or not msg.target:
+            self.counts["usbl_without_delay_or_target"] += 1
+            return
+        emitted = t_s
+        group = self._open.setdefault(msg.target, [])
+        if group and (emitted - group[0][0] > self.group_s or any(g[1] == msg.node for g in group)):
+            self._close(msg.target)
+            group = self._open.setdefault(msg.target, [])
+        group.append((emitted, msg.node, msg, t_s))
+
+    def flush(self, before_s: float = math.inf) -> None:
+        """Close every epoch whose emission time is before `before_s`."""
+        for target in [t for t, g in self._open.items() if g and g[0][0] < before_s]:
+            self._close(target)
+
+    def _close(self, target: str) -> None:
+        group = self._open.pop(target, [])
+        by_node = {}
+        for emitted, node, msg, t_s in group:
+            by_node.setdefault(node, (emitted, msg, t_s))   # a node heard twice keeps its first
+        rows = []
+        for node, (emitted, msg, t_s) in by_node.items():
+            pos = self.tracks.get(node, VehicleTracks()).gps.at(t_s, self.max_gap_s)
+            if pos is None:
+                self.counts["usbl_node_without_position"] += 1
+                continue
+            north, east = horizontal_offset_m(pos.lat_rad, pos.lon_rad, *self.origin)
+            rows.append((node, float(east), float(north), msg))
+        if len(rows) < 3:
+            self.counts["usbl_epoch_below_3_nodes"] += 1
+            return
+        node_en = np.array([[r[1], r[2]] for r in rows])
+        delays = np.array([r[3].travel_time_s for r in rows])
+        px = np.array([r[3].phase_x_rad for r in rows])
+        py = np.array([r[3].phase_y_rad for r in rows])
+        params = self._params_for(rows)
+        fix = kmcdf_epoch(node_en, delays, px, py, params)
+        self.on_epoch(UsblEpoch(group[0][0], target, tuple(r[0] for r in rows), node_en, delays, px, py, fix, params))
+
+    def _params_for(self, rows: list) -> KmcdfParams:
+        """The epoch's sound speed, as the recorder applied it (range / travel time), when the log says."""
+        speeds = [r[3].range_m / r[3].travel_time_s for r in rows
+                  if math.isfinite(r[3].range_m) and math.isfinite(r[3].travel_time_s) and r[3].travel_time_s > 0]
+        if not speeds:
+            return self.params
+        return dataclasses.replace(self.params, sound_speed_mps=float(np.median(speeds)))

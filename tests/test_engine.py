@@ -1,0 +1,160 @@
+"""The replay engine on the sample trial, through the archive: metrics, determinism, compare, gaps."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from formats.mcap_reader import ArchiveReader
+from formats.mcap_writer import ArchiveWriter
+from recorders.manifest import load_manifest
+from recorders.record import record
+from replay.cli import main
+from replay.run import replay_archive
+from replay.run_config import load_config
+
+SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"
+FAST = ["methods=dead_reckoning,ckf,ackf,chi_square,anfis"]
+
+
+@pytest.fixture(scope="module")
+def archive(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("lake") / "lake.mcap"
+    record(load_manifest(SAMPLE / "trial.toml"), out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def full_run(archive, tmp_path_factory):
+    out = tmp_path_factory.mktemp("run") / "results.mcap"
+    return replay_archive(archive, load_config(), out, review=True)
+
+
+def test_replay_scores_every_method_on_the_test_window(full_run):
+    m = full_run.metrics
+    assert m["window"] == [600.0, pytest.approx(1700.0, abs=1.0)]
+    assert m["epochs"] == 454 and m["anomalous"] == 57   # the simulator's own count for seed 0
+    for name in ("chi_square", "dual_threshold", "anfis", "anfis_aqpso", "anfis_compensation"):
+        row = m["methods"][name]
+        assert row["tp"] + row["tn"] + row["fp"] + row["fn"] == 454
+        assert 0.5 < row["auc"] <= 1.0
+    for name in ("dead_reckoning", "ckf", "ackf"):
+        assert m["methods"][name]["tp"] is None and m["methods"][name]["error_p50_m"] > 0
+    # cooperative ranging beats dead reckoning, KMCDF positions the follower to a few metres
+    assert m["methods"]["ackf"]["error_p50_m"] < m["methods"]["dead_reckoning"]["error_p50_m"]
+    assert m["methods"]["kmcdf2"]["error_p50_m"] < 5.0 and m["usbl_epochs"] > 300
+
+
+def test_replay_matches_the_stack_on_the_simulator_arrays(full_run):
+    """Labels through the archive equal the simulator's GPS-based labels, epoch for epoch."""
+    sim = pd.read_csv(SAMPLE / "ranges.csv")
+    sim = sim[sim["t_s"] > 600.0]
+    assert int(sim["label"].sum()) == full_run.metrics["anomalous"]
+    ranges = full_run.review.ranges
+    ranges = ranges[ranges["t_s"] > 600.0]
+    assert len(ranges) == len(sim)
+    np.testing.assert_allclose(ranges["true_m"].to_numpy(), sim["z_gps_m"].to_numpy(), atol=0.05)
+    np.testing.assert_allclose(ranges["measured_m"].to_numpy(), sim["z_m"].to_numpy(), atol=0.2)
+
+
+def test_results_archive_holds_runs_channels_and_metadata(full_run):
+    rid = full_run.run_id
+    with ArchiveReader(full_run.output) as r:
+        topics = r.summary().topics
+        meta = r.metadata_json("run")
+    assert topics[f"/replay/{rid}/follower/detections"]["count"] >= 5 * 690   # 5 detectors x ~700 epochs
+    assert topics[f"/replay/{rid}/follower/anfis"]["schema"] == "foxglove.LocationFix"
+    assert topics[f"/replay/{rid}/anfis/leader1"]["schema"] == "auvreplay.AnfisSnapshot"
+    assert topics[f"/replay/{rid}/follower/kmcdf2"]["count"] > 300
+    assert meta["run_id"] == rid and len(meta["input_sha256"]) == 64
+    assert meta["configuration"]["stack"]["r_m"] == 3.0
+    assert Path(str(full_run.output).replace(".mcap", ".metrics.csv")).exists()
+
+
+def test_same_archive_and_configuration_give_identical_runs(archive, tmp_path):
+    a = replay_archive(archive, load_config(None, FAST), tmp_path / "a.mcap")
+    b = replay_archive(archive, load_config(None, FAST), tmp_path / "b.mcap")
+    assert a.run_id == b.run_id
+    strip = lambda m: {k: v for k, v in m.items() if k != "wall_s"}  # noqa: E731
+    assert strip(a.metrics) == strip(b.metrics)
+    with ArchiveReader(a.output) as ra, ArchiveReader(b.output) as rb:
+        assert [(m.topic, m.log_time_ns, m.message.SerializeToString()) for m in ra.messages()] == \
+               [(m.topic, m.log_time_ns, m.message.SerializeToString()) for m in rb.messages()]
+
+
+def test_a_changed_parameter_changes_the_run_and_compare_shows_it(archive, tmp_path, capsys):
+    a = replay_archive(archive, load_config(None, FAST), tmp_path / "a.mcap")
+    b = replay_archive(archive, load_config(None, FAST + ["chi_square_alpha=0.2"]), tmp_path / "b.mcap")
+    assert a.run_id != b.run_id
+    assert main(["compare", str(a.output), str(b.output), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["parameters"] == {"stack.chi_square_alpha": [0.01, 0.2]}
+    assert result["metrics"]["chi_square"]["fp"]["diff"] > 0
+    assert len(result["differing_epochs"]["chi_square"]) > 0
+    assert "anfis" not in result["differing_epochs"]
+
+
+def test_replay_command_json(archive, tmp_path, capsys):
+    out = tmp_path / "r.mcap"
+    assert main(["replay", str(archive), "--set", FAST[0], "-o", str(out), "--json",
+                 "--window", "0", "900"]) == 0
+    m = json.loads(capsys.readouterr().out)
+    assert set(m) >= {"run_id", "window", "epochs", "anomalous", "methods"}
+    assert m["window"][1] <= 900.5 and 0 < m["epochs"] < 200
+    assert set(m["methods"]["chi_square"]) >= {"tp", "tn", "fp", "fn", "accuracy", "precision", "recall", "fpr",
+                                               "fnr", "auc", "recall_at_fpr_5", "error_p50_m", "error_p90_m",
+                                               "error_rms_m"}
+
+
+def copy_without(archive: Path, out: Path, drop: callable) -> Path:
+    """A copy of an archive without the messages `drop(topic, t_s)` selects (metadata kept)."""
+    with ArchiveReader(archive) as r, ArchiveWriter(out) as w:
+        t0 = r.summary().start_ns
+        for m in r.messages():
+            if not drop(m.topic, (m.log_time_ns - t0) / 1e9):
+                w.write(m.topic, m.message, m.log_time_ns, m.publish_time_ns)
+        for name in ("trial", "recording"):
+            w.add_metadata(name, r.metadata(name))
+    return out
+
+
+def test_missing_dvl_says_what_cannot_run(archive, tmp_path):
+    path = copy_without(archive, tmp_path / "nodvl.mcap", lambda topic, t: topic == "/follower/dvl")
+    out = replay_archive(path, load_config(None, FAST), write_output=False)
+    assert any("no /follower/dvl" in n and "nothing can run" in n for n in out.notes)
+    assert out.metrics["epochs"] == 0 and out.results == {}
+
+
+def test_no_gps_after_the_window_means_no_labels_but_detectors_run(archive, tmp_path):
+    path = copy_without(archive, tmp_path / "nogps.mcap",
+                        lambda topic, t: topic.endswith("/gps") and t > 700.0)
+    out = replay_archive(path, load_config(None, FAST), write_output=False, review=True)
+    assert out.metrics["methods"]["anfis"]["tp"] is not None
+    assert 0 < out.metrics["epochs"] < 60     # only 600-700 s have labels
+    det = out.review.detections
+    late = det[(det["t_s"] > 800) & (det["method"] == "chi_square")]
+    assert len(late) > 100 and (late["label"] == -1).all()
+
+
+def test_gaps_duplicates_and_out_of_order_are_handled(archive, tmp_path):
+    """A DVL outage, duplicated ranges and a range out of order: counted, the run goes on."""
+    path = tmp_path / "messy.mcap"
+    with ArchiveReader(archive) as r, ArchiveWriter(path) as w:
+        t0 = r.summary().start_ns
+        for m in r.messages():
+            t = (m.log_time_ns - t0) / 1e9
+            if m.topic == "/follower/dvl" and 1000 < t < 1060:
+                continue
+            w.write(m.topic, m.message, m.log_time_ns)
+            if m.topic == "/follower/modem/range" and 1200 < t < 1230:
+                w.write(m.topic, m.message, m.log_time_ns)                 # duplicate
+        w.add_metadata("trial", r.metadata("trial"))
+    out = replay_archive(path, load_config(None, FAST), write_output=False)
+    assert out.metrics["epochs"] > 400
+    rejected = out.metrics["rejected"]["follower"]
+    assert sum(rejected.values()) >= 1
+    assert out.metrics["methods"]["ackf"]["error_p50_m"] < 20
