@@ -74,7 +74,8 @@ def history_of(rows: pd.DataFrame) -> ModelHistory | None:
     if "rules" in first:
         rules = np.asarray(first["rules"], dtype=np.intp)
     else:
-        rules = rule_table(d, m, "grid" if q.shape[1] == m**d else "diagonal")
+        structure = first.get("rule_structure") or ("grid" if q.shape[1] == m**d else "diagonal")
+        rules = rule_table(d, m, structure)
     return ModelHistory(rows["epoch"].to_numpy(dtype=np.int64), a, b, c, q, rules, floats(rows, "rmse"))
 
 

@@ -42,7 +42,8 @@ METHOD_STYLE: tuple[tuple[str, tuple[int, int, int]], ...] = (
 _IDS = {name: i + 1 for i, (name, _) in enumerate(METHOD_STYLE)}
 _RGB = dict(METHOD_STYLE)
 FIRST_FREE_ID = 100
-CLUSTER_COLORS = np.array([[200, 60, 60], [60, 200, 90], [90, 140, 255], [230, 200, 60]], dtype=np.uint8)
+# KMCDF cluster of a preliminary fix: 1 = C1 (consistent, kept) green, 2 = C2 red; 0 = unclustered grey
+CLUSTER_COLORS = np.array([[160, 160, 160], [60, 200, 90], [220, 60, 50], [230, 200, 60]], dtype=np.uint8)
 _SAFE = re.compile(r"[^A-Za-z0-9_.-]+")
 
 

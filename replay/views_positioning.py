@@ -2,7 +2,7 @@
 
 Entities under a run prefix P, on `time`:
 - ``P/kmcdf/<target>/<method>/fixes``  Points2D, every preliminary fix of the epoch,
-  coloured by its cluster (C1, the kept cluster, is cluster 1 in green);
+  coloured by its cluster (1 = C1, the kept cluster, green; 2 = C2 red; as replay.stack.kmcdf numbers them);
 - ``P/kmcdf/<target>/<method>/final``  Points2D, the final fix in the method's colour;
 - ``P/kmcdf/<target>/<method>/nodes``  Points2D, the nodes, red when the epoch judged
   that node's delay abnormal, amber when only a phase;

@@ -166,7 +166,7 @@ def _kmcdf(rng: np.random.Generator, duration: float) -> pd.DataFrame:
             final = fixes[~bad].mean(axis=0) if (~bad).any() else truth[i]
             rows.append({"t_s": ti, "target": FOLLOWER, "method": method, "east_m": final[0], "north_m": final[1],
                          "fixes_east_m": fixes[:, 0].tolist(), "fixes_north_m": fixes[:, 1].tolist(),
-                         "fixes_cluster": (~bad).astype(int).tolist(), "nodes_east_m": nodes[:, 0].tolist(),
+                         "fixes_cluster": np.where(bad, 2, 1).tolist(), "nodes_east_m": nodes[:, 0].tolist(),
                          "nodes_north_m": nodes[:, 1].tolist(), "delay_normal": (rng.random(N_NODES) > 0.1).tolist(),
                          "phase_normal": (rng.random(N_NODES) > 0.05).tolist()})
     return pd.DataFrame(rows)

@@ -219,6 +219,17 @@ def test_two_runs_compared_in_one_recording(review: ReviewData, tmp_path: Path) 
     assert any(t.startswith("[run-a_1] ") for t in (x[0] for x in out.cells("/run-a_1/events", "TextLog:text")))
 
 
+def test_kmcdf_rows_without_fixes_keep_the_final_fix(review: ReviewData, tmp_path: Path) -> None:
+    km = review.kmcdf.copy()
+    one = km.method == "kmcdf1"
+    for col in ("fixes_east_m", "fixes_north_m", "fixes_cluster"):
+        km[col] = [[] if o else v for o, v in zip(one, km[col], strict=True)]
+    out = Rrd(views.save_rrd([ReviewData(**{**review.__dict__, "kmcdf": km})], tmp_path / "k.rrd"))
+    assert out.rows(f"/run-a/kmcdf/{FOLLOWER}/kmcdf1/fixes") == 0
+    assert out.rows(f"/run-a/kmcdf/{FOLLOWER}/kmcdf1/final") == int(one.sum())
+    assert out.rows(f"/run-a/kmcdf/{FOLLOWER}/kmcdf2/fixes") == int((~one).sum())
+
+
 def test_empty_review_still_makes_a_recording(tmp_path: Path) -> None:
     empty = ReviewData(run_id="nothing", trial="t", trial_start_ns=0, origin_lat_deg=0.0, origin_lon_deg=0.0)
     out = Rrd(views.save_rrd([empty], tmp_path / "empty.rrd"))
@@ -258,7 +269,8 @@ def test_surface_is_the_stacks_anfis_output(review: ReviewData) -> None:
         model = AnfisModel(h.a[e], h.b[e], h.c[e], h.consequents[e], h.rules, "grid")
         np.testing.assert_allclose(out[e], predict(model, x), rtol=1e-12)
     alt = rows.assign(params=[{"a": np.asarray(p["membership"])[..., 0], "b": np.asarray(p["membership"])[..., 1],
-                               "c": np.asarray(p["membership"])[..., 2], "consequents": p["consequents"]}
+                               "c": np.asarray(p["membership"])[..., 2], "consequents": p["consequents"],
+                               "rule_structure": "grid"}
                               for p in rows.params])
     np.testing.assert_allclose(history_of(alt).c, h.c)
     assert history_of(rows.assign(params=[{"nonsense": 1}] * len(rows))) is None
