@@ -20,13 +20,15 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "record": ("replay.commands.record", "archive a trial's logs into one MCAP file"),
     "info": ("replay.commands.info", "what is inside an archive"),
     "replay": ("replay.commands.replay", "replay an archive through every method side by side"),
+    "batch": ("replay.commands.batch", "replay many archives under a parameter sweep on Dask (local or a cluster)"),
     "compare": ("replay.commands.compare", "two replay runs side by side"),
     "export": ("replay.commands.export", "one topic to CSV or Parquet"),
     "unpack": ("replay.commands.unpack", "the original logs back, byte for byte"),
     "formats": ("replay.commands.formats", "the vendor formats supported"),
     "view": ("replay.commands.view", "open a recording (.rrd) or an archive (.mcap) in Rerun"),
+    "demo": ("replay.commands.demo", "the whole job on the sample trial"),
     "simulate": ("replay.commands.simulate", "write a synthetic lake trial: vendor logs, manifest, truth"),
-    "reproduce": ("replay.commands.reproduce", "the papers' tables and figures (kmcdf)"),
+    "reproduce": ("replay.commands.reproduce", "the papers' tables and figures (anfis, kmcdf)"),
 }
 
 

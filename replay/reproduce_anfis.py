@@ -27,9 +27,9 @@ PAPER_EPOCHS, PAPER_ANOMALOUS = 462, 57
 
 def sample_trial_dir() -> Path:
     """The bundled sample lake trial's directory."""
-    import samples
+    from importlib.resources import files
 
-    return Path(samples.__file__).resolve().parent / "lake_trial"
+    return Path(str(files("samples") / "lake_trial"))
 
 
 def archive_for(trial: str | Path | None, workdir: Path) -> Path:

@@ -134,7 +134,8 @@ def _write_run_metadata(writer: ArchiveWriter, config: RunConfig, rid: str, sha:
                                                     name="engine"), t0_ns)
     writer.add_metadata("run", {
         "run_id": rid, "configuration": canonical_json(config), "package_version": version,
-        "input_sha256": sha, "input_file": Path(archive).name, "wall_time_s": f"{wall:.3f}",
+        "input_sha256": sha, "input_file": Path(archive).name, "input_path": str(Path(archive).resolve()),
+        "wall_time_s": f"{wall:.3f}",
         "trial_start_ns": str(t0_ns), "metrics": json.dumps(metrics, sort_keys=True),
         "parameters": json.dumps(to_dict(config), sort_keys=True),
     })

@@ -18,6 +18,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rate", type=float, help="pace at X times real time (default: as fast as possible)")
     parser.add_argument("-o", "--output", help="results archive (default: <archive>-replay-<run>.mcap)")
     parser.add_argument("--rrd", help="also save a Rerun recording of the run")
+    parser.add_argument("--compare", metavar="RESULTS.mcap",
+                        help="with --rrd: put this earlier run into the same recording, side by side")
     parser.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
 
 
@@ -27,12 +29,21 @@ def run(args: argparse.Namespace) -> int:
     from replay.run import replay_archive
     from replay.run_config import load_config
 
+    from replay.errors import UserError
+
+    if args.compare and not args.rrd:
+        raise UserError("--compare needs --rrd (the comparison is a recording)")
     config = load_config(args.config, args.set, tuple(args.window) if args.window else None, args.rate)
     outcome = replay_archive(args.archive, config, args.output, review=bool(args.rrd))
     if args.rrd:
         from replay.views import save_rrd
 
-        save_rrd([outcome.review], args.rrd)
+        reviews = [outcome.review]
+        if args.compare:
+            from replay.rebuild import review_from_results
+
+            reviews.append(review_from_results(args.compare))
+        save_rrd(reviews, args.rrd)
     if args.json:
         print(json.dumps(outcome.metrics, indent=2, sort_keys=True))
     else:

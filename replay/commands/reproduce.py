@@ -1,7 +1,8 @@
-"""Reproduce a source paper's figure: `kmcdf` runs seed 003's Fig. 2 (KMCDF against GAR, EAR, LMS, LHC).
+"""Reproduce a source paper's result: `anfis` runs paper A's detection table on the sample (or a given)
+trial; `kmcdf` runs seed 003's Fig. 2 (KMCDF against GAR, EAR, LMS, LHC).
 
-Prints the success table beside the paper's numbers (or one JSON object with
---json) and writes the figure as a PNG and as a Rerun .rrd.
+Prints the tables beside the paper's numbers (or one JSON object with --json);
+`kmcdf` also writes the figure as a PNG and as a Rerun .rrd.
 """
 
 from __future__ import annotations
@@ -16,7 +17,10 @@ from ..errors import UserError
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `auvreplay reproduce`."""
-    parser.add_argument("which", choices=["kmcdf"], help="the paper result to reproduce")
+    parser.add_argument("which", choices=["anfis", "kmcdf"], help="the paper result to reproduce")
+    parser.add_argument("--trial", help="anfis: a trial directory, manifest or archive (default: the sample trial)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="anfis: override a stack parameter, as for `replay`")
     parser.add_argument("--trials", type=int, default=1000, help="Monte Carlo trials per point")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of tables")
@@ -32,6 +36,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the reproduction and report it."""
+    if args.which == "anfis":
+        return _run_anfis(args)
     if args.trials < 1:
         raise UserError("--trials must be at least 1")
     if args.phase_noise <= 0:
@@ -64,4 +70,17 @@ def run(args: argparse.Namespace) -> int:
     written = [p for p in (args.png, args.rrd) if p]
     if written:
         print(f"\nwrote {', '.join(written)}")
+    return 0
+
+
+def _run_anfis(args: argparse.Namespace) -> int:
+    """Paper A's table: record (if needed) and replay the trial in both ANFIS model modes."""
+    from ..reproduce_anfis import format_report, json_object, reproduce
+
+    modes = reproduce(args.trial, args.set)
+    if args.json:
+        json.dump(json_object(modes), sys.stdout, indent=2, sort_keys=True)
+        print()
+    else:
+        print(format_report(modes))
     return 0

@@ -20,8 +20,12 @@ SUFFIXES = (".rrd", ".mcap")
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `auvreplay view`."""
-    parser.add_argument("file", help="a Rerun recording (.rrd) or an MCAP archive (.mcap)")
+    parser.add_argument("file", nargs="+",
+                        help="a Rerun recording (.rrd), an MCAP archive (.mcap), or one or two replay results "
+                             "archives (shown with every view; two are compared in one recording)")
     parser.add_argument("--web", action="store_true", help="serve the web viewer on 127.0.0.1 instead")
+    parser.add_argument("--archive", help="the input trial archive of the results, if not found by itself")
+    parser.add_argument("--save", help="with results archives: where to save the recording (.rrd)")
 
 
 def has_display(env: Mapping[str, str]) -> bool:
@@ -39,9 +43,29 @@ def check_file(name: str) -> Path:
     return path
 
 
+def _recording_of_results(args: argparse.Namespace) -> Path | None:
+    """Results archives become one recording (re-run from their inputs); None for a plain file."""
+    from replay.rebuild import review_from_results, run_metadata
+
+    paths = [check_file(f) for f in args.file]
+    metas = [run_metadata(p) if p.suffix.lower() == ".mcap" else None for p in paths]
+    if len(paths) == 1 and metas[0] is None:
+        return None
+    if any(m is None for m in metas) or len(paths) > 2:
+        raise UserError("give one .rrd or .mcap file, or one or two replay results archives")
+    from replay.views import save_rrd
+
+    reviews = [review_from_results(p, args.archive) for p in paths]
+    out = Path(args.save) if args.save else paths[0].with_suffix(".rrd")
+    save_rrd(reviews, out)
+    print(f"saved {out}")
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
     """Open the file in Rerun and wait for it; print the command instead when there is no display."""
-    path = check_file(args.file)
+    built = _recording_of_results(args)
+    path = built if built is not None else check_file(args.file[0])
     from replay.views import open_viewer, viewer_command
 
     if not args.web and not has_display(os.environ):
