@@ -9,14 +9,15 @@ experiment and appears only in `reproduce kmcdf`.
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
-
 import numpy as np
 
-from .stack.kmcdf_montecarlo import run_baseline
+from .stack.kmcdf_montecarlo import delay_baseline
 from .usbl_epochs import UsblEpoch
 
 BASELINES = ("gar", "ear", "lms", "lhc")
+# LHC's majorization creeps along flat Huber valleys for thousands of steps on a few
+# epochs; per epoch in a replay we stop at 300 (the Monte Carlo figure runs it to 1e-6 m)
+LHC_MAX_ITERATIONS = 300
 
 
 def positions_for_epoch(epoch: UsblEpoch) -> dict[str, tuple[float, float]]:
@@ -25,10 +26,14 @@ def positions_for_epoch(epoch: UsblEpoch) -> dict[str, tuple[float, float]]:
     finite = np.isfinite(epoch.delays_s)
     if finite.sum() < 3:
         return out
-    batch = SimpleNamespace(node_xy=epoch.node_en[finite], delays_s=epoch.delays_s[finite][None, :])
+    nodes, delays = epoch.node_en[finite], epoch.delays_s[finite][None, :]
+    centre = tuple(float(v) for v in nodes.mean(axis=0))
+    half = float(epoch.params.max_range_m)
     for name in BASELINES:
         try:
-            result = run_baseline(name, batch, epoch.params)
+            result = delay_baseline(name, nodes, delays, epoch.params, field_centre_xy=centre,
+                                    field_half_width_m=half, lhc_tolerance_m=1e-3,
+                                    lhc_max_iterations=LHC_MAX_ITERATIONS)
             xy = result.position[0]
             ok = bool(result.resolved[0]) and all(math.isfinite(v) for v in xy)
             out[name] = (float(xy[0]), float(xy[1])) if ok else (math.nan, math.nan)

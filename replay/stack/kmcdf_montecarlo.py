@@ -91,19 +91,33 @@ def kmcdf_success(sim: SimBatch, params: KmcdfParams = KmcdfParams()) -> BoolArr
 
 
 def run_baseline(name: str, sim: SimBatch, params: KmcdfParams = KmcdfParams()) -> BaselineResult:
-    """One delay-only baseline with the constants of seed 003 section 4."""
+    """One delay-only baseline with the constants of seed 003 section 4, on the paper's field."""
+    return delay_baseline(name, sim.node_xy, sim.delays_s, params)
+
+
+def delay_baseline(
+    name: str, node_xy: FloatArray, delays_s: FloatArray, params: KmcdfParams = KmcdfParams(), *,
+    field_centre_xy: tuple[float, float] = (0.0, 0.0), field_half_width_m: float = FIELD_HALF_WIDTH_M,
+    lhc_tolerance_m: float = 1e-6, lhc_max_iterations: int = 20000,
+) -> BaselineResult:
+    """One delay-only baseline on nodes (N, 2) and delays (T, N): GAR, EAR, LMS or LHC (seed 003 constants).
+
+    The replay engine gives EAR a field around its own nodes and LHC a looser
+    stopping rule (1 mm is plenty for a position; the Monte Carlo keeps 1e-6 m).
+    """
     c, st = params.sound_speed_mps, params.sigma_delay_s
-    ranges = c * sim.delays_s
+    ranges = c * delays_s
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         if name == "gar":
-            return gar(sim.node_xy, ranges, threshold_m2=5.76 * (c * st) ** 2)
+            return gar(node_xy, ranges, threshold_m2=5.76 * (c * st) ** 2)
         if name == "ear":
-            return ear(sim.node_xy, ranges, ring_width_m=6.0 * c * st,
-                       field_half_width_m=FIELD_HALF_WIDTH_M)
+            return ear(node_xy, ranges, ring_width_m=6.0 * c * st, field_half_width_m=field_half_width_m,
+                       field_centre_xy=field_centre_xy)
         if name == "lms":
-            return lms(sim.node_xy, ranges)
+            return lms(node_xy, ranges)
         if name == "lhc":
-            return lhc(sim.node_xy, ranges, huber_k_m=c * 1e-3)
+            return lhc(node_xy, ranges, huber_k_m=c * 1e-3, tolerance_m=lhc_tolerance_m,
+                       max_iterations=lhc_max_iterations)
     raise ValueError(f"unknown baseline {name!r}")
 
 
