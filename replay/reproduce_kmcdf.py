@@ -5,7 +5,8 @@ Success probability for N = 6 and N = 4 nodes, every abnormal-node count
 EAR, LMS and LHC; a table beside the paper's published numbers, JSON as
 DESIGN.md "Machine-readable results" says, a PNG and an .rrd. Points run in
 worker processes, each from its own seeded stream, so the numbers do not
-depend on the number of workers.
+depend on the number of workers, nor on whether the workers are a process
+pool or a Dask cluster (`client`, see `replay.batch.dask_client`).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from multiprocessing import get_context
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .stack.kmcdf import KmcdfParams
 from .stack.kmcdf_montecarlo import METHODS, success_point
@@ -25,6 +27,9 @@ LAYOUTS: tuple[int, ...] = (6, 4)
 SENSITIVITY_NOISES: tuple[float, ...] = (0.01, 0.05, 0.1, 0.15, 0.2)
 Curves = dict[str, dict[str, dict[str, float]]]        # layout -> method -> k -> rate
 Task = tuple[int, int, str, int, int, KmcdfParams]
+
+if TYPE_CHECKING:
+    from distributed import Client
 
 
 @dataclass(frozen=True)
@@ -91,14 +96,17 @@ def _single_threaded_blas() -> Iterator[None]:
                 os.environ[k] = v
 
 
-def run_tasks(tasks: Sequence[Task], workers: int) -> list[float]:
-    """Success rates of `tasks`, in order; `workers` > 1 uses spawned processes."""
-    if workers <= 1:
+def run_tasks(tasks: Sequence[Task], workers: int, client: Client | None = None) -> list[float]:
+    """Success rates of `tasks`, in order; on a Dask `client` when given, else `workers` > 1 spawns processes."""
+    if workers <= 1 and client is None:
         return [_point(t) for t in tasks]
     # heavy points first so the two cores finish together
     order = sorted(range(len(tasks)), key=lambda i: tasks[i][2] not in ("kmcdf1", "kmcdf2", "lhc"))
-    with _single_threaded_blas(), ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as pool:
-        results = list(pool.map(_point, [tasks[i] for i in order]))
+    if client is not None:
+        results = client.gather(client.map(_point, [tasks[i] for i in order], pure=False))
+    else:
+        with _single_threaded_blas(), ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as pool:
+            results = list(pool.map(_point, [tasks[i] for i in order]))
     out = [0.0] * len(tasks)
     for i, r in zip(order, results):
         out[i] = r
@@ -106,11 +114,12 @@ def run_tasks(tasks: Sequence[Task], workers: int) -> list[float]:
 
 
 def reproduce(trials: int = 1000, seed: int = 0, params: KmcdfParams = KmcdfParams(),
-              workers: int = 2, methods: Sequence[str] = METHODS) -> KmcdfReproduction:
+              workers: int = 2, methods: Sequence[str] = METHODS, client: Client | None = None,
+              ) -> KmcdfReproduction:
     """Every point of Fig. 2 for both layouts."""
     tasks: list[Task] = [(n, k, m, trials, seed, params)
                          for n in LAYOUTS for m in methods for k in range(n + 1)]
-    rates = run_tasks(tasks, workers)
+    rates = run_tasks(tasks, workers, client)
     layouts: Curves = {str(n): {m: {} for m in methods} for n in LAYOUTS}
     for (n, k, m, *_), rate in zip(tasks, rates):
         layouts[str(n)][m][str(k)] = rate
@@ -124,12 +133,12 @@ SENSITIVITY_POINTS: tuple[tuple[int, int, str], ...] = (
 
 
 def sensitivity(trials: int = 1000, seed: int = 0, params: KmcdfParams = KmcdfParams(),
-                noises: Sequence[float] = SENSITIVITY_NOISES, workers: int = 2,
+                noises: Sequence[float] = SENSITIVITY_NOISES, workers: int = 2, client: Client | None = None,
                 ) -> dict[str, dict[str, float]]:
     """KMCDF success at the paper's points for each phase noise: noise -> "N6 kmcdf1 @3" -> rate."""
     tasks: list[Task] = [(n, k, m, trials, seed, replace(params, sigma_phase_rad=s))
                          for s in noises for n, k, m in SENSITIVITY_POINTS]
-    rates = iter(run_tasks(tasks, workers))
+    rates = iter(run_tasks(tasks, workers, client))
     return {str(s): {f"N{n} {m} @{k}": next(rates) for n, k, m in SENSITIVITY_POINTS}
             for s in noises}
 

@@ -11,6 +11,8 @@ import argparse
 import json
 import os
 import sys
+from contextlib import AbstractContextManager, nullcontext
+from typing import Any
 
 from ..errors import UserError
 
@@ -32,6 +34,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="phase-difference noise sigma in rad (seed 003 gives none; default 0.1)")
     parser.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),
                         help="worker processes (results do not depend on it)")
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="kmcdf: run the points on Dask, at a scheduler (tcp://host:8786) or 'local' "
+                             "(a LocalCluster of --workers processes); results do not depend on it")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -47,9 +52,10 @@ def run(args: argparse.Namespace) -> int:
     from ..stack.kmcdf import KmcdfParams
 
     params = KmcdfParams(sigma_phase_rad=args.phase_noise)
-    result = reproduce(args.trials, args.seed, params, workers=args.workers)
-    table = sensitivity(args.trials, args.seed, params, workers=args.workers) \
-        if args.sensitivity else None
+    with _dask(args.scheduler, args.workers) as client:
+        result = reproduce(args.trials, args.seed, params, workers=args.workers, client=client)
+        table = sensitivity(args.trials, args.seed, params, workers=args.workers, client=client) \
+            if args.sensitivity else None
     if args.png:
         save_png(result, args.png)
     if args.rrd:
@@ -71,6 +77,15 @@ def run(args: argparse.Namespace) -> int:
     if written:
         print(f"\nwrote {', '.join(written)}")
     return 0
+
+
+def _dask(scheduler: str | None, workers: int) -> AbstractContextManager[Any]:
+    """A Dask client when --scheduler is given (see replay.batch.dask_client), else None."""
+    if scheduler is None:
+        return nullcontext(None)
+    from ..batch import dask_client
+
+    return dask_client(scheduler, workers)
 
 
 def _run_anfis(args: argparse.Namespace) -> int:
