@@ -1,5 +1,28 @@
 """Writing archives: chunked, indexed, zstd-compressed MCAP with protobuf messages.
 
+The records are laid out as the MCAP specification (mcap.dev/spec, major
+version 0) describes them; we build them ourselves because the per-message
+path of the mcap library (a record object, a builder, several small writes)
+costs more than serializing the message. A message here is one precompiled
+`struct` pack and two bytearray appends; everything else happens once per
+chunk (1 MiB by default): zstd compression, the CRC32 of the uncompressed
+records, one Message Index record per channel and a Chunk Index for the
+summary.
+
+File layout::
+
+    magic, Header,
+    (Schema | Channel | Attachment | Metadata | Chunk + its Message Indexes)...,
+    Data End (CRC32 of every byte before it, magic included),
+    summary: Schemas, Channels, Statistics, Chunk Indexes, Attachment Indexes,
+    Metadata Indexes, then one Summary Offset per non-empty group,
+    Footer (CRC32 of the summary through the footer's own offsets), magic.
+
+Schema and Channel records go into the open chunk as they are registered,
+before the channel's first message (as the spec requires); a chunk left with
+such records and no message is written out as plain records, so a channel
+registered without messages is still in the data section.
+
 The file is written under a temporary name next to the target and renamed
 only when `close()` finishes, so an interrupted write never leaves a file
 that looks complete.
@@ -9,15 +32,34 @@ from __future__ import annotations
 
 import json
 import os
+import struct
+import zlib
+from itertools import chain
 from pathlib import Path
 from typing import Any, Mapping
 
-from mcap.well_known import MessageEncoding, SchemaEncoding
-from mcap.writer import CompressionType, IndexType, Writer
+import zstandard
 from mcap_protobuf.schema import build_file_descriptor_set
 
 PROFILE = ""  # protobuf-encoded MCAP has no well-known profile
 CHUNK_SIZE = 1024 * 1024
+ZSTD_LEVEL = 3  # zstandard's default, as the mcap library uses
+MAGIC = b"\x89MCAP0\r\n"
+
+# opcodes (MCAP spec, "Records")
+OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE = 0x01, 0x02, 0x03, 0x04, 0x05
+OP_CHUNK, OP_MESSAGE_INDEX, OP_CHUNK_INDEX, OP_ATTACHMENT, OP_ATTACHMENT_INDEX = 0x06, 0x07, 0x08, 0x09, 0x0A
+OP_STATISTICS, OP_METADATA, OP_METADATA_INDEX, OP_SUMMARY_OFFSET, OP_DATA_END = 0x0B, 0x0C, 0x0D, 0x0E, 0x0F
+
+# opcode, record length, channel id, sequence, log time, publish time; the data follows
+_MESSAGE = struct.Struct("<BQHIQQ")
+_MESSAGE_FIXED = 2 + 4 + 8 + 8
+_RECORD = struct.Struct("<BQ")
+_U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
+_CHUNK_HEAD = struct.Struct("<QQQI")  # start, end, uncompressed size, uncompressed CRC
+_INDEX_HEAD = struct.Struct("<BQHI")  # opcode, length, channel id, byte length of the entries
+_U16_U64 = struct.Struct("<HQ")
+_SEQUENCE_MASK = 0xFFFFFFFF
 
 
 def _library() -> str:
@@ -27,6 +69,38 @@ def _library() -> str:
         return f"auvreplay/{version('auvreplay')}"
     except Exception:  # noqa: BLE001 - running from a source tree
         return "auvreplay"
+
+
+def _string(text: str) -> bytes:
+    raw = text.encode("utf-8")
+    return _U32.pack(len(raw)) + raw
+
+
+def _string_map(entries: Mapping[str, str]) -> bytes:
+    body = b"".join(_string(k) + _string(v) for k, v in entries.items())
+    return _U32.pack(len(body)) + body
+
+
+def _id_map(entries: Mapping[int, int]) -> bytes:
+    body = b"".join(_U16_U64.pack(k, v) for k, v in entries.items())
+    return _U32.pack(len(body)) + body
+
+
+def record(opcode: int, body: bytes) -> bytes:
+    """One MCAP record: opcode, uint64 content length, content."""
+    return _RECORD.pack(opcode, len(body)) + body
+
+
+class _Channel:
+    """A registered channel: its id, message class, messages so far and the open chunk's index."""
+
+    __slots__ = ("id", "cls", "count", "index")
+
+    def __init__(self, channel_id: int, cls: type):
+        self.id = channel_id
+        self.cls = cls
+        self.count = 0
+        self.index: list[tuple[int, int]] = []  # (log time, offset in the chunk) of the open chunk
 
 
 class ArchiveWriter:
@@ -40,75 +114,203 @@ class ArchiveWriter:
         self.path = Path(path)
         self.temp_path = self.path.with_name(f".{self.path.name}.part-{os.getpid()}")
         self._stream = open(self.temp_path, "wb")
-        self._writer = Writer(
-            self._stream,
-            chunk_size=chunk_size,
-            compression=CompressionType.ZSTD,
-            index_types=IndexType.ALL,
-            enable_crcs=True,
-            enable_data_crcs=True,
-        )
-        self._writer.start(profile=PROFILE, library=_library())
-        self._channels: dict[str, tuple[int, type]] = {}
+        self._pos = 0
+        self._crc = 0  # CRC32 of the data section so far (magic included)
+        self._chunk_size = chunk_size
+        self._chunk = bytearray()
+        self._zstd = zstandard.ZstdCompressor(level=ZSTD_LEVEL)
+        self._topics: dict[str, _Channel] = {}
+        self._by_id: dict[int, _Channel] = {}
         self._schemas: dict[str, int] = {}
-        self._sequence: dict[int, int] = {}
+        self._summary_schemas: list[bytes] = []
+        self._summary_channels: list[bytes] = []
+        self._chunk_indexes: list[bytes] = []
+        self._attachment_indexes: list[bytes] = []
+        self._metadata_indexes: list[bytes] = []
+        self._span: tuple[int, int] | None = None  # earliest and latest message log time
         self._closed = False
+        self._emit(MAGIC, record(OP_HEADER, _string(PROFILE) + _string(_library())))
+
+    # -- data section ------------------------------------------------------------
+    def _emit(self, *parts: bytes | bytearray) -> int:
+        """Append bytes to the data section; returns the offset of the first."""
+        start = self._pos
+        for part in parts:
+            self._stream.write(part)
+            self._crc = zlib.crc32(part, self._crc)
+            self._pos += len(part)
+        return start
 
     def channel(self, topic: str, message_class: type) -> int:
         """The channel id for a topic, registering it (and its schema) on first use."""
-        known = self._channels.get(topic)
+        return self._channel(topic, message_class).id
+
+    def _channel(self, topic: str, message_class: type) -> _Channel:
+        if self._closed:
+            raise ValueError(f"{self.path}: the archive is closed")
+        known = self._topics.get(topic)
         if known is not None:
-            if known[1] is not message_class:
+            if known.cls is not message_class:
                 raise TypeError(
-                    f"topic {topic} carries {known[1].DESCRIPTOR.full_name}, "
-                    f"not {message_class.DESCRIPTOR.full_name}"
+                    f"topic {topic} carries {known.cls.DESCRIPTOR.full_name}, "
+                    f"not {getattr(getattr(message_class, 'DESCRIPTOR', None), 'full_name', message_class)}"
                 )
-            return known[0]
+            return known
         name = message_class.DESCRIPTOR.full_name
         schema_id = self._schemas.get(name)
         if schema_id is None:
+            schema_id = len(self._schemas) + 1  # 0 means "no schema"
             data = build_file_descriptor_set(message_class).SerializeToString()
-            schema_id = self._writer.register_schema(name, SchemaEncoding.Protobuf, data)
+            rec = record(OP_SCHEMA, _U16.pack(schema_id) + _string(name) + _string("protobuf") + _U32.pack(len(data)) + data)
+            self._chunk += rec
+            self._summary_schemas.append(rec)
             self._schemas[name] = schema_id
-        channel_id = self._writer.register_channel(topic, MessageEncoding.Protobuf, schema_id)
-        self._channels[topic] = (channel_id, message_class)
-        self._sequence[channel_id] = 0
-        return channel_id
+        channel_id = len(self._topics) + 1
+        if channel_id > 0xFFFF:
+            raise ValueError(f"{self.path}: more than 65535 channels")
+        rec = record(OP_CHANNEL, struct.pack("<HH", channel_id, schema_id) + _string(topic)
+                     + _string("protobuf") + _string_map({}))
+        self._chunk += rec
+        self._summary_channels.append(rec)
+        ch = self._topics[topic] = self._by_id[channel_id] = _Channel(channel_id, message_class)
+        return ch
 
     def write(self, topic: str, message: Any, log_time_ns: int, publish_time_ns: int | None = None) -> None:
         """Append one message; publish time defaults to the log time (never the wall clock)."""
-        channel_id = self.channel(topic, type(message))
-        seq = self._sequence[channel_id]
-        self._sequence[channel_id] = seq + 1
-        self._writer.add_message(
-            channel_id,
-            log_time_ns,
-            message.SerializeToString(),
-            log_time_ns if publish_time_ns is None else publish_time_ns,
-            seq,
-        )
+        ch = self._topics.get(topic)
+        if ch is None or ch.cls is not type(message):
+            ch = self._channel(topic, type(message))
+        data = message.SerializeToString()
+        buf = self._chunk
+        offset = len(buf)
+        buf += _MESSAGE.pack(OP_MESSAGE, _MESSAGE_FIXED + len(data), ch.id, ch.count & _SEQUENCE_MASK, log_time_ns,
+                             log_time_ns if publish_time_ns is None else publish_time_ns)
+        buf += data
+        ch.count += 1
+        ch.index.append((log_time_ns, offset))
+        if len(buf) >= self._chunk_size:
+            self._finish_chunk()
+
+    def write_serialized(
+        self, topic_or_channel: str | int, data: bytes, log_time_ns: int, publish_time_ns: int | None = None,
+    ) -> None:
+        """Append one already-serialized message on a channel registered with `channel()` (topic or id)."""
+        ch = self._topics.get(topic_or_channel) if type(topic_or_channel) is str else self._by_id.get(topic_or_channel)  # type: ignore[arg-type]
+        if ch is None or self._closed:
+            raise KeyError(f"{topic_or_channel!r} is not a registered channel of {self.path}"
+                           + (" (closed)" if self._closed else "; call channel(topic, message_class) first"))
+        buf = self._chunk
+        offset = len(buf)
+        buf += _MESSAGE.pack(OP_MESSAGE, _MESSAGE_FIXED + len(data), ch.id, ch.count & _SEQUENCE_MASK, log_time_ns,
+                             log_time_ns if publish_time_ns is None else publish_time_ns)
+        buf += data
+        ch.count += 1
+        ch.index.append((log_time_ns, offset))
+        if len(buf) >= self._chunk_size:
+            self._finish_chunk()
+
+    def _finish_chunk(self) -> None:
+        """Compress the open chunk into a Chunk record, its Message Indexes and a Chunk Index."""
+        buf = self._chunk
+        if not buf:
+            return
+        indexes = []
+        start = end = None
+        for ch in self._by_id.values():
+            if ch.index:
+                ch.index.sort()  # already in order unless times went backwards: linear then
+                first, last = ch.index[0][0], ch.index[-1][0]
+                start = first if start is None else min(start, first)
+                end = last if end is None else max(end, last)
+                indexes.append((ch.id, ch.index))
+                ch.index = []
+        self._chunk = bytearray()
+        if start is None or end is None:
+            self._emit(buf)  # only Schema/Channel records, no message: they stand outside any chunk
+            return
+        compressed = self._zstd.compress(buf)
+        head = _CHUNK_HEAD.pack(start, end, len(buf), zlib.crc32(buf)) + _string("zstd") + _U64.pack(len(compressed))
+        chunk_at = self._emit(_RECORD.pack(OP_CHUNK, len(head) + len(compressed)), head, compressed)
+        chunk_length = self._pos - chunk_at
+        offsets = {}
+        for cid, idx in indexes:
+            n = 2 * len(idx)
+            offsets[cid] = self._emit(_INDEX_HEAD.pack(OP_MESSAGE_INDEX, 6 + 8 * n, cid, 8 * n)
+                                      + struct.pack(f"<{n}Q", *chain.from_iterable(idx)))
+        index_length = self._pos - chunk_at - chunk_length
+        self._chunk_indexes.append(record(OP_CHUNK_INDEX, struct.pack("<QQQQ", start, end, chunk_at, chunk_length)
+                                          + _id_map(offsets) + _U64.pack(index_length) + _string("zstd")
+                                          + struct.pack("<QQ", len(compressed), len(buf))))
+        self._span = (start, end) if self._span is None else (min(self._span[0], start), max(self._span[1], end))
 
     def add_metadata(self, name: str, data: Mapping[str, Any]) -> None:
         """A metadata record; non-string values are stored as JSON text."""
         text = {k: v if isinstance(v, str) else json.dumps(v, sort_keys=True) for k, v in data.items()}
-        self._writer.add_metadata(name, text)
+        rec = record(OP_METADATA, _string(name) + _string_map(text))
+        at = self._emit(rec)
+        self._metadata_indexes.append(record(OP_METADATA_INDEX, struct.pack("<QQ", at, len(rec)) + _string(name)))
 
     def add_attachment(
         self, name: str, data: bytes, media_type: str = "application/octet-stream",
         log_time_ns: int = 0, create_time_ns: int = 0,
     ) -> None:
         """An attachment, byte for byte (the record carries its own CRC)."""
-        self._writer.add_attachment(create_time_ns, log_time_ns, name, media_type, data)
+        head = struct.pack("<QQ", log_time_ns, create_time_ns) + _string(name) + _string(media_type) + _U64.pack(len(data))
+        crc = _U32.pack(zlib.crc32(data, zlib.crc32(head)))
+        length = len(head) + len(data) + 4
+        at = self._emit(_RECORD.pack(OP_ATTACHMENT, length), head, data, crc)
+        self._attachment_indexes.append(record(
+            OP_ATTACHMENT_INDEX,
+            struct.pack("<QQQQQ", at, 9 + length, log_time_ns, create_time_ns, len(data)) + _string(name) + _string(media_type),
+        ))
+
+    # -- summary -------------------------------------------------------------------
+    def _statistics(self) -> bytes:
+        counts = {ch.id: ch.count for ch in self._by_id.values() if ch.count}
+        start, end = self._span if self._span is not None else (0, 0)
+        body = struct.pack(
+            "<QHIIIIQQ", sum(counts.values()), len(self._schemas), len(self._topics), len(self._attachment_indexes),
+            len(self._metadata_indexes), len(self._chunk_indexes), start, end,
+        )
+        return record(OP_STATISTICS, body + _id_map(counts))
+
+    def _finish(self) -> None:
+        """Last chunk, Data End, summary, summary offsets, footer and closing magic."""
+        self._finish_chunk()
+        self._emit(record(OP_DATA_END, _U32.pack(self._crc)))
+        summary_start = self._pos
+        groups = [
+            (OP_SCHEMA, self._summary_schemas), (OP_CHANNEL, self._summary_channels),
+            (OP_STATISTICS, [self._statistics()]), (OP_CHUNK_INDEX, self._chunk_indexes),
+            (OP_ATTACHMENT_INDEX, self._attachment_indexes), (OP_METADATA_INDEX, self._metadata_indexes),
+        ]
+        summary = bytearray()
+        offsets = bytearray()
+        for opcode, records in groups:
+            if records:
+                group = b"".join(records)
+                offsets += record(OP_SUMMARY_OFFSET, struct.pack("<BQQ", opcode, summary_start + len(summary), len(group)))
+                summary += group
+        offset_start = summary_start + len(summary)
+        summary += offsets
+        summary += _RECORD.pack(OP_FOOTER, 20) + struct.pack("<QQ", summary_start, offset_start)
+        summary += _U32.pack(zlib.crc32(summary))
+        self._stream.write(summary)
+        self._stream.write(MAGIC)
 
     def close(self) -> Path:
         """Finish the file (summary, indexes, footer) and move it to its final name."""
         if not self._closed:
-            self._writer.finish()
-            self._stream.flush()
-            os.fsync(self._stream.fileno())
+            try:
+                self._finish()
+                self._stream.flush()
+                os.fsync(self._stream.fileno())
+            except BaseException:
+                self.abort()
+                raise
             self._stream.close()
             os.replace(self.temp_path, self.path)
-            self._closed = True
+            self._mark_closed()
         return self.path
 
     def abort(self) -> None:
@@ -116,7 +318,13 @@ class ArchiveWriter:
         if not self._closed:
             self._stream.close()
             self.temp_path.unlink(missing_ok=True)
-            self._closed = True
+            self._mark_closed()
+
+    def _mark_closed(self) -> None:
+        # an emptied topic table sends a late write() through _channel(), which refuses it
+        self._closed = True
+        self._topics = {}
+        self._by_id = {}
 
     def __enter__(self) -> "ArchiveWriter":
         return self
