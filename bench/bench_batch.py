@@ -1,0 +1,141 @@
+"""Batch replays on Dask: 16 sample-trial replays in-process, on 1 worker and on 2 workers; task overhead.
+
+Prints two tables:
+- the batch: wall time of N replays of the sample trial (one sweep of the
+  stack seed, so every run is a distinct configuration) run in this process
+  one after another, through a 1-worker and a 2-worker LocalCluster (cluster
+  already started and the stack imported in each worker; both start-ups are
+  their own rows), and ratios: speed-up of 2 workers over 1 (goal: at least
+  1.7x), the Dask cost per real task (1 worker against in-process, divided by
+  N), and the cores the workers actually got (their CPU seconds over the
+  wall time: on a shared machine the speed-up cannot beat it);
+- the scheduling overhead of a trivial task: direct call, one task's round
+  trip (submit, wait), and per task over a burst of submitted tasks.
+
+The machine is shared: the load average is printed with the figures.
+Run: `.venv/bin/python bench/bench_batch.py [--replays 16] [--repeats 1] [--fast]`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+# one BLAS thread in this process too, as the workers get: the comparison is like for like
+for _key in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_key, "1")
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from bench.common import print_table  # noqa: E402
+from recorders.manifest import load_manifest  # noqa: E402
+from recorders.record import record  # noqa: E402
+from replay.batch import dask_client, plan_batch, replay_task, run_batch  # noqa: E402
+
+SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"
+FAST = ["methods=dead_reckoning,ckf,ackf,chi_square"]
+
+
+def noop(x: int) -> int:
+    """The trivial task."""
+    return x
+
+
+def _median(fn, repeats: int) -> float:
+    """Median wall seconds of `repeats` calls."""
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t)
+    return statistics.median(times)
+
+
+def bench_batch(archive: Path, out: Path, replays: int, repeats: int, base: list[str]) -> dict[str, float]:
+    """Seconds for the in-process loop, cluster start-ups, and the batch on 1 and 2 workers."""
+    tasks = plan_batch([archive], out, base_overrides=base, sweeps=[("seed", [str(s) for s in range(replays)])])
+    figures = {"serial": _median(lambda: [replay_task(t.archive, t.overrides, t.out_dir, t.trial)
+                                          for t in tasks], repeats)}
+    for workers in (1, 2):
+        t = time.perf_counter()
+        with dask_client(None, workers) as client:
+            figures[f"start{workers}"] = time.perf_counter() - t
+            t = time.perf_counter()
+            client.run(_warm)
+            figures[f"warm{workers}"] = time.perf_counter() - t
+            records: list[list[dict]] = []
+            cpu0 = sum(client.run(time.process_time).values())
+            figures[f"dask{workers}"] = _median(lambda: records.append(run_batch(client, tasks)), repeats)
+            cpu = sum(client.run(time.process_time).values()) - cpu0
+            figures[f"cores{workers}"] = cpu / (figures[f"dask{workers}"] * repeats)
+            assert all(r["error"] is None for r in records[-1]), [r["error"] for r in records[-1]]
+    return figures
+
+
+def _warm() -> None:
+    """Import the replay stack in a worker, so the batch times replays, not imports."""
+    import replay.run  # noqa: F401
+
+
+def bench_overhead(burst: int, repeats: int) -> list[tuple[str, float, float]]:
+    """(what, microseconds per task on 1 worker, on 2 workers) for a trivial task."""
+    direct = _median(lambda: [noop(i) for i in range(burst)], repeats) / burst
+    rows: dict[str, list[float]] = {"direct call": [direct, direct], "one task, submit and wait": [],
+                                    f"burst of {burst} (submit all, gather)": [],
+                                    f"burst of {burst} (as_completed)": []}
+    for workers in (1, 2):
+        with dask_client(None, workers) as client:
+            from distributed import as_completed
+
+            client.gather(client.map(noop, range(50), pure=False))
+            rows["one task, submit and wait"].append(
+                _median(lambda: client.submit(noop, 1, pure=False).result(), 50))
+            rows[f"burst of {burst} (submit all, gather)"].append(
+                _median(lambda: client.gather(client.map(noop, range(burst), pure=False)), repeats) / burst)
+            rows[f"burst of {burst} (as_completed)"].append(
+                _median(lambda: [f.result() for f in as_completed(
+                    [client.submit(noop, i, pure=False) for i in range(burst)])], repeats) / burst)
+    return [(k, v[0] * 1e6, v[1] * 1e6) for k, v in rows.items()]
+
+
+def main() -> None:
+    """Run both benchmarks and print the tables."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--replays", type=int, default=16)
+    ap.add_argument("--repeats", type=int, default=1, help="repeats of each whole batch (median)")
+    ap.add_argument("--burst", type=int, default=500)
+    ap.add_argument("--fast", action="store_true", help="four methods instead of all eight")
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        archive = Path(tmp) / "lake.mcap"
+        record(load_manifest(SAMPLE / "trial.toml"), archive)
+        load0 = os.getloadavg()[0]
+        f = bench_batch(archive, Path(tmp) / "out", args.replays, args.repeats, FAST if args.fast else [])
+        load1 = os.getloadavg()[0]
+    n = args.replays
+    methods = "4 methods" if args.fast else "all methods"
+    print_table(f"{n} replays of the sample trial ({methods}), median of {args.repeats}; "
+                f"load average {load0:.2f} before, {load1:.2f} after, {os.cpu_count()} cores",
+                ["how", "wall s", "s per replay", "vs in-process", "vs 1 worker"],
+                [("in-process loop", f["serial"], f["serial"] / n, 1.0, "-"),
+                 ("Dask, 1 worker", f["dask1"], f["dask1"] / n, f["serial"] / f["dask1"], 1.0),
+                 ("Dask, 2 workers", f["dask2"], f["dask2"] / n, f["serial"] / f["dask2"], f["dask1"] / f["dask2"]),
+                 ("cluster start, 1 worker", f["start1"], "-", "-", "-"),
+                 ("cluster start, 2 workers", f["start2"], "-", "-", "-"),
+                 ("imports in each worker", f["warm2"], "-", "-", "-")])
+    print(f"  speed-up 2 workers over 1: {f['dask1'] / f['dask2']:.2f}x (goal 1.7x); "
+          f"Dask cost per real task (1 worker - in-process) / {n}: {(f['dask1'] - f['serial']) / n * 1e3:+.0f} ms")
+    print(f"  cores the workers' processes got during the batch (CPU s / wall s): "
+          f"{f['cores1']:.2f} with 1 worker, {f['cores2']:.2f} with 2 (other load on the machine takes the rest)")
+    rows = bench_overhead(args.burst, max(args.repeats, 3))
+    print_table("Scheduling overhead of a trivial task (microseconds per task, median)",
+                ["what", "1 worker", "2 workers"], rows)
+
+
+if __name__ == "__main__":
+    main()
