@@ -13,6 +13,10 @@ file system the workers share (always true for a LocalCluster).
 
 The simulator's Monte Carlo runs use the same path: `simulate_task` writes and
 records one seed's trial, and the replays of that trial depend on its future.
+
+Workers run with one BLAS thread (a LocalCluster gets ONE_THREAD_ENV; Dask's
+nanny sets the same by default, `distributed.nanny.pre-spawn-environ`, for
+workers started with `dask worker`).
 """
 
 from __future__ import annotations
@@ -173,7 +177,8 @@ def plan_batch(archives: Sequence[str | Path], out_dir: str | Path, config_path:
 
 def plan_simulated(seeds: Sequence[int], duration_s: float | None, out_dir: str | Path,
                    config_path: str | Path | None = None, base_overrides: Sequence[str] = (),
-                   sweeps: Sequence[tuple[str, Sequence[str]]] = ()) -> tuple[list[BatchTask], dict[str, SimulatedSeed]]:
+                   sweeps: Sequence[tuple[str, Sequence[str]]] = (),
+                   ) -> tuple[list[BatchTask], dict[str, SimulatedSeed]]:
     """Tasks for simulated seeds: DIR/trials/seed-N (logs) and DIR/trials/seed-N.mcap (archive)."""
     if duration_s is not None and duration_s <= 0:
         raise UserError("--duration must be > 0")
