@@ -36,9 +36,9 @@ from typing import Callable, Hashable, Iterable, Iterator, TypeVar
 
 from formats import nmea, novatel
 from formats import schemas as S
-from formats.records import Reject
+from formats.records import Reject, Where
 
-from .base import Converter, LogContext, Output, output
+from .base import NS, Converter, LogContext, Output, output
 from .clock import DayClock
 
 R = TypeVar("R")
@@ -56,6 +56,21 @@ NOVATEL_QUALITY: dict[str, int] = {
     "PPP": 5, "INS_PPP": 5, "INS_PPP_CONVERGING": 5, "PPP_BASIC": 5, "PPP_BASIC_CONVERGING": 5,
     "PROPAGATED": 6, "FIXEDPOS": 7,
 }
+
+
+def gnss_status(
+    t_ns: int, frame_id: str, fix_quality: int, satellites: int, hdop: float, source_format: str,
+    speed_mps: float, course_deg: float, heading_deg: float,
+) -> S.GnssStatus:
+    """An auvreplay.GnssStatus stamped `t_ns` (ns, UTC)."""
+    status = S.GnssStatus(
+        frame_id=frame_id, fix_quality=fix_quality, satellites=satellites, hdop=hdop, source_format=source_format,
+        speed_over_ground_mps=speed_mps, course_over_ground_deg=course_deg, heading_deg=heading_deg,
+    )
+    # the stamp set in place: a Timestamp keyword would be built and then copied (3x the cost)
+    ts = status.timestamp
+    ts.seconds, ts.nanos = divmod(int(t_ns), NS)
+    return status
 
 
 def group_epochs(
@@ -96,6 +111,9 @@ def host_time_ns(records: Iterable[object], ctx: LogContext) -> int | None:
 
 # ---------------------------------------------------------------- NMEA
 
+NO_DATE = "no date for time of day {:.3f} s: no RMC/ZDA date yet and no [trial] date in the manifest"
+NO_TIME = "no time: the epoch has no timed sentence and no host timestamp"
+
 
 def nmea_key(rec: nmea.NmeaRecord) -> tuple[str, int | None]:
     """Epoch key of an NMEA record: its sentence type and time of day in ms (None if untimed)."""
@@ -120,12 +138,11 @@ def nmea_epoch_time(by: dict[type, object], epoch: list, clock: DayClock, ctx: L
         if t == t:
             resolved = clock.resolve(t)
             if resolved is None:
-                return Reject(rec.where, f"no date for time of day {t:.3f} s: no RMC/ZDA date yet "
-                                         "and no [trial] date in the manifest")
+                return Reject(rec.where, NO_DATE.format(t))
             return resolved
     host = host_time_ns(epoch, ctx)
     if host is None:
-        return Reject(epoch[0].where, "no time: the epoch has no timed sentence and no host timestamp")
+        return Reject(epoch[0].where, NO_TIME)
     return host
 
 
@@ -192,24 +209,163 @@ def _nmea_outputs(epoch: list, ctx: LogContext, clock: DayClock) -> Iterator[Out
         yield output(ctx, "gps", fix, t, where)  # type: ignore[arg-type]
     g = by.get(nmea.Gga)
     speed, course, heading = nmea_motion(by)
-    status = S.GnssStatus(
-        timestamp=S.timestamp(t), frame_id=ctx.vehicle,  # type: ignore[arg-type]
-        fix_quality=g.quality if g is not None else -1, satellites=g.satellites if g is not None else -1,
-        hdop=g.hdop if g is not None else NAN,
-        source_format="nmea:" + ",".join(type(r).__name__.upper() for r in epoch),
-        speed_over_ground_mps=speed, course_over_ground_deg=course, heading_deg=heading,
+    status = gnss_status(
+        t, ctx.vehicle, g.quality if g is not None else -1, g.satellites if g is not None else -1,  # type: ignore[arg-type]
+        g.hdop if g is not None else NAN, "nmea:" + ",".join(type(r).__name__.upper() for r in epoch),
+        speed, course, heading,
     )
     yield output(ctx, "gps/status", status, t, where)  # type: ignore[arg-type]
 
 
-def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
-    """NMEA 0183 GNSS sentences (GGA, RMC, GLL, GST, VTG, ZDA, HDT, THS; any talker)."""
+def convert_nmea_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """`convert_nmea` the obvious way, over `nmea.decode` records: the judge of the fast path in tests."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     for epoch in group_epochs(nmea.decode(data, ctx.prefix), nmea_key):
         if type(epoch) is Reject:
             yield epoch
         else:
             yield from _nmea_outputs(epoch, ctx, clock)  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------- NMEA, fast path
+# The same epochs and messages as `convert_nmea_reference`, over `nmea.scan`
+# tuples (kind, talker, values, offset, line, host): no record or Where objects
+# per sentence, one dict per epoch. Value positions follow the record fields.
+
+
+def _where(item: nmea.Scanned) -> Where:
+    return Where(item[3], item[4], item[5])
+
+
+def _scan_epochs(data: bytes, ctx: LogContext) -> Iterator[dict[str, nmea.Scanned] | Reject]:
+    """`group_epochs` over `nmea.scan`: epochs as {sentence type: scanned tuple} in arrival order."""
+    time_index = nmea.TIME_INDEX
+    epoch: dict[str, nmea.Scanned] = {}
+    epoch_time: int | None = None
+    for item in nmea.scan(data, ctx.prefix):
+        if type(item) is Reject:
+            yield item  # type: ignore[misc]
+            continue
+        kind = item[0]
+        i = time_index.get(kind)  # type: ignore[arg-type]
+        t = None
+        if i is not None:
+            tod = item[2][i]  # type: ignore[index]
+            if tod == tod:
+                t = round(tod * 1000)
+        if epoch and (kind in epoch or (t is not None and epoch_time is not None and t != epoch_time)):
+            yield epoch
+            epoch, epoch_time = {}, None
+        epoch[kind] = item  # type: ignore[index,assignment]
+        if epoch_time is None:
+            epoch_time = t
+    if epoch:
+        yield epoch
+
+
+def _scan_date(epoch: dict[str, nmea.Scanned], clock: DayClock) -> None:
+    """`nmea_update_date` on scanned values: ZDA's date, else a valid RMC's."""
+    zda = epoch.get("ZDA")
+    if zda is not None and zda[2][1] is not None:
+        clock.set_date(zda[2][1], zda[2][0])
+        return
+    rmc = epoch.get("RMC")
+    if rmc is not None and rmc[2][1] and rmc[2][6] is not None:
+        clock.set_date(rmc[2][6], rmc[2][0])
+
+
+def _scan_time(epoch: dict[str, nmea.Scanned], clock: DayClock, ctx: LogContext) -> int | Reject:
+    """`nmea_epoch_time` on scanned values (the clock's date already updated)."""
+    time_index = nmea.TIME_INDEX
+    for item in epoch.values():
+        i = time_index.get(item[0])
+        if i is not None and item[2][i] == item[2][i]:
+            resolved = clock.resolve(item[2][i])
+            return Reject(_where(item), NO_DATE.format(item[2][i])) if resolved is None else resolved
+    for item in epoch.values():
+        if item[5] is not None:
+            return item[5] + ctx.clock_offset_ns
+    return Reject(_where(next(iter(epoch.values()))), NO_TIME)
+
+
+def _scan_position(epoch: dict[str, nmea.Scanned]) -> tuple[nmea.Scanned, float, float, float] | None:
+    """`nmea_position` on scanned values: (item, latitude, longitude, altitude)."""
+    g = epoch.get("GGA")
+    if g is not None:
+        v = g[2]
+        if v[3] != 0 and v[1] == v[1] and v[2] == v[2]:
+            return g, v[1], v[2], (v[6] + v[7] if v[7] == v[7] else v[6])
+    ll = epoch.get("GLL")
+    if ll is not None and ll[2][3] and ll[2][0] == ll[2][0] and ll[2][1] == ll[2][1]:
+        return ll, ll[2][0], ll[2][1], NAN
+    rmc = epoch.get("RMC")
+    if rmc is not None and rmc[2][1] and rmc[2][2] == rmc[2][2] and rmc[2][3] == rmc[2][3]:
+        return rmc, rmc[2][2], rmc[2][3], NAN
+    return None
+
+
+def _scan_covariance(epoch: dict[str, nmea.Scanned], ctx: LogContext) -> tuple[tuple[float, ...] | None, int]:
+    """`_covariance` on scanned values."""
+    gst = epoch.get("GST")
+    if gst is not None and gst[2][5] == gst[2][5] and gst[2][6] == gst[2][6]:
+        n, e, u = gst[2][5], gst[2][6], gst[2][7]
+        return (e * e, 0.0, 0.0, 0.0, n * n, 0.0, 0.0, 0.0, u * u), S.COVARIANCE_DIAGONAL_KNOWN
+    g = epoch.get("GGA")
+    if g is not None and g[2][5] == g[2][5] and g[2][3] > 0:
+        h = g[2][5] * float(ctx.options.get("uere_m", UERE_M.get(g[2][3], DEFAULT_UERE_M)))
+        return (h * h / 2, 0.0, 0.0, 0.0, h * h / 2, 0.0, 0.0, 0.0, 4 * h * h), S.COVARIANCE_APPROXIMATED
+    return None, S.COVARIANCE_UNKNOWN
+
+
+def _scan_motion(epoch: dict[str, nmea.Scanned]) -> tuple[float, float, float]:
+    """`nmea_motion` on scanned values."""
+    speed = course = heading = NAN
+    vtg, rmc = epoch.get("VTG"), epoch.get("RMC")
+    if vtg is not None:
+        speed, course = vtg[2][2] * nmea.KNOT_MPS, vtg[2][0]
+    elif rmc is not None and rmc[2][1]:
+        speed, course = rmc[2][4] * nmea.KNOT_MPS, rmc[2][5]
+    hdt, ths = epoch.get("HDT"), epoch.get("THS")
+    if hdt is not None:
+        heading = hdt[2][0]
+    elif ths is not None and ths[2][1] != "V":
+        heading = ths[2][0]
+    return speed, course, heading
+
+
+def _scan_outputs(epoch: dict[str, nmea.Scanned], ctx: LogContext, clock: DayClock) -> Iterator[Output | Reject]:
+    """`_nmea_outputs` on scanned values."""
+    _scan_date(epoch, clock)
+    if len(epoch) == 1 and "ZDA" in epoch:
+        return  # a date-only epoch: nothing to emit, but the date counts
+    t = _scan_time(epoch, clock, ctx)
+    if type(t) is Reject:
+        yield t  # type: ignore[misc]
+        return
+    pos = _scan_position(epoch)
+    source = pos[0] if pos is not None else next(iter(epoch.values()))
+    where = _where(source)
+    publish = t if source[5] is None else source[5] + ctx.clock_offset_ns
+    if pos is not None:
+        cov, kind = _scan_covariance(epoch, ctx)
+        fix = S.location_fix(t, ctx.vehicle, pos[1], pos[2], pos[3], cov, kind)  # type: ignore[arg-type]
+        yield Output(f"/{ctx.vehicle}/gps", fix, t, publish, where)  # type: ignore[arg-type]
+    g = epoch.get("GGA")
+    status = gnss_status(
+        t, ctx.vehicle, g[2][3] if g is not None else -1, g[2][4] if g is not None else -1,  # type: ignore[arg-type]
+        g[2][5] if g is not None else NAN, "nmea:" + ",".join(epoch), *_scan_motion(epoch),
+    )
+    yield Output(f"/{ctx.vehicle}/gps/status", status, t, publish, where)  # type: ignore[arg-type]
+
+
+def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """NMEA 0183 GNSS sentences (GGA, RMC, GLL, GST, VTG, ZDA, HDT, THS; any talker)."""
+    clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
+    for epoch in _scan_epochs(data, ctx):
+        if type(epoch) is Reject:
+            yield epoch  # type: ignore[misc]
+        else:
+            yield from _scan_outputs(epoch, ctx, clock)  # type: ignore[arg-type]
 
 
 # ---------------------------------------------------------------- NovAtel
@@ -257,12 +413,10 @@ def _novatel_outputs(epoch: list, ctx: LogContext) -> Iterator[Output | Reject]:
     speed = course = NAN
     if bv is not None and bv.solution_status == "SOL_COMPUTED":
         speed, course = bv.horizontal_speed_mps, bv.track_deg
-    status = S.GnssStatus(
-        timestamp=S.timestamp(t), frame_id=ctx.vehicle,  # type: ignore[arg-type]
-        fix_quality=NOVATEL_QUALITY.get(bp.position_type, -1) if bp is not None else -1,
-        satellites=bp.satellites_used if bp is not None else -1, hdop=NAN,
-        source_format="novatel:" + ",".join(_source(r) for r in epoch),
-        speed_over_ground_mps=speed, course_over_ground_deg=course, heading_deg=NAN,
+    status = gnss_status(
+        t, ctx.vehicle, NOVATEL_QUALITY.get(bp.position_type, -1) if bp is not None else -1,  # type: ignore[arg-type]
+        bp.satellites_used if bp is not None else -1, NAN, "novatel:" + ",".join(_source(r) for r in epoch),
+        speed, course, NAN,
     )
     yield output(ctx, "gps/status", status, t, where)  # type: ignore[arg-type]
 

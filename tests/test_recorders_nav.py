@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from formats import nmea, novatel, pashr, phins
 from formats import schemas as S
-from formats.records import Reject
+from formats.records import Reject, Where
 from recorders import gps, ins
 from recorders.base import LogContext, Output
 
@@ -187,3 +187,53 @@ def test_no_bytes_make_a_converter_raise(data: bytes, conv) -> None:
     for blob in (data, prefix + data, data + prefix):
         for item in conv(blob, LogContext("boat", trial_date=DAY)):
             assert isinstance(item, (Output, Reject))
+
+
+def _scanned_outputs(items: list) -> list:
+    """Outputs and rejects as comparable values (messages as bytes: NaN != NaN)."""
+    return [(o.topic, o.log_time_ns, o.publish_time_ns, o.where, o.message.SerializeToString())
+            if isinstance(o, Output) else o for o in items]
+
+
+_SENTENCES = st.sampled_from([
+    lambda t: nmea.encode_gga(t, 45.7, 126.6, hdop=0.9, geoid_separation_m=-8.0),
+    lambda t: nmea.encode_gga(t, float("nan"), float("nan"), quality=0),
+    lambda t: nmea.encode_rmc(t, 45.7, -126.6, speed_knots=2.0, course_deg=10.0),
+    lambda t: nmea.encode_rmc(t, 45.7, 126.6, valid=False),
+    lambda t: nmea.encode_gll(t, -45.7, 126.6), lambda t: nmea.encode_gll(t, 45.7, 126.6, valid=False),
+    lambda t: nmea.encode_gst(t, lat_std_m=1.0, lon_std_m=2.0, alt_std_m=3.0),
+    lambda t: nmea.encode_zda(t), lambda t: nmea.encode_vtg(90.0, 3.0), lambda t: nmea.encode_hdt(12.0),
+    lambda t: nmea.encode_ths(13.0, "V"), lambda t: nmea.encode_ths(14.0, "A"),
+    lambda t: "$GPGSV,3,1,11,03,03,111,00*4B\r\n", lambda t: "garbage\x00\r\n",
+    lambda t: nmea.encode_gga(t, 1.0, 2.0)[:-4] + "00\r\n",  # bad checksum
+    lambda t: "2016-10-12T08:00:05.500Z " + nmea.encode_hdt(15.0),  # host prefix
+    lambda t: "$GPGGA,1234,x*00\r\n", lambda t: "$GPRMC,,V,,,,,,,,,,N\r\n",  # bad fields, no checksum
+])
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.tuples(_SENTENCES, st.integers(0, 3), st.booleans()), max_size=40),
+       st.sampled_from([None, DAY]), st.integers(-2, 2), st.sampled_from([{}, {"uere_m": 2.0}]))
+def test_fast_nmea_path_equals_the_record_based_reference(parts, day, offset_s, options) -> None:
+    lines, t = [], T0 - 2 * S1
+    for make, step, crlf in parts:
+        t += step * S1 // 2  # repeats, half seconds and whole seconds: epochs open and close every way
+        line = make(t)
+        lines.append(line if crlf else line.replace("\r\n", "\n"))
+    data = "".join(lines).encode("latin-1")
+    ctx = LogContext("boat", trial_date=day, clock_offset_ns=offset_s * S1, options=options)
+    fast, ref = list(gps.convert_nmea(data, ctx)), list(gps.convert_nmea_reference(data, ctx))
+    assert _scanned_outputs(fast) == _scanned_outputs(ref)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.binary(max_size=300))
+def test_scan_and_decode_agree_on_any_bytes(data: bytes) -> None:
+    records = list(nmea.decode(data))
+    scanned = list(nmea.scan(data))
+    assert len(records) == len(scanned)
+    for r, s in zip(records, scanned):
+        if isinstance(r, Reject):
+            assert r == s
+        else:
+            assert (type(r).__name__.upper(), r.talker, r.where) == (s[0], s[1], Where(*s[3:]))
