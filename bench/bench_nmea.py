@@ -11,6 +11,13 @@ Columns, per sentence of the log (median of repeats, microseconds):
   ours convert        recorders.gps.convert_nmea (LocationFix + GnssStatus)
   ours to MCAP        convert + formats.mcap_writer.ArchiveWriter (zstd, CRCs)
 and the ratio pynmea2 parse / ours to MCAP (> 1: ours end to end is faster).
+The pipelines run interleaved (one of each per round), so a load change on
+the shared machine hits them all alike.
+
+A second table splits one GGA-only epoch (one sentence, two archive
+messages) into its stages, each timed alone in a loop: it says where the
+time goes and why that log cannot reach 2x pynmea2 (see the note printed
+under it).
 
 Run: .venv/bin/python bench/bench_nmea.py [epochs]
 """
@@ -31,13 +38,16 @@ sys.path.insert(0, str(ROOT))
 import pynmea2  # noqa: E402
 
 from formats import nmea  # noqa: E402
+from formats import schemas as S  # noqa: E402
 from formats.mcap_writer import ArchiveWriter  # noqa: E402
+from formats.records import Where  # noqa: E402
 from formats.sentence import build  # noqa: E402
-from recorders.base import LogContext  # noqa: E402
-from recorders.gps import convert_nmea  # noqa: E402
+from recorders.base import LogContext, Output  # noqa: E402
+from recorders.gps import convert_nmea, convert_nmea_reference, gnss_status  # noqa: E402
 
 T0 = 1476259200 * 10**9  # 2016-10-12T08:00:00Z
-REPEATS = 5
+REPEATS = 7
+CTX = LogContext("boat", trial_date=date(2016, 10, 12))
 
 
 def receiver_mix(epochs: int) -> bytes:
@@ -62,17 +72,18 @@ def receiver_mix(epochs: int) -> bytes:
 
 def gga_only(epochs: int) -> bytes:
     """One GGA per epoch."""
-    return "".join(nmea.encode_gga(T0 + k * 10**9, 45.7, 126.6, hdop=0.9) for k in range(epochs)).encode()
+    return "".join(nmea.encode_gga(T0 + k * 10**9, 45.7 + k * 1e-6, 126.6, hdop=0.9) for k in range(epochs)).encode()
 
 
-def median_time(fn: Callable[[], object]) -> float:
-    """Median wall time of REPEATS runs, seconds."""
-    times = []
-    for _ in range(REPEATS):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
+def interleaved(fns: dict[str, Callable[[], object]], repeats: int = REPEATS) -> dict[str, float]:
+    """Median wall time (s) of each function over `repeats` rounds, one call of each per round."""
+    times: dict[str, list[float]] = {name: [] for name in fns}
+    for _ in range(repeats):
+        for name, fn in fns.items():
+            start = time.perf_counter()
+            fn()
+            times[name].append(time.perf_counter() - start)
+    return {name: statistics.median(ts) for name, ts in times.items()}
 
 
 def pynmea2_parse(data: bytes) -> int:
@@ -83,44 +94,106 @@ def pynmea2_parse(data: bytes) -> int:
     return len(parsed)
 
 
-def ours_convert(data: bytes) -> int:
-    """Every archive message the GPS converter makes from the log."""
-    return sum(1 for _ in convert_nmea(data, LogContext("boat", trial_date=date(2016, 10, 12))))
-
-
 def ours_mcap(data: bytes, path: Path) -> int:
     """The converter's messages written into an MCAP archive."""
     n = 0
     with ArchiveWriter(path) as writer:
-        for out in convert_nmea(data, LogContext("boat", trial_date=date(2016, 10, 12))):
+        for out in convert_nmea(data, CTX):
             writer.write(out.topic, out.message, out.log_time_ns, out.publish_time_ns)
             n += 1
     return n
 
 
-def row(name: str, data: bytes, tmp: Path) -> tuple[str, int, float, float, float, float]:
-    """Timings (us per sentence) of the four pipelines on one log."""
+def row(name: str, data: bytes, tmp: Path) -> list[object]:
+    """Timings (us per sentence) of every pipeline on one log, and the ratios."""
     lines = data.count(b"\n")
-    per = 1e6 / lines
-    py = median_time(lambda: pynmea2_parse(data)) * per
-    dec = median_time(lambda: sum(1 for _ in nmea.decode(data))) * per
-    conv = median_time(lambda: ours_convert(data)) * per
-    mcap = median_time(lambda: ours_mcap(data, tmp / "bench.mcap")) * per
-    return name, lines, py, dec, conv, mcap
+    t = interleaved({
+        "pynmea2": lambda: pynmea2_parse(data),
+        "decode": lambda: sum(1 for _ in nmea.decode(data)),
+        "reference": lambda: sum(1 for _ in convert_nmea_reference(data, CTX)),
+        "convert": lambda: sum(1 for _ in convert_nmea(data, CTX)),
+        "mcap": lambda: ours_mcap(data, tmp / "bench.mcap"),
+    })
+    us = {k: v * 1e6 / lines for k, v in t.items()}
+    return [name, lines, us["pynmea2"], us["decode"], us["reference"], us["convert"], us["mcap"],
+            us["pynmea2"] / us["mcap"], us["pynmea2"] / us["decode"]]
+
+
+def per_call_us(fn: Callable[[], object], n: int = 20000, repeats: int = REPEATS) -> float:
+    """Median microseconds per call of fn over `repeats` loops of n calls."""
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        for _ in range(n):
+            fn()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times) * 1e6 / n
+
+
+def per_line_us(fn: Callable[[bytes], object], data: bytes, repeats: int = REPEATS) -> float:
+    """Median microseconds per line of fn over a whole log (fixed costs amortized as in a real log)."""
+    lines = data.count(b"\n")
+    return statistics.median(_timed(lambda: fn(data)) for _ in range(repeats)) * 1e6 / lines
+
+
+def _timed(fn: Callable[[], object]) -> float:
+    start = time.perf_counter()
+    fn()
+    return time.perf_counter() - start
+
+
+def stage_table(tmp: Path, log: bytes) -> list[tuple[str, float]]:
+    """One GGA-only epoch split into stages (us per GGA line, or per call)."""
+    line = log[: log.index(b"\n") + 1].decode()
+    fields = line[7 : line.find("*")].split(",")
+    cov = (1.62, 0.0, 0.0, 0.0, 1.62, 0.0, 0.0, 0.0, 12.96)
+    fix = S.location_fix(T0, "boat", 45.7, 126.6, 0.0, cov, 1)
+    status = gnss_status(T0, "boat", 1, 8, 0.9, "nmea:GGA", float("nan"), float("nan"), float("nan"))
+    where = Where(0, 1)
+    writer = ArchiveWriter(tmp / "stages.mcap")
+    try:
+        stages = [
+            ("pynmea2.parse, per line", per_line_us(pynmea2_parse, log)),
+            ("ours: nmea.scan, per line", per_line_us(lambda d: sum(1 for _ in nmea.scan(d)), log)),
+            ("  of which GGA field values", per_call_us(lambda: nmea.VALUES["GGA"](fields))),
+            ("ours: schemas.location_fix", per_call_us(lambda: S.location_fix(T0, "boat", 45.7, 126.6, 0.0, cov, 1))),
+            ("ours: gps.gnss_status", per_call_us(lambda: gnss_status(T0, "boat", 1, 8, 0.9, "nmea:GGA", 0.0, 0.0, 0.0))),
+            ("ours: Where + Output x 2", per_call_us(lambda: (Where(0, 1), Output("/b/gps", fix, T0, T0, where),
+                                                              Output("/b/gps/status", status, T0, T0, where)))),
+            ("ours: ArchiveWriter.write x 2", per_call_us(lambda: (writer.write("/b/gps", fix, T0),
+                                                                   writer.write("/b/gps/status", status, T0)))),
+            ("ours: convert_nmea, per line", per_line_us(lambda d: sum(1 for _ in convert_nmea(d, CTX)), log)),
+            ("ours: to MCAP (file, fsync), per line", per_line_us(lambda d: ours_mcap(d, tmp / "s.mcap"), log)),
+        ]
+    finally:
+        writer.abort()
+    return stages
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Print the table."""
+    """Print the tables."""
     args = sys.argv[1:] if argv is None else argv
     epochs = int(args[0]) if args else 3000
     with tempfile.TemporaryDirectory() as tmp:
-        rows = [row("receiver mix", receiver_mix(epochs), Path(tmp)), row("GGA only", gga_only(epochs), Path(tmp))]
-    print(f"NMEA -> MCAP, {epochs} epochs, median of {REPEATS} runs, microseconds per sentence")
-    head = f"{'log':<14}{'lines':>8}{'pynmea2 parse':>15}{'ours decode':>13}{'ours convert':>14}{'ours to MCAP':>14}{'parse/MCAP':>12}{'parse/decode':>14}"
+        gga = gga_only(epochs * 3)
+        rows = [row("receiver mix", receiver_mix(epochs), Path(tmp)), row("GGA only", gga, Path(tmp))]
+        stages = stage_table(Path(tmp), gga)
+    print(f"NMEA -> MCAP, median of {REPEATS} interleaved runs, microseconds per sentence")
+    head = (f"{'log':<14}{'lines':>8}{'pynmea2 parse':>15}{'ours decode':>13}{'ref. convert':>14}{'ours convert':>14}"
+            f"{'ours to MCAP':>14}{'parse/MCAP':>12}{'parse/decode':>14}")
     print(head)
     print("-" * len(head))
-    for name, lines, py, dec, conv, mcap in rows:
-        print(f"{name:<14}{lines:>8}{py:>15.2f}{dec:>13.2f}{conv:>14.2f}{mcap:>14.2f}{py / mcap:>11.2f}x{py / dec:>13.2f}x")
+    for name, lines, py, dec, ref, conv, mcap, ratio, ratio_dec in rows:
+        print(f"{name:<14}{lines:>8}{py:>15.2f}{dec:>13.2f}{ref:>14.2f}{conv:>14.2f}{mcap:>14.2f}"
+              f"{ratio:>11.2f}x{ratio_dec:>13.2f}x")
+    print("  (ref. convert: recorders.gps.convert_nmea_reference, the record-based path the fast one is tested against)")
+    print("\nOne GGA-only epoch by stage, median microseconds (per GGA line of the log, or per call)")
+    for name, us in stages:
+        print(f"  {name:<38}{us:>8.2f}")
+    parse = stages[0][1]
+    floor = sum(us for name, us in stages[3:7])
+    print(f"  2x pynmea2 leaves {parse / 2:.2f} us per GGA; building and writing the two messages alone "
+          f"(fix, status, outputs, writes) takes {floor:.2f} us")
     return 0
 
 

@@ -1,0 +1,140 @@
+"""Recording throughput: `recorders.record.record` against the bare mcap writer, same run.
+
+Records a trial (default: the bundled samples/lake_trial, every vehicle's GPS,
+INS, DVL, modem and USBL logs) with `record()`, the whole step: reading the
+logs, decoding, converting, writing messages, diagnostics, attachments and
+metadata. The comparators write the very messages that recording produced,
+already encoded, with the same attachments (every original log) and metadata:
+
+  bare mcap writer   mcap.writer.Writer.add_message (zstd chunks, CRCs), the
+                     library's own per-message path with no decoding at all
+  ours, bytes in     formats.mcap_writer.ArchiveWriter.write_serialized, the
+                     same job through our writer
+
+Ratios are against the bare writer (goal for recording: >= 50 %). Timings
+are medians of interleaved rounds (one of each per round), so a load change
+on the shared machine hits all three alike.
+
+Run: .venv/bin/python bench/bench_record.py [--manifest PATH] [--repeats N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Callable
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
+
+from common import print_table  # noqa: E402
+from mcap.reader import SeekingReader  # noqa: E402
+from mcap.writer import CompressionType, Writer  # noqa: E402
+
+from formats.mcap_writer import ArchiveWriter  # noqa: E402
+from formats.schemas import MESSAGE_CLASSES  # noqa: E402
+from recorders.manifest import load_manifest  # noqa: E402
+from recorders.record import record  # noqa: E402
+
+Recorded = tuple[list, list, list, list]  # messages, channels, attachments, metadata
+
+
+def recorded_content(path: Path) -> Recorded:
+    """What an archive holds, in file order: raw messages, channels with schemas, attachments, metadata."""
+    with open(path, "rb") as f:
+        reader = SeekingReader(f)
+        raw = [(c.topic, m.data, m.log_time, m.publish_time) for _, c, m in reader.iter_messages(log_time_order=False)]
+        summary = reader.get_summary()
+        channels = [(c.topic, summary.schemas[c.schema_id]) for c in summary.channels.values()]
+        attachments = [(a.name, a.media_type, a.data, a.log_time, a.create_time) for a in reader.iter_attachments()]
+        metadata = [(m.name, dict(m.metadata)) for m in reader.iter_metadata()]
+    return raw, channels, attachments, metadata
+
+
+def write_bare(path: Path, content: Recorded) -> None:
+    """The recorded messages, attachments and metadata through mcap's own writer."""
+    raw, channels, attachments, metadata = content
+    with open(path, "wb") as f:
+        w = Writer(f, compression=CompressionType.ZSTD, enable_crcs=True, enable_data_crcs=True)
+        w.start(profile="", library="bench")
+        schema_ids: dict[str, int] = {}
+        ids = {}
+        for topic, schema in channels:
+            if schema.name not in schema_ids:
+                schema_ids[schema.name] = w.register_schema(schema.name, schema.encoding, schema.data)
+            ids[topic] = w.register_channel(topic, "protobuf", schema_ids[schema.name])
+        for name, media, data, log_time, create_time in attachments:
+            w.add_attachment(create_time, log_time, name, media, data)
+        for topic, data, log_time, publish_time in raw:
+            w.add_message(ids[topic], log_time, data, publish_time)
+        for name, values in metadata:
+            w.add_metadata(name, values)
+        w.finish()
+
+
+def write_ours_bytes(path: Path, content: Recorded, classes: dict[str, type]) -> None:
+    """The same job through ArchiveWriter.write_serialized."""
+    raw, channels, attachments, metadata = content
+    with ArchiveWriter(path) as w:
+        for topic, schema in channels:
+            w.channel(topic, classes[schema.name])
+        for name, media, data, log_time, create_time in attachments:
+            w.add_attachment(name, data, media, log_time, create_time)
+        for topic, data, log_time, publish_time in raw:
+            w.write_serialized(topic, data, log_time, publish_time)
+        for name, values in metadata:
+            w.add_metadata(name, values)
+
+
+def interleaved(fns: dict[str, Callable[[], object]], repeats: int) -> dict[str, float]:
+    """Median seconds of each function over `repeats` rounds, one call of each per round."""
+    times: dict[str, list[float]] = {name: [] for name in fns}
+    for _ in range(repeats):
+        for name, fn in fns.items():
+            start = time.perf_counter()
+            fn()
+            times[name].append(time.perf_counter() - start)
+    return {name: statistics.median(ts) for name, ts in times.items()}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Print the table."""
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--manifest", type=Path, default=ROOT / "samples" / "lake_trial" / "trial.toml")
+    parser.add_argument("--repeats", type=int, default=5)
+    args = parser.parse_args(argv)
+    manifest = load_manifest(args.manifest)
+    with tempfile.TemporaryDirectory() as tmp:
+        ours, bare, ours_bytes = Path(tmp) / "ours.mcap", Path(tmp) / "bare.mcap", Path(tmp) / "bytes.mcap"
+        record(manifest, ours)
+        content = recorded_content(ours)
+        n = len(content[0])
+        t = interleaved({
+            "bare": lambda: write_bare(bare, content),
+            "bytes": lambda: write_ours_bytes(ours_bytes, content, MESSAGE_CLASSES),
+            "record": lambda: record(manifest, ours),
+        }, args.repeats)
+        size = ours.stat().st_size
+        logs = sum(len(c[2]) for c in content[2])
+    print_table(
+        f"Recording {args.manifest.parent.name}: {n:,} messages from {len(content[2])} logs ({logs / 1e6:.1f} MB), "
+        f"archive {size / 1e6:.1f} MB, median of {args.repeats} interleaved rounds",
+        ["what", "seconds", "msgs/s", "ratio to bare"],
+        [
+            ["bare mcap writer, pre-encoded messages + attachments", t["bare"], n / t["bare"], 1.0],
+            ["ours: ArchiveWriter.write_serialized, same bytes", t["bytes"], n / t["bytes"], t["bare"] / t["bytes"]],
+            ["ours: record() from the logs (decode+convert+write)", t["record"], n / t["record"], t["bare"] / t["record"]],
+        ],
+    )
+    ratio = t["bare"] / t["record"]
+    print(f"  recording goal: >= 50 % of bare -> {'met' if ratio >= 0.5 else 'NOT met'} ({100 * ratio:.0f} %)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
