@@ -1,0 +1,92 @@
+"""Replay speed and memory: the sample trial against real time, and a 24 h mission against a 1 h one.
+
+1. The bundled sample trial (1700 s) recorded once, then replayed with every
+   method (ANFIS and AQPSO-GA training included), median of repeats: the
+   factor over real time (goal: at least 2000x).
+2. Synthetic missions (INS 50 Hz, DVL 5 Hz, GPS 1 Hz, ranging 0.4 Hz) of 1 h
+   and 24 h, each replayed in a fresh process: peak RSS side by side
+   (goal: the 24 h peak within 1.5x of the 1 h peak) and messages/s.
+   `--hours` shortens the long mission for a quick look.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from common import median_time, print_table  # noqa: E402
+
+CHILD = """
+import json, resource, sys, time
+sys.path.insert(0, {root!r})
+from replay.run import replay_archive
+t = time.perf_counter()
+out = replay_archive({archive!r}, output={output!r})
+wall = time.perf_counter() - t
+print(json.dumps({{"wall_s": wall, "messages": out.messages,
+                   "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}}))
+"""
+
+
+def sample_trial(repeats: int) -> list[list[object]]:
+    from recorders.manifest import load_manifest
+    from recorders.record import record
+    from replay.run import replay_archive
+
+    with tempfile.TemporaryDirectory() as d:
+        archive = Path(d) / "lake.mcap"
+        record(load_manifest(ROOT / "samples/lake_trial/trial.toml"), archive)
+        replay_archive(archive, write_output=False)  # warm imports and caches
+        wall = median_time(lambda: replay_archive(archive, output=Path(d) / "r.mcap"), repeats)
+    return [["sample trial, every method (1700 s)", f"{wall:.2f} s", f"{1700.0 / wall:,.0f}x real time",
+             "goal >= 2000x"]]
+
+
+def mission(hours: float, workdir: Path) -> dict[str, float]:
+    from mission import write_mission
+
+    archive = workdir / f"mission-{hours:g}h.mcap"
+    t = time.perf_counter()
+    n = write_mission(archive, hours * 3600.0)
+    gen = time.perf_counter() - t
+    code = CHILD.format(root=str(ROOT), archive=str(archive), output=str(workdir / f"r-{hours:g}h.mcap"))
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    out = json.loads(res.stdout.strip().splitlines()[-1])
+    out.update(generated_messages=n, generate_s=gen, size_mb=archive.stat().st_size / 1e6)
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--hours", type=float, default=24.0, help="length of the long mission (default 24)")
+    parser.add_argument("--skip-mission", action="store_true")
+    args = parser.parse_args()
+    print_table("Replay of the sample trial (median of %d)" % args.repeats, ["what", "wall", "speed", "goal"],
+                sample_trial(args.repeats))
+    if args.skip_mission:
+        return
+    with tempfile.TemporaryDirectory() as d:
+        short, long = mission(1.0, Path(d)), mission(args.hours, Path(d))
+    rows = [[f"{h:g} h mission", f"{r['generated_messages']:,}", f"{r['size_mb']:.0f} MB", f"{r['wall_s']:.1f} s",
+             f"{r['messages'] / r['wall_s']:,.0f}", f"{r['peak_mb']:.0f} MB"]
+            for h, r in ((1.0, short), (args.hours, long))]
+    print_table("Replay of synthetic missions (INS 50 Hz, DVL 5 Hz), each in a fresh process",
+                ["mission", "messages", "archive", "replay wall", "msgs/s", "peak RSS"], rows)
+    ratio = long["peak_mb"] / short["peak_mb"]
+    print(f"  peak memory {args.hours:g} h / 1 h = {ratio:.2f} (goal <= 1.5): {'met' if ratio <= 1.5 else 'NOT met'}")
+
+
+if __name__ == "__main__":
+    main()
