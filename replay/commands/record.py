@@ -34,10 +34,11 @@ class _ProgressBar:
         sys.stderr.flush()
 
 
-def print_summary(summary, out=sys.stdout) -> None:
+def print_summary(summary, out=None) -> None:
     """The per-file table: parsed, skipped, bad checksum, time span."""
     from recorders.clock import iso_utc
 
+    out = out or sys.stdout
     rows = [("file", "vehicle", "sensor/format", "parsed", "skipped", "bad crc", "start", "end")]
     for f in summary.files:
         rows.append((f.path, f.vehicle, f"{f.sensor}/{f.format}", str(f.parsed), str(f.skipped),
