@@ -195,7 +195,10 @@ class ArchiveWriter:
         self, topic_or_channel: str | int, data: bytes, log_time_ns: int, publish_time_ns: int | None = None,
     ) -> None:
         """Append one already-serialized message on a channel registered with `channel()` (topic or id)."""
-        ch = self._topics.get(topic_or_channel) if type(topic_or_channel) is str else self._by_id.get(topic_or_channel)  # type: ignore[arg-type]
+        if type(topic_or_channel) is str:
+            ch = self._topics.get(topic_or_channel)
+        else:
+            ch = self._by_id.get(topic_or_channel)  # type: ignore[arg-type]
         if ch is None or self._closed:
             raise KeyError(f"{topic_or_channel!r} is not a registered channel of {self.path}"
                            + (" (closed)" if self._closed else "; call channel(topic, message_class) first"))
