@@ -41,7 +41,7 @@ class LogContext:
         return self.address_book.get(address, f"addr{address}")
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)  # not frozen: built once per archive message, frozen's __setattr__ path costs
 class Output:
     """One archive message: full topic, protobuf message, log and publish times (ns, UTC)."""
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import calendar
 import math
 from datetime import date
+from functools import lru_cache
 
 from formats.gpstime import gps_to_unix_ns
 
@@ -12,8 +13,9 @@ NS = 1_000_000_000
 DAY_NS = 86400 * NS
 
 
+@lru_cache(maxsize=64)
 def date_to_ns(d: date) -> int:
-    """UTC midnight of a date in ns since the Unix epoch."""
+    """UTC midnight of a date in ns since the Unix epoch (cached: NMEA logs restate it every epoch)."""
     return calendar.timegm(d.timetuple()) * NS
 
 

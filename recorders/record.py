@@ -85,29 +85,38 @@ class _LogRecorder:
         self.fallback_ns = fallback_ns
 
     def add(self, item: Output | Reject) -> None:
-        if isinstance(item, Reject):
-            self.stats.skipped += 1
-            self.stats.bad_checksum += item.bad_checksum
-            if self.stats.end_ns is None:
-                self.pending.append(item)
-            else:
-                self.writer.write("/diagnostics", _diagnostic(self.log, item, self.stats.end_ns), self.stats.end_ns)
+        if type(item) is not Output:
+            self._reject(item)
             return
         t = item.log_time_ns
-        self.writer.write(item.topic, item.message, t, item.publish_time_ns)
+        topic = item.topic
+        self.writer.write(topic, item.message, t, item.publish_time_ns)
         st = self.stats
         st.messages += 1
-        self.records.add(item.where.offset if item.where is not None else st.messages)
-        prev = self.last_ns.get(item.topic)
-        if prev is not None and t < prev:
+        where = item.where
+        self.records.add(where.offset if where is not None else -st.messages)  # no position: one record each
+        prev = self.last_ns.get(topic)
+        if prev is None or t > prev:
+            self.last_ns[topic] = t
+        elif t < prev:
             st.out_of_order += 1
-        elif prev is not None and t == prev:
+            self.last_ns[topic] = t
+        else:
             st.duplicates += 1
-        self.last_ns[item.topic] = t
-        st.start_ns = t if st.start_ns is None else min(st.start_ns, t)
-        st.end_ns = t if st.end_ns is None else max(st.end_ns, t)
+        if st.start_ns is None or t < st.start_ns:
+            st.start_ns = t
+        if st.end_ns is None or t > st.end_ns:
+            st.end_ns = t
         if self.pending:
             self.flush(t)
+
+    def _reject(self, item: Reject) -> None:
+        self.stats.skipped += 1
+        self.stats.bad_checksum += item.bad_checksum
+        if self.stats.end_ns is None:
+            self.pending.append(item)
+        else:
+            self.writer.write("/diagnostics", _diagnostic(self.log, item, self.stats.end_ns), self.stats.end_ns)
 
     def flush(self, t_ns: int) -> None:
         for reject in self.pending:
