@@ -21,7 +21,9 @@ from mcap.reader import SeekingReader
 from mcap.records import Attachment, Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from mcap_protobuf.decoder import DecoderFactory
+import zstandard
 
+from .mcap_chunks import ordered_messages
 from .records import FormatError
 from .schemas import MESSAGE_CLASSES
 
@@ -175,6 +177,9 @@ class ArchiveReader:
         self, topics: Iterable[str] | None = None, start_ns: int | None = None, end_ns: int | None = None,
     ) -> Iterator[ArchiveMessage]:
         """Decoded messages in log-time order over the chosen topics and window [start, end)."""
+        if self._summary is not None and self._summary.chunk_indexes:
+            yield from self._indexed_messages(topics, start_ns, end_ns)
+            return
         try:
             for schema, channel, msg in self.raw_messages(topics, start_ns, end_ns):
                 yield ArchiveMessage(
@@ -182,6 +187,26 @@ class ArchiveReader:
                     self._decode(schema, channel, msg.data),
                 )
         except (McapError, ValueError, EOFError, struct.error) as exc:
+            raise FormatError(f"{self.path}: damaged archive ({type(exc).__name__}: {exc})") from exc
+
+    def _indexed_messages(
+        self, topics: Iterable[str] | None, start_ns: int | None, end_ns: int | None,
+    ) -> Iterator[ArchiveMessage]:
+        """The fast path of `messages` through the chunk index (see formats.mcap_chunks)."""
+        s = self._summary
+        wanted = set(topics) if topics is not None else None
+        channels = {cid for cid, ch in s.channels.items() if wanted is None or ch.topic in wanted}
+        info = {}
+        for cid in channels:
+            ch = s.channels[cid]
+            schema = s.schemas.get(ch.schema_id)
+            info[cid] = (ch.topic, schema.name if schema else "", schema, ch)
+        try:
+            for log_time, publish_time, cid, data in ordered_messages(
+                    self._file, s.chunk_indexes, channels, self.validate_crcs, start_ns, end_ns):
+                topic, name, schema, ch = info[cid]
+                yield ArchiveMessage(topic, name, log_time, publish_time, self._decode(schema, ch, data))
+        except (McapError, ValueError, EOFError, struct.error, zstandard.ZstdError) as exc:
             raise FormatError(f"{self.path}: damaged archive ({type(exc).__name__}: {exc})") from exc
 
     # -- summary, metadata, attachments ---------------------------------------

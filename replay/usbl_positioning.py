@@ -15,9 +15,10 @@ from .stack.kmcdf_montecarlo import delay_baseline
 from .usbl_epochs import UsblEpoch
 
 BASELINES = ("gar", "ear", "lms", "lhc")
-# LHC's majorization creeps along flat Huber valleys for thousands of steps on a few
-# epochs; per epoch in a replay we stop at 300 (the Monte Carlo figure runs it to 1e-6 m)
-LHC_MAX_ITERATIONS = 300
+# LHC's majorization creeps along flat Huber valleys for hundreds of steps; per epoch
+# in a replay we stop at 1 cm or 100 steps (the Monte Carlo figure runs it to 1e-6 m)
+LHC_MAX_ITERATIONS = 100
+LHC_TOLERANCE_M = 0.01
 
 
 def positions_for_epoch(epoch: UsblEpoch) -> dict[str, tuple[float, float]]:
@@ -32,7 +33,7 @@ def positions_for_epoch(epoch: UsblEpoch) -> dict[str, tuple[float, float]]:
     for name in BASELINES:
         try:
             result = delay_baseline(name, nodes, delays, epoch.params, field_centre_xy=centre,
-                                    field_half_width_m=half, lhc_tolerance_m=1e-3,
+                                    field_half_width_m=half, lhc_tolerance_m=LHC_TOLERANCE_M,
                                     lhc_max_iterations=LHC_MAX_ITERATIONS)
             xy = result.position[0]
             ok = bool(result.resolved[0]) and all(math.isfinite(v) for v in xy)
