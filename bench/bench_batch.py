@@ -13,12 +13,13 @@ Prints two tables:
   trip (submit, wait), and per task over a burst of submitted tasks.
 
 The machine is shared: the load average is printed with the figures.
-Run: `.venv/bin/python bench/bench_batch.py [--replays 16] [--repeats 1] [--fast]`.
+Run: `.venv/bin/python bench/bench_batch.py [--replays 16] [--repeats 3] [--fast]`.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import statistics
 import sys
@@ -57,24 +58,49 @@ def _median(fn, repeats: int) -> float:
 
 
 def bench_batch(archive: Path, out: Path, replays: int, repeats: int, base: list[str]) -> dict[str, float]:
-    """Seconds for the in-process loop, cluster start-ups, and the batch on 1 and 2 workers."""
+    """Median wall and CPU seconds of the in-process loop and of the batch on 1 and 2 workers, interleaved.
+
+    The three ways take turns in every repeat (rotating which goes first), so
+    load that other users put on the machine falls on all of them alike.
+    """
     tasks = plan_batch([archive], out, base_overrides=base, sweeps=[("seed", [str(s) for s in range(replays)])])
-    figures = {"serial": _median(lambda: [replay_task(t.archive, t.overrides, t.out_dir, t.trial)
-                                          for t in tasks], repeats)}
-    for workers in (1, 2):
-        t = time.perf_counter()
-        with dask_client(None, workers) as client:
+    figures: dict[str, float] = {}
+    with contextlib.ExitStack() as stack:
+        clients = {}
+        for workers in (1, 2):
+            t = time.perf_counter()
+            clients[workers] = stack.enter_context(dask_client(None, workers))
             figures[f"start{workers}"] = time.perf_counter() - t
             t = time.perf_counter()
-            client.run(_warm)
+            clients[workers].run(_warm)
             figures[f"warm{workers}"] = time.perf_counter() - t
-            records: list[list[dict]] = []
-            cpu0 = sum(client.run(time.process_time).values())
-            figures[f"dask{workers}"] = _median(lambda: records.append(run_batch(client, tasks)), repeats)
-            cpu = sum(client.run(time.process_time).values()) - cpu0
-            figures[f"cores{workers}"] = cpu / (figures[f"dask{workers}"] * repeats)
-            assert all(r["error"] is None for r in records[-1]), [r["error"] for r in records[-1]]
+        _warm()
+        runs: dict[str, list[tuple[float, float]]] = {"serial": [], "dask1": [], "dask2": []}
+        for r in range(repeats):
+            for name in list(runs)[r % 3:] + list(runs)[:r % 3]:
+                runs[name].append(_serial(tasks) if name == "serial" else _on_dask(clients[int(name[-1])], tasks))
+    for name, values in runs.items():
+        figures[name] = statistics.median(w for w, _ in values)
+        figures[f"cpu_{name}"] = statistics.median(c for _, c in values)
     return figures
+
+
+def _serial(tasks: list) -> tuple[float, float]:
+    """(wall s, CPU s) of the tasks run one after another in this process."""
+    w, c = time.perf_counter(), time.process_time()
+    for t in tasks:
+        assert replay_task(t.archive, t.overrides, t.out_dir, t.trial)["error"] is None
+    return time.perf_counter() - w, time.process_time() - c
+
+
+def _on_dask(client, tasks: list) -> tuple[float, float]:
+    """(wall s, the workers' CPU s) of the tasks through `run_batch`."""
+    cpu0 = sum(client.run(time.process_time).values())
+    w = time.perf_counter()
+    records = run_batch(client, tasks)
+    wall = time.perf_counter() - w
+    assert all(r["error"] is None for r in records), [r["error"] for r in records]
+    return wall, sum(client.run(time.process_time).values()) - cpu0
 
 
 def _warm() -> None:
@@ -107,7 +133,7 @@ def main() -> None:
     """Run both benchmarks and print the tables."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--replays", type=int, default=16)
-    ap.add_argument("--repeats", type=int, default=1, help="repeats of each whole batch (median)")
+    ap.add_argument("--repeats", type=int, default=3, help="repeats of each whole batch (median)")
     ap.add_argument("--burst", type=int, default=500)
     ap.add_argument("--fast", action="store_true", help="four methods instead of all eight")
     args = ap.parse_args()
@@ -119,19 +145,23 @@ def main() -> None:
         load1 = os.getloadavg()[0]
     n = args.replays
     methods = "4 methods" if args.fast else "all methods"
-    print_table(f"{n} replays of the sample trial ({methods}), median of {args.repeats}; "
+    print_table(f"{n} replays of the sample trial ({methods}), median of {args.repeats} interleaved; "
                 f"load average {load0:.2f} before, {load1:.2f} after, {os.cpu_count()} cores",
-                ["how", "wall s", "s per replay", "vs in-process", "vs 1 worker"],
-                [("in-process loop", f["serial"], f["serial"] / n, 1.0, "-"),
-                 ("Dask, 1 worker", f["dask1"], f["dask1"] / n, f["serial"] / f["dask1"], 1.0),
-                 ("Dask, 2 workers", f["dask2"], f["dask2"] / n, f["serial"] / f["dask2"], f["dask1"] / f["dask2"]),
-                 ("cluster start, 1 worker", f["start1"], "-", "-", "-"),
-                 ("cluster start, 2 workers", f["start2"], "-", "-", "-"),
-                 ("imports in each worker", f["warm2"], "-", "-", "-")])
+                ["how", "wall s", "s per replay", "CPU s per replay", "cores used", "vs in-process",
+                 "vs 1 worker"],
+                [("in-process loop", f["serial"], f["serial"] / n, f["cpu_serial"] / n,
+                  f["cpu_serial"] / f["serial"], 1.0, "-"),
+                 ("Dask, 1 worker", f["dask1"], f["dask1"] / n, f["cpu_dask1"] / n, f["cpu_dask1"] / f["dask1"],
+                  f["serial"] / f["dask1"], 1.0),
+                 ("Dask, 2 workers", f["dask2"], f["dask2"] / n, f["cpu_dask2"] / n, f["cpu_dask2"] / f["dask2"],
+                  f["serial"] / f["dask2"], f["dask1"] / f["dask2"]),
+                 ("cluster start, 1 worker", f["start1"], "-", "-", "-", "-", "-"),
+                 ("cluster start, 2 workers", f["start2"], "-", "-", "-", "-", "-"),
+                 ("imports in each worker", f["warm2"], "-", "-", "-", "-", "-")])
     print(f"  speed-up 2 workers over 1: {f['dask1'] / f['dask2']:.2f}x (goal 1.7x); "
           f"Dask cost per real task (1 worker - in-process) / {n}: {(f['dask1'] - f['serial']) / n * 1e3:+.0f} ms")
-    print(f"  cores the workers' processes got during the batch (CPU s / wall s): "
-          f"{f['cores1']:.2f} with 1 worker, {f['cores2']:.2f} with 2 (other load on the machine takes the rest)")
+    print("  cores used = CPU s / wall s of the processes doing the replays: with other load on the machine "
+          "the speed-up cannot exceed the ratio of the cores the workers got")
     rows = bench_overhead(args.burst, max(args.repeats, 3))
     print_table("Scheduling overhead of a trivial task (microseconds per task, median)",
                 ["what", "1 worker", "2 workers"], rows)
