@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import time
+from array import array
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -59,11 +60,11 @@ class Listener:
 
 @dataclass
 class _Scores:
-    """What scoring needs of one follower, kept compact (arrays grow by epochs, not by samples)."""
+    """What scoring needs of one follower, kept compact: typed arrays, a few bytes per epoch or fix."""
 
-    flagged: dict[str, list[bool]] = field(default_factory=dict)
-    labels: dict[str, list[int]] = field(default_factory=dict)
-    errors: dict[str, list[float]] = field(default_factory=dict)
+    flagged: dict[str, array] = field(default_factory=dict)
+    labels: dict[str, array] = field(default_factory=dict)
+    errors: dict[str, array] = field(default_factory=dict)
     epochs: int = 0
     anomalous: int = 0
 
@@ -90,7 +91,7 @@ class Engine:
         self._usbl: UsblEpochBuilder | None = None
         self._origin: tuple[float, float] | None = None
         self.usbl_epochs = 0
-        self.positioning_errors: dict[str, list[float]] = {m: [] for m in POSITIONING_METHODS}
+        self.positioning_errors: dict[str, array] = {m: array("d") for m in POSITIONING_METHODS}
         self.messages = 0
         self.last_s = -math.inf
 
@@ -190,8 +191,8 @@ class Engine:
                 sc.anomalous += label == 1
             for r in results:
                 if r.label >= 0:
-                    sc.flagged.setdefault(r.method, []).append(bool(r.flagged))
-                    sc.labels.setdefault(r.method, []).append(int(r.label))
+                    sc.flagged.setdefault(r.method, array("b")).append(bool(r.flagged))
+                    sc.labels.setdefault(r.method, array("b")).append(int(r.label))
         for listener in self.listeners:
             listener.epoch(follower, results)
 
@@ -203,7 +204,7 @@ class Engine:
         sc = self.scores[follower]
         for s in samples:
             if s.t_s >= self.training_end_s:
-                sc.errors.setdefault(s.method, []).append(s.error_m)
+                sc.errors.setdefault(s.method, array("d")).append(s.error_m)
         for listener in self.listeners:
             listener.errors(follower, samples)
 

@@ -22,8 +22,8 @@ def run_metrics(engine: Any, results: dict[str, RunResults], run_id: str, end_s:
     names = list(engine.config.stack.methods)
     for method in names:
         row: dict[str, Any] = {k: None for k in RESULT_KEYS}
-        flagged = _pool([np.asarray(s.flagged.get(method, []), bool) for s in engine.scores.values()])
-        labels = _pool([np.asarray(s.labels.get(method, []), int) for s in engine.scores.values()])
+        flagged = _pool([np.asarray(s.flagged.get(method, []), dtype=bool) for s in engine.scores.values()])
+        labels = _pool([np.asarray(s.labels.get(method, []), dtype=int) for s in engine.scores.values()])
         if method in DETECTING_METHODS:
             ol = [r.open_loop[method] for r in results.values() if method in r.open_loop]
             ol_labels = _pool([o["label"].astype(int) for o in ol])
@@ -34,7 +34,7 @@ def run_metrics(engine: Any, results: dict[str, RunResults], run_id: str, end_s:
         row["capped"] = int(sum(r.capped.get(method, 0) for r in results.values()))
         methods[method] = row
     for method, errs in engine.positioning_errors.items():
-        if errs:
+        if len(errs):
             row = {k: None for k in RESULT_KEYS}
             row.update(error_stats(np.asarray(errs)))
             row["epochs"] = len(errs)
