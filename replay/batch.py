@@ -16,7 +16,10 @@ records one seed's trial, and the replays of that trial depend on its future.
 
 Workers run with one BLAS thread (a LocalCluster gets ONE_THREAD_ENV; Dask's
 nanny sets the same by default, `distributed.nanny.pre-spawn-environ`, for
-workers started with `dask worker`).
+workers started with `dask worker`) and without Dask's MALLOC_TRIM_THRESHOLD_
+(see WORKER_CONFIG; for workers of your own, set
+`distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_: null` in their
+Dask configuration).
 """
 
 from __future__ import annotations
@@ -37,6 +40,9 @@ if TYPE_CHECKING:
 
 # small linear algebra (2x2 filters, 56x56 KMCDF) only spins with threaded BLAS on 2 cores
 ONE_THREAD_ENV: dict[str, str] = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+# Dask's nanny sets MALLOC_TRIM_THRESHOLD_=65536 in workers to hand memory back sooner; glibc then trims
+# the heap on ANFIS/AQPSO-sized temporaries all the time: +25-40 % CPU per replay (bench_batch). None unsets it.
+WORKER_CONFIG: dict[str, Any] = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
 LOCAL = "local"
 RUN_COLUMNS: tuple[str, ...] = ("trial", "archive", "run_id", "configuration")
 COUNT_COLUMNS: tuple[str, ...] = ("epochs", "anomalous", "tp", "tn", "fp", "fn", "capped")
@@ -246,16 +252,22 @@ def dask_client(scheduler: str | None = None, workers: int = 2) -> Iterator[Clie
         return
     if workers < 1:
         raise UserError("--workers must be at least 1")
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                      dashboard_address=None, silence_logs=logging.ERROR, env=ONE_THREAD_ENV) as cluster, \
+    import dask
+
+    # no dashboard; the scheduler's own HTTP routes (health, metrics) on a free port of 127.0.0.1
+    http = {"dashboard": False, "dashboard_address": "127.0.0.1:0"}
+    with dask.config.set(WORKER_CONFIG), \
+            LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                         dashboard_address=None, scheduler_kwargs=http, silence_logs=logging.ERROR,
+                         env=ONE_THREAD_ENV) as cluster, \
             Client(cluster) as client:
         yield client
 
 
-def _failed_record(task: BatchTask, exc: BaseException) -> dict[str, Any]:
+def _failed_record(task: BatchTask, exc: BaseException, context: str = "") -> dict[str, Any]:
     """The record of a task whose future failed (its simulation, or a worker that died)."""
     return {"trial": task.trial, "archive": task.archive, "run_id": "", "output": None, "metrics": None,
-            "error": describe_error(exc), "notes": []}
+            "error": context + describe_error(exc), "notes": []}
 
 
 def run_batch(client: Client, tasks: Sequence[BatchTask], simulate: Mapping[str, SimulatedSeed] | None = None,
@@ -269,17 +281,19 @@ def run_batch(client: Client, tasks: Sequence[BatchTask], simulate: Mapping[str,
                              t.trial, t.config_path, pure=False) for t in tasks]
     index = {f.key: i for i, f in enumerate(futures)}
     records: list[dict[str, Any] | None] = [None] * len(tasks)
-    failed = 0
+    done = failed = 0
     for fut in as_completed(futures):
         i = index[fut.key]
         try:
             rec = fut.result()
         except Exception as exc:    # the simulation failed, or the worker died: that run's error, not the batch's
-            rec = _failed_record(tasks[i], exc)
+            sim = sim_futures.get(tasks[i].archive)
+            rec = _failed_record(tasks[i], exc, "simulating the trial: " if sim is not None and sim.status == "error"
+                                 else "")
         records[i] = {**rec, "configuration": tasks[i].configuration}
-        failed += rec["error"] is not None
+        done, failed = done + 1, failed + (rec["error"] is not None)
         if progress is not None:
-            progress(sum(r is not None for r in records), len(tasks), failed)
+            progress(done, len(tasks), failed)
         fut.release()
     return [r for r in records if r is not None]
 
