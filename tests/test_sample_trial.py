@@ -38,8 +38,6 @@ def test_sample_is_simulate_seed_0_byte_for_byte():
 @pytest.fixture(scope="module")
 def archive(tmp_path_factory):
     """The sample recorded into an MCAP archive, with the recording summary."""
-    pytest.importorskip("recorders.gps")
-    pytest.importorskip("recorders.ins")
     from formats.mcap_reader import ArchiveReader
     from recorders.manifest import load_manifest
     from recorders.record import record
