@@ -33,7 +33,7 @@ for _key in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from bench.common import print_table  # noqa: E402
+from bench.common import median_time, print_table  # noqa: E402
 from recorders.manifest import load_manifest  # noqa: E402
 from recorders.record import record  # noqa: E402
 from replay.batch import dask_client, plan_batch, replay_task, run_batch  # noqa: E402
@@ -45,16 +45,6 @@ FAST = ["methods=dead_reckoning,ckf,ackf,chi_square"]
 def noop(x: int) -> int:
     """The trivial task."""
     return x
-
-
-def _median(fn, repeats: int) -> float:
-    """Median wall seconds of `repeats` calls."""
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
 
 
 def bench_batch(archive: Path, out: Path, replays: int, repeats: int, base: list[str]) -> dict[str, float]:
@@ -110,7 +100,7 @@ def _warm() -> None:
 
 def bench_overhead(burst: int, repeats: int) -> list[tuple[str, float, float]]:
     """(what, microseconds per task on 1 worker, on 2 workers) for a trivial task."""
-    direct = _median(lambda: [noop(i) for i in range(burst)], repeats) / burst
+    direct = median_time(lambda: [noop(i) for i in range(burst)], repeats) / burst
     rows: dict[str, list[float]] = {"direct call": [direct, direct], "one task, submit and wait": [],
                                     f"burst of {burst} (submit all, gather)": [],
                                     f"burst of {burst} (as_completed)": []}
@@ -120,11 +110,11 @@ def bench_overhead(burst: int, repeats: int) -> list[tuple[str, float, float]]:
 
             client.gather(client.map(noop, range(50), pure=False))
             rows["one task, submit and wait"].append(
-                _median(lambda: client.submit(noop, 1, pure=False).result(), 50))
+                median_time(lambda: client.submit(noop, 1, pure=False).result(), 50))
             rows[f"burst of {burst} (submit all, gather)"].append(
-                _median(lambda: client.gather(client.map(noop, range(burst), pure=False)), repeats) / burst)
+                median_time(lambda: client.gather(client.map(noop, range(burst), pure=False)), repeats) / burst)
             rows[f"burst of {burst} (as_completed)"].append(
-                _median(lambda: [f.result() for f in as_completed(
+                median_time(lambda: [f.result() for f in as_completed(
                     [client.submit(noop, i, pure=False) for i in range(burst)])], repeats) / burst)
     return [(k, v[0] * 1e6, v[1] * 1e6) for k, v in rows.items()]
 
