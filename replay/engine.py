@@ -15,7 +15,6 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-import numpy as np
 
 from .follower import ErrorSample, FollowerPipeline, VehicleTracks
 from .layout import TrialLayout

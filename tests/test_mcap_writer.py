@@ -16,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from mcap.reader import NonSeekingReader, SeekingReader
 from mcap.records import (
-    Attachment, AttachmentIndex, Channel, Chunk, ChunkIndex, DataEnd, Footer, Message, MessageIndex,
+    Attachment, Channel, Chunk, DataEnd, Footer, Message, MessageIndex,
     Metadata, Schema, Statistics, SummaryOffset,
 )
 from mcap.stream_reader import StreamReader

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from formats import novatel as nv
 from formats.gpstime import gps_to_unix_ns
-from formats.records import Reject, Where
+from formats.records import Reject
 
 # Example logs as NovAtel's EDIE decoder tests carry them (OEM7 firmware output).
 BESTPOSA = (

@@ -9,7 +9,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from formats import pashr
-from formats.records import Reject
 from formats.sentence import build
 
 # The example of the RT300/Applanix $PASHR description (its own checksum).
