@@ -158,3 +158,17 @@ def test_gaps_duplicates_and_out_of_order_are_handled(archive, tmp_path):
     rejected = out.metrics["rejected"]["follower"]
     assert sum(rejected.values()) >= 1
     assert out.metrics["methods"]["ackf"]["error_p50_m"] < 20
+
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
+def test_export_any_topic(full_run, tmp_path, capsys, fmt):
+    topic = f"/replay/{full_run.run_id}/follower/detections"
+    out = tmp_path / f"det.{fmt}"
+    assert main(["export", str(full_run.output), "--topic", topic, "--format", fmt, "-o", str(out)]) == 0
+    df = pd.read_csv(out, index_col=0) if fmt == "csv" else pd.read_parquet(out)
+    with ArchiveReader(full_run.output) as r:
+        assert len(df) == r.summary().topics[topic]["count"]
+    assert {"method", "flagged", "score", "feature_mahalanobis2", "label"} <= set(df.columns)
+    assert set(df["method"]) == {"chi_square", "dual_threshold", "anfis", "anfis_aqpso", "anfis_compensation"}
+    assert main(["export", str(full_run.output), "--topic", "/nope", "-o", str(out)]) == 1
+    assert "no topic /nope" in capsys.readouterr().err
