@@ -172,3 +172,17 @@ def test_export_any_topic(full_run, tmp_path, capsys, fmt):
     assert set(df["method"]) == {"chi_square", "dual_threshold", "anfis", "anfis_aqpso", "anfis_compensation"}
     assert main(["export", str(full_run.output), "--topic", "/nope", "-o", str(out)]) == 1
     assert "no topic /nope" in capsys.readouterr().err
+
+
+def test_notebook_api(archive):
+    from replay import api
+
+    with api.open_archive(archive) as a:
+        assert len(a.to_dataframe("/follower/dvl")) == 1701
+    out = api.run(archive, {"methods": "dead_reckoning,ckf,ackf,chi_square", "chi_square_alpha": 0.05})
+    frame = api.metrics_frame(out)
+    assert list(frame.index) == ["dead_reckoning", "ckf", "ackf", "chi_square", "kmcdf2", "gar", "ear", "lms",
+                                 "lhc"]
+    assert frame.loc["chi_square", "tp"] + frame.loc["chi_square", "fn"] == 57
+    assert set(out.review.detections["method"]) == {"chi_square"}
+    assert out.output is None
