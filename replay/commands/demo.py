@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import os
 import shlex
+import sys
 from pathlib import Path
 
 
@@ -62,5 +63,6 @@ def run(args: argparse.Namespace) -> int:
     print(f"\nresults: {outcome.output}\nmetrics: {outcome.output.with_suffix('.metrics.csv')}\nrecording: {rrd}")
     if not args.no_viewer and has_display(os.environ):
         return open_viewer(rrd)
-    print(f"to look at it: {shlex.join(viewer_command(rrd))}   (or: auvreplay view {rrd} --web)")
+    me = shlex.quote(sys.argv[0]) if sys.argv and sys.argv[0].endswith("auvreplay") else "auvreplay"
+    print(f"to look at it: {shlex.join(viewer_command(rrd))}   (or: {me} view {shlex.quote(str(rrd))} --web)")
     return 0
