@@ -158,7 +158,7 @@ class Engine:
             e = self.config.engine
             params = KmcdfParams(rho_m=e.kmcdf_rho_m, sigma_phase_rad=e.kmcdf_phase_noise_rad)
             self._usbl = UsblEpochBuilder(self.tracks, self._origin, e.usbl_group_s, params, e.node_max_gap_s,
-                                          self._on_usbl)
+                                          self._on_usbl_batch, self._usbl_truth)
         self._usbl.add(t_s, msg)
 
     # -- release and callbacks ---------------------------------------------------
@@ -207,17 +207,28 @@ class Engine:
         for listener in self.listeners:
             listener.errors(follower, samples)
 
-    def _on_usbl(self, epoch: UsblEpoch) -> None:
-        from .usbl_positioning import positions_for_epoch
+    def _usbl_truth(self, target: str, t_s: float) -> tuple[float, float] | None:
+        """The target's GPS east/north at an epoch, read when the epoch closes (tracks keep recent fixes only)."""
+        truth = self.tracks.get(target)
+        fix = truth.gps.at(t_s, self.config.engine.max_gap_s) if truth is not None else None
+        if fix is None or self._origin is None:
+            return None
+        from .stack.model import horizontal_offset_m
 
+        n, e = horizontal_offset_m(fix.lat_rad, fix.lon_rad, *self._origin)
+        return float(e), float(n)
+
+    def _on_usbl_batch(self, epochs: list[UsblEpoch], truths: list[tuple[float, float] | None]) -> None:
+        from .usbl_positioning import positions_for_epochs
+
+        for epoch, truth, positions in zip(epochs, truths, positions_for_epochs(epochs)):
+            self._on_usbl(epoch, truth, positions)
+
+    def _on_usbl(self, epoch: UsblEpoch, truth: tuple[float, float] | None,
+                 positions: dict[str, tuple[float, float]]) -> None:
         self.usbl_epochs += 1
-        positions = positions_for_epoch(epoch)
-        truth = self.tracks.get(epoch.target)
-        fix = truth.gps.at(epoch.t_s, self.config.engine.max_gap_s) if truth is not None else None
-        if fix is not None and self._origin is not None:
-            from .stack.model import horizontal_offset_m
-
-            n, e = horizontal_offset_m(fix.lat_rad, fix.lon_rad, *self._origin)
+        if truth is not None:
+            e, n = truth
             for method, (pe, pn) in positions.items():
                 if math.isfinite(pe) and math.isfinite(pn):
                     self.positioning_errors[method].append(math.hypot(pe - float(e), pn - float(n)))

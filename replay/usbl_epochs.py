@@ -7,6 +7,13 @@ epoch's first one form that epoch (default 2.5 s: half the usual ping
 interval); a node heard again starts a new epoch. Buoy
 positions come from the buoys' GPS at the reception time, in local
 east/north metres around a fixed origin.
+
+Closed epochs are queued and positioned in batches (`batch_size` epochs, and
+whatever is left at the final `flush`): one KMCDF call per group of epochs
+with the same node count and parameters. Each epoch's result is the one it
+would get alone; the callback just hears of it later, with the epoch's own
+time and with what `at_close` said when the epoch closed (tracks keep only
+recent fixes, so anything read from them must be read then).
 """
 
 from __future__ import annotations
@@ -20,7 +27,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .follower import VehicleTracks
-from .stack.kmcdf import KmcdfFix, KmcdfParams, kmcdf_epoch
+from .stack.kmcdf import KmcdfFix, KmcdfParams, kmcdf_epochs
 from .stack.model import horizontal_offset_m
 
 
@@ -39,15 +46,38 @@ class UsblEpoch:
     params: KmcdfParams
 
 
+@dataclass(frozen=True)
+class _Closed:
+    """A closed epoch waiting for its KMCDF fix."""
+
+    t_s: float
+    target: str
+    nodes: tuple[str, ...]
+    node_en: np.ndarray
+    delays_s: np.ndarray
+    phase_x: np.ndarray
+    phase_y: np.ndarray
+    params: KmcdfParams
+    context: Any
+
+
 class UsblEpochBuilder:
-    """Groups UsblObservation messages into epochs and positions each with KMCDF."""
+    """Groups UsblObservation messages into epochs and positions them with KMCDF, in batches.
+
+    `on_epochs` receives each positioned batch, in closing order, with the
+    value `at_close(target, t_s)` gave for each epoch when it closed.
+    """
 
     def __init__(self, tracks: dict[str, VehicleTracks], origin: tuple[float, float], group_s: float,
-                 params: KmcdfParams, max_gap_s: float, on_epoch: Callable[[UsblEpoch], None]):
+                 params: KmcdfParams, max_gap_s: float,
+                 on_epochs: Callable[[list[UsblEpoch], list[Any]], None],
+                 at_close: Callable[[str, float], Any] = lambda target, t_s: None, batch_size: int = 64):
         self.tracks, self.origin, self.group_s = tracks, origin, group_s
-        self.params, self.max_gap_s, self.on_epoch = params, max_gap_s, on_epoch
+        self.params, self.max_gap_s, self.on_epochs = params, max_gap_s, on_epochs
+        self.at_close, self.batch_size = at_close, batch_size
         self.counts: Counter = Counter()
         self._open: dict[str, list[tuple[float, str, Any, float]]] = {}
+        self._closed: list[_Closed] = []
 
     def add(self, t_s: float, msg: Any) -> None:
         """Add one observation (message time t_s); closes the target's previous epoch when it ended."""
@@ -63,9 +93,28 @@ class UsblEpochBuilder:
         group.append((emitted, msg.node, msg, t_s))
 
     def flush(self, before_s: float = math.inf) -> None:
-        """Close every epoch whose emission time is before `before_s`."""
+        """Close every epoch whose emission time is before `before_s`; position all queued ones at the end."""
         for target in [t for t, g in self._open.items() if g and g[0][0] < before_s]:
             self._close(target)
+        if before_s == math.inf:
+            self.position_queued()
+
+    def position_queued(self) -> None:
+        """Position every closed epoch in the queue (one KMCDF call per node count and parameters)."""
+        closed, self._closed = self._closed, []
+        if not closed:
+            return
+        groups: dict[tuple[int, KmcdfParams], list[int]] = {}
+        for i, c in enumerate(closed):
+            groups.setdefault((len(c.nodes), c.params), []).append(i)
+        fixes: list[KmcdfFix | None] = [None] * len(closed)
+        for (_, params), members in groups.items():
+            stacked = [np.stack([getattr(closed[i], f) for i in members])
+                       for f in ("node_en", "delays_s", "phase_x", "phase_y")]
+            for i, fix in zip(members, kmcdf_epochs(*stacked, params)):
+                fixes[i] = fix
+        self.on_epochs([UsblEpoch(c.t_s, c.target, c.nodes, c.node_en, c.delays_s, c.phase_x, c.phase_y,
+                                  fix, c.params) for c, fix in zip(closed, fixes)], [c.context for c in closed])
 
     def _close(self, target: str) -> None:
         group = self._open.pop(target, [])
@@ -88,8 +137,10 @@ class UsblEpochBuilder:
         px = np.array([r[3].phase_x_rad for r in rows])
         py = np.array([r[3].phase_y_rad for r in rows])
         params = self._params_for(rows)
-        fix = kmcdf_epoch(node_en, delays, px, py, params)
-        self.on_epoch(UsblEpoch(group[0][0], target, tuple(r[0] for r in rows), node_en, delays, px, py, fix, params))
+        self._closed.append(_Closed(group[0][0], target, tuple(r[0] for r in rows), node_en, delays, px, py,
+                                    params, self.at_close(target, group[0][0])))
+        if len(self._closed) >= self.batch_size:
+            self.position_queued()
 
     def _params_for(self, rows: list) -> KmcdfParams:
         """The epoch's sound speed, as the recorder applied it (range / travel time), when the log says."""

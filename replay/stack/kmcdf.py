@@ -164,7 +164,7 @@ def _measurement_model(
     xy: FloatArray, node_xy: FloatArray, kappa_d0: float,
 ) -> tuple[FloatArray, FloatArray]:
     """Predicted [ranges, psi, phi] (T, 3N) and their Jacobian (T, 3N, 2); eq. (1)-(3)."""
-    d = xy[:, None, :] - node_xy[None, :, :]
+    d = xy[:, None, :] - node_xy              # nodes (N, 2) or per trial (T, N, 2)
     r = np.maximum(np.hypot(d[..., 0], d[..., 1]), 1e-6)
     u = d / r[..., None]
     pred = np.concatenate([r, kappa_d0 * u[..., 0], kappa_d0 * u[..., 1]], axis=-1)
@@ -183,23 +183,29 @@ def ml_fix(
     Eq. (5)-(9) with the states decided: the uniform outlier terms drop out and
     the Gaussian terms of the normal parameters leave weighted least squares,
     solved by Gauss-Newton from `start_xy`. NaN when the normal parameters do
-    not determine a position.
+    not determine a position. Each trial stops at its own convergence, so a
+    trial's result does not depend on the others in its batch.
     """
     c = params.sound_speed_mps
     meas = np.concatenate([c * delays_s, phase_x, phase_y], axis=-1)
-    n = node_xy.shape[0]
+    n = node_xy.shape[-2]
     sig = np.repeat([c * params.sigma_delay_s, params.sigma_phase_rad, params.sigma_phase_rad], n)
     w = np.where(normal & np.isfinite(meas), 1.0 / sig**2, 0.0)
     meas = np.nan_to_num(meas)
     xy = np.nan_to_num(start_xy.astype(np.float64))
     cov = np.full((xy.shape[0], 2, 2), np.nan)
+    live = np.arange(xy.shape[0])
+    per_trial_nodes = node_xy.ndim == 3
     for _ in range(params.ml_iterations):
-        pred, jac = _measurement_model(xy, node_xy, params.kappa_d0)
-        jw = jac * w[..., None]
-        cov = _inverse_2x2(np.einsum("tki,tkj->tij", jw, jac))
-        step = np.nan_to_num(np.einsum("tij,tki,tk->tj", cov, jw, meas - pred))
-        xy = xy + step
-        if np.max(np.abs(step), initial=0.0) < 1e-7:   # converged: cov is at the final point
+        nodes = node_xy[live] if per_trial_nodes else node_xy
+        pred, jac = _measurement_model(xy[live], nodes, params.kappa_d0)
+        jw = jac * w[live][..., None]
+        cov[live] = _inverse_2x2(np.einsum("tki,tkj->tij", jw, jac))
+        step = np.nan_to_num(np.einsum("tij,tki,tk->tj", cov[live], jw, meas[live] - pred))
+        xy[live] = xy[live] + step
+        # converged trials stop here, so cov is at their final point
+        live = live[np.max(np.abs(step), axis=-1, initial=0.0) >= 1e-7]
+        if live.size == 0:
             break
     bad = ~np.isfinite(cov[:, 0, 0])
     xy[bad] = np.nan
@@ -234,9 +240,9 @@ def kmcdf_batch(
     node_xy: FloatArray, delays_s: FloatArray, phase_x: FloatArray, phase_y: FloatArray,
     params: KmcdfParams = KmcdfParams(),
 ) -> KmcdfBatch:
-    """KMCDF over T trials: measurements (T, N) each, nodes (N, 2); seed 003 sections 3.1-3.3."""
+    """KMCDF over T trials: measurements (T, N) each, nodes (N, 2) or (T, N, 2); seed 003 sections 3.1-3.3."""
     node_xy = np.asarray(node_xy, dtype=np.float64)
-    layout = fix_layout(node_xy.shape[0])
+    layout = fix_layout(node_xy.shape[-2])
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         fixes = preliminary_fixes(
             node_xy, delays_s, phase_x, phase_y, sound_speed=params.sound_speed_mps,
@@ -291,22 +297,39 @@ def kmcdf_epoch(
     """
     node_xy = np.asarray(node_xy, dtype=np.float64)
     row = [np.asarray(a, dtype=np.float64)[None, :] for a in (delays_s, phase_x, phase_y)]
-    batch = kmcdf_batch(node_xy, row[0], row[1], row[2], params)
-    n = node_xy.shape[0]
-    valid, c1 = batch.valid[0], batch.clustering.cluster1[0]
+    return epoch_fix(kmcdf_batch(node_xy, row[0], row[1], row[2], params), 0)
+
+
+def kmcdf_epochs(
+    node_xy: FloatArray, delays_s: FloatArray, phase_x: FloatArray, phase_y: FloatArray,
+    params: KmcdfParams = KmcdfParams(),
+) -> list[KmcdfFix]:
+    """KMCDF on T epochs at once: nodes (T, N, 2) per epoch, delays and phases (T, N); one fix per epoch.
+
+    Gives the same fixes as `kmcdf_epoch` on each epoch alone.
+    """
+    batch = kmcdf_batch(np.asarray(node_xy, dtype=np.float64), np.asarray(delays_s, dtype=np.float64),
+                        np.asarray(phase_x, dtype=np.float64), np.asarray(phase_y, dtype=np.float64), params)
+    return [epoch_fix(batch, i) for i in range(batch.position.shape[0])]
+
+
+def epoch_fix(batch: KmcdfBatch, i: int) -> KmcdfFix:
+    """Trial `i` of a batch as one epoch's `KmcdfFix`, with its preliminary fixes for the viewer."""
+    n = batch.normal.shape[-1] // 3
+    valid, c1 = batch.valid[i], batch.clustering.cluster1[i]
     clusters = np.where(valid, np.where(c1, 1, 2), 0).astype(np.intp)
-    weights = np.where(valid, batch.clustering.weights[0], 0.0)
-    layout, xy = batch.layout, batch.fixes[0].tolist()
+    weights = np.where(valid, batch.clustering.weights[i], 0.0)
+    layout, xy = batch.layout, batch.fixes[i].tolist()
     kinds, cl, wt = layout.kinds.tolist(), clusters.tolist(), weights.tolist()
     fixes = tuple(
         PreliminaryFix(kind=KIND_NAMES[kinds[m]], nodes=layout.node_sets[m],
                        parameters=layout.parameter_sets[m], xy=(xy[m][0], xy[m][1]),
                        cluster=cl[m], weight=wt[m])
         for m in np.nonzero(valid)[0].tolist())
-    normal = batch.normal[0]
+    normal = batch.normal[i]
     return KmcdfFix(
-        position_xy=batch.position[0], covariance=batch.covariance[0],
+        position_xy=batch.position[i], covariance=batch.covariance[i],
         delay_normal=normal[:n], phase_normal=np.stack([normal[n:2 * n], normal[2 * n:]], -1),
         weights=weights, clusters=clusters, fixes=fixes,
-        missing_fixes=int(np.sum(~valid)), rounds=int(batch.clustering.rounds[0]),
-        spread_m=float(batch.clustering.amax_m[0]))
+        missing_fixes=int(np.sum(~valid)), rounds=int(batch.clustering.rounds[i]),
+        spread_m=float(batch.clustering.amax_m[i]))

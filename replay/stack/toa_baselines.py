@@ -2,8 +2,8 @@
 
 Each follows its published algorithm as seed 003 cites it, with the
 constants seed 003 gives; everything is vectorized over a leading trial axis
-T. Inputs are ranges `c t_i` in metres (T, N) and node positions (N, 2); each
-returns a `BaselineResult` with the delay states (True = judged normal).
+T. Inputs are ranges `c t_i` in metres (T, N) and node positions (N, 2), or
+per trial (T, N, 2) when the nodes move between epochs; each returns a `BaselineResult` with the delay states (True = judged normal).
 
 - GAR: greedy attack-resistant MMSE, Liu, Ning, Du, IPSN 2005 (seed 003 ref. [5]).
 - EAR: voting-based location estimation with iterative refinement, Liu, Ning,
@@ -48,7 +48,7 @@ def toa_linear_fix(node_xy: FloatArray, ranges: FloatArray, weights: FloatArray)
     wsum = np.sum(weights, axis=-1, keepdims=True)
     wn = weights / np.where(wsum > 0, wsum, 1.0)
     b = ranges**2 - np.sum(node_xy**2, axis=-1)
-    g = -2.0 * (node_xy - np.einsum("...n,nk->...k", wn, node_xy)[..., None, :])
+    g = -2.0 * (node_xy - np.einsum("...n,...nk->...k", wn, node_xy)[..., None, :])
     rhs = b - np.sum(wn * b, axis=-1, keepdims=True)
     info = np.einsum("...n,...ni,...nj->...ij", weights, g, g)
     vec = np.einsum("...n,...ni,...n->...i", weights, g, rhs)
@@ -99,6 +99,7 @@ def gar(node_xy: FloatArray, ranges: FloatArray, threshold_m2: float, min_refere
     `min_references` remain (then `resolved` is False).
     """
     t, n = ranges.shape
+    per_trial = node_xy.ndim == 3
     mask = np.ones((t, n), dtype=bool)
     xy = toa_mmse(node_xy, ranges, mask.astype(float))
     mse = _mean_square(node_xy, ranges, xy, mask)
@@ -108,8 +109,9 @@ def gar(node_xy: FloatArray, ranges: FloatArray, threshold_m2: float, min_refere
         if idx.size == 0:
             break
         cand = mask[idx][:, None, :] & ~np.eye(n, dtype=bool)          # (Ta, N, N)
-        cxy = toa_mmse(node_xy, ranges[idx][:, None, :], cand.astype(float))
-        cmse = _mean_square(node_xy, ranges[idx][:, None, :], cxy, cand)
+        nodes = node_xy[idx][:, None] if per_trial else node_xy
+        cxy = toa_mmse(nodes, ranges[idx][:, None, :], cand.astype(float))
+        cmse = _mean_square(nodes, ranges[idx][:, None, :], cxy, cand)
         cmse = np.where(mask[idx], np.nan_to_num(cmse, nan=np.inf), np.inf)
         best = np.argmin(cmse, axis=-1)
         take = np.arange(idx.size)
@@ -129,8 +131,12 @@ def _mean_square(node_xy: FloatArray, ranges: FloatArray, xy: FloatArray, mask: 
 
 def _ring_hits(node_xy: FloatArray, ranges: FloatArray, centres: FloatArray, half: float,
                ring_half_width: float) -> BoolArray:
-    """Whether each reference's ring meets each square cell: ranges (V, N), centres (V, C, 2) -> (V, C, N)."""
-    off = np.abs(centres[..., None, :] - node_xy)                      # (T, C, N, 2)
+    """Whether each reference's ring meets each square cell: ranges (V, N), centres (V, C, 2) -> (V, C, N).
+
+    Nodes are (N, 2) or, per trial, (V, N, 2).
+    """
+    nodes = node_xy[:, None] if node_xy.ndim == 3 else node_xy
+    off = np.abs(centres[..., None, :] - nodes)                        # (V, C, N, 2)
     near = np.hypot(*np.moveaxis(np.maximum(off - half, 0.0), -1, 0))
     far = np.hypot(*np.moveaxis(off + half, -1, 0))
     r = ranges[:, None, :]
@@ -139,7 +145,7 @@ def _ring_hits(node_xy: FloatArray, ranges: FloatArray, centres: FloatArray, hal
 
 def ear(
     node_xy: FloatArray, ranges: FloatArray, ring_width_m: float, *,
-    field_half_width_m: float = 1000.0, field_centre_xy: tuple[float, float] = (0.0, 0.0),
+    field_half_width_m: float = 1000.0, field_centre_xy: tuple[float, float] | FloatArray = (0.0, 0.0),
     split: int = 10, levels: int = 3, max_cells: int = 16,
 ) -> BaselineResult:
     """Voting-based location estimation with iterative refinement (Liu, Ning, Liu, Wang, Du 2008).
@@ -150,19 +156,22 @@ def ear(
     `split` x `split` cells; the cells with the highest vote (up to
     `max_cells` on ties) are cut again, `levels` times (200 m, 20 m, 2 m
     cells by default). The estimate is the mean of the winning finest cells;
-    a delay is normal when its ring meets the first of them.
+    a delay is normal when its ring meets the first of them. The field
+    centre may differ per trial, shape (T, 2).
     """
     t = ranges.shape[0]
+    per_trial = node_xy.ndim == 3
     grid = (np.arange(split) + 0.5) / split - 0.5                     # sub-cell centre offsets
     sub = np.stack(np.meshgrid(grid, grid, indexing="ij"), -1).reshape(-1, 2)
-    centres = np.broadcast_to(np.asarray(field_centre_xy, dtype=np.float64), (t, 1, 2))
+    centres = np.broadcast_to(np.asarray(field_centre_xy, dtype=np.float64).reshape(-1, 1, 2), (t, 1, 2))
     keep = np.ones((t, 1), dtype=bool)
     size = 2.0 * field_half_width_m
     for _ in range(levels):
         rows, slots = np.nonzero(keep)                                # only live cells are split
         cells = centres[rows, slots][:, None, :] + size * sub          # (V, S, 2)
         size /= split
-        votes = np.sum(_ring_hits(node_xy, ranges[rows], cells, size / 2, ring_width_m / 2), -1)
+        nodes = node_xy[rows] if per_trial else node_xy
+        votes = np.sum(_ring_hits(nodes, ranges[rows], cells, size / 2, ring_width_m / 2), -1)
         best = np.full(t, -1)
         np.maximum.at(best, rows, np.max(votes, axis=-1))
         centres, keep = _top_cells(cells, votes == best[rows][:, None], rows, t, max_cells)
@@ -202,8 +211,9 @@ def lms(node_xy: FloatArray, ranges: FloatArray, gamma: float = 2.5, subset_size
         row[0, list(combo)] = True
         subsets = np.concatenate([subsets, row])
     weights = np.broadcast_to(subsets.astype(float), (ranges.shape[0],) + subsets.shape)
-    xy = toa_mmse(node_xy, ranges[:, None, :], weights)                 # (T, S, 2)
-    res2 = toa_residuals(node_xy, ranges[:, None, :], xy) ** 2
+    nodes = node_xy[:, None] if node_xy.ndim == 3 else node_xy
+    xy = toa_mmse(nodes, ranges[:, None, :], weights)                   # (T, S, 2)
+    res2 = toa_residuals(nodes, ranges[:, None, :], xy) ** 2
     med = np.nan_to_num(np.median(res2, axis=-1), nan=np.inf)
     best = np.argmin(med, axis=-1)
     take = np.arange(ranges.shape[0])
@@ -227,10 +237,12 @@ def lhc(node_xy: FloatArray, ranges: FloatArray, huber_k_m: float, *, tolerance_
     break point `k` (seed 003: 1 ms, i.e. 1.5 m) is normal.
     """
     xy = toa_mmse(node_xy, ranges, np.ones_like(ranges))
-    xy = np.where(np.isfinite(xy), xy, np.mean(node_xy, axis=0))
+    xy = np.where(np.isfinite(xy), xy, np.mean(node_xy, axis=-2))
     live = np.arange(ranges.shape[0])
+    per_trial = node_xy.ndim == 3
     for _ in range(max_iterations):
-        new = _majorization_step(node_xy, ranges[live], xy[live], huber_k_m)
+        nodes = node_xy[live] if per_trial else node_xy
+        new = _majorization_step(nodes, ranges[live], xy[live], huber_k_m)
         moved = np.hypot(*(new - xy[live]).T) > tolerance_m
         xy[live] = new
         live = live[moved]

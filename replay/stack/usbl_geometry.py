@@ -2,8 +2,9 @@
 
 Seed `003` (KMCDF, Wang et al., JEIT 2018) section 3.1; STACK.md section 7 step 1.
 Every function takes a leading batch axis `T` (trials or epochs) on the
-measurements; node positions are shared, shape (N, 2) in metres, axes x and y
-of the local frame the phase differences are measured in. A fix that does not
+measurements; node positions are shared, shape (N, 2) in metres, or per
+trial, shape (T, N, 2) (an epoch's buoys move), axes x and y of the local
+frame the phase differences are measured in. A fix that does not
 exist (circles that do not meet, near-parallel bearings, collinear nodes, NaN
 input) is NaN, never an exception.
 
@@ -56,12 +57,12 @@ def bearing_intersections(
     i, j = pairs[:, 0], pairs[:, 1]
     ui = np.stack([np.cos(bearing_rad[..., i]), np.sin(bearing_rad[..., i])], axis=-1)
     uj = np.stack([np.cos(bearing_rad[..., j]), np.sin(bearing_rad[..., j])], axis=-1)
-    delta = node_xy[j] - node_xy[i]
+    delta = node_xy[..., j, :] - node_xy[..., i, :]
     cross = ui[..., 0] * uj[..., 1] - ui[..., 1] * uj[..., 0]
     ok = np.abs(cross) >= min_sin
     safe = np.where(ok, cross, 1.0)
     a = (delta[..., 0] * uj[..., 1] - delta[..., 1] * uj[..., 0]) / safe
-    fix = node_xy[i] + a[..., None] * ui
+    fix = node_xy[..., i, :] + a[..., None] * ui
     return np.where(ok[..., None], fix, np.nan)
 
 
@@ -76,8 +77,8 @@ def circle_intersections(
     """
     i, j = pairs[:, 0], pairs[:, 1]
     ri, rj = ranges_m[..., i], ranges_m[..., j]
-    delta = node_xy[j] - node_xy[i]
-    dist = np.hypot(delta[:, 0], delta[:, 1])
+    delta = node_xy[..., j, :] - node_xy[..., i, :]
+    dist = np.hypot(delta[..., 0], delta[..., 1])
     apart = dist > 0.0                      # coincident nodes: no geometry
     safe = np.where(apart, dist, 1.0)
     along = (ri**2 - rj**2 + dist**2) / (2.0 * safe)
@@ -86,9 +87,9 @@ def circle_intersections(
     tol = 1e-12 * np.maximum(np.maximum(ri**2, rj**2), dist**2)
     meet = (h2 >= -tol) & (ri >= 0.0) & (rj >= 0.0) & apart
     h = np.sqrt(np.where(meet, np.maximum(h2, 0.0), 0.0))
-    unit = delta / safe[:, None]
-    normal = np.stack([-unit[:, 1], unit[:, 0]], axis=-1)
-    foot = node_xy[i] + along[..., None] * unit
+    unit = delta / safe[..., None]
+    normal = np.stack([-unit[..., 1], unit[..., 0]], axis=-1)
+    foot = node_xy[..., i, :] + along[..., None] * unit
     first = foot + h[..., None] * normal
     second = foot - h[..., None] * normal
     nan = np.where(meet, 0.0, np.nan)[..., None]
@@ -121,20 +122,20 @@ def trilateration_fixes(
     two linear equations solved exactly. Collinear nodes make the system
     singular (relative determinant below `min_det`): no fix.
     """
-    p1, p2, p3 = (node_xy[triples[:, k]] for k in range(3))
+    p1, p2, p3 = (node_xy[..., triples[:, k], :] for k in range(3))
     r1, r2, r3 = (ranges_m[..., triples[:, k]] for k in range(3))
-    a = 2.0 * np.stack([p2 - p1, p3 - p1], axis=-2)          # (K, 2, 2)
-    det = a[:, 0, 0] * a[:, 1, 1] - a[:, 0, 1] * a[:, 1, 0]
+    a = 2.0 * np.stack([p2 - p1, p3 - p1], axis=-2)          # (K, 2, 2) or (T, K, 2, 2)
+    det = a[..., 0, 0] * a[..., 1, 1] - a[..., 0, 1] * a[..., 1, 0]
     scale = np.sum(a**2, axis=(-2, -1))
     ok = np.abs(det) > min_det * scale
     safe = np.where(ok, det, 1.0)
     sq = np.sum(node_xy**2, axis=-1)
-    b1 = r1**2 - r2**2 + sq[triples[:, 1]] - sq[triples[:, 0]]
-    b2 = r1**2 - r3**2 + sq[triples[:, 2]] - sq[triples[:, 0]]
-    x = (a[:, 1, 1] * b1 - a[:, 0, 1] * b2) / safe
-    y = (a[:, 0, 0] * b2 - a[:, 1, 0] * b1) / safe
+    b1 = r1**2 - r2**2 + sq[..., triples[:, 1]] - sq[..., triples[:, 0]]
+    b2 = r1**2 - r3**2 + sq[..., triples[:, 2]] - sq[..., triples[:, 0]]
+    x = (a[..., 1, 1] * b1 - a[..., 0, 1] * b2) / safe
+    y = (a[..., 0, 0] * b2 - a[..., 1, 0] * b1) / safe
     fix = np.stack([x, y], axis=-1)
-    return np.where(ok[:, None], fix, np.nan)
+    return np.where(ok[..., None], fix, np.nan)
 
 
 @dataclass(frozen=True)
