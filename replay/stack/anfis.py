@@ -152,8 +152,18 @@ def normalize(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, clip: bool = True) 
 
 def bell(x: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     """Generalized bell mu = 1 / (1 + |(x - c)/a|^(2b)) (A.21), broadcasting."""
+    t = np.subtract(x, c)
+    if not (isinstance(t, np.ndarray) and t.dtype == np.float64
+            and np.broadcast_shapes(t.shape, np.shape(a), np.shape(b)) == t.shape):
+        with np.errstate(over="ignore", divide="ignore"):
+            return 1.0 / (1.0 + np.abs((x - c) / _safe_a(a)) ** (2.0 * b))
+    # the same operations as the formula, in place: one temporary instead of six
     with np.errstate(over="ignore", divide="ignore"):
-        return 1.0 / (1.0 + np.abs((x - c) / _safe_a(a)) ** (2.0 * b))
+        np.divide(t, _safe_a(a), out=t)
+        np.abs(t, out=t)
+        np.power(t, 2.0 * b, out=t)
+        t += 1.0
+        return np.divide(1.0, t, out=t)
 
 
 def memberships(x: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -170,7 +180,11 @@ def rule_grades(mu: np.ndarray, rules: np.ndarray) -> np.ndarray:
 def normalized_firing(x: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray,
                       rules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Firing strengths w (A.22) and their normalization w / sum(w) (A.23), each (..., n, R)."""
-    w = rule_grades(memberships(x, a, b, c), rules).prod(axis=-1)
+    mu = memberships(x, a, b, c)
+    # the product over inputs, left to right as prod() does, without gathering (..., n, R, D) first
+    w = mu[..., 0, rules[:, 0]]
+    for d in range(1, rules.shape[1]):
+        w = w * mu[..., d, rules[:, d]]
     total = np.maximum(w.sum(axis=-1, keepdims=True), _S_FLOOR)
     return w, w / total
 
