@@ -15,11 +15,13 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
+import numpy as np
 
 from .follower import ErrorSample, FollowerPipeline, VehicleTracks
 from .layout import TrialLayout
 from .run_config import RunConfig
 from .stack.kmcdf import KmcdfParams
+from .stack.model import horizontal_offset_m, offset_to_latlon
 from .stack.runner import EpochResult, RunResults
 from .tracks import Fix
 from .usbl_epochs import UsblEpoch, UsblEpochBuilder
@@ -163,10 +165,16 @@ class Engine:
 
     # -- release and callbacks ---------------------------------------------------
     def _release(self, until_s: float) -> None:
+        feeding = self._usbl is not None and bool(self.config.engine.usbl_update)
+        if feeding:
+            # fixes go to the followers' queues before they are released past them; an epoch is
+            # complete once the stream is usbl_group_s past its first observation
+            self._usbl.flush(min(until_s, self.last_s - self.config.engine.usbl_group_s))
+            self._usbl.position_due(until_s)
         for name, pipe in self.followers.items():
             pipe.release(until_s)
             self._check_trained(name, pipe)
-        if self._usbl is not None:
+        if self._usbl is not None and not feeding:
             self._usbl.flush(until_s - 1.0)
 
     def _check_trained(self, name: str, pipe: FollowerPipeline) -> None:
@@ -213,8 +221,6 @@ class Engine:
         fix = truth.gps.at(t_s, self.config.engine.max_gap_s) if truth is not None else None
         if fix is None or self._origin is None:
             return None
-        from .stack.model import horizontal_offset_m
-
         n, e = horizontal_offset_m(fix.lat_rad, fix.lon_rad, *self._origin)
         return float(e), float(n)
 
@@ -232,13 +238,36 @@ class Engine:
             for method, (pe, pn) in positions.items():
                 if math.isfinite(pe) and math.isfinite(pn):
                     self.positioning_errors[method].append(math.hypot(pe - float(e), pn - float(n)))
+        self._feed_fix(epoch, positions)
         for listener in self.listeners:
             listener.usbl(epoch, positions)
+
+    def _feed_fix(self, epoch: UsblEpoch, positions: dict[str, tuple[float, float]]) -> None:
+        """With engine.usbl_update set, the chosen method's fix of a follower goes to its filters."""
+        method = self.config.engine.usbl_update
+        pipe = self.followers.get(epoch.target) if method else None
+        if pipe is None or self._origin is None:
+            return
+        e, n = positions.get(method, (math.nan, math.nan))
+        if not (math.isfinite(e) and math.isfinite(n)):
+            self.counts["usbl_fixes_undetermined"] += 1
+            return
+        cov = epoch.fix.covariance if method == "kmcdf2" else None
+        if cov is not None and np.all(np.isfinite(cov)):
+            nn, ne, ee = float(cov[1, 1]), float(cov[0, 1]), float(cov[0, 0])   # fix covariance is east, north
+        else:
+            nn = ee = self.config.engine.usbl_update_sigma_m ** 2
+            ne = 0.0
+        lat, lon = offset_to_latlon(n, e, *self._origin)
+        pipe.on_position_fix(epoch.t_s, lat, lon, nn, ne, ee)
+        self.counts["usbl_fixes_to_filters"] += 1
 
     # -- end ---------------------------------------------------------------------
     def finish(self) -> dict[str, RunResults]:
         """Release everything, finish every runner; returns their RunResults by follower."""
         out = {}
+        if self._usbl is not None and self.config.engine.usbl_update:
+            self._usbl.flush()     # the last fixes reach the followers before their queues empty
         for name, pipe in self.followers.items():
             pipe.finish()
             self._check_trained(name, pipe)

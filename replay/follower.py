@@ -107,6 +107,11 @@ class FollowerPipeline:
             slant = msg.travel_time_s * speed
         self._push(t_s, "range", (msg.source, slant))
 
+    def on_position_fix(self, t_s: float, lat_rad: float, lon_rad: float, cov_nn_m2: float, cov_ne_m2: float,
+                        cov_ee_m2: float) -> None:
+        """A position fix of this follower (a USBL epoch's fix) becomes a position-update event."""
+        self._push(t_s, "fix", (lat_rad, lon_rad, cov_nn_m2, cov_ne_m2, cov_ee_m2))
+
     def on_gps(self, t_s: float, fix: Fix) -> None:
         """A follower GPS fix: the reference for position errors."""
         self._push(t_s, "gps", (fix,))
@@ -125,6 +130,9 @@ class FollowerPipeline:
             if kind == "dr":
                 if self.runner.dead_reckon(t_s, *payload):
                     self._after_step(t_s)
+            elif kind == "fix":
+                if self.runner.position_fix(t_s, *payload):
+                    self._after_step(t_s, force=True)
             else:
                 self._range(t_s, *payload)
 

@@ -21,6 +21,10 @@ from .errors import UserError
 from .stack.config import METHODS, AnfisConfig, StackConfig
 
 
+# the positioning methods the engine runs on archived USBL epochs (replay.usbl_positioning)
+USBL_UPDATE_METHODS: tuple[str, ...] = ("kmcdf2", "gar", "ear", "lms", "lhc")
+
+
 @dataclass(frozen=True)
 class EngineConfig:
     """What the engine does around the stack: windows, pacing, gaps, USBL grouping."""
@@ -34,6 +38,10 @@ class EngineConfig:
     kmcdf: bool = True                            # USBL epochs through KMCDF
     kmcdf_rho_m: float = 30.0
     kmcdf_phase_noise_rad: float = 0.1
+    # a positioning method whose USBL fixes of a follower update its filters (every method but
+    # dead reckoning) as position measurements; "" = none, as in paper A's comparison
+    usbl_update: str = ""
+    usbl_update_sigma_m: float = 3.0              # fix sigma per axis where the method gives no covariance
 
 
 @dataclass(frozen=True)
@@ -158,6 +166,13 @@ def load_config(path: str | Path | None = None, overrides: list[str] = (), windo
     bad = [m for m in cfg.stack.methods if m not in METHODS]
     if bad:
         raise UserError(f"configuration methods: unknown {', '.join(bad)} (known: {', '.join(METHODS)})")
+    if cfg.engine.usbl_update not in ("",) + USBL_UPDATE_METHODS:
+        raise UserError(f"configuration engine.usbl_update: unknown {cfg.engine.usbl_update!r} "
+                        f"(known: {', '.join(USBL_UPDATE_METHODS)}, or empty for none)")
+    if cfg.engine.usbl_update and not cfg.engine.kmcdf:
+        raise UserError("configuration engine.usbl_update needs engine.kmcdf = true (USBL epochs positioned)")
+    if cfg.engine.usbl_update and not cfg.engine.usbl_update_sigma_m > 0:
+        raise UserError("configuration engine.usbl_update_sigma_m: must be > 0")
     return cfg
 
 

@@ -79,6 +79,7 @@ class UsblEpochBuilder:
         self.counts: Counter = Counter()
         self._open: dict[str, list[tuple[float, str, Any, float]]] = {}
         self._closed: list[_Closed] = []
+        self._closed_earliest = math.inf   # earliest emission time in _closed: position_due runs per message
         self._earliest = math.inf     # first emission time over the open epochs: flush runs per message
 
     def add(self, t_s: float, msg: Any) -> None:
@@ -104,9 +105,15 @@ class UsblEpochBuilder:
         if before_s == math.inf:
             self.position_queued()
 
+    def position_due(self, until_s: float) -> None:
+        """Position the queued epochs now if one of them is at or before until_s (its fix is needed)."""
+        if self._closed_earliest <= until_s:
+            self.position_queued()
+
     def position_queued(self) -> None:
         """Position every closed epoch in the queue (one KMCDF call per node count and parameters)."""
         closed, self._closed = self._closed, []
+        self._closed_earliest = math.inf
         if not closed:
             return
         groups: dict[tuple[int, KmcdfParams], list[int]] = {}
@@ -145,6 +152,7 @@ class UsblEpochBuilder:
         params = self._params_for(rows)
         self._closed.append(_Closed(group[0][0], target, tuple(r[0] for r in rows), node_en, delays, px, py,
                                     params, self.at_close(target, group[0][0])))
+        self._closed_earliest = min(self._closed_earliest, group[0][0])
         if len(self._closed) >= self.batch_size:
             self.position_queued()
 

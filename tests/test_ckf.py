@@ -259,3 +259,28 @@ def test_nees_and_nis_inside_chi_square_bounds() -> None:
     assert all_lo < nees.mean() < all_hi
     assert chi2.ppf(0.005, runs * epochs) / (runs * epochs) < nis.mean() < chi2.ppf(0.995, runs * epochs) / (
         runs * epochs)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 10_000))
+def test_position_update_is_the_kalman_update(seed: int) -> None:
+    """A direct position fix (H = I) through the scalar path equals the textbook Kalman update."""
+    rng = np.random.default_rng(seed)
+    x, p = random_gaussian(seed, 2)
+    p, x = p * 1e-12, LAT + x * 1e-6                      # rad² and rad of a few metres
+    a = rng.normal(size=(2, 2))
+    r = (a @ a.T + 0.1 * np.eye(2)) * 1e-12
+    z = x + rng.normal(size=2) * 1e-6
+    out = ckf.position_update(State2.from_arrays(x, p), z[0], z[1], r[0, 0], r[0, 1], r[1, 1])
+    k = p @ np.linalg.inv(p + r)
+    np.testing.assert_allclose(out.x, x + k @ (z - x), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(out.p, p - k @ p, rtol=1e-9, atol=1e-24)
+
+
+def test_position_update_rejects_what_it_cannot_use() -> None:
+    s = State2(LAT, LON, 1e-12, 0.0, 1e-12)
+    assert ckf.position_update(s, float("nan"), LON, 1e-12, 0.0, 1e-12) is None
+    assert ckf.position_update(s, LAT, LON, 1e-12, 0.0, float("inf")) is None
+    assert ckf.position_update(s, LAT, LON, -3e-12, 0.0, -3e-12) is None       # S not positive definite
+    tight = ckf.position_update(s, LAT + 1e-6, LON, 1e-16, 0.0, 1e-16)        # a near-exact fix wins
+    assert abs(tight.lat - (LAT + 1e-6)) < 1e-9 and tight.p11 < 1e-15

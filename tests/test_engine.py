@@ -98,6 +98,22 @@ def test_a_changed_parameter_changes_the_run_and_compare_shows_it(archive, tmp_p
     assert "anfis" not in result["differing_epochs"]
 
 
+def test_usbl_fixes_update_the_follower_filters(archive, tmp_path):
+    """engine.usbl_update=kmcdf2: every filter but dead reckoning takes the KMCDF fixes of the follower."""
+    off = replay_archive(archive, load_config(None, FAST), write_output=False)
+    on = replay_archive(archive, load_config(None, FAST + ["usbl_update=kmcdf2"]), tmp_path / "on.mcap")
+    assert on.run_id != off.run_id
+    fed = on.metrics["counts"]["usbl_fixes_to_filters"]
+    assert fed > 300 and fed + on.metrics["counts"].get("usbl_fixes_undetermined", 0) == on.metrics["usbl_epochs"]
+    assert on.results["follower"].position_fixes == fed
+    m_on, m_off = on.metrics["methods"], off.metrics["methods"]
+    for name in ("ckf", "ackf", "chi_square", "anfis"):
+        # anchored every few seconds by ~2 m fixes, no longer by the ranges alone
+        assert m_on[name]["error_p90_m"] < 5.0 < m_off[name]["error_p90_m"]
+    assert m_on["dead_reckoning"]["error_p50_m"] == pytest.approx(m_off["dead_reckoning"]["error_p50_m"], rel=0.1)
+    assert m_on["kmcdf2"] == m_off["kmcdf2"]          # positioning itself is unchanged
+
+
 def test_replay_command_json(archive, tmp_path, capsys):
     out = tmp_path / "r.mcap"
     assert main(["replay", str(archive), "--set", FAST[0], "-o", str(out), "--json",

@@ -32,10 +32,13 @@ def test_toml_then_overrides(tmp_path):
 @pytest.mark.parametrize("item, words", [
     ("nokey=1", "unknown key 'stack.nokey'"), ("anfis.epochs=x", "not a valid int"),
     ("r_m", "expected key=value"), ("methods=ckf,bogus", "unknown bogus"),
+    ("usbl_update=kmcdf9", "engine.usbl_update: unknown 'kmcdf9'"),
+    ("usbl_update_sigma_m=0", "must be > 0"),
 ])
 def test_bad_overrides(item, words):
+    extra = ["usbl_update=kmcdf2"] if item.startswith("usbl_update_sigma") else []
     with pytest.raises(UserError, match=words):
-        load_config(None, [item])
+        load_config(None, extra + [item])
 
 
 def test_run_id_changes_with_any_parameter_input_or_version():

@@ -266,3 +266,30 @@ def test_run_without_epochs_scores_cleanly() -> None:
 def test_factories_mapping_is_the_default() -> None:
     runner = CooperativeRunner(CONFIG, "f", ["leader1"], 0.0, LAT, LON)
     assert runner._factories is DETECTOR_FACTORIES
+
+
+def test_position_fixes_update_every_filter_but_dead_reckoning() -> None:
+    """USBL-like fixes pull the filters onto the truth; dead reckoning ignores them; bad fixes are counted."""
+    trial = make_trial(seed=4, duration=400.0, stale=(), outlier_rate=0.0)
+    runner = CooperativeRunner(CONFIG, "follower", ["leader1", "leader2"], 0.0, LAT, LON, 4.0)
+    rng = np.random.default_rng(1)
+    for i in range(1, trial.t.size):
+        runner.dead_reckon(trial.t[i], *trial.dr[i], 4.0)
+        if i % 5 == 0:
+            n, e = trial.north[i] + rng.normal(0, 2.0), trial.east[i] + rng.normal(0, 2.0)
+            assert runner.position_fix(trial.t[i], LAT + n / B0, LON + e / A0, 4.0, 0.0, 4.0)
+    assert not runner.position_fix(trial.t[-1], float("nan"), LON, 4.0, 0.0, 4.0)
+    assert not runner.position_fix(trial.t[-1], LAT, LON, 4.0, 5.0, 4.0)       # |ne| > sqrt(nn ee)
+    assert not runner.position_fix(trial.t[-1] - 10.0, LAT, LON, 4.0, 0.0, 4.0)
+    res = runner.finish()
+    assert res.position_fixes == (trial.t.size - 1) // 5
+    assert res.rejected == {"fix_non_finite": 1, "fix_covariance_not_positive": 1, "fix_time_backwards": 1}
+    t, lat, lon = gps(trial)
+    err = {}
+    for name, track in res.tracks.items():
+        dn = (np.interp(t, track.t_s, track.lat_rad) - lat) * B0
+        de = (np.interp(t, track.t_s, track.lon_rad) - lon) * A0
+        err[name] = float(np.median(np.hypot(dn, de)[t > 100]))
+    assert err["ckf"] < 3.0 and err["ackf"] < 3.0 and err["chi_square"] < 3.0
+    assert err["dead_reckoning"] > 3 * err["ckf"]          # the 1 % speed bias and heading bias grow
+    assert np.all(res.tracks["ckf"].cov_m2[-1].diagonal() < 4.0)

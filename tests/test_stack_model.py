@@ -16,12 +16,8 @@ LON = math.radians(126.6)
 
 
 def offset(lat: float, lon: float, north_m: float, east_m: float) -> tuple[float, float]:
-    """A point north_m / east_m away, scaled with radii at the mid latitude (iterated to convergence)."""
-    lat2 = lat + north_m / RE_M
-    for _ in range(5):
-        b, a = model.metric_scales(0.5 * (lat + lat2), 0.0)
-        lat2 = lat + north_m / b
-    return lat2, lon + east_m / a
+    """A point north_m / east_m away, scaled with radii at the mid latitude."""
+    return model.offset_to_latlon(north_m, east_m, lat, lon)
 
 
 def test_radii_at_equator_and_pole() -> None:
@@ -113,3 +109,11 @@ def test_horizontal_distance_and_offset() -> None:
     dn, de = model.horizontal_offset_m(np.array(llat), np.array(llon), np.array(LAT), np.array(LON))
     assert abs(dn + 120.0) < 1e-6 and abs(de - 50.0) < 1e-6
     assert abs(model.horizontal_distance_m(llat, llon, LAT, LON) - 130.0) < 1e-6
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.floats(-5000.0, 5000.0), st.floats(-5000.0, 5000.0), st.floats(-1.4, 1.4))
+def test_offset_to_latlon_inverts_horizontal_offset(north: float, east: float, lat: float) -> None:
+    plat, plon = model.offset_to_latlon(north, east, lat, 2.0)
+    dn, de = model.horizontal_offset_m(np.array(plat), np.array(plon), np.array(lat), np.array(2.0))
+    assert abs(dn - north) < 1e-6 and abs(de - east) < 1e-6

@@ -256,6 +256,31 @@ def range_update(s: State2, inn: RangeInnovation, r_var: float, adaptive: bool, 
     return out
 
 
+def position_update(s: State2, lat: float, lon: float, r11: float, r12: float, r22: float) -> State2 | None:
+    """Kalman update with a direct position fix z = [L, λ] (H = I), R = [[r11, r12], [r12, r22]] in rad².
+
+    The measurement is linear in the state, so the cubature rule gives the
+    plain Kalman update exactly: S = P + R, K = P S⁻¹, x += K (z - x),
+    P -= K P. None when an input is not finite or S is not positive definite.
+    """
+    if not _finite(lat, lon, r11, r12, r22, *s):
+        return None
+    s11, s12, s22 = s.p11 + r11, s.p12 + r12, s.p22 + r22
+    det = s11 * s22 - s12 * s12
+    if not (s11 > 0.0 and s22 > 0.0 and det > 0.0):
+        return None
+    i11, i12, i22 = s22 / det, -s12 / det, s11 / det              # S⁻¹
+    k11, k12 = s.p11 * i11 + s.p12 * i12, s.p11 * i12 + s.p12 * i22  # K = P S⁻¹
+    k21, k22 = s.p12 * i11 + s.p22 * i12, s.p12 * i12 + s.p22 * i22
+    d0, d1 = lat - s.lat, lon - s.lon
+    out = State2(s.lat + k11 * d0 + k12 * d1, s.lon + k21 * d0 + k22 * d1,
+                 s.p11 - (k11 * s.p11 + k12 * s.p12), s.p12 - (k11 * s.p12 + k12 * s.p22),
+                 s.p22 - (k21 * s.p12 + k22 * s.p22))
+    if not (_finite(*out) and out.p11 > 0.0 and out.p22 > 0.0):
+        return None
+    return out
+
+
 def isolation_action(flagged: bool, streak: int, cap: int) -> tuple[str, int]:
     """Isolation with a cap (A.33-A.35, STACK.md section 2): ('update'|'isolate'|'capped', new streak).
 

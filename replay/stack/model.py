@@ -122,6 +122,16 @@ def horizontal_offset_m(
     return b * (lat_rad - ref_lat_rad), a * (lon_rad - ref_lon_rad)
 
 
+def offset_to_latlon(north_m: float, east_m: float, ref_lat_rad: float, ref_lon_rad: float) -> tuple[float, float]:
+    """Latitude and longitude (rad) of a north/east offset from a reference: the inverse of horizontal_offset_m."""
+    lat = ref_lat_rad
+    for _ in range(4):     # the radii at the mid latitude barely move: a few fixed-point steps reach 1e-12 m
+        b, a = metric_scales_scalar(0.5 * (lat + ref_lat_rad), 0.0)
+        lat = ref_lat_rad + north_m / b
+    _, a = metric_scales_scalar(0.5 * (lat + ref_lat_rad), 0.0)
+    return lat, ref_lon_rad + east_m / a
+
+
 def horizontal_distance_m(
     lat_rad: np.ndarray, lon_rad: np.ndarray, ref_lat_rad: np.ndarray, ref_lon_rad: np.ndarray,
 ) -> np.ndarray:

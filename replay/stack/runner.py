@@ -52,7 +52,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .ckf import RangeInnovation, State2, dr_predict, isolation_action, range_innovation, range_update
+from .ckf import (RangeInnovation, State2, dr_predict, isolation_action, position_update, range_innovation,
+                  range_update)
 from .config import StackConfig
 from .detector import Decision, Detector
 from .labels import UNKNOWN, label_one
@@ -118,6 +119,7 @@ class RunResults:
     clamped_ranges: int
     trained: bool
     training_errors: dict[str, str]
+    position_fixes: int = 0       # position fixes (USBL) applied to the filters
 
     def epochs_frame(self) -> pd.DataFrame:
         """The epochs table as a pandas DataFrame (pandas imported on first use)."""
@@ -187,6 +189,7 @@ class CooperativeRunner:
         self._trained = False
         self.rejected: Counter = Counter()
         self.clamped_ranges = 0
+        self.position_fixes = 0
         self.training_errors: dict[str, str] = {}
         self._epochs: list[EpochResult] = []
         self._open_features: list[tuple[float, str, int, float, float, float]] = []  # ackf, after t_a
@@ -254,6 +257,38 @@ class CooperativeRunner:
             self._epochs.extend(reported)
         return reported
 
+    def position_fix(self, t_s: float, lat_rad: float, lon_rad: float, cov_nn_m2: float, cov_ne_m2: float,
+                     cov_ee_m2: float) -> bool:
+        """Update every filter (not dead reckoning) with a position fix, e.g. a KMCDF USBL fix; False if rejected.
+
+        The fix's north-east covariance (m²) becomes rad² with the radii at the
+        fix. Counted in ``position_fixes``; a fix no filter could use (not
+        finite, covariance not positive definite, time going backwards) is
+        counted in ``rejected`` instead.
+        """
+        t_s, lat_rad, lon_rad = float(t_s), float(lat_rad), float(lon_rad)
+        nn, ne, ee = float(cov_nn_m2), float(cov_ne_m2), float(cov_ee_m2)
+        if not _finite(t_s, lat_rad, lon_rad, nn, ne, ee):
+            self.rejected["fix_non_finite"] += 1
+            return False
+        if not (nn > 0.0 and ee > 0.0 and nn * ee > ne * ne):
+            self.rejected["fix_covariance_not_positive"] += 1
+            return False
+        if t_s < self._t:
+            self.rejected["fix_time_backwards"] += 1
+            return False
+        self._maybe_train(t_s)
+        if t_s > self._t:
+            self._propagate(t_s)
+        b, a = metric_scales_scalar(lat_rad, self._depth)
+        r11, r12, r22 = nn / (b * b), ne / (b * a), ee / (a * a)
+        for m in self._methods:
+            if m.kind != "dr":
+                m.state = position_update(m.state, lat_rad, lon_rad, r11, r12, r22) or m.state
+        self.position_fixes += 1
+        self._record()
+        return True
+
     def finish(self) -> RunResults:
         """Collect epochs, tracks, open-loop scores and counters into a RunResults."""
         columns = {f.name: np.array([getattr(e, f.name) for e in self._epochs]) for f in fields(EpochResult)}
@@ -265,7 +300,7 @@ class CooperativeRunner:
             open_loop=self._open_loop(), rejected=dict(self.rejected),
             capped={m.name: m.capped for m in self._methods if m.name in self._reported},
             clamped_ranges=self.clamped_ranges, trained=self._trained,
-            training_errors=dict(self.training_errors),
+            training_errors=dict(self.training_errors), position_fixes=self.position_fixes,
         )
 
     @property
