@@ -81,12 +81,22 @@ def viewer(tmp_path: Path, venv_bin: Path):  # noqa: ANN201
     try:
         yield _connect(proc, port, log), log
     finally:
+        _end_group(proc)
+
+
+def _end_group(proc: subprocess.Popen) -> None:
+    """SIGTERM the viewer's process group, SIGKILL if it lingers; a group already gone is fine."""
+    for sig in (signal.SIGTERM, signal.SIGKILL):
         try:
-            os.killpg(proc.pid, signal.SIGTERM)
+            os.killpg(proc.pid, sig)
+        except ProcessLookupError:
+            break
+        try:
             proc.wait(timeout=10)
-        except (ProcessLookupError, subprocess.TimeoutExpired):
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait(timeout=10)
+            break
+        except subprocess.TimeoutExpired:
+            continue
+    proc.poll()
 
 
 def _image(path: Path) -> np.ndarray:
