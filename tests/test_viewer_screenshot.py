@@ -9,7 +9,6 @@ process group, which the test ends.
 from __future__ import annotations
 
 import os
-import signal
 import socket
 import subprocess
 import time
@@ -18,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.processes import end_group
 from tests.review_fixtures import synthetic_review
 
 HINT = ("the headless Rerun viewer needs a Vulkan driver: apt-get install -y mesa-vulkan-drivers libvulkan1 "
@@ -81,22 +81,8 @@ def viewer(tmp_path: Path, venv_bin: Path):  # noqa: ANN201
     try:
         yield _connect(proc, port, log), log
     finally:
-        _end_group(proc)
+        end_group(proc)
 
-
-def _end_group(proc: subprocess.Popen) -> None:
-    """SIGTERM the viewer's process group, SIGKILL if it lingers; a group already gone is fine."""
-    for sig in (signal.SIGTERM, signal.SIGKILL):
-        try:
-            os.killpg(proc.pid, sig)
-        except ProcessLookupError:
-            break
-        try:
-            proc.wait(timeout=10)
-            break
-        except subprocess.TimeoutExpired:
-            continue
-    proc.poll()
 
 
 def _image(path: Path) -> np.ndarray:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 import re
-import signal
 import socket
 import subprocess
 import time
@@ -12,6 +11,7 @@ import urllib.request
 from pathlib import Path
 
 from replay import views
+from tests.processes import end_group
 from tests.review_fixtures import synthetic_review
 
 LISTEN = "0A"   # TCP state in /proc/net/tcp
@@ -82,11 +82,4 @@ def test_web_viewer_serves_on_loopback_only(tmp_path: Path) -> None:
         with urllib.request.urlopen(url, timeout=10) as page:
             assert page.status == 200 and b"<html" in page.read(4096).lower()
     finally:
-        try:
-            os.killpg(proc.pid, signal.SIGTERM)
-            proc.wait(timeout=10)
-        except ProcessLookupError:
-            pass
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait(timeout=10)
+        end_group(proc)
