@@ -30,11 +30,9 @@ from datetime import date, datetime, timezone
 from functools import lru_cache
 from typing import Callable, Iterator, Union
 
-import numpy as np
-
 from .lines import PREFIX_STYLES, strip_prefix
 from .records import Reject, Where
-from .sentence import nmea_checksum
+from .sentence import HEX, nmea_checksum, prefix_xor
 
 NAN = float("nan")
 KNOT_MPS = 1852.0 / 3600.0
@@ -325,13 +323,6 @@ PARSERS = {kind: _record_parser(kind) for kind in VALUES}
 Frame = tuple[str, list[str], Where]  # address, fields after it, where
 
 
-def _prefix_xor(data: bytes) -> bytes:
-    """prefix[i] = XOR of data[0..i]; the XOR of data[a:b] is prefix[b-1] ^ prefix[a-1]."""
-    if not data:
-        return b""
-    return np.bitwise_xor.accumulate(np.frombuffer(data, dtype=np.uint8)).tobytes()
-
-
 def _looks_novatel(text: str) -> bool:
     for ch in "#%":
         i = text.find(ch)
@@ -379,7 +370,7 @@ def iter_frames(data: bytes, prefix: str = "auto") -> Iterator[Frame | Reject]:
     """
     if prefix not in PREFIX_STYLES:
         raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
-    pxor = _prefix_xor(data)
+    pxor = prefix_xor(data)
     offset = 0
     strip = prefix != "none"
     for number, raw in enumerate(data.decode("latin-1").split("\n"), start=1):
@@ -436,9 +427,6 @@ def parse_frame(frame: Frame) -> NmeaRecord | Reject | None:
     return RECORDS[kind](frame[2], talker, *values)
 
 
-_HEX = {f"{i:02X}": i for i in range(256)} | {f"{i:02x}": i for i in range(256)}
-_HEX |= {f"{i:02X}"[0] + f"{i:02x}"[1]: i for i in range(256)} | {f"{i:02x}"[0] + f"{i:02X}"[1]: i for i in range(256)}
-
 # (sentence type, talker, values in record field order, byte offset, line, host time ns or None)
 Scanned = tuple[str, str, tuple, int, int, Union[int, None]]
 
@@ -454,8 +442,8 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
     """
     if prefix not in PREFIX_STYLES:
         raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
-    pxor = _prefix_xor(data)
-    parsers, hexes = VALUES, _HEX
+    pxor = prefix_xor(data)
+    parsers, hexes = VALUES, HEX
     offset = 0
     for number, raw in enumerate(data.decode("latin-1").split("\n"), start=1):
         line_start = offset

@@ -31,9 +31,10 @@ import math
 from dataclasses import dataclass
 from typing import Callable, Iterator, Union
 
-from .nmea import NAN, parse_tod, iter_frames
+from .lines import PREFIX_STYLES
+from .nmea import NAN, iter_frames, parse_tod
 from .records import Reject, Where
-from .sentence import build
+from .sentence import HEX, build, prefix_xor
 
 
 @dataclass(frozen=True, slots=True)
@@ -161,10 +162,13 @@ def _f(s: str) -> float:
     return float(s) if s else NAN
 
 
-def _three(f: list[str], n: int = 3) -> list[float]:
+def _three(f: list[str], n: int = 3) -> tuple[float, ...]:
     if len(f) < n:
         raise IndexError(f"{len(f)} fields, {n} needed")
-    return [_f(x) for x in f[:n]]
+    if n == 3:  # the common case unrolled: no generator per sentence
+        a, b, c = f[0], f[1], f[2]
+        return float(a) if a else NAN, float(b) if b else NAN, float(c) if c else NAN
+    return tuple(_f(x) for x in f[:n])
 
 
 def wrap_longitude(lon: float) -> float:
@@ -176,74 +180,97 @@ def wrap_longitude(lon: float) -> float:
     return (lon + 180.0) % 360.0 - 180.0
 
 
-def _words(kind: str) -> Callable[[list[str], Where], StatusWords]:
-    def parse(f: list[str], w: Where) -> StatusWords:
+# ---------------------------------------------------------------- per sentence
+# Each parser turns the fields after the sentence name into the record's values
+# in field order (everything after `where`): `scan()` hands these tuples to
+# converters that need no record objects, `decode()` wraps them.
+
+
+def _words(kind: str) -> Callable[[list[str]], tuple]:
+    def parse(f: list[str]) -> tuple:
         if not f or not f[0]:
             raise IndexError("no status word")
-        return StatusWords(w, kind, int(f[0], 16), int(f[1], 16) if len(f) > 1 and f[1] else 0)
+        return kind, int(f[0], 16), int(f[1], 16) if len(f) > 1 and f[1] else 0
 
     return parse
 
 
-def _positi(f: list[str], w: Where) -> Positi:
+def _positi(f: list[str]) -> tuple:
     lat, lon, alt = _three(f)
     if abs(lat) > 90.0 or not -360.0 <= lon <= 360.0:
         raise ValueError(f"position {lat}, {lon} out of range")
-    return Positi(w, lat, wrap_longitude(lon), alt)
+    return lat, wrap_longitude(lon), alt
 
 
-def _utmwgs(f: list[str], w: Where) -> Utmwgs:
+def _utmwgs(f: list[str]) -> tuple:
     if len(f) < 5:
         raise IndexError(f"{len(f)} fields, 5 needed")
-    return Utmwgs(w, f[0], int(f[1]) if f[1] else -1, _f(f[2]), _f(f[3]), _f(f[4]))
+    return f[0], int(f[1]) if f[1] else -1, _f(f[2]), _f(f[3]), _f(f[4])
 
 
-def _time(f: list[str], w: Where) -> Time:
+def _time(f: list[str]) -> tuple:
     if not f:
         raise IndexError("no time field")
-    return Time(w, parse_tod(f[0]))
+    return (parse_tod(f[0]),)
 
 
-PIXSE: dict[str, Callable[[list[str], Where], PhinsRecord]] = {
-    "ATITUD": lambda f, w: Atitud(w, *_three(f, 2)),
-    "POSITI": _positi,
-    "SPEED_": lambda f, w: Speed(w, *_three(f)),
-    "UTMWGS": _utmwgs,
-    "HEAVE_": lambda f, w: Heave(w, *_three(f)),
-    "TIME__": _time,
-    "STDHRP": lambda f, w: StdHrp(w, *_three(f)),
-    "STDPOS": lambda f, w: StdPos(w, *_three(f)),
-    "STDSPD": lambda f, w: StdSpd(w, *_three(f)),
-    "ALGSTS": _words("ALGSTS"),
-    "STATUS": _words("STATUS"),
-    "HT_STS": _words("HT_STS"),
+# $PIXSE sentence name -> (epoch key, values parser); the key is the record's
+# class name, or the status word's kind (each occurs once per burst)
+PIXSE: dict[str, tuple[str, Callable[[list[str]], tuple]]] = {
+    "ATITUD": ("Atitud", lambda f: _three(f, 2)),
+    "POSITI": ("Positi", _positi),
+    "SPEED_": ("Speed", _three),
+    "UTMWGS": ("Utmwgs", _utmwgs),
+    "HEAVE_": ("Heave", _three),
+    "TIME__": ("Time", _time),
+    "STDHRP": ("StdHrp", _three),
+    "STDPOS": ("StdPos", _three),
+    "STDSPD": ("StdSpd", _three),
+    "ALGSTS": ("ALGSTS", _words("ALGSTS")),
+    "STATUS": ("STATUS", _words("STATUS")),
+    "HT_STS": ("HT_STS", _words("HT_STS")),
+}
+RECORDS: dict[str, type] = {
+    "Heading": Heading, "Atitud": Atitud, "Positi": Positi, "Speed": Speed, "Utmwgs": Utmwgs, "Heave": Heave,
+    "Time": Time, "StdHrp": StdHrp, "StdPos": StdPos, "StdSpd": StdSpd, "ALGSTS": StatusWords,
+    "STATUS": StatusWords, "HT_STS": StatusWords, "Phtro": Phtro,
 }
 
 
-def _phtro(f: list[str], w: Where) -> Phtro:
+def _phtro(f: list[str]) -> tuple:
     if len(f) < 4:
         raise IndexError(f"{len(f)} fields, 4 needed")
     if f[1] not in ("M", "P", "") or f[3] not in ("B", "T", ""):
         raise ValueError(f"direction letters {f[1]!r}, {f[3]!r}")
     pitch, roll = _f(f[0]), _f(f[2])
-    return Phtro(w, -pitch if f[1] == "P" else pitch, -roll if f[3] == "B" else roll)
+    return -pitch if f[1] == "P" else pitch, -roll if f[3] == "B" else roll
+
+
+def _values(address: str, fields: list[str]) -> tuple[str, tuple] | None:
+    """(epoch key, record values) of a framed sentence; None for sentences of other decoders; raises when bad."""
+    if address == "PIXSE":
+        entry = PIXSE.get(fields[1]) if len(fields) > 1 else None
+        return (entry[0], entry[1](fields[2:])) if entry else None
+    if address == "PHTRO":
+        return "Phtro", _phtro(fields[1:])
+    if address[0] != "P" and address.endswith(("HDT", "THS")):
+        mode = fields[2] if address.endswith("THS") and len(fields) > 2 else ""
+        if len(fields) < 2:
+            raise IndexError("no heading field")
+        return "Heading", (address[:-3], _f(fields[1]), mode)
+    return None
+
+
+def _bad(address: str, fields: list[str], where: Where, exc: Exception) -> Reject:
+    return Reject(where, f"bad {address} {fields[1] if len(fields) > 1 else ''} sentence: {exc}".replace("  ", " "))
 
 
 def _parse(address: str, fields: list[str], where: Where) -> PhinsRecord | Reject | None:
     try:
-        if address == "PIXSE":
-            parser = PIXSE.get(fields[1]) if len(fields) > 1 else None
-            return parser(fields[2:], where) if parser else None
-        if address == "PHTRO":
-            return _phtro(fields[1:], where)
-        if address[0] != "P" and address.endswith(("HDT", "THS")):
-            mode = fields[2] if address.endswith("THS") and len(fields) > 2 else ""
-            if len(fields) < 2:
-                raise IndexError("no heading field")
-            return Heading(where, address[:-3], _f(fields[1]), mode)
+        found = _values(address, fields)
     except (ValueError, IndexError, OverflowError) as exc:
-        return Reject(where, f"bad {address} {fields[1] if len(fields) > 1 else ''} sentence: {exc}".replace("  ", " "))
-    return None
+        return _bad(address, fields, where, exc)
+    return None if found is None else RECORDS[found[0]](where, *found[1])
 
 
 def decode(data: bytes, prefix: str = "auto") -> Iterator[PhinsRecord | Reject]:
@@ -256,6 +283,67 @@ def decode(data: bytes, prefix: str = "auto") -> Iterator[PhinsRecord | Reject]:
         result = _parse(address, fields, where)
         if result is not None:
             yield result
+
+
+# (epoch key, values in record field order after `where`, byte offset, line, host time ns or None)
+Scanned = tuple[str, tuple, int, int, Union[int, None]]
+
+
+def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
+    """What `decode` yields, as plain tuples instead of records (for converters on the hot path).
+
+    The common line (``$ADDRS,...*HH``, nothing before it, one '$') is framed
+    here with the checksum from a prefix XOR of the whole buffer; everything
+    else goes through `iter_frames`' general path.
+    """
+    if prefix not in PREFIX_STYLES:
+        raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
+    pxor = prefix_xor(data)
+    hexes, values = HEX, _values
+    offset = 0
+    for number, raw in enumerate(data.decode("latin-1").split("\n"), start=1):
+        line_start = offset
+        offset += len(raw) + 1
+        star = raw.find("*")
+        given = hexes.get(raw[star + 1 : star + 3]) if star > 0 else None
+        if given is None or raw[0] != "$" or raw.count("$") != 1:
+            yield from _scan_general(raw, line_start, number, prefix)
+            continue
+        computed = pxor[line_start + star - 1] ^ pxor[line_start]
+        if given != computed:
+            yield Reject(Where(line_start, number), f"bad checksum {raw[star + 1 : star + 3]!r}, computed {computed:02X}",
+                         bad_checksum=True)
+            continue
+        fields = raw[1:star].split(",")
+        address = fields[0]
+        if len(address) < 3 or not (address.isascii() and address.isalnum()) or not address.isupper():
+            yield Reject(Where(line_start, number), f"malformed sentence address {address[:12]!r}")
+            continue
+        try:
+            found = values(address, fields)
+        except (ValueError, IndexError, OverflowError) as exc:
+            yield _bad(address, fields, Where(line_start, number), exc)
+            continue
+        if found is not None:
+            yield found[0], found[1], line_start, number, None
+
+
+def _scan_general(raw: str, line_start: int, number: int, prefix: str) -> Iterator[Scanned | Reject]:
+    """A line off the fast path: prefixes, noise, missing checksums, glued sentences, garbage."""
+    for item in iter_frames(raw.encode("latin-1"), prefix):
+        if type(item) is Reject:
+            where = Where(line_start, number, item.where.host_time_ns)  # type: ignore[union-attr]
+            yield Reject(where, item.reason, item.bad_checksum)  # type: ignore[union-attr]
+            continue
+        address, fields, w = item  # type: ignore[misc]
+        where = Where(line_start, number, w.host_time_ns)
+        try:
+            found = _values(address, fields)
+        except (ValueError, IndexError, OverflowError) as exc:
+            yield _bad(address, fields, where, exc)
+            continue
+        if found is not None:
+            yield found[0], found[1], line_start, number, where.host_time_ns
 
 
 # ---------------------------------------------------------------- encoders

@@ -79,3 +79,31 @@ def location_fix(
     ts = fix.timestamp
     ts.seconds, ts.nanos = divmod(int(t_ns), NS)
     return fix
+
+
+# auvreplay.InsState's doubles as wire bytes: fields 3..14 (one-byte tags), then 17..19 (two-byte tags)
+_INS_NUMBERS = struct.Struct("<" + "Bd" * 12 + "BBd" * 3)
+_INS_TAGS_LOW = tuple((n << 3) | 1 for n in range(3, 15))
+
+
+def ins_state(
+    t_ns: int, frame_id: str, source_format: str, status: str,
+    latitude: float, longitude: float, depth_m: float, roll_deg: float, pitch_deg: float, heading_deg: float,
+    velocity_north_mps: float, velocity_east_mps: float, velocity_down_mps: float,
+    heading_std_deg: float, position_std_north_m: float, position_std_east_m: float,
+    roll_std_deg: float, pitch_std_deg: float, altitude_m: float,
+) -> InsState:
+    """An auvreplay.InsState from every field (NaN where absent), built from packed wire bytes."""
+    # one parse of packed doubles costs a third of fifteen keyword arguments (see location_fix)
+    t = _INS_TAGS_LOW
+    msg = InsState.FromString(_INS_NUMBERS.pack(
+        t[0], latitude, t[1], longitude, t[2], depth_m, t[3], roll_deg, t[4], pitch_deg, t[5], heading_deg,
+        t[6], velocity_north_mps, t[7], velocity_east_mps, t[8], velocity_down_mps, t[9], heading_std_deg,
+        t[10], position_std_north_m, t[11], position_std_east_m,
+        0x89, 0x01, roll_std_deg, 0x91, 0x01, pitch_std_deg, 0x99, 0x01, altitude_m))
+    msg.frame_id = frame_id
+    msg.status = status
+    msg.source_format = source_format
+    ts = msg.timestamp
+    ts.seconds, ts.nanos = divmod(int(t_ns), NS)
+    return msg

@@ -10,6 +10,8 @@ from dataclasses import dataclass
 from functools import reduce
 from operator import xor
 
+import numpy as np
+
 
 @dataclass(frozen=True, slots=True)
 class Sentence:
@@ -24,6 +26,18 @@ class Sentence:
 def nmea_checksum(body: str) -> int:
     """XOR of the characters between '$' (exclusive) and '*' (exclusive)."""
     return reduce(xor, body.encode("latin-1"), 0)
+
+
+def prefix_xor(data: bytes) -> bytes:
+    """prefix[i] = XOR of data[0..i]; the XOR of data[a:b] is prefix[b-1] ^ prefix[a-1]."""
+    if not data:
+        return b""
+    return np.bitwise_xor.accumulate(np.frombuffer(data, dtype=np.uint8)).tobytes()
+
+
+# two hex digits (either case, mixed too) -> value: a checksum check is one dict lookup
+HEX = {f"{i:02X}": i for i in range(256)} | {f"{i:02x}": i for i in range(256)}
+HEX |= {f"{i:02X}"[0] + f"{i:02x}"[1]: i for i in range(256)} | {f"{i:02x}"[0] + f"{i:02X}"[1]: i for i in range(256)}
 
 
 def find_start(text: str, starts: str = "$!") -> int:

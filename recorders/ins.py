@@ -30,7 +30,7 @@ from typing import Iterator
 
 from formats import nmea, novatel, pashr, phins
 from formats import schemas as S
-from formats.records import Reject
+from formats.records import Reject, Where
 
 from .base import Converter, LogContext, Output, output
 from .clock import DayClock
@@ -45,14 +45,23 @@ NAV = (phins.Heading, phins.Atitud, phins.Positi, phins.Speed, phins.Phtro)
 
 def ins_state(t_ns: int, ctx: LogContext, source: str, **fields: object) -> S.InsState:  # type: ignore[name-defined]
     """An InsState with every float NaN unless given (proto3 would default them to 0)."""
-    values: dict[str, object] = {
-        "latitude": NAN, "longitude": NAN, "depth_m": NAN, "roll_deg": NAN, "pitch_deg": NAN,
-        "heading_deg": NAN, "velocity_north_mps": NAN, "velocity_east_mps": NAN, "velocity_down_mps": NAN,
-        "heading_std_deg": NAN, "position_std_north_m": NAN, "position_std_east_m": NAN,
-        "roll_std_deg": NAN, "pitch_std_deg": NAN, "altitude_m": NAN,
-    }
-    values.update(fields)
-    return S.InsState(timestamp=S.timestamp(t_ns), frame_id=ctx.vehicle, source_format=source, **values)
+    if not fields.keys() <= _INS_FIELDS:
+        raise ValueError(f"InsState has no field {sorted(fields.keys() - _INS_FIELDS)[0]!r}")
+    g = fields.get
+    return S.ins_state(
+        t_ns, ctx.vehicle, source, g("status", ""), g("latitude", NAN), g("longitude", NAN), g("depth_m", NAN),  # type: ignore[arg-type]
+        g("roll_deg", NAN), g("pitch_deg", NAN), g("heading_deg", NAN), g("velocity_north_mps", NAN),  # type: ignore[arg-type]
+        g("velocity_east_mps", NAN), g("velocity_down_mps", NAN), g("heading_std_deg", NAN),  # type: ignore[arg-type]
+        g("position_std_north_m", NAN), g("position_std_east_m", NAN), g("roll_std_deg", NAN),  # type: ignore[arg-type]
+        g("pitch_std_deg", NAN), g("altitude_m", NAN),  # type: ignore[arg-type]
+    )
+
+
+_INS_FIELDS = frozenset((
+    "status", "latitude", "longitude", "depth_m", "roll_deg", "pitch_deg", "heading_deg", "velocity_north_mps",
+    "velocity_east_mps", "velocity_down_mps", "heading_std_deg", "position_std_north_m", "position_std_east_m",
+    "roll_std_deg", "pitch_std_deg", "altitude_m",
+))
 
 
 # ---------------------------------------------------------------- PHINS
@@ -106,14 +115,85 @@ def _phins_outputs(epoch: list, ctx: LogContext, clock: DayClock) -> Iterator[Ou
     yield output(ctx, "ins", ins_state(t, ctx, "phins", **_phins_fields(epoch)), t, epoch[0].where)
 
 
-def convert_phins(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
-    """iXblue/Exail PHINS standard ASCII ($HEHDT, $PIXSE ..., $PHTRO), one InsState per burst."""
+def convert_phins_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """`convert_phins` the obvious way, over `phins.decode` records: the judge of the fast path in tests."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     for epoch in group_epochs(phins.decode(data, ctx.prefix), phins_key):
         if type(epoch) is Reject:
             yield epoch
         else:
             yield from _phins_outputs(epoch, ctx, clock)  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------- PHINS, fast path
+# The same bursts and messages as `convert_phins_reference`, over `phins.scan`
+# tuples (key, values, offset, line, host): one dict per burst, no records.
+
+_NAV_KEYS = ("Heading", "Atitud", "Positi", "Speed", "Phtro")
+
+
+def _phins_scan_fields(burst: dict[str, phins.Scanned]) -> tuple:
+    """`_phins_fields` on scanned values, as S.ins_state's arguments from `status` on."""
+    lat = lon = depth = roll = pitch = heading = vn = ve = vd = NAN
+    hstd = pn = pe = rstd = pstd = alt = NAN
+    words = []
+    for key, v, _, _, _ in burst.values():
+        if key == "Heading":
+            if v[2] != "V":
+                heading = v[1]
+        elif key == "Atitud":
+            roll, pitch = v[0], -v[1]
+        elif key == "Positi":
+            lat, lon, alt, depth = v[0], v[1], v[2], 0.0 - v[2]
+        elif key == "Speed":
+            vn, ve, vd = v[1], v[0], 0.0 - v[2]
+        elif key == "StdHrp":
+            hstd, rstd, pstd = v
+        elif key == "StdPos":
+            pn, pe = v[0], v[1]
+        elif key in ("ALGSTS", "STATUS", "HT_STS"):
+            words.append(f"{key}={v[1]:08X}" + ("" if key == "HT_STS" else f",{v[2]:08X}"))
+    ph = burst.get("Phtro")
+    if ph is not None and "Atitud" not in burst:
+        pitch, roll = ph[1]  # ATITUD wins wherever it stands in the burst
+    return " ".join(words), lat, lon, depth, roll, pitch, heading, vn, ve, vd, hstd, pn, pe, rstd, pstd, alt
+
+
+def _phins_scan_outputs(burst: dict[str, phins.Scanned], ctx: LogContext, clock: DayClock) -> Iterator[Output | Reject]:
+    """`_phins_outputs` on scanned values."""
+    if not any(k in burst for k in _NAV_KEYS):
+        return
+    first = next(iter(burst.values()))
+    stamp = burst.get("Time")
+    if stamp is not None and stamp[1][0] == stamp[1][0]:
+        t = clock.resolve(stamp[1][0])
+        if t is None:
+            yield Reject(Where(*stamp[2:]), "no date for PHINS TIME__: set the [trial] date in the manifest")
+            return
+    else:
+        t = next((item[4] + ctx.clock_offset_ns for item in burst.values() if item[4] is not None), None)
+        if t is None:
+            yield Reject(Where(*first[2:]), "no time: PHINS burst without TIME__ and without a host timestamp")
+            return
+    state = S.ins_state(t, ctx.vehicle, "phins", *_phins_scan_fields(burst))
+    publish = t if first[4] is None else first[4] + ctx.clock_offset_ns
+    yield Output(f"/{ctx.vehicle}/ins", state, t, publish, Where(*first[2:]))
+
+
+def convert_phins(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """iXblue/Exail PHINS standard ASCII ($HEHDT, $PIXSE ..., $PHTRO), one InsState per burst."""
+    clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
+    burst: dict[str, phins.Scanned] = {}
+    for item in phins.scan(data, ctx.prefix):
+        if type(item) is Reject:
+            yield item  # type: ignore[misc]
+            continue
+        if item[0] in burst:  # a repeated sentence starts the next burst (`group_epochs` with no times)
+            yield from _phins_scan_outputs(burst, ctx, clock)
+            burst = {}
+        burst[item[0]] = item  # type: ignore[index,assignment]
+    if burst:
+        yield from _phins_scan_outputs(burst, ctx, clock)
 
 
 # ---------------------------------------------------------------- $PASHR

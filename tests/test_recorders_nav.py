@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from formats import nmea, novatel, pashr, phins
 from formats import schemas as S
 from formats.records import Reject, Where
+from formats.sentence import build
 from recorders import gps, ins
 from recorders.base import LogContext, Output
 
@@ -237,3 +238,41 @@ def test_scan_and_decode_agree_on_any_bytes(data: bytes) -> None:
             assert r == s
         else:
             assert (type(r).__name__.upper(), r.talker, r.where) == (s[0], s[1], Where(*s[3:]))
+
+
+_PHINS_LINES = st.sampled_from([
+    lambda t: phins.encode_hehdt(10.0), lambda t: phins.encode_atitud(1.0, -2.0), lambda t: phins.encode_phtro(1.5, -2.0),
+    lambda t: phins.encode_positi(45.7, 233.4, -12.5), lambda t: phins.encode_speed(0.5, 1.0, -0.1),
+    lambda t: phins.encode_time(t), lambda t: phins.encode_stdhrp(0.1, 0.2, 0.3), lambda t: phins.encode_stdpos(1, 2, 3),
+    lambda t: phins.encode_status("ALGSTS", 0x45, 1), lambda t: phins.encode_status("HT_STS", 7),
+    lambda t: phins.encode_heave(0.0, 0.0, 0.0), lambda t: build("INTHS", ["12.0", "V"]), lambda t: build("HETHS", ["13.0", "A"]), lambda t: "garbage\x00\r\n",
+    lambda t: phins.encode_atitud(1.0, 2.0)[:-4] + "00\r\n",  # bad checksum
+    lambda t: "2016-10-12T08:00:05.500Z " + phins.encode_hehdt(15.0),  # host prefix
+    lambda t: "$PIXSE,TIME__,x*00\r\n", lambda t: "$PIXSE,POSITI,1,2\r\n",  # bad fields, no checksum
+])
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.tuples(_PHINS_LINES, st.integers(0, 2)), max_size=40), st.sampled_from([None, DAY]), st.integers(-2, 2))
+def test_fast_phins_path_equals_the_record_based_reference(parts, day, offset_s) -> None:
+    lines, t = [], T0
+    for make, step in parts:
+        t += step * S1 // 2
+        lines.append(make(t))
+    data = "".join(lines).encode("latin-1")
+    ctx = LogContext("boat", trial_date=day, clock_offset_ns=offset_s * S1)
+    fast, ref = list(ins.convert_phins(data, ctx)), list(ins.convert_phins_reference(data, ctx))
+    assert _scanned_outputs(fast) == _scanned_outputs(ref)
+
+
+_DOUBLE = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.just(-0.0), st.just(0.0))
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(0, 2**62), st.text(max_size=5), st.text(max_size=5), st.lists(_DOUBLE, min_size=15, max_size=15))
+def test_packed_ins_state_equals_the_keyword_constructor(t_ns, name, status, values) -> None:
+    keys = ("latitude", "longitude", "depth_m", "roll_deg", "pitch_deg", "heading_deg", "velocity_north_mps",
+            "velocity_east_mps", "velocity_down_mps", "heading_std_deg", "position_std_north_m", "position_std_east_m",
+            "roll_std_deg", "pitch_std_deg", "altitude_m")
+    ref = S.InsState(timestamp=S.timestamp(t_ns), frame_id=name, source_format="src", status=status, **dict(zip(keys, values)))
+    assert S.ins_state(t_ns, name, "src", status, *values).SerializeToString() == ref.SerializeToString()
