@@ -11,6 +11,9 @@ Decoding follows NMEA 0183 v4.10 field layouts (the same ones gpsd's
   `Reject`; a failed checksum is a `Reject` with ``bad_checksum=True``;
   a missing checksum is accepted; hex digits may be lowercase;
 - empty fields become NaN (floats) or -1 (counts), never zero;
+- a latitude or longitude with fewer than three digits before the point
+  ('37.352387': decimal degrees written by some converters) is a `Reject`,
+  not 0°37'; a VTG that stops after the knots pair has NaN km/h;
 - host-timestamp prefixes are removed with `formats.lines.strip_prefix`.
 
 Checksums are checked against a prefix-XOR of the whole buffer computed once
