@@ -54,6 +54,7 @@ OP_STATISTICS, OP_METADATA, OP_METADATA_INDEX, OP_SUMMARY_OFFSET, OP_DATA_END = 
 # opcode, record length, channel id, sequence, log time, publish time; the data follows
 _MESSAGE = struct.Struct("<BQHIQQ")
 _MESSAGE_FIXED = 2 + 4 + 8 + 8
+_pack_message = _MESSAGE.pack
 _RECORD = struct.Struct("<BQ")
 _U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
 _CHUNK_HEAD = struct.Struct("<QQQI")  # start, end, uncompressed size, uncompressed CRC
@@ -183,10 +184,11 @@ class ArchiveWriter:
         data = message.SerializeToString()
         buf = self._chunk
         offset = len(buf)
-        buf += _MESSAGE.pack(OP_MESSAGE, _MESSAGE_FIXED + len(data), ch.id, ch.count & _SEQUENCE_MASK, log_time_ns,
-                             log_time_ns if publish_time_ns is None else publish_time_ns)
-        buf += data
-        ch.count += 1
+        count = ch.count
+        # one append of header + data: the extra bytes object is cheaper than a second bytearray resize
+        buf += _pack_message(OP_MESSAGE, _MESSAGE_FIXED + len(data), ch.id, count & 0xFFFFFFFF, log_time_ns,
+                             log_time_ns if publish_time_ns is None else publish_time_ns) + data
+        ch.count = count + 1
         ch.index.append((log_time_ns, offset))
         if len(buf) >= self._chunk_size:
             self._finish_chunk()

@@ -212,6 +212,7 @@ def _lon(s: str, hemi: str) -> float:
     return _angle(s, hemi, "W", 180.0)
 
 
+@lru_cache(maxsize=16)  # one date per day of log: a dict hit instead of a date() per RMC
 def _ddmmyy(s: str) -> date | None:
     if not s:
         return None
@@ -238,7 +239,8 @@ def _opt(fields: list[str], i: int) -> str:
 
 
 def _gga(f: list[str]) -> tuple:
-    _need(f, 9, "GGA")
+    if len(f) < 9:  # checked inline: a call per sentence is a tenth of its parse
+        _need(f, 9, "GGA")
     if len(f) < 14:
         f = f + [""] * (14 - len(f))
     # inline conversions: GGA is the hot sentence of every log
@@ -250,7 +252,8 @@ def _gga(f: list[str]) -> tuple:
 
 
 def _rmc(f: list[str]) -> tuple:
-    _need(f, 9, "RMC")
+    if len(f) < 9:
+        _need(f, 9, "RMC")
     if len(f) < 12:
         f = f + [""] * (12 - len(f))
     var = float(f[9]) if f[9] else NAN
@@ -261,11 +264,17 @@ def _rmc(f: list[str]) -> tuple:
 
 
 def _zda(f: list[str]) -> tuple:
-    _need(f, 4, "ZDA")
+    if len(f) < 4:
+        _need(f, 4, "ZDA")
     if len(f) < 6:
         f = f + [""] * (6 - len(f))
-    day = date(int(f[3]), int(f[2]), int(f[1])) if f[1] and f[2] and f[3] else None
+    day = _zda_date(f[3], f[2], f[1]) if f[1] and f[2] and f[3] else None
     return parse_tod(f[0]), day, int(f[4]) if f[4] else -1, int(f[5]) if f[5] else -1
+
+
+@lru_cache(maxsize=16)
+def _zda_date(year: str, month: str, day: str) -> date:
+    return date(int(year), int(month), int(day))
 
 
 def _vtg(f: list[str]) -> tuple:
@@ -277,7 +286,8 @@ def _vtg(f: list[str]) -> tuple:
 
 
 def _gst(f: list[str]) -> tuple:
-    _need(f, 8, "GST")
+    if len(f) < 8:
+        _need(f, 8, "GST")
     return (
         parse_tod(f[0]), float(f[1]) if f[1] else NAN, float(f[2]) if f[2] else NAN, float(f[3]) if f[3] else NAN,
         float(f[4]) if f[4] else NAN, float(f[5]) if f[5] else NAN, float(f[6]) if f[6] else NAN,
@@ -296,7 +306,8 @@ def _ths(f: list[str]) -> tuple:
 
 
 def _gll(f: list[str]) -> tuple:
-    _need(f, 4, "GLL")
+    if len(f) < 4:
+        _need(f, 4, "GLL")
     if len(f) < 7:
         f = f + [""] * (7 - len(f))
     return _lat(f[0], f[1]), _lon(f[2], f[3]), parse_tod(f[4]), f[5] == "A", f[6]

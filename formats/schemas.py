@@ -107,3 +107,21 @@ def ins_state(
     ts = msg.timestamp
     ts.seconds, ts.nanos = divmod(int(t_ns), NS)
     return msg
+
+
+_GNSS_NUMBERS = struct.Struct("<BdBdBdBd")  # auvreplay.GnssStatus doubles: hdop (5), speed, course, heading (7..9)
+
+
+def gnss_status(
+    t_ns: int, frame_id: str, fix_quality: int, satellites: int, hdop: float, source_format: str,
+    speed_mps: float, course_deg: float, heading_deg: float,
+) -> GnssStatus:
+    """An auvreplay.GnssStatus, its doubles parsed from packed wire bytes (as `ins_state`)."""
+    msg = GnssStatus.FromString(_GNSS_NUMBERS.pack(0x29, hdop, 0x39, speed_mps, 0x41, course_deg, 0x49, heading_deg))
+    msg.frame_id = frame_id
+    msg.fix_quality = fix_quality
+    msg.satellites = satellites
+    msg.source_format = source_format
+    ts = msg.timestamp
+    ts.seconds, ts.nanos = divmod(int(t_ns), NS)
+    return msg

@@ -63,14 +63,7 @@ def gnss_status(
     speed_mps: float, course_deg: float, heading_deg: float,
 ) -> S.GnssStatus:
     """An auvreplay.GnssStatus stamped `t_ns` (ns, UTC)."""
-    status = S.GnssStatus(
-        frame_id=frame_id, fix_quality=fix_quality, satellites=satellites, hdop=hdop, source_format=source_format,
-        speed_over_ground_mps=speed_mps, course_over_ground_deg=course_deg, heading_deg=heading_deg,
-    )
-    # the stamp set in place: a Timestamp keyword would be built and then copied (3x the cost)
-    ts = status.timestamp
-    ts.seconds, ts.nanos = divmod(int(t_ns), NS)
-    return status
+    return S.gnss_status(t_ns, frame_id, fix_quality, satellites, hdop, source_format, speed_mps, course_deg, heading_deg)
 
 
 def group_epochs(
@@ -233,36 +226,6 @@ def convert_nmea_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Re
 # per sentence, one dict per epoch. Value positions follow the record fields.
 
 
-def _where(item: nmea.Scanned) -> Where:
-    return Where(item[3], item[4], item[5])
-
-
-def _scan_epochs(data: bytes, ctx: LogContext) -> Iterator[dict[str, nmea.Scanned] | Reject]:
-    """`group_epochs` over `nmea.scan`: epochs as {sentence type: scanned tuple} in arrival order."""
-    time_index = nmea.TIME_INDEX
-    epoch: dict[str, nmea.Scanned] = {}
-    epoch_time: int | None = None
-    for item in nmea.scan(data, ctx.prefix):
-        if type(item) is Reject:
-            yield item  # type: ignore[misc]
-            continue
-        kind = item[0]
-        i = time_index.get(kind)  # type: ignore[arg-type]
-        t = None
-        if i is not None:
-            tod = item[2][i]  # type: ignore[index]
-            if tod == tod:
-                t = round(tod * 1000)
-        if epoch and (kind in epoch or (t is not None and epoch_time is not None and t != epoch_time)):
-            yield epoch
-            epoch, epoch_time = {}, None
-        epoch[kind] = item  # type: ignore[index,assignment]
-        if epoch_time is None:
-            epoch_time = t
-    if epoch:
-        yield epoch
-
-
 def _scan_date(epoch: dict[str, nmea.Scanned], clock: DayClock) -> None:
     """`nmea_update_date` on scanned values: ZDA's date, else a valid RMC's."""
     zda = epoch.get("ZDA")
@@ -281,11 +244,11 @@ def _scan_time(epoch: dict[str, nmea.Scanned], clock: DayClock, ctx: LogContext)
         i = time_index.get(item[0])
         if i is not None and item[2][i] == item[2][i]:
             resolved = clock.resolve(item[2][i])
-            return Reject(_where(item), NO_DATE.format(item[2][i])) if resolved is None else resolved
+            return Reject(Where(*item[3:]), NO_DATE.format(item[2][i])) if resolved is None else resolved
     for item in epoch.values():
         if item[5] is not None:
             return item[5] + ctx.clock_offset_ns
-    return Reject(_where(next(iter(epoch.values()))), NO_TIME)
+    return Reject(Where(*next(iter(epoch.values()))[3:]), NO_TIME)
 
 
 def _scan_position(epoch: dict[str, nmea.Scanned]) -> tuple[nmea.Scanned, float, float, float] | None:
@@ -333,39 +296,60 @@ def _scan_motion(epoch: dict[str, nmea.Scanned]) -> tuple[float, float, float]:
     return speed, course, heading
 
 
-def _scan_outputs(epoch: dict[str, nmea.Scanned], ctx: LogContext, clock: DayClock) -> Iterator[Output | Reject]:
-    """`_nmea_outputs` on scanned values."""
+def _scan_outputs(
+    epoch: dict[str, nmea.Scanned], ctx: LogContext, clock: DayClock, topics: tuple[str, str],
+) -> tuple[Output | Reject, ...]:
+    """`_nmea_outputs` on scanned values, as a tuple (a generator per epoch costs more than the epoch)."""
     _scan_date(epoch, clock)
     if len(epoch) == 1 and "ZDA" in epoch:
-        return  # a date-only epoch: nothing to emit, but the date counts
+        return ()  # a date-only epoch: nothing to emit, but the date counts
     t = _scan_time(epoch, clock, ctx)
     if type(t) is Reject:
-        yield t  # type: ignore[misc]
-        return
+        return (t,)  # type: ignore[return-value]
     pos = _scan_position(epoch)
     source = pos[0] if pos is not None else next(iter(epoch.values()))
-    where = _where(source)
+    where = Where(source[3], source[4], source[5])
     publish = t if source[5] is None else source[5] + ctx.clock_offset_ns
-    if pos is not None:
-        cov, kind = _scan_covariance(epoch, ctx)
-        fix = S.location_fix(t, ctx.vehicle, pos[1], pos[2], pos[3], cov, kind)  # type: ignore[arg-type]
-        yield Output(f"/{ctx.vehicle}/gps", fix, t, publish, where)  # type: ignore[arg-type]
     g = epoch.get("GGA")
-    status = gnss_status(
+    status = S.gnss_status(
         t, ctx.vehicle, g[2][3] if g is not None else -1, g[2][4] if g is not None else -1,  # type: ignore[arg-type]
         g[2][5] if g is not None else NAN, "nmea:" + ",".join(epoch), *_scan_motion(epoch),
     )
-    yield Output(f"/{ctx.vehicle}/gps/status", status, t, publish, where)  # type: ignore[arg-type]
+    status_out = Output(topics[1], status, t, publish, where)  # type: ignore[arg-type]
+    if pos is None:
+        return (status_out,)
+    cov, kind = _scan_covariance(epoch, ctx)
+    fix = S.location_fix(t, ctx.vehicle, pos[1], pos[2], pos[3], cov, kind)  # type: ignore[arg-type]
+    return Output(topics[0], fix, t, publish, where), status_out  # type: ignore[arg-type]
 
 
 def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """NMEA 0183 GNSS sentences (GGA, RMC, GLL, GST, VTG, ZDA, HDT, THS; any talker)."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
-    for epoch in _scan_epochs(data, ctx):
-        if type(epoch) is Reject:
-            yield epoch  # type: ignore[misc]
-        else:
-            yield from _scan_outputs(epoch, ctx, clock)  # type: ignore[arg-type]
+    topics = (f"/{ctx.vehicle}/gps", f"/{ctx.vehicle}/gps/status")
+    # `group_epochs` over `nmea.scan`, inline: epochs as {sentence type: scanned tuple} in arrival order
+    time_index = nmea.TIME_INDEX
+    epoch: dict[str, nmea.Scanned] = {}
+    epoch_time: int | None = None
+    for item in nmea.scan(data, ctx.prefix):
+        if type(item) is Reject:
+            yield item  # type: ignore[misc]
+            continue
+        kind = item[0]
+        i = time_index.get(kind)  # type: ignore[arg-type]
+        t = None
+        if i is not None:
+            tod = item[2][i]  # type: ignore[index]
+            if tod == tod:
+                t = round(tod * 1000)
+        if epoch and (kind in epoch or (t is not None and epoch_time is not None and t != epoch_time)):
+            yield from _scan_outputs(epoch, ctx, clock, topics)
+            epoch, epoch_time = {}, None
+        epoch[kind] = item  # type: ignore[index,assignment]
+        if epoch_time is None:
+            epoch_time = t
+    if epoch:
+        yield from _scan_outputs(epoch, ctx, clock, topics)
 
 
 # ---------------------------------------------------------------- NovAtel

@@ -276,3 +276,15 @@ def test_packed_ins_state_equals_the_keyword_constructor(t_ns, name, status, val
             "roll_std_deg", "pitch_std_deg", "altitude_m")
     ref = S.InsState(timestamp=S.timestamp(t_ns), frame_id=name, source_format="src", status=status, **dict(zip(keys, values)))
     assert S.ins_state(t_ns, name, "src", status, *values).SerializeToString() == ref.SerializeToString()
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(0, 2**62), st.text(max_size=5), st.integers(-1, 9), st.integers(-1, 40), st.text(max_size=12),
+       st.lists(_DOUBLE, min_size=4, max_size=4))
+def test_packed_gnss_status_equals_the_keyword_constructor(t_ns, name, quality, sats, source, values) -> None:
+    hdop, speed, course, heading = values
+    ref = S.GnssStatus(timestamp=S.timestamp(t_ns), frame_id=name, fix_quality=quality, satellites=sats, hdop=hdop,
+                       source_format=source, speed_over_ground_mps=speed, course_over_ground_deg=course,
+                       heading_deg=heading)
+    got = S.gnss_status(t_ns, name, quality, sats, hdop, source, speed, course, heading)
+    assert got.SerializeToString() == ref.SerializeToString()
