@@ -16,7 +16,7 @@ from typing import Any, Callable
 
 from .layout import FollowerPlan
 from .run_config import RunConfig
-from .stack.model import horizontal_distance_m
+from .stack.model import horizontal_distance_scalar
 from .stack.runner import CooperativeRunner, EpochResult
 from .tracks import Fix, Track
 
@@ -60,7 +60,7 @@ class FollowerPipeline:
         self._seq = 0
         self._heading: tuple[float, float] | None = None   # (t_s, heading deg)
         self._depth = 0.0
-        self._prev: tuple[float, dict[str, tuple[float, ...]]] | None = None
+        self._prev: tuple[float, dict[str, tuple[float, float]]] | None = None
         self._pending_gps: list[Fix] = []
         self._last_output_s = -math.inf
 
@@ -145,7 +145,7 @@ class FollowerPipeline:
             self.config.stack, self.plan.name, self.plan.leaders, start_time_s=0.0,
             initial_lat_rad=fix.lat_rad, initial_lon_rad=fix.lon_rad, initial_depth_m=self._depth,
             keep_history=False)
-        self._prev = (0.0, self.runner.estimates())
+        self._prev = (0.0, self.runner.positions())
         return True
 
     def _range(self, t_s: float, leader: str, slant_m: float) -> None:
@@ -157,7 +157,7 @@ class FollowerPipeline:
         truth = math.nan
         own, other = self.tracks[self.plan.name].gps.at(t_s, gap), self.tracks[leader].gps.at(t_s, gap)
         if own is not None and other is not None:
-            truth = float(horizontal_distance_m(own.lat_rad, own.lon_rad, other.lat_rad, other.lon_rad))
+            truth = horizontal_distance_scalar(own.lat_rad, own.lon_rad, other.lat_rad, other.lon_rad)
         results = self.runner.range_epoch(t_s, leader, pos.lat_rad, pos.lon_rad, pos.depth_m, slant_m, truth)
         if results:
             self.on_epoch(self.plan.name, results)
@@ -165,7 +165,7 @@ class FollowerPipeline:
 
     def _after_step(self, t_s: float, force: bool = False) -> None:
         """Errors at GPS fixes between the last two estimates; estimates out at most once a second."""
-        now = self.runner.estimates()
+        now = self.runner.positions()
         prev_t, prev = self._prev
         samples: list[ErrorSample] = []
         keep: list[Fix] = []
@@ -181,14 +181,14 @@ class FollowerPipeline:
                 lat = p[0] + w * (est[0] - p[0])
                 lon = p[1] + w * (est[1] - p[1])
                 samples.append(ErrorSample(fix.t_s, method,
-                                           float(horizontal_distance_m(lat, lon, fix.lat_rad, fix.lon_rad))))
+                                           horizontal_distance_scalar(lat, lon, fix.lat_rad, fix.lon_rad)))
         self._pending_gps = keep
         if samples:
             self.on_error(self.plan.name, samples)
         self._prev = (t_s, now)
         if force or t_s - self._last_output_s >= 1.0:
             self._last_output_s = t_s
-            self.on_estimates(self.plan.name, t_s, now)
+            self.on_estimates(self.plan.name, t_s, self.runner.estimates())
 
     def finish(self) -> None:
         """Release everything still queued."""

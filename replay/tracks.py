@@ -32,7 +32,7 @@ class Track:
 
     def add(self, fix: Fix) -> None:
         """Append a fix; out-of-order fixes older than the newest are dropped (counted by caller)."""
-        if not all(math.isfinite(v) for v in (fix.t_s, fix.lat_rad, fix.lon_rad)):
+        if not math.isfinite(fix.t_s + fix.lat_rad + fix.lon_rad):   # a NaN or inf anywhere
             return
         if self._t and fix.t_s <= self._t[-1]:
             return

@@ -313,6 +313,10 @@ class CooperativeRunner:
         return {m.name: (m.state.lat, m.state.lon, *_cov_m2(m.state, self._depth))
                 for m in self._methods if m.name in self._reported}
 
+    def positions(self) -> dict[str, tuple[float, float]]:
+        """Each reported method's current lat, lon (rad): `estimates` without the covariances."""
+        return {m.name: (m.state.lat, m.state.lon) for m in self._methods if m.name in self._reported}
+
     def detectors(self, method: str) -> dict[str, Detector | None]:
         """The trained detector per leader of a detecting method ({} before t_a); for views and tests."""
         return next((dict(m.detectors) for m in self._methods if m.name == method), {})
