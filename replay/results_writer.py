@@ -11,7 +11,7 @@ from formats.mcap_writer import ArchiveWriter
 from .engine import Listener
 from .follower import ErrorSample
 from .stack.config import DETECTING_METHODS
-from .stack.model import metric_scales
+from .stack.model import offset_to_latlon
 from .stack.runner import EpochResult, RunResults
 from .usbl_epochs import UsblEpoch
 
@@ -70,13 +70,13 @@ class ResultsWriter(Listener):
         if origin is None:
             return
         t = self._ns(epoch.t_s)
-        b, a = metric_scales(origin[0], 0.0)
         for method, (e, n) in positions.items():
             if not (math.isfinite(e) and math.isfinite(n)):
                 continue
             cov = epoch.fix.covariance if method == "kmcdf2" else None
             cov_enu = _cov_enu(cov[1, 1], cov[0, 1], cov[0, 0]) if cov is not None else None
-            fix = S.location_fix(t, epoch.target, (origin[0] + n / b) * RAD, (origin[1] + e / a) * RAD, math.nan,
+            lat, lon = offset_to_latlon(n, e, *origin)     # the inverse of how the engine made e, n
+            fix = S.location_fix(t, epoch.target, lat * RAD, lon * RAD, math.nan,
                                  cov_enu, S.COVARIANCE_KNOWN if cov_enu else S.COVARIANCE_UNKNOWN)
             self.w.write(f"/replay/{self.run}/{epoch.target}/{method}", fix, t)
 
