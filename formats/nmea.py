@@ -189,6 +189,11 @@ def _angle(s: str, hemi: str, neg: str, limit: float) -> float:
         return NAN
     if not s.replace(".", "", 1).isdigit():
         raise ValueError(f"angle {s!r} is not (d)ddmm.mmmm")
+    dot = s.find(".")
+    if (dot if dot >= 0 else len(s)) < 3:
+        # some receivers and converters write decimal degrees ('37.352387'); read
+        # as ddmm that is 0°37' -- thousands of km off without a sign of error
+        raise ValueError(f"angle {s!r} has no degrees before mm.mmmm (decimal degrees?)")
     v = float(s)
     deg = v // 100.0
     minutes = v - deg * 100.0  # exact: both terms are within a factor of two (Sterbenz)
@@ -278,8 +283,10 @@ def _zda_date(year: str, month: str, day: str) -> date:
 
 
 def _vtg(f: list[str]) -> tuple:
-    if len(f) >= 7 and f[1] in ("T", "") and f[3] in ("M", ""):
-        return _float(f[0]), _float(f[2]), _float(f[4]), _float(f[6]), _opt(f, 8)
+    labelled = len(f) >= 7 and f[1] in ("T", "") and f[3] in ("M", "")
+    if labelled or (len(f) >= 4 and (f[1] == "T" or f[3] == "M")):
+        # some receivers stop after the knots pair ('$GPVTG,,T,,M,0.00,N'): km/h is then NaN
+        return _float(f[0]), _float(_opt(f, 2)), _float(_opt(f, 4)), _float(_opt(f, 6)), _opt(f, 8)
     # NMEA 1.x layout without unit letters: course true, course magnetic, knots, km/h
     _need(f, 4, "VTG")
     return _float(f[0]), _float(f[1]), _float(f[2]), _float(f[3]), ""
