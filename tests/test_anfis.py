@@ -243,3 +243,28 @@ def test_output_surface_matches_predict() -> None:
     u, v, z = A.output_surface(m, pair=(0, 2), fixed=0.3, resolution=7)
     assert u.shape == (7,) and z.shape == (7, 7)
     assert z[2, 5] == pytest.approx(A.predict(m, np.array([[u[2], 0.3, v[5]]]))[0], rel=1e-12)
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.integers(0, 10_000), st.sampled_from([("grid", 2), ("grid", 3), ("diagonal", 3)]),
+       st.lists(st.one_of(st.floats(-50.0, 150.0), st.sampled_from([float("inf"), -float("inf"), 1e300])),
+                min_size=3, max_size=3))
+def test_point_predictor_equals_predict(seed: int, layout: tuple[str, int], feats: list[float]) -> None:
+    """The one-epoch predictor gives predict()'s output on normalized, clipped inputs."""
+    structure, mfs = layout
+    rng = np.random.default_rng(seed)
+    m = random_model(rng, mfs, structure)
+    lo, hi = np.array([0.0, 1.0, 9.0]), np.array([40.0, 60.0, 900.0])
+    point = A.PointPredictor(m, lo, hi)
+    want = A.predict(m, A.normalize(np.array([feats]), lo, hi))[0]
+    assert point(feats) == pytest.approx(want, rel=1e-12, abs=1e-12)
+
+
+def test_point_predictor_nan_and_far_tails() -> None:
+    rng = np.random.default_rng(3)
+    m = random_model(rng)
+    point = A.PointPredictor(m, np.zeros(3), np.ones(3))
+    assert np.isnan(point([0.5, float("nan"), 0.5]))
+    steep = m.with_premise(m.a * 1e-3, m.b * 400.0, m.c)      # |t|^(2b) overflows a Python float
+    got = A.PointPredictor(steep, np.zeros(3), np.ones(3))([1.0, 0.0, 0.37])
+    assert got == pytest.approx(A.predict(steep, np.array([[1.0, 0.0, 0.37]]))[0], rel=1e-9, abs=1e-12)

@@ -21,6 +21,7 @@ import numpy as np
 
 from .anfis import (
     AnfisModel,
+    PointPredictor,
     TrainingHistory,
     TrainingResult,
     initial_model,
@@ -111,6 +112,7 @@ class AnfisDetector:
         self.threshold = float("nan")
         self.training_samples = 0
         self.training_anomalies = 0
+        self._point: PointPredictor | None = None   # one-epoch predictor of the trained model
 
     @property
     def trained(self) -> bool:
@@ -141,6 +143,7 @@ class AnfisDetector:
         lab = np.asarray(labels).ravel()
         self.training_anomalies = int(np.sum(lab[ok] == 1)) if lab.shape == ok.shape else 0
         self.training_samples = int(x.shape[0])
+        self._point = None
         if x.shape[0] == 0:
             self.result = None
             return
@@ -187,7 +190,12 @@ class AnfisDetector:
 
     def decide(self, features: np.ndarray) -> Decision:
         """One epoch: flagged when the score exceeds the threshold; NaN features are never flagged."""
-        out = float(self.predict(np.asarray(features, dtype=float).reshape(1, -1))[0])
+        if self.result is None:
+            out = float("nan")
+        else:
+            if self._point is None:
+                self._point = PointPredictor(self.result.model, self.input_min, self.input_max)
+            out = self._point([float(v) for v in np.ravel(features)])
         score = abs(out) if self.compensation else out
         flagged = bool(score > self.threshold)      # NaN compares False
         correction = out if (self.compensation and flagged) else 0.0
