@@ -227,7 +227,9 @@ def test_pynmea2_nortek_bottom_track() -> None:
     assert (b0.beam, b0.dt1_s, b0.dt2_s, b0.status) == (1, 23.961, -48.122, "0x00000000")
     assert all(math.isnan(x) for x in (b0.velocity_mps, b0.figure_of_merit, b0.distance_m))
     # Date 040721: pynmea2 reads it as NMEA ddmmyy (2021-07-04); the Nortek DF350/351
-    # field is MMDDYY, as formats/nortek.py documents: 2021-04-07. Time of day agrees.
+    # field is MMDDYY, as formats/nortek.py documents: 2021-04-07. Nortek's Signature
+    # Integrator's Guide (2017, section 7.4) shows $PNORBT,3,112813,... for DATE=112813,
+    # which only MMDDYY can read (no month 28). Time of day agrees.
     assert b0.time_ns == 1617801215 * NS + 334_100_000  # 2021-04-07T13:13:35.3341Z
     b4 = recs["PNORBT4"]
     # pynmea2: dt1 1.234, dt2 -1.234, sound_speed (its name for speed) 1.234, dir 23.4,
