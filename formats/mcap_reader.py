@@ -67,6 +67,8 @@ def _check_magic(path: Path) -> None:
         size = path.stat().st_size
     except OSError as exc:
         raise FormatError(f"{path}: cannot read ({exc.strerror or exc})") from exc
+    if path.is_dir():
+        raise FormatError(f"{path}: a directory, not an MCAP archive")
     if size == 0:
         raise FormatError(f"{path}: empty file, not an MCAP archive")
     with open(path, "rb") as f:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import math
 import tomllib
 import types
 import typing
@@ -163,6 +164,11 @@ def load_config(path: str | Path | None = None, overrides: list[str] = (), windo
         cfg = dataclasses.replace(cfg, engine=dataclasses.replace(cfg.engine, window_s=tuple(window)))
     if rate is not None:
         cfg = dataclasses.replace(cfg, engine=dataclasses.replace(cfg.engine, rate=rate))
+    w = cfg.engine.window_s
+    if w is not None and not (len(w) == 2 and math.isfinite(w[0]) and math.isfinite(w[1]) and w[0] < w[1]):
+        raise UserError(f"window {list(w)}: expected two finite times T0 < T1 (seconds from the trial start)")
+    if not (math.isfinite(cfg.engine.rate) and cfg.engine.rate >= 0):
+        raise UserError(f"rate {cfg.engine.rate}: expected >= 0 (0 = as fast as possible)")
     bad = [m for m in cfg.stack.methods if m not in METHODS]
     if bad:
         raise UserError(f"configuration methods: unknown {', '.join(bad)} (known: {', '.join(METHODS)})")

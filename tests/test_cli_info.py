@@ -59,6 +59,12 @@ def test_missing_file_exits_1(tmp_path, capsys):
     assert "nope.mcap" in capsys.readouterr().err
 
 
+def test_a_directory_is_named_as_one(tmp_path, capsys):
+    assert main(["info", str(tmp_path)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "a directory, not an MCAP archive" in err[0]
+
+
 def test_truncated_file_is_recovered_with_a_warning(archive, tmp_path, capsys):
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(archive.read_bytes()[:-200])

@@ -29,6 +29,15 @@ def test_toml_then_overrides(tmp_path):
     assert c.engine.window_s == (600.0, 1700.0) and c.engine.rate == 4.0
 
 
+@pytest.mark.parametrize("window, rate, words", [
+    ((5.0, 1.0), None, "expected two finite times T0 < T1"), ((0.0, float("inf")), None, "T0 < T1"),
+    (None, -1.0, "rate -1.0: expected >= 0"), (None, float("nan"), "expected >= 0"),
+])
+def test_bad_window_or_rate(window, rate, words):
+    with pytest.raises(UserError, match=words):
+        load_config(None, [], window, rate)
+
+
 @pytest.mark.parametrize("item, words", [
     ("nokey=1", "unknown key 'stack.nokey'"), ("anfis.epochs=x", "not a valid int"),
     ("r_m", "expected key=value"), ("methods=ckf,bogus", "unknown bogus"),

@@ -285,6 +285,8 @@ def test_simulate_command(tmp_path, capsys):
     bad.write_text("[trial]\nduration_s = -5\n")
     assert main(["simulate", "-o", str(tmp_path / "x"), "--scenario", str(bad)]) == 1
     assert "scenario" in capsys.readouterr().err
+    assert main(["simulate", "-o", str(tmp_path / "y"), "--seed", "-1"]) == 1
+    assert "--seed must be >= 0" in capsys.readouterr().err and not (tmp_path / "y").exists()
 
 
 def test_trial_config_defaults_are_the_source_trial():

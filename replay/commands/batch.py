@@ -100,7 +100,9 @@ def run(args: argparse.Namespace) -> int:
                  "metrics": r["metrics"]} for r in records]
         print(json.dumps({"output": args.output, "runs": runs, "failed": len(failed)}, indent=2))
     elif not args.quiet:
-        print(_text(summary_table(df)))
+        table = summary_table(df)
+        if len(table):
+            print(_text(table))
         print(f"{len(records)} runs, {len(failed)} failed; table: {args.output}/metrics.parquet, "
               f"{args.output}/metrics.csv; results: {args.output}/runs/")
     for r in failed:

@@ -37,6 +37,8 @@ def _scenario(args: argparse.Namespace):
 
     try:
         base = load_scenario(args.scenario) if args.scenario else Scenario()
+        if args.seed < 0:
+            raise ScenarioError("--seed must be >= 0")
         if args.duration is not None and args.duration <= 0:
             raise ScenarioError("--duration must be > 0")
         if args.followers is not None and args.followers < 1:
