@@ -157,6 +157,8 @@ def record(manifest: Manifest, output_path, progress: Progress | None = None) ->
     summary = RecordingSummary()
     fallback = date_to_ns(manifest.date) if manifest.date else 0
     with ArchiveWriter(output_path) as writer:
+        # first, so that an archive cut off mid-write still says who is who
+        writer.add_metadata("trial", _trial_metadata(manifest))
         for log in manifest.logs():
             data = (manifest.root / log.path).read_bytes()
             stats = FileStats(log.path, log.vehicle, log.sensor, log.format, len(data), hashlib.sha256(data).hexdigest())
@@ -174,6 +176,5 @@ def record(manifest: Manifest, output_path, progress: Progress | None = None) ->
             rec.finish()
             if progress is not None:
                 progress(log.path, len(data), len(data))
-        writer.add_metadata("trial", _trial_metadata(manifest))
         writer.add_metadata("recording", {"files": [f.as_json() for f in summary.files]})
     return summary

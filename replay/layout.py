@@ -1,8 +1,9 @@
 """Who is in a trial archive and what each vehicle can run: followers, leaders, buoys, topics.
 
 Roles come from the archive's `trial` metadata; when it is missing, they are
-guessed from the topics (a vehicle with DVL and modem ranges is a follower,
-one with USBL observations a buoy, the rest leaders) and the guess is reported.
+guessed from the topics (a vehicle with USBL observations is a buoy, one with
+a DVL a follower, or one with modem ranges where no vehicle has a DVL, the
+rest leaders) and the guess is reported.
 """
 
 from __future__ import annotations
@@ -45,11 +46,13 @@ def _guess_roles(topics: dict[str, int]) -> dict[str, str]:
         parts = topic.strip("/").split("/")
         if len(parts) >= 2 and parts[0] not in ("replay", "diagnostics"):
             vehicles.setdefault(parts[0], set()).add("/".join(parts[1:]))
+    # leaders' modems log ranges too: the DVL marks a follower, ranges only where no vehicle has one
+    mark = "dvl" if any("dvl" in s for s in vehicles.values()) else "modem/range"
     roles = {}
     for name, sensors in vehicles.items():
         if "usbl" in sensors:
             roles[name] = "buoy"
-        elif "dvl" in sensors or "modem/range" in sensors:
+        elif mark in sensors:
             roles[name] = "follower"
         else:
             roles[name] = "leader"

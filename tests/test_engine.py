@@ -234,3 +234,26 @@ def test_rate_paces_the_replay_against_wall_time(archive):
     run = replay_archive(archive, load_config(None, ["methods=ckf"], window=(0.0, 40.0), rate=100.0),
                          write_output=False)
     assert time.monotonic() - t >= 0.4 and run.messages > 0
+
+
+def test_an_archive_cut_off_mid_write_still_knows_its_vehicles(archive, tmp_path):
+    """The trial record comes first: a cut-off archive replays with its roles, not a guess."""
+    data = archive.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: int(len(data) * 0.95)])
+    run = replay_archive(cut, load_config(None, FAST), write_output=False)
+    assert not any("roles guessed" in n for n in run.notes)
+    assert any("truncated or damaged" in n for n in run.notes)
+    assert run.metrics["followers"] == ["follower"] and run.metrics["epochs"] > 300
+
+
+def test_roles_guessed_from_topics_without_trial_metadata():
+    from replay.layout import plan_trial
+
+    topics = {"/leader1/ins": 5, "/leader1/modem/range": 3, "/leader2/gps": 5, "/follower/dvl": 9,
+              "/follower/modem/range": 7, "/buoy1/usbl": 4, "/buoy1/gps": 2, "/diagnostics": 1}
+    layout = plan_trial(None, topics)
+    assert layout.roles == {"leader1": "leader", "leader2": "leader", "follower": "follower", "buoy1": "buoy"}
+    assert any("roles guessed" in n for n in layout.notes)
+    no_dvl = plan_trial(None, {"/a/modem/range": 3, "/b/gps": 4})
+    assert no_dvl.roles == {"a": "follower", "b": "leader"}
