@@ -14,9 +14,10 @@ file system the workers share (always true for a LocalCluster).
 The simulator's Monte Carlo runs use the same path: `simulate_task` writes and
 records one seed's trial, and the replays of that trial depend on its future.
 
-Workers run with one BLAS thread (a LocalCluster gets ONE_THREAD_ENV; Dask's
-nanny sets the same by default, `distributed.nanny.pre-spawn-environ`, for
-workers started with `dask worker`) and without Dask's MALLOC_TRIM_THRESHOLD_
+Workers run with one BLAS thread and one training thread (a LocalCluster gets
+ONE_THREAD_ENV; Dask's nanny sets the BLAS ones by default,
+`distributed.nanny.pre-spawn-environ`, for workers started with `dask worker`;
+set AUVREPLAY_TRAINING_THREADS=1 there too) and without Dask's MALLOC_TRIM_THRESHOLD_
 (see WORKER_CONFIG; for workers of your own, set
 `distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_: null` in their
 Dask configuration).
@@ -38,8 +39,10 @@ if TYPE_CHECKING:
     import pandas as pd
     from distributed import Client
 
-# small linear algebra (2x2 filters, 56x56 KMCDF) only spins with threaded BLAS on 2 cores
-ONE_THREAD_ENV: dict[str, str] = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+# small linear algebra (2x2 filters, 56x56 KMCDF) only spins with threaded BLAS on 2 cores; a worker
+# process per core already uses the cores, so the runner trains its detectors on one thread too
+ONE_THREAD_ENV: dict[str, str] = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
+                                  "AUVREPLAY_TRAINING_THREADS": "1"}
 # Dask's nanny sets MALLOC_TRIM_THRESHOLD_=65536 in workers to hand memory back sooner; glibc then trims
 # the heap on ANFIS/AQPSO-sized temporaries all the time: +25-40 % CPU per replay (bench_batch). None unsets it.
 WORKER_CONFIG: dict[str, Any] = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}

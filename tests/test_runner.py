@@ -293,3 +293,21 @@ def test_position_fixes_update_every_filter_but_dead_reckoning() -> None:
     assert err["ckf"] < 3.0 and err["ackf"] < 3.0 and err["chi_square"] < 3.0
     assert err["dead_reckoning"] > 3 * err["ckf"]          # the 1 % speed bias and heading bias grow
     assert np.all(res.tracks["ckf"].cov_m2[-1].diagonal() < 4.0)
+
+
+def test_training_on_threads_gives_the_same_run() -> None:
+    """Detectors trained side by side on 4 threads give, epoch for epoch, what one thread gives."""
+    trial = make_trial(seed=2)
+    config = replace(CONFIG, methods=OWN + ("anfis", "anfis_aqpso", "anfis_compensation"),
+                     anfis=replace(CONFIG.anfis, iterations=20, epochs=20))
+    runs = []
+    for threads in (1, 4):
+        runner, _ = run_trial(trial, config, training_threads=threads)
+        assert runner.training_threads == threads
+        runs.append(runner.finish())
+    one, four = runs
+    assert one.trained and not one.training_errors
+    for key in one.epochs:
+        np.testing.assert_array_equal(one.epochs[key], four.epochs[key], err_msg=key)
+    for name in one.open_loop:
+        np.testing.assert_array_equal(one.open_loop[name]["score"], four.open_loop[name]["score"])
