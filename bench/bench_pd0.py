@@ -2,9 +2,10 @@
 
 Builds N WorkHorse-style ensembles (fixed + variable leader, a water profile
 of C cells, bottom track; default N=20000, C=20), then times, as medians of
-repeats: our decoder (bottom track only, the recorder's path), our decoder
-with the water profile, the whole DVL converter (protobuf messages
-included), and dolfyn's RDI reader (`dolfyn.io.rdi.read_rdi`) in its own
+repeats: our decoder (bottom track only), our decoder with the water
+profile, the recorder's block scan (`pd0_blocks.scan`: runs of like
+ensembles as numpy columns), the whole DVL converter (protobuf messages
+included) and its record-based reference, and dolfyn's RDI reader (`dolfyn.io.rdi.read_rdi`) in its own
 environment bench/.venv-dolfyn (dolfyn needs numpy < 2; built by
 bench/make_dolfyn_venv.sh, which this script runs when the venv is missing).
 dolfyn runs in a subprocess and reports its own timing, so interpreter
@@ -28,9 +29,9 @@ sys.path.insert(0, str(HERE))
 
 from common import median_time, print_table  # noqa: E402
 
-from formats import pd0  # noqa: E402
+from formats import pd0, pd0_blocks  # noqa: E402
 from recorders.base import LogContext  # noqa: E402
-from recorders.dvl import convert_pd0  # noqa: E402
+from recorders.dvl import convert_pd0, convert_pd0_reference  # noqa: E402
 
 T0 = 1_476_259_200_000_000_000
 DOLFYN_PY = HERE / ".venv-dolfyn" / "bin" / "python"
@@ -71,9 +72,14 @@ def ours(data: bytes, profiles: bool) -> int:
     return sum(isinstance(r, pd0.Ensemble) for r in pd0.decode(data, profiles=profiles))
 
 
-def ours_recorder(data: bytes) -> int:
-    """DvlVelocity messages built by recorders.dvl.convert_pd0."""
-    return sum(1 for _ in convert_pd0(data, LogContext("follower")))
+def ours_blocks(data: bytes) -> int:
+    """Ensembles in the blocks of formats.pd0_blocks.scan."""
+    return sum(len(b.offsets) for b in pd0_blocks.scan(data) if isinstance(b, pd0_blocks.Block))
+
+
+def ours_recorder(data: bytes, convert=convert_pd0) -> int:
+    """DvlVelocity messages built by recorders.dvl.convert_pd0 (or its reference)."""
+    return sum(1 for _ in convert(data, LogContext("follower")))
 
 
 def dolfyn(path: Path, repeats: int) -> tuple[float, int] | None:
@@ -102,7 +108,9 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for name, fn in (("formats.pd0 (bottom track)", lambda: ours(data, False)),
                      ("formats.pd0 (+ water profile)", lambda: ours(data, True)),
-                     ("recorders.dvl convert_pd0", lambda: ours_recorder(data))):
+                     ("formats.pd0_blocks.scan", lambda: ours_blocks(data)),
+                     ("recorders.dvl convert_pd0", lambda: ours_recorder(data)),
+                     ("recorders.dvl convert_pd0_reference", lambda: ours_recorder(data, convert_pd0_reference))):
         assert fn() == args.n
         rows.append([name, args.n / median_time(fn, args.repeats)])
     with tempfile.TemporaryDirectory() as tmp:
