@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import hashlib
 import mimetypes
+from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
-from typing import Callable, Iterator
+from functools import partial
+from typing import Any, Callable, Iterator, Protocol
 
 from formats import schemas as S
 from formats.mcap_writer import ArchiveWriter
@@ -14,10 +16,22 @@ from formats.records import FormatError, Reject
 from .base import NS, LogContext, Output
 from .clock import date_to_ns, iso_utc
 from .manifest import LogSpec, Manifest, ManifestError
+from .record_parallel import (Capture, Captured, WorkerDied, WorkerPool, available_cores, can_fork, only_thread,
+                              write_captured)
 from .registry import converters
 
 LOG_LEVEL_WARNING = 3  # foxglove.Log.Level.WARNING
 Progress = Callable[[str, int, int], None]  # (file, bytes done, bytes total)
+# automatic mode decodes in-process below this much input: forking workers and
+# shipping results back costs more than it saves on a small trial (see bench/bench_record.py)
+AUTO_PARALLEL_MIN_BYTES = 1 << 20
+
+
+class MessageSink(Protocol):
+    """Where a log's messages go: the archive itself, or a Capture in a worker process."""
+
+    def write(self, topic: str, message: Any, log_time_ns: int, publish_time_ns: int | None = None) -> None:
+        """Append one message."""
 
 
 @dataclass
@@ -51,6 +65,7 @@ class RecordingSummary:
     """Per-file statistics of one recording."""
 
     files: list[FileStats] = field(default_factory=list)
+    workers: int = 1  # processes that decoded the logs (1: in-process)
 
     @property
     def skipped(self) -> int:
@@ -77,7 +92,7 @@ def _diagnostic(log: LogSpec, reject: Reject, t_ns: int) -> S.Log:
 class _LogRecorder:
     """Writes one log's outputs and diagnostics, keeping its statistics."""
 
-    def __init__(self, writer: ArchiveWriter, log: LogSpec, stats: FileStats, fallback_ns: int):
+    def __init__(self, writer: MessageSink, log: LogSpec, stats: FileStats, fallback_ns: int):
         self.writer, self.log, self.stats = writer, log, stats
         self.pending: list[Reject] = []  # rejects seen before any time is known
         self.last_ns: dict[str, int] = {}
@@ -146,35 +161,125 @@ def _iter_outputs(convert, data: bytes, ctx: LogContext, log: LogSpec) -> Iterat
         raise ManifestError(f"{log.path}: {exc}") from exc
 
 
-def record(manifest: Manifest, output_path, progress: Progress | None = None) -> RecordingSummary:
-    """Record every log of the manifest into `output_path`; returns the per-file summary."""
-    table = converters()
+def _check_formats(manifest: Manifest, table: dict) -> None:
     for log in manifest.logs():
         if (log.sensor, log.format) not in table:
             known = sorted(f for s, f in table if s == log.sensor)
             raise ManifestError(f"{manifest.path}: vehicle {log.vehicle!r}, log {log.path}: format {log.format!r} "
                                 f"is not a {log.sensor} format; known: {', '.join(known)}")
-    summary = RecordingSummary()
+
+
+def _input_bytes(manifest: Manifest) -> int:
+    total = 0
+    for log in manifest.logs():
+        try:
+            total += (manifest.root / log.path).stat().st_size
+        except OSError:  # reading it will give the error, in order, as the serial path does
+            pass
+    return total
+
+
+def resolve_workers(manifest: Manifest, workers: int | None = None) -> int:
+    """How many processes will decode: `workers` (at most one per log), or automatic when None.
+
+    Automatic is in-process for a trial under AUTO_PARALLEL_MIN_BYTES, on one
+    core, or when other threads run (a batch's thread pool, say); else one
+    worker per core. Where processes cannot be forked it is always 1.
+    """
+    logs = len(manifest.logs())
+    if workers is None:
+        cores = available_cores()
+        if cores < 2 or not only_thread() or _input_bytes(manifest) < AUTO_PARALLEL_MIN_BYTES:
+            return 1
+        workers = cores
+    elif workers < 1:
+        raise ValueError(f"workers must be at least 1, not {workers}")
+    return max(1, min(workers, logs)) if can_fork() else 1
+
+
+def _decode_log(manifest: Manifest, log: LogSpec, data: bytes, convert, fallback: int, sink: MessageSink,
+                progress: Progress | None) -> FileStats:
+    """Convert one log's bytes into `sink`; returns its statistics."""
+    stats = FileStats(log.path, log.vehicle, log.sensor, log.format, len(data), hashlib.sha256(data).hexdigest())
+    rec = _LogRecorder(sink, log, stats, fallback)
+    step = max(len(data) // 50, 1 << 16)
+    next_report = step
+    for item in _iter_outputs(convert, data, _context(manifest, log), log):
+        rec.add(item)
+        if progress is not None and item.where is not None and item.where.offset >= next_report:
+            progress(log.path, item.where.offset, len(data))
+            next_report = item.where.offset + step
+    rec.finish()
+    return stats
+
+
+def _capture_log(manifest: Manifest, table: dict, fallback: int, index: int) -> Captured:
+    """In a worker: one log decoded and converted, its messages serialized for the main process."""
+    log = manifest.logs()[index]
+    data = (manifest.root / log.path).read_bytes()
+    sink = Capture()
+    stats = _decode_log(manifest, log, data, table[(log.sensor, log.format)], fallback, sink, None)
+    return sink.finish(stats)
+
+
+def _attach(writer: ArchiveWriter, log: LogSpec, data: bytes, fallback: int) -> None:
+    media = mimetypes.guess_type(log.path)[0] or "application/octet-stream"
+    writer.add_attachment(log.path, data, media, fallback, fallback)
+
+
+def _record_serial(manifest: Manifest, writer: ArchiveWriter, table: dict, fallback: int,
+                   summary: RecordingSummary, progress: Progress | None) -> None:
+    for log in manifest.logs():
+        data = (manifest.root / log.path).read_bytes()
+        _attach(writer, log, data, fallback)
+        summary.files.append(_decode_log(manifest, log, data, table[(log.sensor, log.format)], fallback,
+                                         writer, progress))
+        if progress is not None:
+            progress(log.path, len(data), len(data))
+
+
+def _record_parallel(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[Captured], fallback: int,
+                     summary: RecordingSummary, progress: Progress | None) -> None:
+    logs = manifest.logs()
+    for i, log in enumerate(logs):
+        data = (manifest.root / log.path).read_bytes()
+        try:
+            captured = pool.result(i)
+        except WorkerDied as exc:
+            raise ManifestError(f"{logs[exc.task].path}: the worker process decoding it {exc.how}") from None
+        if captured.stats.sha256 != hashlib.sha256(data).hexdigest():
+            # the attachment must be the very bytes that were decoded
+            raise ManifestError(f"{log.path}: the file changed while it was being recorded")
+        _attach(writer, log, data, fallback)
+        write_captured(writer, captured)
+        summary.files.append(captured.stats)
+        if progress is not None:
+            progress(log.path, len(data), len(data))
+
+
+def record(manifest: Manifest, output_path, progress: Progress | None = None,
+           workers: int | None = None) -> RecordingSummary:
+    """Record every log of the manifest into `output_path`; returns the per-file summary.
+
+    `workers` processes decode the logs (None: automatic, see `resolve_workers`);
+    the archive is byte-for-byte the same whatever their number.
+    """
+    table = converters()
+    _check_formats(manifest, table)
+    summary = RecordingSummary(workers=resolve_workers(manifest, workers))
     fallback = date_to_ns(manifest.date) if manifest.date else 0
-    with ArchiveWriter(output_path) as writer:
+    with ExitStack() as stack:
+        pool = None
+        if summary.workers > 1:
+            # forked before the writer opens its file, so no worker holds it
+            pool = stack.enter_context(WorkerPool(partial(_capture_log, manifest, table, fallback),
+                                                  len(manifest.logs()), summary.workers))
+        writer = stack.enter_context(ArchiveWriter(output_path))
         # first, so that an archive cut off mid-write still says who is who
         writer.add_metadata("trial", _trial_metadata(manifest))
-        for log in manifest.logs():
-            data = (manifest.root / log.path).read_bytes()
-            stats = FileStats(log.path, log.vehicle, log.sensor, log.format, len(data), hashlib.sha256(data).hexdigest())
-            summary.files.append(stats)
-            media = mimetypes.guess_type(log.path)[0] or "application/octet-stream"
-            writer.add_attachment(log.path, data, media, fallback, fallback)
-            rec = _LogRecorder(writer, log, stats, fallback)
-            step = max(len(data) // 50, 1 << 16)
-            next_report = step
-            for item in _iter_outputs(table[(log.sensor, log.format)], data, _context(manifest, log), log):
-                rec.add(item)
-                if progress is not None and item.where is not None and item.where.offset >= next_report:
-                    progress(log.path, item.where.offset, len(data))
-                    next_report = item.where.offset + step
-            rec.finish()
-            if progress is not None:
-                progress(log.path, len(data), len(data))
+        if pool is None:
+            _record_serial(manifest, writer, table, fallback, summary, progress)
+        else:
+            _record_parallel(manifest, writer, pool, fallback, summary, progress)
         writer.add_metadata("recording", {"files": [f.as_json() for f in summary.files]})
     return summary

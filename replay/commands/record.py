@@ -12,6 +12,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("manifest", help="the trial manifest (TOML)")
     parser.add_argument("-o", "--output", required=True, help="the archive to write (.mcap)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar, no table")
+    parser.add_argument("--workers", type=_worker_count, default=None, metavar="N",
+                        help="processes decoding the logs (default: automatic, one per core for a trial "
+                             "of 1 MiB or more, else in-process); the archive is the same for any N")
+
+
+def _worker_count(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, not {value}")
+    return value
 
 
 class _ProgressBar:
@@ -63,7 +76,8 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         manifest = load_manifest(args.manifest)
-        summary = record(manifest, args.output, progress=None if args.quiet else _ProgressBar())
+        summary = record(manifest, args.output, progress=None if args.quiet else _ProgressBar(),
+                         workers=args.workers)
     except ManifestError as exc:
         raise UserError(str(exc)) from exc
     if not args.quiet:
