@@ -42,7 +42,7 @@ import math
 import re
 from collections import deque
 from dataclasses import dataclass
-from typing import Iterator, Sequence
+from typing import Callable, Iterator, Sequence
 
 from .lines import Line, iter_lines
 from .records import Reject, Where
@@ -329,7 +329,7 @@ class _Decoder:
     def propagation(self, value: str, where: Where) -> Record | Reject:
         self.query_pending = False
         t = value.strip()
-        if not t.isdigit():
+        if not (t.isascii() and t.isdigit()):  # '²' is a digit to isdigit(), not to float()
             return Reject(where, f"AT?T reply is not a number of microseconds: {t[:24]!r}")
         return PropagationTime(where, float(t), self.peer)
 
@@ -368,13 +368,15 @@ class _Peek:
             self._buf.popleft()
 
 
-def _framed(lines: _Peek) -> tuple[str, str, int, int] | None:
+def _framed(peek: Callable[[int], str | None]) -> tuple[str, str, int, int] | None:
     """(command, payload, declared length, lines used) of a +++AT frame at the next line.
 
-    A payload with embedded newlines (binary instant messages) spans several
+    `peek(k)` is the text of the k-th line from here (None past the end). A
+    payload with embedded newlines (binary instant messages) spans several
     lines; they are joined only while that brings the payload to its declared length.
     """
-    text = lines.peek(0).text  # type: ignore[union-attr]
+    text = peek(0)
+    assert text is not None
     start = text.find("+++AT")
     m = _FRAMED.match(text, start) if start >= 0 else None
     if m is None:
@@ -383,10 +385,10 @@ def _framed(lines: _Peek) -> tuple[str, str, int, int] | None:
     payload, used = text[m.end():], 1
     joined = payload
     while len(joined) < want and used < _MAX_JOIN:
-        nxt = lines.peek(used)
+        nxt = peek(used)
         if nxt is None:
             break
-        joined += "\n" + nxt.text
+        joined += "\n" + nxt
         used += 1
         if len(joined) == want:
             return m.group(1), joined, want, used
@@ -397,8 +399,13 @@ def decode(data: bytes, prefix: str = "auto") -> Iterator[Record | Reject]:
     """Stream S2C records and Rejects from a log (host prefixes, CRLF/LF, +++AT framing, noise)."""
     state = _Decoder()
     lines = _Peek(iter_lines(data, prefix))
+
+    def peek(k: int) -> str | None:
+        line = lines.peek(k)
+        return None if line is None else line.text
+
     while (line := lines.peek(0)) is not None:
-        framed = _framed(lines)
+        framed = _framed(peek)
         if framed is None:
             lines.drop(1)
             rec = state.plain(line.text, line.where)
@@ -430,7 +437,7 @@ def phases_from_delays(delays_ns: Sequence[float], carrier_hz: float) -> tuple[f
     d34 + d41 and, with the centre element midway, 2 d35 and -2 d15; tau_y likewise
     from d45 - d25, d41 + d12, d32 - d34, 2 d45 and -2 d25. NaN when none is available.
     """
-    d15, d25, d35, d45, d12, d41, d32, d34 = (float(d) for d in delays_ns)
+    d15, d25, d35, d45, d12, d41, d32, d34 = map(float, delays_ns)
     tau_x = _nanmean((d35 - d15, d32 - d12, d34 + d41, 2 * d35, -2 * d15))
     tau_y = _nanmean((d45 - d25, d41 + d12, d32 - d34, 2 * d45, -2 * d25))
     k = 2 * math.pi * carrier_hz * 1e-9
@@ -447,6 +454,9 @@ def delays_from_phases(phase_x_rad: float, phase_y_rad: float, carrier_hz: float
 
 
 def _nanmean(values: Sequence[float]) -> float:
+    total = sum(values)
+    if math.isfinite(total):  # every value finite: the mean below, without the list (the USBL hot path)
+        return total / len(values)
     ok = [v for v in values if math.isfinite(v)]
     return sum(ok) / len(ok) if ok else math.nan
 

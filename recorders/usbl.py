@@ -29,9 +29,11 @@ import math
 from dataclasses import dataclass, field
 from typing import Iterator, Mapping
 
+from formats import acoustic_messages as AM
 from formats import evologics as ev
+from formats import evologics_scan as evs
 from formats import regex_lines as rx
-from formats.records import FormatError, Reject
+from formats.records import FormatError, Reject, Where
 from formats.schemas import UsblObservation, timestamp
 
 from .base import Converter, LogContext, Output, output
@@ -138,14 +140,93 @@ def _evologics(data: bytes, ctx: LogContext, opts: _UsblOptions) -> Iterator[Out
         yield _emit(ctx, group, opts)
 
 
-def convert_evologics(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
-    """EvoLogics USBL log -> one UsblObservation per measurement."""
-    opts = _UsblOptions(
+def _usbl_options(ctx: LogContext) -> _UsblOptions:
+    return _UsblOptions(
         option_float(ctx, "carrier_hz", None),
         option_choice(ctx, "bearing_convention", ("enu", "compass")),
         sound_speed(ctx),
     )
-    return _evologics(data, ctx, opts)
+
+
+def convert_evologics_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """`convert_evologics` the obvious way, over `evologics.decode` records: the judge of the fast path in tests."""
+    return _evologics(data, ctx, _usbl_options(ctx))
+
+
+# ---- EvoLogics, fast path: the same groups and messages over `evologics_scan.scan` tuples
+
+_USBL_KEYWORDS = frozenset(("USBLLONG", "USBLANGLES", "USBLPHYD"))
+
+
+def _scan_values(parts: dict[str, list], opts: _UsblOptions) -> tuple[float, ...]:
+    """`_values` on scanned values, as usbl_observation's doubles from travel_time_s on."""
+    tt = rng = bearing = elevation = px = py = east = north = up = integrity = rssi = NAN
+    fix = parts.get("USBLLONG")
+    ang = parts.get("USBLANGLES")
+    phyd = parts.get("USBLPHYD")
+    if fix is not None:
+        tt = fix[12] * 1e-6
+        rng, east, north, up, integrity, rssi = tt * opts.c, fix[6], fix[7], fix[8], fix[14], fix[13]
+        bearing, elevation = _angles(east, north, up)
+    elif ang is not None:
+        bearing = ev.bearing_from_vendor(ang[5], opts.convention)
+        elevation, integrity, rssi = math.degrees(ang[6]), ang[11], ang[10]
+    if phyd is not None and opts.carrier_hz is not None:
+        px, py = ev.phases_from_delays(phyd[4:], opts.carrier_hz)
+    return tt, rng, bearing, elevation, px, py, east, north, up, integrity, rssi
+
+
+class _ScanEmitter:
+    """`_emit` on scanned values, with what is the same for every observation of a log worked out once."""
+
+    def __init__(self, ctx: LogContext, opts: _UsblOptions) -> None:
+        self.ctx, self.opts = ctx, opts
+        self.topic, self.offset_ns = f"/{ctx.vehicle}/{SUFFIX}", ctx.clock_offset_ns
+        self.targets: dict[int, str] = {}
+
+    def __call__(self, first: evs.Scanned, parts: dict[str, list]) -> Output | Reject:
+        _, v, offset, line, host = first
+        if host is None:
+            return Reject(Where(offset, line, host), "no time: EvoLogics line without host timestamp")
+        publish = host + self.offset_ns
+        lag = v[0] - v[1]
+        # the modem clock is its own; trust its lag only when it is plausible (`usbl_reception_ns`)
+        arrival = publish - round(lag * NS) if 0.0 <= lag < 60.0 else publish
+        values = _scan_values(parts, self.opts)
+        tt = values[0]
+        t = arrival - round(tt * NS) if tt == tt else arrival
+        target = self.targets.get(v[2])
+        if target is None:
+            target = self.targets[v[2]] = self.ctx.vehicle_for_address(v[2])
+        msg = AM.usbl_observation(t, self.ctx.vehicle, target, "evologics", *values)
+        return Output(self.topic, msg, t, publish, Where(offset, line, host))
+
+
+def _evologics_scan(data: bytes, ctx: LogContext, opts: _UsblOptions) -> Iterator[Output | Reject]:
+    emit = _ScanEmitter(ctx, opts)
+    first: evs.Scanned | None = None
+    parts: dict[str, list] = {}
+    for item in evs.scan(data, ctx.prefix):
+        if type(item) is Reject:
+            yield item  # type: ignore[misc]
+            continue
+        keyword, v = item[0], item[1]
+        if keyword not in _USBL_KEYWORDS:
+            continue
+        if first is not None:
+            # `_Group.accepts`: same target, a kind not yet in the group, measured within _MATCH_S
+            if v[2] == first[1][2] and keyword not in parts and abs(v[1] - first[1][1]) <= _MATCH_S:
+                parts[keyword] = v
+                continue
+            yield emit(first, parts)
+        first, parts = item, {keyword: v}  # type: ignore[assignment]
+    if first is not None:
+        yield emit(first, parts)
+
+
+def convert_evologics(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """EvoLogics USBL log -> one UsblObservation per measurement."""
+    return _evologics_scan(data, ctx, _usbl_options(ctx))
 
 
 # ---- user-defined lines
