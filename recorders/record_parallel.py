@@ -183,28 +183,34 @@ class WorkerPool(Generic[T]):
         ctx = multiprocessing.get_context("fork")
         sys.stdout.flush()  # else a child could flush the parent's pending output a second time
         sys.stderr.flush()
-        # SIGINT blocked across the forks: a child must not take a KeyboardInterrupt before it ignores them
-        old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
         try:
-            pipes = [ctx.Pipe() for _ in range(workers)]
-            parent_ends = [p for p, _ in pipes]
-            for parent, child in pipes:
-                proc = ctx.Process(target=_worker, args=(child, parent_ends, fn), daemon=True)
-                proc.start()
-                child.close()
-                self._all.append((proc, parent))
+            # SIGINT blocked across the forks: a child must not take a KeyboardInterrupt before it ignores them
+            old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+            try:
+                pipes = [ctx.Pipe() for _ in range(workers)]
+                parent_ends = [p for p, _ in pipes]
+                for parent, child in pipes:
+                    proc = ctx.Process(target=_worker, args=(child, parent_ends, fn), daemon=True)
+                    proc.start()
+                    child.close()
+                    self._all.append((proc, parent))
+            finally:
+                signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)  # a pending Ctrl-C is raised here
+            for proc, conn in self._all:
+                self._dispatch(proc, conn)
         except BaseException:
-            self.close()
+            self.close()  # no __exit__ for a constructor that failed: stop what was started
             raise
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
-        for proc, conn in self._all:
-            self._dispatch(proc, conn)
 
     def _dispatch(self, proc: multiprocessing.Process, conn: Connection) -> None:
         if self._next < self._tasks:
-            conn.send(self._next)
-            self._busy[conn] = (proc, self._next)
+            task = self._next
+            try:
+                conn.send(task)
+            except OSError:  # the worker is gone
+                proc.join(1.0)
+                raise WorkerDied(task, _exit_description(proc.exitcode)) from None
+            self._busy[conn] = (proc, task)
             self._next += 1
         else:
             self._idle.append((proc, conn))
