@@ -34,12 +34,13 @@ from __future__ import annotations
 import math
 from typing import Callable, Hashable, Iterable, Iterator, TypeVar
 
-from formats import nmea, novatel
+from formats import nmea, novatel, novatel_scan
 from formats import schemas as S
 from formats.records import Reject, Where
 
 from .base import NS, Converter, LogContext, Output, output
 from .clock import DayClock
+from .novatel_epochs import novatel_scan_epochs, novatel_scan_time
 
 R = TypeVar("R")
 NAN = float("nan")
@@ -405,14 +406,62 @@ def _novatel_outputs(epoch: list, ctx: LogContext) -> Iterator[Output | Reject]:
     yield output(ctx, "gps/status", status, t, where)  # type: ignore[arg-type]
 
 
-def convert_novatel(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
-    """NovAtel BESTPOS/BESTVEL logs, ASCII (long or short header) or binary."""
+def convert_novatel_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """`convert_novatel` the obvious way, over `novatel.decode` records: the judge of the fast path in tests."""
     records = (r for r in novatel.decode(data, ctx.prefix) if isinstance(r, (Reject, novatel.BestPos, novatel.BestVel)))
     for epoch in group_epochs(records, novatel_key):
         if type(epoch) is Reject:
             yield epoch
         else:
             yield from _novatel_outputs(epoch, ctx)  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------- NovAtel, fast path
+# The same epochs and messages as `convert_novatel_reference`, over scanned
+# tuples grouped by `novatel_epochs`: one dict per epoch, no records.
+
+
+def _novatel_scan_outputs(epoch: dict[str, novatel_scan.Scanned], ctx: LogContext, topics: tuple[str, str]
+                          ) -> tuple[Output | Reject, ...]:
+    """`_novatel_outputs` on scanned values, as a tuple."""
+    t = novatel_scan_time(epoch, ctx)
+    if type(t) is Reject:
+        return (t,)  # type: ignore[return-value]
+    bp, bv = epoch.get("BestPos"), epoch.get("BestVel")
+    where_item = next(iter(epoch.values()))
+    out: list[Output | Reject] = []
+    if bp is not None and bp[4][0] == "SOL_COMPUTED" and bp[4][1] != "NONE":
+        v = bp[4]
+        alt = v[4] + v[5] if v[5] == v[5] else v[4]
+        e, n, h = v[8], v[7], v[9]
+        cov = (e * e, 0.0, 0.0, 0.0, n * n, 0.0, 0.0, 0.0, h * h)
+        fix = S.location_fix(t, ctx.vehicle, v[2], v[3], alt, cov, S.COVARIANCE_DIAGONAL_KNOWN)  # type: ignore[arg-type]
+        out.append(Output(topics[0], fix, t, t if bp[7] is None else bp[7] + ctx.clock_offset_ns, Where(*bp[5:])))  # type: ignore[arg-type]
+        where_item = bp
+    speed = course = NAN
+    if bv is not None and bv[4][0] == "SOL_COMPUTED":
+        speed, course = bv[4][4], bv[4][5]
+    status = S.gnss_status(
+        t, ctx.vehicle, NOVATEL_QUALITY.get(bp[4][1], -1) if bp is not None else -1,  # type: ignore[arg-type]
+        bp[4][14] if bp is not None else -1, NAN, "novatel:" + ",".join([item[1] for item in epoch.values()]),
+        speed, course, NAN,
+    )
+    host = where_item[7]
+    out.append(Output(topics[1], status, t, t if host is None else host + ctx.clock_offset_ns, Where(*where_item[5:])))  # type: ignore[arg-type]
+    return tuple(out)
+
+
+_GNSS_KINDS = frozenset(("BestPos", "BestVel"))
+
+
+def convert_novatel(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """NovAtel BESTPOS/BESTVEL logs, ASCII (long or short header) or binary."""
+    topics = (f"/{ctx.vehicle}/gps", f"/{ctx.vehicle}/gps/status")
+    for epoch in novatel_scan_epochs(data, ctx, _GNSS_KINDS):
+        if type(epoch) is Reject:
+            yield epoch  # type: ignore[misc]
+        else:
+            yield from _novatel_scan_outputs(epoch, ctx, topics)  # type: ignore[arg-type]
 
 
 CONVERTERS: dict[str, Converter] = {"nmea": convert_nmea, "novatel": convert_novatel}

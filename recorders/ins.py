@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from typing import Iterator
 
-from formats import nmea, novatel, pashr, phins
+from formats import nmea, novatel, novatel_scan, pashr, phins
 from formats import schemas as S
 from formats.records import Reject, Where
 
@@ -38,6 +38,7 @@ from .gps import (
     group_epochs, host_time_ns, nmea_epoch_time, nmea_key, nmea_motion, nmea_position, nmea_update_date,
     novatel_key, novatel_time,
 )
+from .novatel_epochs import novatel_scan_epochs, novatel_scan_time
 
 NAN = float("nan")
 NAV = (phins.Heading, phins.Atitud, phins.Positi, phins.Speed, phins.Phtro)
@@ -250,8 +251,8 @@ def _span_fields(epoch: list) -> dict[str, object]:
     return f
 
 
-def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
-    """NovAtel SPAN INSPVA / INSPVAS / INSPVAX logs (ASCII or binary), merged per GPS time."""
+def convert_span_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """`convert_span` the obvious way, over `novatel.decode` records: the judge of the fast path in tests."""
     records = (r for r in novatel.decode(data, ctx.prefix) if isinstance(r, (Reject, novatel.InsPva, novatel.InsPvax)))
     for epoch in group_epochs(records, novatel_key):
         if type(epoch) is Reject:
@@ -263,6 +264,51 @@ def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
             continue
         source = "novatel:" + ",".join(r.header.message + ("B" if r.header.encoding.startswith("binary") else "A") for r in epoch)  # type: ignore[union-attr]
         yield output(ctx, "ins", ins_state(t, ctx, source, **_span_fields(epoch)), t, epoch[0].where)  # type: ignore[arg-type,index]
+
+
+# ---------------------------------------------------------------- NovAtel SPAN, fast path
+# The same epochs and messages as `convert_span_reference`, over scanned tuples
+# grouped by `novatel_epochs` (values at the record fields' positions).
+
+_SPAN_KINDS = frozenset(("InsPva", "InsPvax"))
+
+
+def _span_scan_fields(epoch: dict[str, novatel_scan.Scanned]) -> tuple:
+    """`_span_fields` on scanned values, as S.ins_state's arguments from `status` on."""
+    lat = lon = depth = roll = pitch = heading = vn = ve = vd = hstd = pn = pe = rstd = pstd = alt = NAN
+    status = []
+    for kind, item in epoch.items():  # in arrival order: a later log overrides, as f.update does
+        v = item[4]
+        if kind == "InsPva":
+            lat, lon, alt, vn, ve, vd = v[2], v[3], v[4], v[5], v[6], 0.0 - v[7]
+            roll, pitch, heading = v[8], v[9], v[10]
+            status.append(v[11])
+        else:
+            lat, lon, alt, vn, ve, vd = v[2], v[3], v[4], v[6], v[7], 0.0 - v[8]
+            roll, pitch, heading = v[9], v[10], v[11]
+            u = v[5]
+            depth = -(v[4] - u) if u == u else NAN
+            hstd, rstd, pstd, pn, pe = v[20], v[18], v[19], v[12], v[13]
+            status += (v[0], v[1])
+    return " ".join(dict.fromkeys(status)), lat, lon, depth, roll, pitch, heading, vn, ve, vd, hstd, pn, pe, rstd, pstd, alt
+
+
+def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """NovAtel SPAN INSPVA / INSPVAS / INSPVAX logs (ASCII or binary), merged per GPS time."""
+    topic = f"/{ctx.vehicle}/ins"
+    for epoch in novatel_scan_epochs(data, ctx, _SPAN_KINDS):
+        if type(epoch) is Reject:
+            yield epoch  # type: ignore[misc]
+            continue
+        t = novatel_scan_time(epoch, ctx)  # type: ignore[arg-type]
+        if type(t) is Reject:
+            yield t  # type: ignore[misc]
+            continue
+        items = list(epoch.values())  # type: ignore[union-attr]
+        source = "novatel:" + ",".join([item[1] for item in items])
+        state = S.ins_state(t, ctx.vehicle, source, *_span_scan_fields(epoch))  # type: ignore[arg-type]
+        first = items[0]
+        yield Output(topic, state, t, t if first[7] is None else first[7] + ctx.clock_offset_ns, Where(*first[5:]))  # type: ignore[arg-type]
 
 
 # ---------------------------------------------------------------- NMEA heading / INS-as-NMEA

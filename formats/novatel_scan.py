@@ -1,0 +1,147 @@
+"""NovAtel logs as plain tuples for converters on the hot path: what `novatel.decode` yields, without records.
+
+The common line -- ``#NAMEA,...;...*crc`` at the start of a line, CRC good,
+every field as the reference reads it -- is parsed here straight into the
+values; any line this path does not take on trust (a short or binary
+header, a prefix, a bad CRC, a field that does not convert) goes through
+`novatel.parse_ascii` itself, and files holding binary logs through
+`novatel.decode`, so rejects are exactly the reference's
+(tests/test_novatel_scan.py checks both on any bytes).
+"""
+
+from __future__ import annotations
+
+from dataclasses import fields
+from typing import Callable, Iterator, Union
+
+from . import novatel as N
+from .lines import PREFIX_STYLES, strip_prefix
+from .records import Reject, Where
+
+NAN = float("nan")
+
+# (log name, source as 'BESTPOSA' / 'INSPVAB', GPS week, seconds of week, values in record field order
+# after `header`, byte offset, line or None, host time ns or None); week and seconds are the record's
+# time (INSPVA: its own, else the header's: `novatel.record_time_ns`)
+Scanned = tuple[str, str, int, float, tuple, int, Union[int, None], Union[int, None]]
+KINDS = {"BESTPOS": "BestPos", "BESTVEL": "BestVel", "INSPVA": "InsPva", "INSPVAS": "InsPva", "INSPVAX": "InsPvax"}
+
+
+def _f(s: str) -> float:
+    return float(s) if s else NAN
+
+
+def _enum(s: str, table: dict[int, str]) -> str:
+    return table.get(int(s), s) if s.isdigit() else s
+
+
+def _bestpos(f: list[str]) -> tuple:
+    if len(f) < 15:
+        raise IndexError("short")
+    opt = f + [""] * (21 - len(f))
+    # inline conversions: BESTPOS is the hot log of a GNSS file
+    return (
+        _enum(f[0], N.SOLUTION_STATUS), _enum(f[1], N.POSITION_TYPE), float(f[2]) if f[2] else NAN,
+        float(f[3]) if f[3] else NAN, float(f[4]) if f[4] else NAN, float(f[5]) if f[5] else NAN, f[6],
+        float(f[7]) if f[7] else NAN, float(f[8]) if f[8] else NAN, float(f[9]) if f[9] else NAN, f[10].strip('"'),
+        float(f[11]) if f[11] else NAN, float(f[12]) if f[12] else NAN, int(f[13]) if f[13] else -1,
+        int(f[14]) if f[14] else -1, int(opt[15]) if opt[15] else -1, int(opt[16]) if opt[16] else -1,
+        int(opt[18], 16) if opt[18] else 0, int(opt[19], 16) if opt[19] else 0, int(opt[20], 16) if opt[20] else 0,
+    )
+
+
+def _bestvel(f: list[str]) -> tuple:
+    if len(f) < 7:
+        raise IndexError("short")
+    return (_enum(f[0], N.SOLUTION_STATUS), _enum(f[1], N.POSITION_TYPE), _f(f[2]), _f(f[3]), _f(f[4]), _f(f[5]),
+            _f(f[6]))
+
+
+def _inspva(f: list[str]) -> tuple:
+    if len(f) < 12:
+        raise IndexError("short")
+    return (int(f[0]), float(f[1]), *[float(x) if x else NAN for x in f[2:11]], _enum(f[11], N.INS_STATUS))
+
+
+def _inspvax(f: list[str]) -> tuple:
+    if len(f) < 21:
+        raise IndexError("short")
+    opt = f + [""] * (23 - len(f))
+    return (_enum(f[0], N.INS_STATUS), _enum(f[1], N.POSITION_TYPE), *[float(x) if x else NAN for x in f[2:21]],
+            int(opt[21], 16) if opt[21] else 0, int(opt[22]) if opt[22] else -1)
+
+
+VALUES: dict[str, Callable[[list[str]], tuple]] = {
+    "BESTPOS": _bestpos, "BESTVEL": _bestvel, "INSPVA": _inspva, "INSPVAS": _inspva, "INSPVAX": _inspvax,
+}
+_SLOW = object()  # "let the reference parse this line"
+
+
+def _fast_line(text: str, where: tuple[int, int | None]) -> Scanned | None | object:
+    """A long-header ASCII log at the start of `text`; None for other logs; _SLOW for anything unusual."""
+    star = text.rfind("*")
+    semi = text.find(";", 0, star) if star > 0 else -1
+    if semi < 0 or not text[1:2].isupper():
+        return _SLOW
+    given = text[star + 1 : star + 9]
+    try:
+        if len(given) != 8 or int(given, 16) != N.crc32(text[1:star].encode("latin-1")):
+            return _SLOW
+        h = text[1:semi].split(",")
+        if len(h) != 10:
+            return _SLOW
+        # every header field converted as `novatel._ascii_header` does: a field it rejects, we leave to it
+        week, seconds = int(h[5]), float(h[6])
+        int(h[2]), h[3] and float(h[3]), h[7] and int(h[7], 16), h[8] and int(h[8], 16), h[9] and int(h[9])
+        name = h[0][:-1] if h[0][-1:] == "A" else h[0]
+        parser = VALUES.get(name)
+        if parser is None:
+            return None
+        values = parser(text[semi + 1 : star].split(","))
+    except (ValueError, IndexError, OverflowError):
+        return _SLOW
+    if name == "INSPVA" or name == "INSPVAS":
+        week, seconds = values[0], values[1]
+    return name, name + "A", week, seconds, values, where[0], where[1], None
+
+
+def from_record(rec: N.NovatelRecord) -> Scanned:
+    """The scanned tuple of a decoded record."""
+    h, w = rec.header, rec.where
+    values = tuple(getattr(rec, f.name) for f in fields(rec)[2:])  # type: ignore[arg-type]
+    week, seconds = (rec.week, rec.seconds) if type(rec) is N.InsPva else (h.week, h.seconds)  # type: ignore[union-attr]
+    source = h.message + ("B" if h.encoding.startswith("binary") else "A")
+    return h.message, source, week, seconds, values, w.offset, w.line, w.host_time_ns
+
+
+def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
+    """What `novatel.decode` yields, as `Scanned` tuples instead of records."""
+    if prefix not in PREFIX_STYLES:
+        raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
+    if N._next_sync(data, 0) >= 0:  # binary logs in the file: ASCII lines are located by offset only
+        for rec in N.decode(data, prefix):
+            yield rec if type(rec) is Reject else from_record(rec)  # type: ignore[misc,arg-type]
+        return
+    offset = 0
+    for number, raw in enumerate(data.decode("latin-1").split("\n"), start=1):
+        line_start = offset
+        offset += len(raw) + 1
+        item = _fast_line(raw.rstrip("\r"), (line_start, number)) if raw[:1] == "#" else _SLOW
+        if item is _SLOW:
+            item = _slow_line(raw, line_start, number, prefix)
+        if item is not None:
+            yield item  # type: ignore[misc]
+
+
+def _slow_line(raw: str, line_start: int, number: int, prefix: str) -> Scanned | Reject | None:
+    """One line the way `novatel._text_records` reads it."""
+    line = raw.rstrip("\r")
+    if not line.strip():
+        return None
+    host = None
+    if prefix != "none" and line[0] not in "#%$":
+        line, host = strip_prefix(line, prefix)
+    result = N.parse_ascii(line, Where(line_start, number, host))
+    if result is None or type(result) is Reject:
+        return result  # type: ignore[return-value]
+    return from_record(result)  # type: ignore[arg-type]
