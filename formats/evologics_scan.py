@@ -81,7 +81,7 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
     state = ev._Decoder()
     i, n = 0, len(lines)
     while i < n:
-        text, offset, number, host = lines[i]
+        text, offset, number, host, _ = lines[i]
         if "+++AT" not in text:
             i += 1
             keyword, _, body = text.partition(",")

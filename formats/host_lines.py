@@ -17,7 +17,7 @@ from typing import Iterator
 from .lines import PREFIX_STYLES, strip_prefix
 
 NS = 1_000_000_000
-ScannedLine = tuple[str, int, int, "int | None"]  # text, byte offset, 1-based line number, host time ns
+ScannedLine = tuple[str, int, int, "int | None", int]  # text, line offset, 1-based line number, host ns, text offset
 
 # the common shape only; `lines._ISO` accepts it with the same extent and groups
 _FAST_ISO = re.compile(r"(\d{4}-\d\d-\d\dT\d\d:\d\d:)(\d\d)\.(\d+)Z\]?[ \t,;|]*")
@@ -32,7 +32,10 @@ def _minute_ns(key: str) -> int | None:
 
 
 def scan_lines(data: bytes, prefix: str = "auto") -> Iterator[ScannedLine]:
-    """What `iter_lines` yields, as (text, offset, line, host ns) tuples; blank lines skipped."""
+    """What `iter_lines` yields, as (text, offset, line, host ns, text offset) tuples; blank lines skipped.
+
+    The text offset is where the text after the prefix starts in `data` (for checksums over the buffer).
+    """
     if prefix not in PREFIX_STYLES:
         raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
     match = _FAST_ISO.match if prefix in ("auto", "iso8601") else None
@@ -49,9 +52,10 @@ def scan_lines(data: bytes, prefix: str = "auto") -> Iterator[ScannedLine]:
             if base == -1:
                 base = minutes[key] = _minute_ns(key)
             if base is not None and second < "60":
-                yield text[m.end():], start, number, base + int(second) * NS + int((frac + "000000000")[:9])
+                end = m.end()
+                yield text[end:], start, number, base + int(second) * NS + int((frac + "000000000")[:9]), start + end
                 continue
         elif not text.strip():
             continue
         rest, host = strip_prefix(text, prefix)
-        yield rest, start, number, host
+        yield rest, start, number, host, start + len(text) - len(rest)

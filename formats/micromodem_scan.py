@@ -1,0 +1,104 @@
+"""`formats.micromodem.decode` as plain tuples: the recording hot path for Micro-Modem logs.
+
+`scan` yields what the range converter uses as ``(kind, values, offset,
+line, host ns)`` tuples, and every Reject; ping commands and other sentences
+are validated (a bad one is a Reject) but not yielded. The common sentences
+of a ping exchange ($CCMPC, $CAMPC, $CAMPA, $CAMPR), starting the text and
+checksummed, are read here, the checksum from a prefix XOR of the whole log;
+every other line, and any of those the fast reading doubts, goes through
+`micromodem.decode_sentence`, so the results are those of `decode`
+(tests/test_micromodem_scan.py checks it on any bytes).
+
+Kinds and values:
+
+- "reply": (src, dest, one-way travel time s, reception UTC ns or None): $CAMPR, $CACMR,PNR;
+- "heard": (src,): $CAMPA, $CACMA,PNG, $CACYC, $CARXD, $CAMUA;
+- "date": (date, time of day s): $CAXST; "clock": (UTC ns,): $CACLK;
+- "rxstats": (src, time of day s): $CACST; "toa": (time of day s or None, UTC ns or None): $CATOA.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Iterator
+
+from . import micromodem as mm
+from .host_lines import scan_lines
+from .records import Reject, Where
+from .sentence import HEX, prefix_xor
+
+Scanned = tuple[str, tuple, int, "int | None", "int | None"]  # kind, values, offset, line, host ns
+_PING_COMMANDS = frozenset(("CCMPC", "CAMPC"))
+_SEEN_MAX = 4096  # distinct sentence texts remembered per log (replies differ by travel time: bounded memory)
+
+
+def _scanned(rec: mm.Record | Reject) -> Scanned | Reject | None:
+    """A decoder record as `scan` yields it (None for what the converter does not use)."""
+    t = type(rec)
+    if t is Reject:
+        return rec  # type: ignore[return-value]
+    w = rec.where
+    where = w.offset, w.line, w.host_time_ns
+    if t is mm.PingReply:
+        return "reply", (rec.src, rec.dest, rec.one_way_travel_time_s, rec.utc_ns), *where  # type: ignore[union-attr]
+    if t is mm.PingHeard or t is mm.CycleInit or t is mm.ReceivedData:
+        return "heard", (rec.src,), *where  # type: ignore[union-attr]
+    if t is mm.TransmitStats:
+        return "date", (rec.date, rec.tod_s), *where  # type: ignore[union-attr]
+    if t is mm.Clock:
+        return "clock", (rec.utc_ns,), *where  # type: ignore[union-attr]
+    if t is mm.ReceiveStats:
+        return "rxstats", (rec.src, rec.tod_s), *where  # type: ignore[union-attr]
+    if t is mm.TimeOfArrival:
+        return "toa", (rec.tod_s, rec.utc_ns), *where  # type: ignore[union-attr]
+    return None
+
+
+def _ascii_int(text: str) -> bool:
+    """Digits that int() reads as `micromodem._int` does ('²' is a digit to isdigit alone)."""
+    return text.isdigit() and text.isascii()
+
+
+def _fast(fields: list[str], round_trip: bool) -> tuple[str, tuple] | None | bool:
+    """A ping sentence's (kind, values), None when it is valid and unused, False when in doubt."""
+    address = fields[0]
+    if len(fields) < 3 or not (_ascii_int(fields[1]) and _ascii_int(fields[2])):
+        return False
+    if address in _PING_COMMANDS:
+        return None
+    if address == "CAMPA":
+        return "heard", (int(fields[1]),)
+    if address != "CAMPR" or len(fields) < 4:
+        return False
+    try:
+        tt = float(fields[3])
+    except ValueError:
+        return False
+    if not (0.0 <= tt < math.inf) or not fields[3].strip():
+        return False
+    return "reply", (int(fields[1]), int(fields[2]), tt / 2 if round_trip else tt, None)
+
+
+def scan(data: bytes, prefix: str = "auto", campr_round_trip: bool = False) -> Iterator[Scanned | Reject]:
+    """What `micromodem.decode` yields for the converter, as tuples (see the module docstring)."""
+    pxor = prefix_xor(data)
+    # a ping exchange repeats its command and echo lines word for word: read each text once
+    seen: dict[str, tuple[str, tuple] | None] = {}
+    for text, offset, number, host, at in scan_lines(data, prefix):
+        found = seen.get(text, False)
+        if found is False and text[:1] == "$":
+            body = text[1:].rstrip("\r\n ")
+            star = body.rfind("*")
+            # `sentence.frame`'s checksum: the XOR of the payload's bytes in `data` is pxor's two ends
+            if star >= 0 and len(body) - star - 1 >= 2 and HEX.get(body[star + 1 : star + 3]) == pxor[at + star] ^ pxor[at]:
+                found = _fast(body[:star].split(","), campr_round_trip)
+                if found is not False and len(seen) < _SEEN_MAX:
+                    seen[text] = found  # type: ignore[assignment]
+        if found is None:
+            continue
+        if found is not False:
+            yield found[0], found[1], offset, number, host  # type: ignore[index]
+            continue
+        item = _scanned(mm.decode_sentence(text, Where(offset, number, host), campr_round_trip))
+        if item is not None:
+            yield item
