@@ -465,6 +465,7 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
         raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
     pxor = prefix_xor(data)
     parsers, hexes = VALUES, HEX
+    skipped: set[str] = set()  # well-formed addresses of other sentence types
     offset = 0
     for number, raw in enumerate(data.decode("latin-1").split("\n"), start=1):
         line_start = offset
@@ -477,8 +478,12 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
         parser = parsers.get(kind)
         if parser is None or raw[1] == "P":
             address = raw[1:6]
+            if address in skipped:
+                continue  # a sentence of another family seen before ($GPGSV...): one set lookup
             if not (address.isascii() and address.isalnum() and address.isupper()):
                 yield Reject(Where(line_start, number), f"malformed sentence address {address!r}")
+            else:
+                skipped.add(address)
             continue
         given = hexes.get(raw[star + 1 : star + 3])
         computed = pxor[line_start + star - 1] ^ pxor[line_start]

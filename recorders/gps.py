@@ -332,6 +332,7 @@ def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     time_index = nmea.TIME_INDEX
     epoch: dict[str, nmea.Scanned] = {}
     epoch_time: int | None = None
+    last_tod, last_ms = NAN, None  # an epoch's sentences repeat its time: one round() per epoch
     for item in nmea.scan(data, ctx.prefix):
         if type(item) is Reject:
             yield item  # type: ignore[misc]
@@ -341,8 +342,11 @@ def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
         t = None
         if i is not None:
             tod = item[2][i]  # type: ignore[index]
-            if tod == tod:
-                t = round(tod * 1000)
+            if tod == last_tod:
+                t = last_ms
+            elif tod == tod:
+                t = last_ms = round(tod * 1000)
+                last_tod = tod
         if epoch and (kind in epoch or (t is not None and epoch_time is not None and t != epoch_time)):
             yield from _scan_outputs(epoch, ctx, clock, topics)
             epoch, epoch_time = {}, None
