@@ -35,6 +35,7 @@ from typing import Any, Iterator, Mapping
 
 from formats import acoustic_messages as AM
 from formats import evologics as ev
+from formats import evologics_scan as evs
 from formats import micromodem as mm
 from formats import micromodem_scan as mms
 from formats import regex_lines as rx
@@ -296,9 +297,50 @@ def _evologics(data: bytes, ctx: LogContext, c: float) -> Iterator[Output | Reje
             yield acoustic_range(ctx, arrival - round(tt * NS), rec.where, heard, me, tt, "usbl", "evologics", c)
 
 
+def convert_evologics_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """`convert_evologics` the obvious way, over `evologics.decode` records: the judge of the fast path in tests."""
+    return _evologics(data, ctx, sound_speed(ctx))
+
+
+def _evologics_scan(data: bytes, ctx: LogContext, c: float) -> Iterator[Output | Reject]:
+    """`_evologics` over `evologics_scan.scan` tuples, messages from packed wire bytes."""
+    me, address, offset_ns = ctx.vehicle, own_address(ctx), ctx.clock_offset_ns
+    topic, names = f"/{me}/{SUFFIX}", {}
+    for item in evs.scan(data, ctx.prefix):
+        if type(item) is Reject:
+            yield item  # type: ignore[misc]
+            continue
+        keyword, v, offset, line, host = item  # type: ignore[misc]
+        if keyword == "AT?T":
+            us, heard = v
+            if heard is None:
+                yield Reject(Where(offset, line, host), "propagation time before any delivery or reception names the peer")
+                continue
+            kind = "ping"
+        elif keyword == "USBLLONG":
+            us, heard, kind = v[12], v[2], "usbl"
+        else:
+            continue
+        if host is None:
+            yield Reject(Where(offset, line, host), "no time: EvoLogics line without host timestamp")
+            continue
+        publish = arrival = host + offset_ns
+        if kind == "usbl":
+            lag = v[0] - v[1]
+            # the modem clock is its own; trust its lag only when it is plausible (`usbl_reception_ns`)
+            arrival = publish - round(lag * NS) if 0.0 <= lag < 60.0 else publish
+        tt = us * 1e-6
+        t = arrival - round(tt * NS)
+        name = names.get(heard)
+        if name is None:
+            name = names[heard] = ctx.vehicle_for_address(heard)
+        msg = AM.acoustic_range(t, name, me, heard, address, tt, tt * c, c, kind, "evologics")
+        yield Output(topic, msg, t, publish, Where(offset, line, host))
+
+
 def convert_evologics(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """EvoLogics S2C log -> ranges from propagation times and USBL fixes."""
-    return _evologics(data, ctx, sound_speed(ctx))
+    return _evologics_scan(data, ctx, sound_speed(ctx))
 
 
 # ---- user-defined lines

@@ -14,7 +14,7 @@ from formats import evologics_scan as evs
 from formats import host_lines
 from formats.lines import iter_lines
 from formats.schemas import UsblObservation, timestamp
-from recorders import usbl
+from recorders import modem, usbl
 from recorders.base import LogContext, Output
 
 PREFIXES = [
@@ -147,3 +147,12 @@ def test_fast_mean_is_the_finite_values_mean() -> None:
 def test_non_ascii_digits_after_a_query_are_a_reject() -> None:
     recs = list(ev.decode("AT?T\r\n\xb2\r\n+++AT?T:1:\xb3\r\n".encode("latin-1")))
     assert [r.reason[:27] for r in recs] == ["AT?T reply is not a number "] * 2  # type: ignore[union-attr]
+
+
+@settings(max_examples=300, deadline=None)
+@given(_logs(), st.sampled_from([{}, {5: "leader1", 3: "follower", 11: "buoy1"}, {11: "buoy1", 12: "buoy1"}]),
+       st.integers(-2, 2))
+def test_fast_evologics_ranges_equal_the_record_based_reference(data, book, offset_s) -> None:
+    ctx = LogContext("buoy1", address_book=book, clock_offset_ns=offset_s * 1_000_000_000, sound_speed_mps=1450.0)
+    fast = list(modem.convert_evologics(data, ctx))
+    assert _outputs(fast) == _outputs(list(modem.convert_evologics_reference(data, ctx)))
