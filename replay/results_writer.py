@@ -7,7 +7,6 @@ from typing import Any
 
 from formats import schemas as S
 from formats.mcap_writer import ArchiveWriter
-from formats.wire import location_fix_bytes
 
 from .engine import Listener
 from .follower import ErrorSample
@@ -31,7 +30,6 @@ class ResultsWriter(Listener):
     def __init__(self, writer: ArchiveWriter, run_id: str, t0_ns: int, origin: Any):
         self.w, self.run, self.t0_ns = writer, run_id, t0_ns
         self.origin = origin  # callable returning (lat, lon rad) or None
-        self._channels: dict[tuple[str, str], int] = {}
 
     def _ns(self, t_s: float) -> int:
         return self.t0_ns + round(t_s * NS)
@@ -39,18 +37,9 @@ class ResultsWriter(Listener):
     def estimates(self, follower: str, t_s: float, est: dict[str, tuple[float, ...]]) -> None:
         t = self._ns(t_s)
         for method, (lat, lon, nn, ne, ee) in est.items():
-            # bytes straight from the numbers: a message object per estimate costs twice as much
-            data = location_fix_bytes(t, follower, lat * RAD, lon * RAD, math.nan, _cov_enu(nn, ne, ee),
-                                      S.COVARIANCE_KNOWN)
-            self.w.write_serialized(self._fix_channel(follower, method), data, t)
-
-    def _fix_channel(self, vehicle: str, method: str) -> int:
-        """The LocationFix channel of a vehicle's method estimates, registered on first use."""
-        key = (vehicle, method)
-        ch = self._channels.get(key)
-        if ch is None:
-            ch = self._channels[key] = self.w.channel(f"/replay/{self.run}/{vehicle}/{method}", S.LocationFix)
-        return ch
+            fix = S.location_fix(t, follower, lat * RAD, lon * RAD, math.nan, _cov_enu(nn, ne, ee),
+                                 S.COVARIANCE_KNOWN)
+            self.w.write(f"/replay/{self.run}/{follower}/{method}", fix, t)
 
     def epoch(self, follower: str, results: list[EpochResult]) -> None:
         t = self._ns(results[0].time_s)
