@@ -141,12 +141,12 @@ class _Method:
     train_rows: list[tuple[str, float, float, float, float, int]] = field(default_factory=list)
 
 
-# relative training cost per method, longest first on the threads (AQPSO-GA ~5x a hybrid run)
-_TRAINING_COST: dict[str, int] = {"anfis_aqpso": 5, "anfis": 1, "anfis_compensation": 1, "dual_threshold": 1}
+# trainers whose work is whole-population numpy (the GIL released): trained side by side
+_THREADED_TRAINERS: frozenset[str] = frozenset({"anfis_aqpso"})
 
 
 def default_training_threads() -> int:
-    """Threads for training at t_a: $AUVREPLAY_TRAINING_THREADS, else the machine's cores up to 4."""
+    """Threads for AQPSO-GA training at t_a: $AUVREPLAY_TRAINING_THREADS, else the machine's cores up to 4."""
     env = os.environ.get("AUVREPLAY_TRAINING_THREADS", "").strip()
     if env.isdigit() and int(env) > 0:
         return int(env)
@@ -180,7 +180,7 @@ class CooperativeRunner:
         the mission; the caller takes them from `range_epoch` and `estimates`.
         Only the compact open-loop features after t_a are kept for the ROC.
         ``training_threads`` (default `default_training_threads()`) trains the
-        detectors at t_a side by side; the results are the same for any count.
+        AQPSO-GA models at t_a side by side; the results are the same for any count.
         """
         self.config = config
         self.follower = follower
@@ -409,23 +409,27 @@ class CooperativeRunner:
         return action, inn, False
 
     def _maybe_train(self, t_s: float) -> None:
-        """Train every detector once, at the first sample after t_a (independent jobs, on threads)."""
+        """Train every detector once, at the first sample after t_a (AQPSO-GA models on threads)."""
         if self._trained or t_s <= self.training_end_s:
             return
         self._trained = True
         jobs = [(m, key, data) for m in self._methods if m.kind == "detect" for key, data in self._training_sets(m)]
-        # numpy and LAPACK release the GIL on the AQPSO-GA populations: two leaders' models train
-        # about 1.5x faster side by side; each job has its own data and seed, so results do not
-        # depend on the thread count or the order jobs finish in
-        if self.training_threads > 1 and len(jobs) > 1:
+        # AQPSO-GA evaluates whole populations, where numpy and LAPACK release the GIL: two such
+        # models train ~1.5x faster side by side. The other trainers are many small numpy calls
+        # that only contend for the GIL (3x slower each on threads), so they run here, in turn.
+        # Each job has its own data and seed: results do not depend on the threads.
+        outcomes: list[tuple[Detector | None, str] | None] = [None] * len(jobs)
+        heavy = [i for i, job in enumerate(jobs) if job[0].name in _THREADED_TRAINERS]
+        if self.training_threads > 1 and len(heavy) > 1:
             from concurrent.futures import ThreadPoolExecutor
 
-            order = sorted(range(len(jobs)), key=lambda i: _TRAINING_COST.get(jobs[i][0].name, 1), reverse=True)
-            with ThreadPoolExecutor(min(self.training_threads, len(jobs))) as pool:
-                futures = {i: pool.submit(self._train_one, jobs[i][0].name, *jobs[i][2]) for i in order}
-            outcomes = [futures[i].result() for i in range(len(jobs))]
-        else:
-            outcomes = [self._train_one(m.name, *data) for m, _, data in jobs]
+            with ThreadPoolExecutor(min(self.training_threads, len(heavy))) as pool:
+                futures = {i: pool.submit(self._train_one, jobs[i][0].name, *jobs[i][2]) for i in heavy}
+            for i, future in futures.items():
+                outcomes[i] = future.result()
+        for i, (m, _, data) in enumerate(jobs):
+            if outcomes[i] is None:
+                outcomes[i] = self._train_one(m.name, *data)
         for (m, key, _), (det, error) in zip(jobs, outcomes):
             if error:
                 self.training_errors[f"{m.name}/{key}"] = error
