@@ -205,14 +205,8 @@ def fit_consequents(x: np.ndarray, wbar: np.ndarray, y: np.ndarray, ridge: float
     MATLAB's recursive estimator starts from 1e6 I, about a 1e-6 ridge; the
     plain normal equations are near-singular on lake-like data (STACK.md 4).
     """
-    # Φᵀ built first, rules x inputs x samples, so the broadcast product runs along the samples
-    # (the (n, R, D+1) layout of design_matrix runs a 4-long inner loop); the same numbers, and
-    # Φᵀ Φ from both contiguous layouts is the same BLAS product, to the bit
-    x1t = np.concatenate([x, np.ones((x.shape[0], 1))], axis=1).T
-    wt = np.swapaxes(wbar, -1, -2)
-    phi_t = (wt[..., :, None, :] * x1t).reshape(*wbar.shape[:-2], -1, x.shape[0])
-    phi = np.ascontiguousarray(np.swapaxes(phi_t, -1, -2))
-    gram = phi_t @ phi
+    phi = design_matrix(x, wbar)
+    gram = np.swapaxes(phi, -1, -2) @ phi
     gram = gram + ridge * np.eye(gram.shape[-1])
     rhs = np.swapaxes(phi, -1, -2) @ y
     try:
