@@ -34,10 +34,12 @@ from __future__ import annotations
 import math
 from typing import Callable, Hashable, Iterable, Iterator, TypeVar
 
-from formats import nmea, novatel, novatel_scan
+from formats import nmea, nmea_columns, novatel, novatel_scan
+from formats.lines import PREFIX_STYLES
 from formats import schemas as S
 from formats.records import Reject, Where
 
+from . import gps_columns
 from .base import NS, Converter, LogContext, Output, output
 from .clock import DayClock
 from .novatel_epochs import novatel_scan_epochs, novatel_scan_time
@@ -326,6 +328,17 @@ def _scan_outputs(
 
 def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """NMEA 0183 GNSS sentences (GGA, RMC, GLL, GST, VTG, ZDA, HDT, THS; any talker)."""
+    if ctx.prefix in PREFIX_STYLES:  # an unknown style raises in `nmea.scan`, as before
+        cols = nmea_columns.decode_columns(data)
+        outputs = gps_columns.convert_columns(cols, ctx, NO_DATE) if cols is not None else None
+        if outputs is not None:
+            yield from outputs  # a clean GGA/GST/RMC log: whole-log columns (recorders.gps_columns)
+            return
+    yield from _convert_nmea_lines(data, ctx)
+
+
+def _convert_nmea_lines(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    """`convert_nmea` line by line over `nmea.scan`: any log, damaged ones included."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     topics = (f"/{ctx.vehicle}/gps", f"/{ctx.vehicle}/gps/status")
     # `group_epochs` over `nmea.scan`, inline: epochs as {sentence type: scanned tuple} in arrival order

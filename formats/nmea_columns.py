@@ -1,0 +1,118 @@
+"""NMEA GGA, GST and RMC of a clean log as numpy columns (the whole-log fast path of `nmea.scan`).
+
+`decode_columns` gives, for a log whose every line is a clean sentence (see
+`formats.sentence_columns`) of types GGA (14 fields), GST (8) and RMC (12),
+from any talker, with sentences of other families among them, the values
+`nmea.scan` would give, as one array per field. It returns None for any other
+log, or when one value is anything the per-line parsers might reject: the
+caller then takes the per-line path, which decides every kind of damage.
+Sentences of other families are dropped, as `scan` does; a malformed address
+is a Reject there, so it makes the log unclean here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .nmea import NAN, VALUES, _ddmmyy
+from .sentence_columns import CleanLines, angle_column, clean_lines, field_table, number_column, select, tod_column
+
+KINDS = ("GGA", "GST", "RMC")  # kind codes 0, 1, 2
+_WIDTH = {"GGA": 15, "GST": 9, "RMC": 13}  # fields with the address, without the checksum
+
+
+@dataclass(frozen=True, slots=True)
+class NmeaColumns:
+    """Sentences of a clean log in file order: kind code, time of day, position in the log; values per kind."""
+
+    kind: np.ndarray  # index into KINDS
+    tod: np.ndarray  # seconds of the UTC day
+    offsets: np.ndarray
+    numbers: np.ndarray
+    rows: dict[str, np.ndarray]  # kind -> its sentences' positions in file order
+    values: dict[str, dict[str, np.ndarray | list]]  # kind -> field name -> one value per sentence
+
+
+def _address_ok(key: bytes) -> bool:
+    address = key[:5].decode("latin-1")
+    return address.isascii() and address.isalnum() and address.isupper()
+
+
+def _gga(f: list[list[str]]) -> dict | None:
+    cols = {
+        "lat": angle_column(f[2], f[3], "S", 90.0), "lon": angle_column(f[4], f[5], "W", 180.0),
+        "quality": number_column(int, f[6], -1), "satellites": number_column(int, f[7], -1),
+        "hdop": number_column(float, f[8], NAN), "alt": number_column(float, f[9], NAN),
+        "sep": number_column(float, f[11], NAN), "age": number_column(float, f[13], NAN),
+    }
+    return None if any(v is None for v in cols.values()) else cols
+
+
+def _gst(f: list[list[str]]) -> dict | None:
+    cols = {name: number_column(float, f[k], NAN) for k, name in enumerate(
+        ("rms", "major", "minor", "orient", "lat_std", "lon_std", "alt_std"), start=2)}
+    return None if any(v is None for v in cols.values()) else cols
+
+
+def _rmc(f: list[list[str]]) -> dict | None:
+    try:
+        dates = list(map(_ddmmyy, f[9]))
+    except (ValueError, IndexError, OverflowError):
+        return None
+    cols = {
+        "valid": np.array([s == "A" for s in f[2]], dtype=bool),
+        "lat": angle_column(f[3], f[4], "S", 90.0), "lon": angle_column(f[5], f[6], "W", 180.0),
+        "speed": number_column(float, f[7], NAN), "course": number_column(float, f[8], NAN),
+        "date": dates, "variation": number_column(float, f[10], NAN),
+    }
+    return None if any(v is None for v in cols.values()) else cols
+
+
+_PARSE = {"GGA": _gga, "GST": _gst, "RMC": _rmc}
+
+
+def _kinds(clean: CleanLines) -> tuple[np.ndarray, np.ndarray] | None:
+    """(kept line positions, kind code of each) or None when a line needs the per-line path."""
+    keys, inverse = np.unique(clean.heads(6), return_inverse=True)
+    code_of = np.full(len(keys), -1, dtype=np.int64)
+    for j, key in enumerate(keys.tolist()):
+        kind = key[2:5].decode("latin-1")
+        if len(key) < 6 or key[5:6] != b"," or not _address_ok(key):
+            return None  # an address of another length, or malformed: the per-line path decides
+        if key[:1] == b"P" or kind not in VALUES:
+            code_of[j] = -2  # another family's sentence: skipped, as `scan` does
+        elif kind in KINDS:
+            code_of[j] = KINDS.index(kind)
+        else:
+            return None  # a sentence type of ours this fast path does not handle
+    codes = code_of[inverse.ravel()]
+    kept = np.flatnonzero(codes >= 0)
+    return kept, codes[kept]
+
+
+def decode_columns(data: bytes) -> NmeaColumns | None:
+    """GGA/GST/RMC values of a clean log as columns, or None when the per-line path must decode it."""
+    clean = clean_lines(data)
+    if clean is None:
+        return None
+    found = _kinds(clean)
+    if found is None:
+        return None
+    kept, kind = found
+    tod = np.empty(len(kept))
+    rows, values = {}, {}
+    for code, name in enumerate(KINDS):
+        pos = np.flatnonzero(kind == code)
+        idx = kept[pos]
+        table = field_table(select(clean.lines, idx), _WIDTH[name] + 1)
+        if table is None:
+            return None
+        times = tod_column(table[1])
+        cols = _PARSE[name](table)
+        if times is None or cols is None:
+            return None
+        tod[pos] = times
+        rows[name], values[name] = pos, cols
+    return NmeaColumns(kind, tod, clean.offsets[kept], clean.numbers[kept], rows, values)
