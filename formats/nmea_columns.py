@@ -71,6 +71,7 @@ def _rmc(f: list[list[str]]) -> dict | None:
 
 
 _PARSE = {"GGA": _gga, "GST": _gst, "RMC": _rmc}
+_OTHERS = tuple(f"{kind},".encode() for kind in VALUES if kind not in KINDS)
 
 
 def _kinds(clean: CleanLines) -> tuple[np.ndarray, np.ndarray] | None:
@@ -94,6 +95,8 @@ def _kinds(clean: CleanLines) -> tuple[np.ndarray, np.ndarray] | None:
 
 def decode_columns(data: bytes) -> NmeaColumns | None:
     """GGA/GST/RMC values of a clean log as columns, or None when the per-line path must decode it."""
+    if any(kind in data for kind in _OTHERS):
+        return None  # a type of ours this path does not handle: say so before framing the whole log
     clean = clean_lines(data)
     if clean is None:
         return None
