@@ -11,10 +11,11 @@ already encoded, with the same attachments (every original log) and metadata:
   ours, bytes in     formats.mcap_writer.ArchiveWriter.write_serialized, the
                      same job through our writer
 
-`record()` runs twice per round: in-process (workers=1) and with a pool of
-worker processes decoding the logs while the main process writes (default:
-as many as the automatic mode picks, at least 2; --workers N to choose); the
-two archives are checked to be byte-identical.
+`record()` runs twice per round: in-process (workers=1) and with N decoding
+processes, the main process and N - 1 forked workers taking the logs in
+manifest order while the main process writes (default: as many as the
+automatic mode picks, at least 2; --workers N to choose); the two archives
+are checked to be byte-identical.
 
 Ratios are against the bare writer (goal for recording: >= 50 %), and the
 parallel row also against the serial one. Timings are medians of interleaved
@@ -115,7 +116,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--manifest", type=Path, default=ROOT / "samples" / "lake_trial" / "trial.toml")
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--workers", type=int, default=None, help="worker processes of the parallel row")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="decoding processes of the parallel row (the main one included)")
     args = parser.parse_args(argv)
     manifest = load_manifest(args.manifest)
     workers = resolve_workers(manifest, args.workers or max(2, resolve_workers(manifest)))
@@ -144,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
             ["ours: ArchiveWriter.write_serialized, same bytes", t["bytes"], n / t["bytes"], t["bare"] / t["bytes"]],
             ["ours: record() from the logs, in-process (workers=1)", t["record"], n / t["record"],
              t["bare"] / t["record"]],
-            [f"ours: record() with {workers} worker processes", t["parallel"], n / t["parallel"],
+            [f"ours: record(workers={workers}): main + {workers - 1} forked", t["parallel"], n / t["parallel"],
              t["bare"] / t["parallel"]],
         ],
     )

@@ -184,7 +184,8 @@ def resolve_workers(manifest: Manifest, workers: int | None = None) -> int:
 
     Automatic is in-process for a trial under AUTO_PARALLEL_MIN_BYTES, on one
     core, or when other threads run (a batch's thread pool, say); else one
-    worker per core. Where processes cannot be forked it is always 1.
+    process per core: this one and a forked worker for each other core. Where
+    processes cannot be forked it is always 1.
     """
     logs = len(manifest.logs())
     if workers is None:
@@ -213,13 +214,21 @@ def _decode_log(manifest: Manifest, log: LogSpec, data: bytes, convert, fallback
     return stats
 
 
+def _capture(manifest: Manifest, log: LogSpec, data: bytes, table: dict, fallback: int) -> Captured:
+    """One log decoded and converted, its messages serialized for writing later."""
+    sink = Capture()
+    stats = _decode_log(manifest, log, data, table[(log.sensor, log.format)], fallback, sink, None)
+    captured = sink.finish(stats)
+    captured.data = data
+    return captured
+
+
 def _capture_log(manifest: Manifest, table: dict, fallback: int, index: int) -> Captured:
     """In a worker: one log decoded and converted, its messages serialized for the main process."""
     log = manifest.logs()[index]
-    data = (manifest.root / log.path).read_bytes()
-    sink = Capture()
-    stats = _decode_log(manifest, log, data, table[(log.sensor, log.format)], fallback, sink, None)
-    return sink.finish(stats)
+    captured = _capture(manifest, log, (manifest.root / log.path).read_bytes(), table, fallback)
+    captured.data = b""  # the main process reads the file itself: no need to ship it back
+    return captured
 
 
 def _attach(writer: ArchiveWriter, log: LogSpec, data: bytes, fallback: int) -> None:
@@ -238,23 +247,51 @@ def _record_serial(manifest: Manifest, writer: ArchiveWriter, table: dict, fallb
             progress(log.path, len(data), len(data))
 
 
-def _record_parallel(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[Captured], fallback: int,
-                     summary: RecordingSummary, progress: Progress | None) -> None:
+def _record_parallel(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[Captured], table: dict,
+                     fallback: int, summary: RecordingSummary, progress: Progress | None) -> None:
     logs = manifest.logs()
+    own: dict[int, Captured] = {}  # later logs this process captured while a worker still held an earlier one
     for i, log in enumerate(logs):
-        data = (manifest.root / log.path).read_bytes()
-        try:
-            captured = pool.result(i)
-        except WorkerDied as exc:
-            raise ManifestError(f"{logs[exc.task].path}: the worker process decoding it {exc.how}") from None
-        if captured.stats.sha256 != hashlib.sha256(data).hexdigest():
-            # the attachment must be the very bytes that were decoded
-            raise ManifestError(f"{log.path}: the file changed while it was being recorded")
-        _attach(writer, log, data, fallback)
-        write_captured(writer, captured)
-        summary.files.append(captured.stats)
+        captured = own.pop(i, None)
+        if captured is None:
+            try:
+                captured = _next_captured(manifest, writer, pool, table, fallback, summary, progress, own, i)
+            except WorkerDied as exc:
+                what = f"{logs[exc.task].path}: the worker process decoding it" if exc.task is not None \
+                    else "a worker process decoding the logs"
+                raise ManifestError(f"{what} {exc.how}") from None
+        if captured is not None:
+            _attach(writer, log, captured.data, fallback)
+            write_captured(writer, captured)
+            summary.files.append(captured.stats)
         if progress is not None:
-            progress(log.path, len(data), len(data))
+            size = summary.files[-1].size
+            progress(log.path, size, size)
+
+
+def _next_captured(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[Captured], table: dict,
+                   fallback: int, summary: RecordingSummary, progress: Progress | None,
+                   own: dict[int, Captured], i: int) -> Captured | None:
+    """Log `i` as a worker captured it, or None once this process has recorded it straight into the archive."""
+    while not pool.ready(i):
+        task = pool.claim()
+        if task is None:  # every log is taken: log i is a worker's, wait for it
+            break
+        log = manifest.logs()[task]
+        data = (manifest.root / log.path).read_bytes()
+        if task == i:  # nobody had it: decode it here as the serial path does, no copy, no replay
+            _attach(writer, log, data, fallback)
+            summary.files.append(_decode_log(manifest, log, data, table[(log.sensor, log.format)], fallback,
+                                             writer, progress))
+            return None
+        own[task] = _capture(manifest, log, data, table, fallback)  # a later log, while a worker holds log i
+    captured = pool.result(i)
+    log = manifest.logs()[i]
+    captured.data = (manifest.root / log.path).read_bytes()
+    if captured.stats.sha256 != hashlib.sha256(captured.data).hexdigest():
+        # the attachment must be the very bytes that were decoded
+        raise ManifestError(f"{log.path}: the file changed while it was being recorded")
+    return captured
 
 
 def record(manifest: Manifest, output_path, progress: Progress | None = None,
@@ -271,15 +308,16 @@ def record(manifest: Manifest, output_path, progress: Progress | None = None,
     with ExitStack() as stack:
         pool = None
         if summary.workers > 1:
-            # forked before the writer opens its file, so no worker holds it
+            # forked before the writer opens its file, so no worker holds it; this process is one of the
+            # decoding processes and starts on the first log while the workers start
             pool = stack.enter_context(WorkerPool(partial(_capture_log, manifest, table, fallback),
-                                                  len(manifest.logs()), summary.workers))
+                                                  len(manifest.logs()), summary.workers - 1, caller_first=True))
         writer = stack.enter_context(ArchiveWriter(output_path))
         # first, so that an archive cut off mid-write still says who is who
         writer.add_metadata("trial", _trial_metadata(manifest))
         if pool is None:
             _record_serial(manifest, writer, table, fallback, summary, progress)
         else:
-            _record_parallel(manifest, writer, pool, fallback, summary, progress)
+            _record_parallel(manifest, writer, pool, table, fallback, summary, progress)
         writer.add_metadata("recording", {"files": [f.as_json() for f in summary.files]})
     return summary

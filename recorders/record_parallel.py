@@ -11,9 +11,16 @@ message exactly as `ArchiveWriter.write` would.
 
 `WorkerPool` is a small fork pool of our own rather than multiprocessing.Pool
 (which hangs when a worker dies) or ProcessPoolExecutor (which cannot say
-which task killed it, nor stop its workers on Ctrl-C without private API):
-one pipe per worker, one task in flight per worker, and the process sentinels
-watched beside the pipes, so a dead worker is noticed at once and named.
+which task killed it, nor stop its workers on Ctrl-C without private API).
+The calling process works too: tasks are claimed one at a time, in task
+(manifest) order, from a counter in shared memory, by whichever process is
+free, so the main process decodes the next log itself straight into the
+archive when no worker has taken it yet, and no process waits on another to
+be handed work. That order also keeps the results held ahead of their turn
+to about one per process. A worker leaves each result in an anonymous file
+(memfd) whose descriptor it passes over its pipe, so it never blocks on a
+main process busy decoding; the process sentinels are watched beside the
+pipes, so a dead worker is noticed at once and named.
 """
 
 from __future__ import annotations
@@ -23,11 +30,13 @@ import os
 import pickle
 import signal
 import sys
+import tempfile
 import threading
 import traceback
 from array import array
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection, wait
+from multiprocessing.reduction import recv_handle, send_handle
 from typing import Any, Callable, Generic, TypeVar
 
 from formats.mcap_writer import ArchiveWriter
@@ -64,6 +73,7 @@ class Captured:
     index: array = field(default_factory=lambda: array("q"))
     blob: bytes = b""
     stats: Any = None  # the log's FileStats, filled by the recorder
+    data: bytes = b""  # the log itself, for its attachment (not shipped from a worker)
 
 
 class Capture:
@@ -123,8 +133,9 @@ def write_captured(writer: ArchiveWriter, captured: Captured) -> None:
 class WorkerDied(RuntimeError):
     """A worker process ended without answering (killed, crashed in C, out of memory)."""
 
-    def __init__(self, task: int, how: str):
-        super().__init__(f"the worker process doing task {task} {how}")
+    def __init__(self, task: int | None, how: str):
+        what = "a worker process" if task is None else f"the worker process doing task {task}"
+        super().__init__(f"{what} {how}")
         self.task, self.how = task, how
 
 
@@ -150,37 +161,88 @@ def _answer(fn: Callable[[int], Any], task: int) -> tuple[bool, Any]:
         return False, exc
 
 
-def _worker(conn: Connection, others: list[Connection], fn: Callable[[int], Any]) -> None:
+_CALLER = -1  # in WorkerPool's claim table: the task is the calling process's own
+
+
+def _take_next(claims: Any, who: int) -> int | None:
+    """The next unclaimed task, marked as `who`'s; the caller holds the lock."""
+    task = claims[0]
+    if task >= len(claims) - 1:
+        return None
+    claims[0] = task + 1
+    claims[1 + task] = who
+    return task
+
+
+def _anonymous_file() -> int:
+    if hasattr(os, "memfd_create"):
+        return os.memfd_create("auvreplay-result", os.MFD_CLOEXEC)
+    fd, path = tempfile.mkstemp(prefix="auvreplay-result-")  # where there is no memfd: a file gone from view
+    os.unlink(path)
+    return fd
+
+
+def _hand_over(conn: Connection, task: int, answer: tuple[bool, Any]) -> None:
+    """Leave a task's answer in an anonymous file and pass its descriptor to the main process."""
+    fd = _anonymous_file()
+    try:
+        with open(fd, "wb", closefd=False) as f:
+            pickle.dump(answer, f, protocol=pickle.HIGHEST_PROTOCOL)  # large bytes go straight to the file
+        conn.send(task)
+        send_handle(conn, fd, os.getppid())
+    finally:
+        os.close(fd)  # the message in flight holds the file now
+
+
+def _take_over(fd: int) -> tuple[bool, Any]:
+    """The answer a worker left in the file `fd` (closed here)."""
+    with open(fd, "rb") as f:
+        f.seek(0)  # the worker's writes moved the offset the descriptor shares
+        return pickle.load(f)
+
+
+def _worker(number: int, conn: Connection, others: list[Connection], fn: Callable[[int], Any],
+            lock: Any, claims: Any) -> None:
     # Ctrl-C is the main process's to handle: it stops the workers itself
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     for other in others:  # parent ends inherited by fork; keeping them would hide the parent's exit
         other.close()
-    while True:
-        try:
-            task = conn.recv()
+    try:
+        while True:
+            with lock:
+                task = _take_next(claims, number)
             if task is None:
-                return
-            conn.send(_answer(fn, task))
-        except (EOFError, OSError):  # the main process is gone
-            return
+                return  # every task is taken: exit at once, while the main process still writes
+            _hand_over(conn, task, _answer(fn, task))
+    except (EOFError, OSError):  # the main process is gone
+        return
 
 
 class WorkerPool(Generic[T]):
-    """`fn(0) ... fn(tasks - 1)` in forked worker processes, results taken back in any order.
+    """`fn(0) ... fn(tasks - 1)` shared in task order between forked workers and the calling process.
 
-    A context manager: leaving it (normally, on an error or on Ctrl-C) stops
-    every worker and waits for it, so none is left behind.
+    Each task is claimed once, in increasing order, by whoever is free: a
+    worker (the caller gets its result with `result`) or the caller itself
+    (`claim`, then it runs the task as it likes). With `caller_first`, task 0
+    is the caller's before any worker starts. A context manager: leaving it
+    (normally, on an error or on Ctrl-C) stops every worker and waits for it,
+    so none is left behind.
     """
 
-    def __init__(self, fn: Callable[[int], T], tasks: int, workers: int):
-        self._next = 0
-        self._tasks = tasks
-        self._results: dict[int, tuple[bool, Any]] = {}
-        self._busy: dict[Connection, tuple[multiprocessing.Process, int]] = {}
-        self._idle: list[tuple[multiprocessing.Process, Connection]] = []
-        self._all: list[tuple[multiprocessing.Process, Connection]] = []
+    def __init__(self, fn: Callable[[int], T], tasks: int, workers: int, caller_first: bool = False):
         ctx = multiprocessing.get_context("fork")
+        self._tasks = tasks
+        self._lock = ctx.Lock()
+        # [0]: the next task; [1 + t]: who took task t (0 nobody, _CALLER, or worker number from 1)
+        self._claims = ctx.RawArray("i", 1 + tasks)
+        self._reserved: list[int] = []  # taken for the caller before the forks, handed out by claim()
+        if caller_first and tasks:
+            self._reserved.append(_take_next(self._claims, _CALLER))
+        self._results: dict[int, int] = {}  # task -> descriptor of the file holding its answer
+        self._received: set[int] = set()
+        self._live: dict[Connection, tuple[multiprocessing.Process, int]] = {}
+        self._all: list[tuple[multiprocessing.Process, Connection]] = []
         sys.stdout.flush()  # else a child could flush the parent's pending output a second time
         sys.stderr.flush()
         try:
@@ -189,84 +251,98 @@ class WorkerPool(Generic[T]):
             try:
                 pipes = [ctx.Pipe() for _ in range(workers)]
                 parent_ends = [p for p, _ in pipes]
-                for parent, child in pipes:
-                    proc = ctx.Process(target=_worker, args=(child, parent_ends, fn), daemon=True)
+                for number, (parent, child) in enumerate(pipes, 1):
+                    proc = ctx.Process(target=_worker, args=(number, child, parent_ends, fn, self._lock,
+                                                             self._claims), daemon=True)
                     proc.start()
                     child.close()
                     self._all.append((proc, parent))
+                    self._live[parent] = (proc, number)
             finally:
                 signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)  # a pending Ctrl-C is raised here
-            for proc, conn in self._all:
-                self._dispatch(proc, conn)
         except BaseException:
             self.close()  # no __exit__ for a constructor that failed: stop what was started
             raise
 
-    def _dispatch(self, proc: multiprocessing.Process, conn: Connection) -> None:
-        if self._next < self._tasks:
-            task = self._next
-            try:
-                conn.send(task)
-            except OSError:  # the worker is gone
-                proc.join(1.0)
-                raise WorkerDied(task, _exit_description(proc.exitcode)) from None
-            self._busy[conn] = (proc, task)
-            self._next += 1
-        else:
-            self._idle.append((proc, conn))
+    def claim(self) -> int | None:
+        """The next unclaimed task, now the caller's to run; None when every task is taken."""
+        if self._reserved:
+            return self._reserved.pop()
+        # a worker killed while holding the lock would hold it for ever: look for dead workers meanwhile
+        while not self._lock.acquire(timeout=0.1):
+            self._poll(0)
+        try:
+            return _take_next(self._claims, _CALLER)
+        finally:
+            self._lock.release()
+
+    def ready(self, task: int) -> bool:
+        """Whether a worker's result for `task` is in, without waiting."""
+        if task not in self._results:
+            self._poll(0)
+        return task in self._results
 
     def result(self, task: int) -> T:
-        """The result of `fn(task)`, waiting for it; its exception is raised here."""
-        self._poll(0)  # take in whatever is ready, so no worker waits on a full pipe
+        """The result of a worker's `fn(task)`, waiting for it; its exception is raised here."""
         while task not in self._results:
-            if not self._busy:
-                raise RuntimeError(f"task {task} was never dispatched")
+            if task in self._received or self._claims[1 + task] <= 0 or not self._live:
+                raise RuntimeError(f"task {task} is not a worker's to answer")
             self._poll(None)
-        ok, value = self._results.pop(task)
+        ok, value = _take_over(self._results.pop(task))
         if not ok:
             raise value
         return value
 
     def _poll(self, timeout: float | None) -> None:
-        sentinels = {proc.sentinel: conn for conn, (proc, _) in self._busy.items()}
-        ready = wait([*self._busy, *sentinels], timeout)
-        if not ready:
+        if not self._live:
             return
-        answered = set()
-        for conn in [c for c in ready if c in self._busy]:
-            proc, task = self._busy[conn]
-            try:
-                self._results[task] = conn.recv()
-            except (EOFError, OSError, pickle.UnpicklingError):
-                proc.join(1.0)
-                raise WorkerDied(task, _exit_description(proc.exitcode)) from None
-            answered.add(conn)
-            del self._busy[conn]
-            self._dispatch(proc, conn)
-        for sentinel in ready:
-            conn = sentinels.get(sentinel)
-            if conn is not None and conn not in answered and not conn.poll():
-                proc, task = self._busy[conn]
-                proc.join(1.0)
-                raise WorkerDied(task, _exit_description(proc.exitcode))
+        sentinels = {proc.sentinel: conn for conn, (proc, _) in self._live.items()}
+        gone = set()
+        for conn in wait([*self._live, *sentinels], timeout):
+            conn = sentinels.get(conn, conn)  # an ended worker: take in what it sent before it went
+            if conn in gone:
+                continue
+            while conn.poll():
+                if not self._receive(conn):
+                    gone.add(conn)  # its end of the pipe is closed: it has exited or is exiting
+                    break
+            if not self._live[conn][0].is_alive():
+                gone.add(conn)
+        for conn in gone:
+            proc, number = self._live.pop(conn)
+            proc.join(1.0)
+            lost = [t for t in range(self._claims[0]) if self._claims[1 + t] == number and t not in self._received]
+            if lost or proc.exitcode != 0:
+                raise WorkerDied(lost[0] if lost else None, _exit_description(proc.exitcode))
+
+    def _receive(self, conn: Connection) -> bool:
+        """Take in one answer from `conn`; False at its end (the worker exited)."""
+        try:
+            task = conn.recv()
+            fd = recv_handle(conn)
+        except (EOFError, OSError, pickle.UnpicklingError):
+            return False
+        self._results[task] = fd
+        self._received.add(task)
+        return True
 
     def close(self) -> None:
-        """Stop every worker: idle ones are told to exit, busy ones are terminated; all are waited for."""
-        for proc, conn in self._all:
-            if conn in self._busy or not proc.is_alive():
+        """Stop every worker: none takes a new task, busy ones are terminated; all are waited for."""
+        if self._lock.acquire(timeout=1.0):  # a worker that died holding it: the others are terminated below
+            self._claims[0] = self._tasks
+            self._lock.release()
+        for proc, number in self._live.values():  # the others exit on their own: no task is left
+            if any(self._claims[1 + t] == number and t not in self._received for t in range(self._tasks)):
                 proc.terminate()
-            else:
-                try:
-                    conn.send(None)
-                except OSError:
-                    proc.terminate()
         for proc, conn in self._all:
             proc.join(2.0)
             if proc.is_alive():
                 proc.kill()
                 proc.join()
             conn.close()
-        self._all, self._busy, self._idle = [], {}, []
+        for fd in self._results.values():
+            os.close(fd)
+        self._all, self._live, self._results = [], {}, {}
 
     def __enter__(self) -> "WorkerPool[T]":
         return self

@@ -6,6 +6,7 @@ import multiprocessing
 import os
 import shutil
 import signal
+import time
 from pathlib import Path
 
 import pytest
@@ -127,12 +128,27 @@ def test_the_cli_gives_one_line_for_it_with_workers(tmp_path, capsys):
 
 
 def _crashing_table(monkeypatch, how) -> None:
-    """The converter of the modem csv log dies in the process that runs it."""
+    """The converter of the modem csv log dies in the worker that runs it; the main process lets a worker take it."""
     real = rec.converters
+    main_pid = os.getpid()
 
     def table():
         t = real()
-        t[("modem", "csv")] = lambda data, ctx: how()
+        gps = t[("gps", "csv")]
+
+        def slow_gps(data, ctx):
+            # the main process takes the first log itself; while it is on it, the worker claims the second
+            if os.getpid() == main_pid:
+                time.sleep(0.5)
+            return gps(data, ctx)
+
+        def modem(data, ctx):
+            if os.getpid() == main_pid:
+                raise AssertionError("the crashing log was decoded in the main process")
+            return how()
+
+        t[("gps", "csv")] = slow_gps
+        t[("modem", "csv")] = modem
         return t
 
     monkeypatch.setattr(rec, "converters", table)
@@ -227,3 +243,41 @@ def test_inside_a_daemonic_worker_recording_stays_in_process(tmp_path):
 
 def _record_in_child(manifest, out: Path) -> int:
     return record(manifest, out, workers=2).workers
+
+
+def _big(task: int) -> bytes:
+    return bytes([task]) * (4 << 20)
+
+
+def test_a_worker_hands_over_big_results_without_waiting_for_the_main_process():
+    with rec.WorkerPool(_big, 3, 1) as pool:
+        deadline = time.monotonic() + 20
+        # nobody reads the results yet: through a pipe alone, the worker would block on the first 4 MiB
+        while multiprocessing.active_children() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert not multiprocessing.active_children()
+        assert [pool.result(t)[:1] for t in range(3)] == [b"\0", b"\1", b"\2"]
+
+
+def _slow_square(task: int) -> int:
+    time.sleep(0.002 * (task % 3))
+    return task * task
+
+
+def test_tasks_are_shared_in_order_between_the_caller_and_the_workers():
+    claimed = []
+    with rec.WorkerPool(_slow_square, 30, 2, caller_first=True) as pool:
+        own = {}
+        results = []
+        for task in range(30):
+            while task not in own and not pool.ready(task):
+                mine = pool.claim()
+                if mine is None:
+                    break
+                claimed.append(mine)
+                own[mine] = _slow_square(mine)
+            results.append(own.pop(task) if task in own else pool.result(task))
+        assert pool.claim() is None
+    assert results == [t * t for t in range(30)]
+    assert claimed[0] == 0 and claimed == sorted(claimed)  # caller_first, then in increasing order
+    assert not multiprocessing.active_children()
