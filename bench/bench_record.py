@@ -22,19 +22,27 @@ parallel row also against the serial one. Timings are medians of interleaved
 rounds (one of each per round), so a load change on the shared machine hits
 all four alike.
 
-Run: .venv/bin/python bench/bench_record.py [--manifest PATH] [--repeats N] [--workers N]
+With --timeline, one more record(workers=N) is traced: when each log's
+decode starts and ends in which process, when the main process writes, waits
+for a worker or takes a result over, and how long forking, closing the
+archive and stopping the workers take (the trace's own cost, a few us an
+event, is in the figures).
+
+Run: .venv/bin/python bench/bench_record.py [--manifest PATH] [--repeats N] [--workers N] [--timeline]
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import statistics
 import sys
 import tempfile
 import time
+from collections import defaultdict
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable, Iterator
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -47,6 +55,8 @@ from mcap.writer import CompressionType, Writer  # noqa: E402
 from formats.mcap_writer import ArchiveWriter  # noqa: E402
 from formats.schemas import MESSAGE_CLASSES  # noqa: E402
 from recorders.manifest import load_manifest  # noqa: E402
+import recorders.record as recording  # noqa: E402
+import recorders.record_parallel as parallel_recording  # noqa: E402
 from recorders.record import record, resolve_workers  # noqa: E402
 from recorders.record_parallel import available_cores  # noqa: E402
 
@@ -111,6 +121,80 @@ def interleaved(fns: dict[str, Callable[[], object]], repeats: int) -> dict[str,
     return {name: statistics.median(ts) for name, ts in times.items()}
 
 
+# (module, attribute, label, index of the argument naming the span or None): the traced steps
+TRACED = [
+    (recording, "_decode_log", "decode", 1),
+    (recording, "_attach", "attach", 1),
+    (recording, "write_captured", "write captured", None),
+    (parallel_recording.WorkerPool, "__init__", "fork workers", None),
+    (parallel_recording.WorkerPool, "result", "wait for worker", 1),
+    (parallel_recording.WorkerPool, "close", "stop workers", None),
+    (parallel_recording, "_hand_over", "hand over", 1),
+    (parallel_recording, "_take_over", "take over", None),
+    (ArchiveWriter, "close", "close archive", None),
+]
+
+
+@contextlib.contextmanager
+def traced(events_path: Path) -> Iterator[None]:
+    """Every TRACED step logs (process, start, end, CPU, label) to `events_path`, from whichever process runs it."""
+    # one O_APPEND descriptor inherited by the forks: each line is one write(), whole under PIPE_BUF
+    fd = os.open(events_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_TRUNC)
+
+    def wrap(real: Callable, label: str, arg: int | None) -> Callable:
+        def step(*args: Any, **kwargs: Any) -> Any:
+            what = "" if arg is None else str(getattr(args[arg], "path", args[arg]))
+            start, cpu = time.perf_counter(), time.process_time()
+            try:
+                return real(*args, **kwargs)
+            finally:
+                os.write(fd, f"{os.getpid()}\t{start}\t{time.perf_counter()}\t"
+                             f"{time.process_time() - cpu}\t{label}\t{what}\n".encode())
+        return step
+
+    saved = [(owner, attr, getattr(owner, attr)) for owner, attr, _, _ in TRACED]
+    try:
+        for (owner, attr, label, arg), (_, _, real) in zip(TRACED, saved):
+            setattr(owner, attr, wrap(real, label, arg))
+        yield
+    finally:
+        for owner, attr, real in saved:
+            setattr(owner, attr, real)
+        os.close(fd)
+
+
+def print_timeline(manifest: Any, out: Path, workers: int, events_path: Path) -> None:
+    """One traced record(): each process's steps in time order, then the time each kind of step took."""
+    start = time.perf_counter()
+    with traced(events_path):
+        record(manifest, out, workers=workers)
+    wall = time.perf_counter() - start
+    rows = []
+    for line in events_path.read_text().splitlines():
+        pid, t0, t1, cpu, label, what = line.split("\t")
+        rows.append((int(pid), float(t0) - start, float(t1) - start, float(cpu), label, what))
+    names = {os.getpid(): "main"}
+    for pid in sorted({r[0] for r in rows} - {os.getpid()}, key=lambda p: min(r[1] for r in rows if r[0] == p)):
+        names[pid] = f"worker {len(names)}"
+    print(f"\nTimeline of record(workers={workers}), {1000 * wall:.1f} ms (ms from the call; cpu of the step)")
+    totals: dict[tuple[str, str], list[float]] = defaultdict(lambda: [0.0, 0.0, 0])  # wall, cpu, count
+    for pid in names:
+        print(f"  {names[pid]}")
+        for _, t0, t1, cpu, label, what in sorted(r for r in rows if r[0] == pid):
+            print(f"    {1000 * t0:7.1f} {1000 * t1:7.1f}  {1000 * (t1 - t0):6.1f} cpu {1000 * cpu:6.1f}  {label} {what}")
+            total = totals[(names[pid], label)]
+            total[0] += t1 - t0
+            total[1] += cpu
+            total[2] += 1
+        steps = [r for r in rows if r[0] == pid]
+        if steps and pid != os.getpid():  # a worker's idle time: between its first and last step, not in one
+            busy = sum(r[2] - r[1] for r in steps)
+            print(f"    busy {1000 * busy:.1f} ms of {1000 * (max(r[2] for r in steps) - min(r[1] for r in steps)):.1f}")
+    print("  totals")
+    for (who, name), (secs, cpu, count) in sorted(totals.items()):
+        print(f"    {who:9s} {name:16s} {count:3d}x  {1000 * secs:7.1f} ms  cpu {1000 * cpu:7.1f} ms")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Print the table."""
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -118,6 +202,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--workers", type=int, default=None,
                         help="decoding processes of the parallel row (the main one included)")
+    parser.add_argument("--timeline", action="store_true", help="then trace one record(workers=N) and print it")
     args = parser.parse_args(argv)
     manifest = load_manifest(args.manifest)
     workers = resolve_workers(manifest, args.workers or max(2, resolve_workers(manifest)))
@@ -155,6 +240,9 @@ def main(argv: list[str] | None = None) -> int:
     ratio = t["bare"] / min(t["record"], t["parallel"])
     print(f"  recording goal: >= 50 % of bare -> {'met' if ratio >= 0.5 else 'NOT met'} ({100 * ratio:.0f} %, "
           f"best of the two record() rows)")
+    if args.timeline:
+        with tempfile.TemporaryDirectory() as tmp:
+            print_timeline(manifest, Path(tmp) / "traced.mcap", workers, Path(tmp) / "events.tsv")
     return 0
 
 
