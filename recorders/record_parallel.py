@@ -73,7 +73,7 @@ class Captured:
     index: array = field(default_factory=lambda: array("q"))
     blob: bytes = b""
     stats: Any = None  # the log's FileStats, filled by the recorder
-    data: bytes = b""  # the log itself, for its attachment (not shipped from a worker)
+    data: bytes = b""  # the log itself, for its attachment
 
 
 class Capture:
@@ -120,13 +120,13 @@ def write_captured(writer: ArchiveWriter, captured: Captured) -> None:
     index, blob = captured.index, memoryview(captured.blob)
     write = writer.write_serialized
     start = 0
-    for k in range(0, len(index), _FIELDS):
-        number, end = index[k], index[k + 1]
+    fields = [iter(index)] * _FIELDS  # one iterator zipped with itself: the index read _FIELDS at a time
+    for number, end, log_time, publish_time in zip(*fields):
         cid = ids[number]
         if cid is None:
             topic, name = captured.topics[number]
             cid = ids[number] = writer.channel(topic, MESSAGE_CLASSES[name])
-        write(cid, blob[start:end], index[k + 2], index[k + 3])
+        write(cid, blob[start:end], log_time, publish_time)
         start = end
 
 
