@@ -181,7 +181,8 @@ def print_timeline(manifest: Any, out: Path, workers: int, events_path: Path) ->
     for pid in names:
         print(f"  {names[pid]}")
         for _, t0, t1, cpu, label, what in sorted(r for r in rows if r[0] == pid):
-            print(f"    {1000 * t0:7.1f} {1000 * t1:7.1f}  {1000 * (t1 - t0):6.1f} cpu {1000 * cpu:6.1f}  {label} {what}")
+            print(f"    {1000 * t0:7.1f} {1000 * t1:7.1f}  {1000 * (t1 - t0):6.1f} "
+                  f"cpu {1000 * cpu:6.1f}  {label} {what}")
             total = totals[(names[pid], label)]
             total[0] += t1 - t0
             total[1] += cpu
@@ -189,7 +190,8 @@ def print_timeline(manifest: Any, out: Path, workers: int, events_path: Path) ->
         steps = [r for r in rows if r[0] == pid]
         if steps and pid != os.getpid():  # a worker's idle time: between its first and last step, not in one
             busy = sum(r[2] - r[1] for r in steps)
-            print(f"    busy {1000 * busy:.1f} ms of {1000 * (max(r[2] for r in steps) - min(r[1] for r in steps)):.1f}")
+            span = max(r[2] for r in steps) - min(r[1] for r in steps)
+            print(f"    busy {1000 * busy:.1f} ms of {1000 * span:.1f}")
     print("  totals")
     for (who, name), (secs, cpu, count) in sorted(totals.items()):
         print(f"    {who:9s} {name:16s} {count:3d}x  {1000 * secs:7.1f} ms  cpu {1000 * cpu:7.1f} ms")

@@ -250,9 +250,12 @@ def _record_serial(manifest: Manifest, writer: ArchiveWriter, table: dict, fallb
 def _record_parallel(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[Captured], table: dict,
                      fallback: int, summary: RecordingSummary, progress: Progress | None) -> None:
     logs = manifest.logs()
-    own: dict[int, Captured] = {}  # later logs this process captured while a worker still held an earlier one
+    # later logs this process captured while a worker still held an earlier one, or the error that gave
+    own: dict[int, Captured | Exception] = {}
     for i, log in enumerate(logs):
         captured = own.pop(i, None)
+        if isinstance(captured, Exception):
+            raise captured  # at its log's turn, so that an earlier log's error comes first, as in the serial path
         if captured is None:
             try:
                 captured = _next_captured(manifest, writer, pool, table, fallback, summary, progress, own, i)
@@ -271,7 +274,7 @@ def _record_parallel(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool
 
 def _next_captured(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[Captured], table: dict,
                    fallback: int, summary: RecordingSummary, progress: Progress | None,
-                   own: dict[int, Captured], i: int) -> Captured | None:
+                   own: dict[int, Captured | Exception], i: int) -> Captured | None:
     """Log `i` as a worker captured it, or None once this process has recorded it straight into the archive."""
     while not pool.ready(i):
         task = pool.claim()
@@ -284,7 +287,10 @@ def _next_captured(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[C
             summary.files.append(_decode_log(manifest, log, data, table[(log.sensor, log.format)], fallback,
                                              writer, progress))
             return None
-        own[task] = _capture(manifest, log, data, table, fallback)  # a later log, while a worker holds log i
+        try:  # a later log, while a worker holds log i
+            own[task] = _capture(manifest, log, data, table, fallback)
+        except Exception as exc:  # noqa: BLE001 - raised at its turn
+            own[task] = exc
     return pool.result(i)
 
 

@@ -1,11 +1,12 @@
-"""Decoding a trial's logs in worker processes while the main process writes the archive in order.
+"""Decoding a trial's logs in worker processes and the main one, while the main process writes the archive in order.
 
 The recording step is dominated by decoding, which is independent per log;
 writing must stay in one process and in manifest order so that the archive is
 byte-for-byte the serial one. So a worker turns one log into a `Captured`:
 every write the serial recorder would have made, already serialized (one
 bytes blob, one int64 array of (topic, end offset, log time, publish time)),
-plus the log's statistics. The main process replays it with
+plus the log's statistics and its bytes (for the attachment: the main process
+then never reads the file again). The main process replays it with
 `ArchiveWriter.write_serialized`, registering each channel at its first
 message exactly as `ArchiveWriter.write` would.
 

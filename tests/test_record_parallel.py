@@ -13,6 +13,7 @@ import pytest
 
 import recorders.record as rec
 from formats.mcap_reader import ArchiveReader
+from formats.records import FormatError
 from recorders.manifest import ManifestError, load_manifest
 from recorders.record import record, resolve_workers
 from replay.cli import main
@@ -43,6 +44,15 @@ format = "csv"
 path = "range.csv"
 time_format = "TIME_FORMAT"
 columns = { time = "t", range_m = "range", source = "from" }
+"""
+
+
+LATE_GPS_LOG = """
+[[vehicles.logs]]
+sensor = "gps"
+format = "csv"
+path = "late.csv"
+columns = { time = "t", latitude = "lat", longitude = "lon" }
 """
 
 
@@ -117,6 +127,43 @@ def test_a_log_that_cannot_be_decoded_gives_the_serial_message(tmp_path):
         _no_leftovers(tmp_path)
     assert messages[0] == messages[1]
     assert "range.csv" in messages[0] and "fortnights" in messages[0]
+
+
+def test_an_earlier_logs_error_comes_first_though_the_main_process_failed_on_a_later_one(tmp_path, monkeypatch):
+    toml = _csv_trial(tmp_path)
+    (tmp_path / "late.csv").write_bytes((tmp_path / "gps.csv").read_bytes())
+    toml.write_text(toml.read_text() + LATE_GPS_LOG)
+    real = rec.converters
+    main_pid = os.getpid()
+
+    def table():
+        t = real()
+        gps = t[("gps", "csv")]
+
+        def gps_or_late(data, ctx):
+            if ctx.path == "late.csv":
+                raise FormatError("late broke")
+            if os.getpid() == main_pid:
+                time.sleep(0.3)  # the worker takes range.csv meanwhile; the main process then takes late.csv
+            return gps(data, ctx)
+
+        def modem(data, ctx):
+            time.sleep(0.6 if os.getpid() != main_pid else 0)  # still at it when the main process fails on late.csv
+            raise FormatError("range broke")
+
+        t[("gps", "csv")] = gps_or_late
+        t[("modem", "csv")] = modem
+        return t
+
+    monkeypatch.setattr(rec, "converters", table)
+    manifest = load_manifest(toml)
+    messages = []
+    for workers in (1, 2):
+        with pytest.raises(ManifestError) as err:
+            record(manifest, tmp_path / "t.mcap", workers=workers)
+        messages.append(str(err.value))
+        _no_leftovers(tmp_path)
+    assert messages[0] == messages[1] and "range.csv" in messages[0] and "range broke" in messages[0]
 
 
 def test_the_cli_gives_one_line_for_it_with_workers(tmp_path, capsys):
