@@ -143,6 +143,24 @@ def _ring_hits(node_xy: FloatArray, ranges: FloatArray, centres: FloatArray, hal
     return (near <= r + ring_half_width) & (far >= r - ring_half_width)
 
 
+def _grid_ring_votes(node_xy: FloatArray, ranges: FloatArray, base: FloatArray, step: FloatArray, half: float,
+                     ring_half_width: float) -> NDArray[np.intp]:
+    """Votes of the cells `base + (step_i, step_j)` (i-major): `_ring_hits` summed over references, (V, S*S).
+
+    The cells form a grid, so the per-axis offsets are worked out per row and
+    column (S values, not S*S) and only the distances per cell: the same
+    floats as `_ring_hits` on the grid's centres, at a fraction of the cost.
+    """
+    nodes = node_xy if node_xy.ndim == 3 else node_xy[None]          # (V or 1, N, 2)
+    ox = np.abs((base[:, 0, None] + step)[:, :, None] - nodes[:, None, :, 0])   # (V, S, N)
+    oy = np.abs((base[:, 1, None] + step)[:, :, None] - nodes[:, None, :, 1])
+    near = np.hypot(np.maximum(ox - half, 0.0)[:, :, None], np.maximum(oy - half, 0.0)[:, None])
+    far = np.hypot((ox + half)[:, :, None], (oy + half)[:, None])   # (V, S, S, N)
+    r = ranges[:, None, None, :]
+    hits = (near <= r + ring_half_width) & (far >= r - ring_half_width)
+    return np.count_nonzero(hits, axis=-1).reshape(base.shape[0], -1)
+
+
 def ear(
     node_xy: FloatArray, ranges: FloatArray, ring_width_m: float, *,
     field_half_width_m: float = 1000.0, field_centre_xy: tuple[float, float] | FloatArray = (0.0, 0.0),
@@ -168,10 +186,12 @@ def ear(
     size = 2.0 * field_half_width_m
     for _ in range(levels):
         rows, slots = np.nonzero(keep)                                # only live cells are split
-        cells = centres[rows, slots][:, None, :] + size * sub          # (V, S, 2)
+        base = centres[rows, slots]                                    # (V, 2)
+        cells = base[:, None, :] + size * sub                          # (V, S, 2)
+        step = size * grid
         size /= split
         nodes = node_xy[rows] if per_trial else node_xy
-        votes = np.sum(_ring_hits(nodes, ranges[rows], cells, size / 2, ring_width_m / 2), -1)
+        votes = _grid_ring_votes(nodes, ranges[rows], base, step, size / 2, ring_width_m / 2)
         best = np.full(t, -1)
         np.maximum.at(best, rows, np.max(votes, axis=-1))
         centres, keep = _top_cells(cells, votes == best[rows][:, None], rows, t, max_cells)
