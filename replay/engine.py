@@ -95,6 +95,8 @@ class Engine:
         self.positioning_errors: dict[str, array] = {m: array("d") for m in POSITIONING_METHODS}
         self.messages = 0
         self.last_s = -math.inf
+        self._routes: dict[str, tuple[str | None, Callable[[Engine, str, float, Any], None] | None]] = {}
+        self._lag_s = config.engine.lag_s
 
     # -- intake ----------------------------------------------------------------
     def push(self, topic: str, log_time_ns: int, msg: Any) -> None:
@@ -103,19 +105,31 @@ class Engine:
         t_s = (log_time_ns - self.t0_ns) / NS
         if t_s < self.last_s:
             self.counts["out_of_order_messages"] += 1
-        self.last_s = max(self.last_s, t_s)
+        else:
+            self.last_s = t_s
+        route = self._routes.get(topic)
+        if route is None:
+            route = self._routes[topic] = self._route(topic)
+        vehicle, handler = route
+        if handler is None:
+            if vehicle is None:
+                if topic == "/diagnostics":
+                    for listener in self.listeners:
+                        listener.event(t_s, "WARN", f"rejected record: {msg.message}")
+                return
+        else:
+            handler(self, vehicle, t_s, msg)
+        self._release(self.last_s - self._lag_s)
+
+    def _route(self, topic: str) -> tuple[str | None, Callable[[Engine, str, float, Any], None] | None]:
+        """(vehicle, handler) of a topic, parsed once per topic: (None, None) for one to skip."""
         if topic == "/diagnostics":
-            for listener in self.listeners:
-                listener.event(t_s, "WARN", f"rejected record: {msg.message}")
-            return
+            return None, None
         parts = topic.strip("/").split("/")
         vehicle, sensor = parts[0], "/".join(parts[1:])
         if vehicle not in self.tracks:
-            return
-        handler = _HANDLERS.get(sensor)
-        if handler is not None:
-            handler(self, vehicle, t_s, msg)
-        self._release(self.last_s - self.config.engine.lag_s)
+            return None, None
+        return vehicle, _HANDLERS.get(sensor)
 
     def _gps(self, vehicle: str, t_s: float, msg: Any) -> None:
         if not (math.isfinite(msg.latitude) and math.isfinite(msg.longitude)):
@@ -172,8 +186,10 @@ class Engine:
             self._usbl.flush(min(until_s, self.last_s - self.config.engine.usbl_group_s))
             self._usbl.position_due(until_s)
         for name, pipe in self.followers.items():
-            pipe.release(until_s)
-            self._check_trained(name, pipe)
+            # most messages release nothing; training only happens while events are released
+            if pipe.due(until_s):
+                pipe.release(until_s)
+                self._check_trained(name, pipe)
         if self._usbl is not None and not feeding:
             self._usbl.flush(until_s - 1.0)
 

@@ -12,7 +12,7 @@ import heapq
 import math
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, NamedTuple
 
 from .layout import FollowerPlan
 from .run_config import RunConfig
@@ -36,9 +36,10 @@ class VehicleTracks:
         return self.ins.at(t_s, max_gap_s) or self.gps.at(t_s, max_gap_s)
 
 
-@dataclass(frozen=True, slots=True)
-class ErrorSample:
+class ErrorSample(NamedTuple):
     """Horizontal error of one method's estimate at one follower GPS fix."""
+
+    # a NamedTuple, not a frozen dataclass: one per method at every GPS fix, built ~3x cheaper
 
     t_s: float
     method: str
@@ -117,6 +118,10 @@ class FollowerPipeline:
         self._push(t_s, "gps", (fix,))
 
     # -- release ---------------------------------------------------------------
+    def due(self, until_s: float) -> bool:
+        """True when `release(until_s)` would process an event."""
+        return bool(self._queue) and self._queue[0][0] <= until_s
+
     def release(self, until_s: float) -> None:
         """Process every queued event with time <= until_s, in time order."""
         while self._queue and self._queue[0][0] <= until_s:

@@ -122,6 +122,10 @@ class State2(NamedTuple):
         return np.array([[self.p11, self.p12], [self.p12, self.p22]])
 
 
+# State2(...) without the NamedTuple's Python-level __new__: dr_predict runs per method at every DR sample
+_new_state2 = tuple.__new__
+
+
 @dataclass(frozen=True, slots=True)
 class RangeInnovation:
     """One range epoch's prediction: ẑ, r, unadapted P_zz (m²), P_xz (rad·m), η and R* (m²)."""
@@ -199,7 +203,7 @@ def dr_predict(
     p11 = 0.25 * (o1 * o1 + o2 * o2 + o3 * o3 + o4 * o4) + q_m_per_s[0] ** 2 * dt_s / (b0 * b0)
     p22 = 0.25 * (w1 * w1 + w2 * w2 + w3 * w3 + w4 * w4) + q_m_per_s[1] ** 2 * dt_s / (a0 * a0)
     p12 = 0.25 * (o1 * w1 + o2 * w2 + o3 * w3 + o4 * w4)
-    return State2(s.lat + m_lat, s.lon + m_lon, p11, p12, p22)
+    return _new_state2(State2, (s.lat + m_lat, s.lon + m_lon, p11, p12, p22))
 
 
 def range_innovation(
