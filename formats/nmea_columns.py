@@ -1,8 +1,9 @@
-"""NMEA GGA, GST and RMC of a clean log as numpy columns (the whole-log fast path of `nmea.scan`).
+"""NMEA sentences of a clean log as numpy columns (the whole-log fast path of `nmea.scan`).
 
 `decode_columns` gives, for a log whose every line is a clean sentence (see
-`formats.sentence_columns`) of types GGA (14 fields), GST (8) and RMC (12),
-from any talker, with sentences of other families among them, the values
+`formats.sentence_columns`) of types GGA (14 fields), GST (8), RMC (12),
+VTG (9, with unit letters), GLL (7), ZDA (6), HDT (2) and THS (2), from
+any talker, with sentences of other families among them, the values
 `nmea.scan` would give, as one array per field. It returns None for any other
 log, or when one value is anything the per-line parsers might reject: the
 caller then takes the per-line path, which decides every kind of damage.
@@ -16,11 +17,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .nmea import NAN, VALUES, _ddmmyy
+from .nmea import NAN, VALUES, _ddmmyy, _zda_date
 from .sentence_columns import CleanLines, angle_column, clean_lines, field_table, number_column, select, tod_column
 
-KINDS = ("GGA", "GST", "RMC")  # kind codes 0, 1, 2
-_WIDTH = {"GGA": 15, "GST": 9, "RMC": 13}  # fields with the address, without the checksum
+KINDS = ("GGA", "GST", "RMC", "VTG", "GLL", "ZDA", "HDT", "THS")  # kind codes 0..7
+_WIDTH = {"GGA": 15, "GST": 9, "RMC": 13, "VTG": 10, "GLL": 8, "ZDA": 7, "HDT": 3, "THS": 3}  # with the address
+_TIME = {"GGA": 1, "GST": 1, "RMC": 1, "GLL": 5, "ZDA": 1}  # column of the time of day; the others have none
 
 
 @dataclass(frozen=True, slots=True)
@@ -28,7 +30,7 @@ class NmeaColumns:
     """Sentences of a clean log in file order: kind code, time of day, position in the log; values per kind."""
 
     kind: np.ndarray  # index into KINDS
-    tod: np.ndarray  # seconds of the UTC day
+    tod: np.ndarray  # seconds of the UTC day; NaN for the types without a time (VTG, HDT, THS)
     offsets: np.ndarray
     numbers: np.ndarray
     rows: dict[str, np.ndarray]  # kind -> its sentences' positions in file order
@@ -70,8 +72,45 @@ def _rmc(f: list[list[str]]) -> dict | None:
     return None if any(v is None for v in cols.values()) else cols
 
 
-_PARSE = {"GGA": _gga, "GST": _gst, "RMC": _rmc}
-_OTHERS = tuple(f"{kind},".encode() for kind in VALUES if kind not in KINDS)
+def _vtg(f: list[list[str]]) -> dict | None:
+    # `nmea._vtg` reads the unit-letter layout unless both letters are odd: only that layout here
+    if not all((t in ("T", "") and m in ("M", "")) or t == "T" or m == "M" for t, m in set(zip(f[2], f[4]))):
+        return None
+    cols = {name: number_column(float, f[k], NAN) for k, name in
+            ((1, "course"), (3, "course_magnetic"), (5, "speed"), (7, "kmh"))}
+    return None if any(v is None for v in cols.values()) else cols
+
+
+def _gll(f: list[list[str]]) -> dict | None:
+    cols = {
+        "lat": angle_column(f[1], f[2], "S", 90.0), "lon": angle_column(f[3], f[4], "W", 180.0),
+        "valid": np.array([s == "A" for s in f[6]], dtype=bool),
+    }
+    return None if any(v is None for v in cols.values()) else cols
+
+
+def _zda(f: list[list[str]]) -> dict | None:
+    try:  # one date() per distinct (day, month, year): a log holds one or two
+        table = {k: _zda_date(k[2], k[1], k[0]) if k[0] and k[1] and k[2] else None
+                 for k in set(zip(f[2], f[3], f[4]))}
+    except (ValueError, OverflowError):
+        return None
+    cols = {"date": list(map(table.__getitem__, zip(f[2], f[3], f[4]))),
+            "zone_hours": number_column(int, f[5], -1), "zone_minutes": number_column(int, f[6], -1)}
+    return None if any(v is None for v in cols.values()) else cols
+
+
+def _hdt(f: list[list[str]]) -> dict | None:
+    heading = number_column(float, f[1], NAN)
+    return None if heading is None else {"heading": heading}
+
+
+def _ths(f: list[list[str]]) -> dict | None:
+    heading = number_column(float, f[1], NAN)
+    return None if heading is None else {"heading": heading, "mode": f[2]}
+
+
+_PARSE = {"GGA": _gga, "GST": _gst, "RMC": _rmc, "VTG": _vtg, "GLL": _gll, "ZDA": _zda, "HDT": _hdt, "THS": _ths}
 
 
 def _kinds(clean: CleanLines) -> tuple[np.ndarray, np.ndarray] | None:
@@ -94,9 +133,7 @@ def _kinds(clean: CleanLines) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 def decode_columns(data: bytes) -> NmeaColumns | None:
-    """GGA/GST/RMC values of a clean log as columns, or None when the per-line path must decode it."""
-    if any(kind in data for kind in _OTHERS):
-        return None  # a type of ours this path does not handle: say so before framing the whole log
+    """Sentence values of a clean log as columns, or None when the per-line path must decode it."""
     clean = clean_lines(data)
     if clean is None:
         return None
@@ -104,7 +141,7 @@ def decode_columns(data: bytes) -> NmeaColumns | None:
     if found is None:
         return None
     kept, kind = found
-    tod = np.empty(len(kept))
+    tod = np.full(len(kept), NAN)
     rows, values = {}, {}
     for code, name in enumerate(KINDS):
         pos = np.flatnonzero(kind == code)
@@ -112,10 +149,12 @@ def decode_columns(data: bytes) -> NmeaColumns | None:
         table = field_table(select(clean.lines, idx), _WIDTH[name] + 1)
         if table is None:
             return None
-        times = tod_column(table[1])
+        at = _TIME.get(name)
+        times = tod_column(table[at]) if at is not None else None
         cols = _PARSE[name](table)
-        if times is None or cols is None:
+        if (at is not None and times is None) or cols is None:
             return None
-        tod[pos] = times
+        if times is not None:
+            tod[pos] = times
         rows[name], values[name] = pos, cols
     return NmeaColumns(kind, tod, clean.offsets[kept], clean.numbers[kept], rows, values)

@@ -332,7 +332,7 @@ def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
         cols = nmea_columns.decode_columns(data)
         outputs = gps_columns.convert_columns(cols, ctx, NO_DATE) if cols is not None else None
         if outputs is not None:
-            yield from outputs  # a clean GGA/GST/RMC log: whole-log columns (recorders.gps_columns)
+            yield from outputs  # a clean log of the types `nmea_columns` takes: whole-log columns (gps_columns)
             return
     yield from _convert_nmea_lines(data, ctx)
 

@@ -1,11 +1,12 @@
 """`recorders.gps.convert_nmea` over `formats.nmea_columns`: epochs, positions and covariances as arrays.
 
 The same messages as the per-line fast path (and so as
-`convert_nmea_reference`), for clean GGA/GST/RMC logs: epochs are runs of
-one time of day (ms), found with numpy; per epoch only the two protobuf
-messages and their Outputs are built in Python. Logs where an epoch would
-close on a repeated sentence type inside one time of day get None, and the
-per-line path.
+`convert_nmea_reference`), for clean logs of the types `formats.nmea_columns`
+takes: epochs are runs of one time of day (ms; a sentence without a time
+joins the run it arrives in), found with numpy; per epoch only the two
+protobuf messages and their Outputs are built in Python. Logs where an epoch
+would close on a repeated sentence type inside one time of day, or with no
+time at all, get None, and the per-line path.
 """
 
 from __future__ import annotations
@@ -25,16 +26,35 @@ from .clock import DAY_NS, NS, DayClock, date_to_ns
 NAN = float("nan")
 
 
-def _epochs(cols: NmeaColumns) -> tuple[np.ndarray, np.ndarray] | None:
-    """(first sentence of each epoch, epoch of each sentence); None when a type repeats within one time."""
-    t_ms = np.rint(cols.tod * 1000.0)
+def _epochs(cols: NmeaColumns) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(first sentence, first timed sentence of each epoch; epoch of each sentence), or None.
+
+    None when a type repeats within one time (the sequential rule would split
+    there) or when no sentence has a time.
+    """
+    timed = np.flatnonzero(~np.isnan(cols.tod))
+    if not len(timed):
+        return None
+    # an untimed sentence (VTG, HDT, THS) joins the open epoch: it takes the time before it,
+    # or the first time in the log when it comes before any (the epoch's time is then still open)
+    every = len(timed) == len(cols.tod)
+    if every:
+        t_ms = np.rint(cols.tod * 1000.0)
+    else:
+        fill = np.zeros(len(cols.tod), dtype=np.int64)
+        fill[timed] = timed
+        np.maximum.accumulate(fill, out=fill)
+        fill[: timed[0]] = timed[0]
+        t_ms = np.rint(cols.tod[fill] * 1000.0)
     new = np.ones(len(t_ms), dtype=bool)
     new[1:] = t_ms[1:] != t_ms[:-1]
     epoch = np.cumsum(new) - 1
     for rows in cols.rows.values():
         if (np.diff(epoch[rows]) <= 0).any():
             return None  # the type repeats inside an epoch: it would split there (sequential rule)
-    return np.flatnonzero(new), epoch
+    starts = np.flatnonzero(new)
+    first_timed = starts if every else timed[np.flatnonzero(np.diff(epoch[timed], prepend=-1))]
+    return starts, first_timed, epoch
 
 
 def _member(n: int, epoch: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -44,14 +64,18 @@ def _member(n: int, epoch: np.ndarray, rows: np.ndarray) -> np.ndarray:
     return out
 
 
-def _times(first_tod: list[float], dates: list, date_tods: list[float], clock: DayClock) -> list[int | None]:
-    """`DayClock.set_date` (where an epoch has a date) then `resolve` of each epoch's first time, inline."""
+def _times(first_tod: list[float], dates: list, date_tods: list[float], silent: list[bool], clock: DayClock
+           ) -> list[int | None]:
+    """`DayClock.set_date` (where an epoch has a date) then `resolve` of each epoch's first time, inline.
+
+    A silent epoch (a ZDA alone) sets the date and resolves nothing, as `gps._scan_outputs` does.
+    """
     day, last, offset, half = clock.day_ns, clock._last_tod_ns, clock.offset_ns, DAY_NS // 2
     out: list[int | None] = []
-    for tod, d, dtod in zip(first_tod, dates, date_tods):
+    for tod, d, dtod, quiet in zip(first_tod, dates, date_tods, silent):
         if d is not None:
             day, last = date_to_ns(d), round(dtod * NS)
-        if day is None:
+        if day is None or quiet:
             out.append(None)
             continue
         tod_ns = round(tod * NS)
@@ -65,19 +89,20 @@ def _times(first_tod: list[float], dates: list, date_tods: list[float], clock: D
 
 
 def _sources(kind: np.ndarray, starts: np.ndarray) -> list[str]:
-    """'nmea:GGA,GST,RMC' per epoch: the types in arrival order."""
+    """'nmea:RMC,VTG,GGA' per epoch: the types in arrival order."""
     sig = np.zeros(len(starts), dtype=np.int64)
     ends = np.append(starts[1:], len(kind))
+    # 4 bits a sentence: codes 1..8; an epoch holds each type at most once, so 32 bits at most
     for p in range(int((ends - starts).max())):
         at = starts + p
         inside = at < ends
-        sig += np.where(inside, kind[np.minimum(at, len(kind) - 1)] + 1, 0) << (2 * p)
+        sig += np.where(inside, kind[np.minimum(at, len(kind) - 1)] + 1, 0) << (4 * p)
     names = {}
     for s in np.unique(sig).tolist():
         parts, v = [], s
         while v:
-            parts.append(KINDS[(v & 3) - 1])
-            v >>= 2
+            parts.append(KINDS[(v & 15) - 1])
+            v >>= 4
         names[s] = "nmea:" + ",".join(parts)
     return [names[s] for s in sig.tolist()]
 
@@ -87,39 +112,86 @@ def _pick(values: list | np.ndarray, member: np.ndarray, empty: object) -> np.nd
     return np.append(np.asarray(values), empty)[member]
 
 
+def _present(values: list | np.ndarray, member: np.ndarray) -> np.ndarray:
+    """values[member] per epoch (a bool column), False where the epoch has no sentence of that type."""
+    return _pick(values, member, False).astype(bool)
+
+
 def convert_columns(cols: NmeaColumns, ctx: LogContext, no_date: str) -> Iterator[Output | Reject] | None:
     """The outputs of `convert_nmea` for a clean log's columns; None when the per-line path must run."""
     found = _epochs(cols)
     if found is None:
         return None
-    starts, epoch = found
+    starts, first_timed, epoch = found
     n = len(starts)
-    member = {name: _member(n, epoch, cols.rows[name]) for name in KINDS}
-    g, r, s = member["GGA"], member["RMC"], member["GST"]
-    gv, rv, sv = cols.values["GGA"], cols.values["RMC"], cols.values["GST"]
-    has_g, has_r = g >= 0, r >= 0
+    m = {name: _member(n, epoch, cols.rows[name]) for name in KINDS}
+    v = cols.values
+    g, r, ll, z = m["GGA"], m["RMC"], m["GLL"], m["ZDA"]
+    gv, rv = v["GGA"], v["RMC"]
+    has_g = g >= 0
     quality = np.where(has_g, _pick(gv["quality"], g, 0), -1).astype(np.int64)
     glat, glon = _pick(gv["lat"], g, NAN), _pick(gv["lon"], g, NAN)
     gga_pos = has_g & (quality != 0) & ~np.isnan(glat) & ~np.isnan(glon)
-    valid = has_r & _pick(rv["valid"], r, False)
+    llat, llon = _pick(v["GLL"]["lat"], ll, NAN), _pick(v["GLL"]["lon"], ll, NAN)
+    gll_pos = ~gga_pos & _present(v["GLL"]["valid"], ll) & ~np.isnan(llat) & ~np.isnan(llon)
+    valid = _present(rv["valid"], r)
     rlat, rlon = _pick(rv["lat"], r, NAN), _pick(rv["lon"], r, NAN)
-    rmc_pos = ~gga_pos & valid & ~np.isnan(rlat) & ~np.isnan(rlon)
+    rmc_pos = ~gga_pos & ~gll_pos & valid & ~np.isnan(rlat) & ~np.isnan(rlon)
     msl, sep = _pick(gv["alt"], g, NAN), _pick(gv["sep"], g, NAN)
     alt = np.where(gga_pos, np.where(np.isnan(sep), msl, msl + sep), NAN)
-    source = np.where(gga_pos, _pick(cols.rows["GGA"], g, 0), np.where(rmc_pos, _pick(cols.rows["RMC"], r, 0), starts))
+    lat = np.where(gga_pos, glat, np.where(gll_pos, llat, rlat))
+    lon = np.where(gga_pos, glon, np.where(gll_pos, llon, rlon))
+    source = np.where(gga_pos, _pick(cols.rows["GGA"], g, 0), np.where(
+        gll_pos, _pick(cols.rows["GLL"], ll, 0), np.where(rmc_pos, _pick(cols.rows["RMC"], r, 0), starts)))
     hdop = _pick(gv["hdop"], g, NAN)
-    cov, cov_kind = _covariance(sv, s, hdop, quality, has_g, ctx)
-    dates = [rv["date"][i] if ok else None for ok, i in zip(valid.tolist(), r.tolist())]
-    times = _times(cols.tod[starts].tolist(), dates, _pick(cols.tod[cols.rows["RMC"]], r, NAN).tolist(), _clock(ctx))
-    speed = np.where(valid, _pick(rv["speed"], r, NAN) * KNOT_MPS, NAN)
-    course = np.where(valid, _pick(rv["course"], r, NAN), NAN)
+    cov, cov_kind = _covariance(v["GST"], m["GST"], hdop, quality, has_g, ctx)
+    dates, date_tods = _dates(cols, z, r, valid)
+    alone = np.diff(np.append(starts, len(cols.kind))) == 1
+    silent = (alone & (z >= 0)).tolist() if len(cols.rows["ZDA"]) else [False] * n
+    times = _times(cols.tod[first_timed].tolist(), dates, date_tods, silent, _clock(ctx))
+    speed, course, heading = _motion(v, m, valid)
     status = zip(quality.tolist(), np.where(has_g, _pick(gv["satellites"], g, 0), -1).astype(np.int64).tolist(), hdop.tolist(),
-                 _sources(cols.kind, starts), speed.tolist(), course.tolist())
-    fix = zip((gga_pos | rmc_pos).tolist(), np.where(gga_pos, glat, rlat).tolist(), np.where(gga_pos, glon, rlon).tolist(),
-              alt.tolist(), cov, cov_kind)
+                 _sources(cols.kind, starts), speed.tolist(), course.tolist(), heading.tolist())
+    fix = zip((gga_pos | gll_pos | rmc_pos).tolist(), lat.tolist(), lon.tolist(), alt.tolist(), cov, cov_kind)
     where = zip(cols.offsets[source].tolist(), cols.numbers[source].tolist())
-    first = zip(cols.offsets[starts].tolist(), cols.numbers[starts].tolist(), cols.tod[starts].tolist())
-    return _emit(ctx, times, fix, status, where, first, no_date)
+    first = zip(cols.offsets[first_timed].tolist(), cols.numbers[first_timed].tolist(), cols.tod[first_timed].tolist())
+    return _emit(ctx, times, silent, fix, status, where, first, no_date)
+
+
+def _dates(cols: NmeaColumns, z: np.ndarray, r: np.ndarray, valid: np.ndarray) -> tuple[list, list[float]]:
+    """`gps._scan_date` per epoch: (date or None, its sentence's time of day): ZDA's, else a valid RMC's."""
+    zd, rd = cols.values["ZDA"]["date"], cols.values["RMC"]["date"]
+    rtod = _pick(cols.tod[cols.rows["RMC"]], r, NAN).tolist()
+    if not len(zd):  # the common log: RMC dates only, one comprehension
+        return [rd[i] if ok else None for ok, i in zip(valid.tolist(), r.tolist())], rtod
+    ztod = _pick(cols.tod[cols.rows["ZDA"]], z, NAN).tolist()
+    dates, tods = [], []
+    for zi, ri, ok, zt, rt in zip(z.tolist(), r.tolist(), valid.tolist(), ztod, rtod):
+        d = zd[zi] if zi >= 0 else None
+        if d is not None:
+            dates.append(d)
+            tods.append(zt)
+        else:
+            dates.append(rd[ri] if ok else None)
+            tods.append(rt)
+    return dates, tods
+
+
+def _motion(v: dict, m: dict, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`gps._scan_motion` per epoch: speed (m/s) and course from VTG, else a valid RMC; heading from HDT, else THS."""
+    vt, r = m["VTG"], m["RMC"]
+    has_v = vt >= 0
+    speed = np.where(has_v, _pick(v["VTG"]["speed"], vt, NAN) * KNOT_MPS,
+                     np.where(valid, _pick(v["RMC"]["speed"], r, NAN) * KNOT_MPS, NAN))
+    course = np.where(has_v, _pick(v["VTG"]["course"], vt, NAN),
+                      np.where(valid, _pick(v["RMC"]["course"], r, NAN), NAN))
+    h, th = m["HDT"], m["THS"]
+    if not len(v["HDT"]["heading"]) and not len(v["THS"]["heading"]):
+        return speed, course, np.full(len(h), NAN)
+    ths_ok = (th >= 0) & (_pick(np.array(v["THS"]["mode"], dtype=object), th, "V") != "V")
+    heading = np.where(h >= 0, _pick(v["HDT"]["heading"], h, NAN),
+                       np.where(ths_ok, _pick(v["THS"]["heading"], th, NAN), NAN))
+    return speed, course, heading
 
 
 def _clock(ctx: LogContext) -> DayClock:
@@ -147,18 +219,20 @@ def _covariance(sv: dict, s: np.ndarray, hdop: np.ndarray, quality: np.ndarray, 
     return [row if k != S.COVARIANCE_UNKNOWN else None for row, k in zip(rows, kind.tolist())], kind.tolist()
 
 
-def _emit(ctx: LogContext, times: list, fix: zip, status: zip, where: zip, first: zip, no_date: str
+def _emit(ctx: LogContext, times: list, silent: list[bool], fix: zip, status: zip, where: zip, first: zip, no_date: str
           ) -> Iterator[Output | Reject]:
     vehicle = ctx.vehicle
     fix_topic, status_topic = f"/{vehicle}/gps", f"/{vehicle}/gps/status"
     location_fix, gnss_status = S.location_fix, S.gnss_status
-    for t, (has_pos, lat, lon, alt, cov, kind), (q, sats, hdop, src, speed, course), w, f in zip(
-            times, fix, status, where, first):
+    for t, quiet, (has_pos, lat, lon, alt, cov, kind), (q, sats, hdop, src, speed, course, heading), w, f in zip(
+            times, silent, fix, status, where, first):
+        if quiet:
+            continue  # a ZDA alone: its date counted, nothing to emit
         if t is None:
             yield Reject(Where(f[0], f[1]), no_date.format(f[2]))
             continue
         here = Where(w[0], w[1], None)
-        message = gnss_status(t, vehicle, q, sats, hdop, src, speed, course, NAN)
+        message = gnss_status(t, vehicle, q, sats, hdop, src, speed, course, heading)
         if has_pos:
             yield Output(fix_topic, location_fix(t, vehicle, lat, lon, alt, cov, kind), t, t, here)
         yield Output(status_topic, message, t, t, here)
