@@ -15,7 +15,8 @@ p - 2N.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -280,10 +281,24 @@ class KmcdfFix:
     phase_normal: BoolArray        # (N, 2): x and y phase differences
     weights: FloatArray            # (M,) first-round Perron weights, 0 where no fix
     clusters: NDArray[np.intp]     # (M,) 1 = C1, 2 = C2, 0 = no fix
-    fixes: tuple[PreliminaryFix, ...]  # the fixes that exist, in layout order
     missing_fixes: int             # subsets that gave no fix (circles apart, parallel bearings...)
     rounds: int                    # k-means rounds
     spread_m: float                # Amax over all fixes
+    # (layout, fix positions (M, 2)) that `fixes` is built from: only viewers read it, a replay seldom
+    _source: tuple[FixLayout, FloatArray] = field(repr=False, compare=False)
+
+    @cached_property
+    def fixes(self) -> tuple[PreliminaryFix, ...]:
+        """The preliminary fixes that exist, in layout order (built on first use)."""
+        layout, xy_all = self._source
+        valid = self.clusters > 0
+        kinds, xy = layout.kinds.tolist(), xy_all.tolist()
+        cl, wt = self.clusters.tolist(), self.weights.tolist()
+        return tuple(
+            PreliminaryFix(kind=KIND_NAMES[kinds[m]], nodes=layout.node_sets[m],
+                           parameters=layout.parameter_sets[m], xy=(xy[m][0], xy[m][1]),
+                           cluster=cl[m], weight=wt[m])
+            for m in np.nonzero(valid)[0].tolist())
 
 
 def kmcdf_epoch(
@@ -319,17 +334,10 @@ def epoch_fix(batch: KmcdfBatch, i: int) -> KmcdfFix:
     valid, c1 = batch.valid[i], batch.clustering.cluster1[i]
     clusters = np.where(valid, np.where(c1, 1, 2), 0).astype(np.intp)
     weights = np.where(valid, batch.clustering.weights[i], 0.0)
-    layout, xy = batch.layout, batch.fixes[i].tolist()
-    kinds, cl, wt = layout.kinds.tolist(), clusters.tolist(), weights.tolist()
-    fixes = tuple(
-        PreliminaryFix(kind=KIND_NAMES[kinds[m]], nodes=layout.node_sets[m],
-                       parameters=layout.parameter_sets[m], xy=(xy[m][0], xy[m][1]),
-                       cluster=cl[m], weight=wt[m])
-        for m in np.nonzero(valid)[0].tolist())
     normal = batch.normal[i]
     return KmcdfFix(
         position_xy=batch.position[i], covariance=batch.covariance[i],
         delay_normal=normal[:n], phase_normal=np.stack([normal[n:2 * n], normal[2 * n:]], -1),
-        weights=weights, clusters=clusters, fixes=fixes,
+        weights=weights, clusters=clusters,
         missing_fixes=int(np.sum(~valid)), rounds=int(batch.clustering.rounds[i]),
-        spread_m=float(batch.clustering.amax_m[i]))
+        spread_m=float(batch.clustering.amax_m[i]), _source=(batch.layout, batch.fixes[i]))
