@@ -47,9 +47,9 @@ import math
 import os
 from collections import Counter
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from itertools import chain
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -67,9 +67,12 @@ if TYPE_CHECKING:
 NAN = float("nan")
 
 
-@dataclass(frozen=True, slots=True)
-class EpochResult:
-    """One method's outcome at one range epoch, with its position estimate after the epoch."""
+class EpochResult(NamedTuple):
+    """One method's outcome at one range epoch, with its position estimate after the epoch.
+
+    A NamedTuple: a run builds one per method and epoch, and a 21-field frozen
+    dataclass costs four times as much to make.
+    """
 
     time_s: float
     leader: str
@@ -308,9 +311,9 @@ class CooperativeRunner:
 
     def finish(self) -> RunResults:
         """Collect epochs, tracks, open-loop scores and counters into a RunResults."""
-        columns = {f.name: np.array([getattr(e, f.name) for e in self._epochs]) for f in fields(EpochResult)}
+        columns = {name: np.array([getattr(e, name) for e in self._epochs]) for name in EpochResult._fields}
         if not self._epochs:
-            columns = {f.name: np.empty(0) for f in fields(EpochResult)}
+            columns = {name: np.empty(0) for name in EpochResult._fields}
         return RunResults(
             methods=self._reported, leaders=self.leaders, start_time_s=self.start_time_s,
             training_end_s=self.training_end_s, epochs=columns, tracks=self._tracks(),
