@@ -196,7 +196,12 @@ def _hand_over(conn: Connection, task: int, answer: tuple[bool, Any]) -> None:
 
 
 def _take_over(fd: int) -> tuple[bool, Any]:
-    """The answer a worker left in the file `fd` (closed here)."""
+    """The answer a worker left in the file `fd` (closed here).
+
+    Unpickling is safe here, as in multiprocessing's own pipes: the file is an
+    anonymous memfd that our forked worker wrote and handed over its pipe; no
+    archive or log byte from elsewhere is ever unpickled.
+    """
     with open(fd, "rb") as f:
         f.seek(0)  # the worker's writes moved the offset the descriptor shares
         return pickle.load(f)
