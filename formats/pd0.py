@@ -30,7 +30,7 @@ import struct
 from dataclasses import dataclass, field
 from functools import lru_cache
 from datetime import datetime, timezone
-from typing import Iterator, Sequence
+from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -272,33 +272,56 @@ def decode(data: bytes, *, profiles: bool = False) -> Iterator[Ensemble | Reject
     just after its header. `profiles=True` also decodes water-profile velocity.
     """
     buf = bytes(data)
+    view = memoryview(buf)
+
+    def intact(i: int, nbytes: int) -> bool:
+        return checksum(view[i : i + nbytes]) == struct.unpack_from("<H", buf, i + nbytes)[0]
+
     pos = 0
+    while True:
+        rejects, frame = next_frame(buf, pos, intact)
+        yield from rejects
+        if frame is None:
+            return
+        i, nbytes, ndt = frame
+        try:
+            yield _parse_ensemble(buf, i, nbytes, ndt, profiles)
+        except (struct.error, ValueError, IndexError) as exc:
+            yield Reject(Where(i), f"malformed ensemble: {exc}")
+        pos = i + nbytes + 2
+
+
+def next_frame(buf: bytes, pos: int, intact: Callable[[int, int], bool],
+               ) -> tuple[list[Reject], tuple[int, int, int] | None]:
+    """The next whole ensemble from `pos`: Rejects for what lies before it, and (offset, bytes, data types) or None.
+
+    Bytes between ensembles are one Reject per gap; an ensemble whose header
+    is damaged or whose checksum fails (`intact(offset, nbytes)` false) is one
+    Reject, and the search resumes just after its header. Shared by `decode`
+    and `pd0_blocks.scan`, which check checksums differently.
+    """
+    rejects: list[Reject] = []
     gap_reported = False
     while True:
         i = buf.find(HEADER, pos)
         if i < 0:
             if pos < len(buf) and not gap_reported:
-                yield Reject(Where(pos), f"{len(buf) - pos} trailing bytes without an ensemble header")
-            return
+                rejects.append(Reject(Where(pos), f"{len(buf) - pos} trailing bytes without an ensemble header"))
+            return rejects, None
         problem = _frame_problem(buf, i)
         if problem is None:
             nbytes, ndt = struct.unpack_from("<H", buf, i + 2)[0], buf[i + 5]
-            given = struct.unpack_from("<H", buf, i + nbytes)[0]
-            if checksum(memoryview(buf)[i : i + nbytes]) != given:
+            if not intact(i, nbytes):
                 problem = ("bad ensemble checksum", nbytes, ndt)
         if problem is not None:
             if i > pos and not gap_reported:
-                yield Reject(Where(pos), f"{i - pos} bytes of noise before a header")
-            yield Reject(Where(i), problem[0], bad_checksum=problem[0].startswith("bad"))
+                rejects.append(Reject(Where(pos), f"{i - pos} bytes of noise before a header"))
+            rejects.append(Reject(Where(i), problem[0], bad_checksum=problem[0].startswith("bad")))
             pos, gap_reported = i + 2, True
             continue
         if i > pos and not gap_reported:
-            yield Reject(Where(pos), f"{i - pos} bytes of noise between ensembles")
-        try:
-            yield _parse_ensemble(buf, i, nbytes, ndt, profiles)
-        except (struct.error, ValueError, IndexError) as exc:
-            yield Reject(Where(i), f"malformed ensemble: {exc}")
-        pos, gap_reported = i + nbytes + 2, False
+            rejects.append(Reject(Where(pos), f"{i - pos} bytes of noise between ensembles"))
+        return rejects, (i, nbytes, ndt)
 
 
 # --- vehicle velocity from bottom track -------------------------------------------------

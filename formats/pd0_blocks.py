@@ -161,28 +161,17 @@ def scan(data: bytes) -> Iterator[Block | pd0.Ensemble | Reject]:
     buf = bytes(data)
     sums = np.zeros(len(buf) + 1, np.uint16)
     np.cumsum(np.frombuffer(buf, np.uint8), dtype=np.uint16, out=sums[1:])  # wraps: sums modulo 65536
+
+    def intact(i: int, nbytes: int) -> bool:
+        return (int(sums[i + nbytes]) - int(sums[i])) & 0xFFFF == struct.unpack_from("<H", buf, i + nbytes)[0]
+
     pos = 0
-    gap_reported = False
     while True:
-        i = buf.find(pd0.HEADER, pos)
-        if i < 0:
-            if pos < len(buf) and not gap_reported:
-                yield Reject(Where(pos), f"{len(buf) - pos} trailing bytes without an ensemble header")
+        rejects, frame = pd0.next_frame(buf, pos, intact)
+        yield from rejects
+        if frame is None:
             return
-        problem = pd0._frame_problem(buf, i)
-        if problem is None:
-            nbytes, ndt = struct.unpack_from("<H", buf, i + 2)[0], buf[i + 5]
-            if (int(sums[i + nbytes]) - int(sums[i])) & 0xFFFF != struct.unpack_from("<H", buf, i + nbytes)[0]:
-                problem = ("bad ensemble checksum", nbytes, ndt)
-        if problem is not None:
-            if i > pos and not gap_reported:
-                yield Reject(Where(pos), f"{i - pos} bytes of noise before a header")
-            yield Reject(Where(i), problem[0], bad_checksum=problem[0].startswith("bad"))
-            pos, gap_reported = i + 2, True
-            continue
-        if i > pos and not gap_reported:
-            yield Reject(Where(pos), f"{i - pos} bytes of noise between ensembles")
-        gap_reported = False
+        i, nbytes, ndt = frame
         block = _block(buf, sums, i, nbytes, ndt)
         if block is not None:
             yield block
