@@ -63,6 +63,17 @@ def _csv_trial(root: Path, time_format: str = "tod") -> Path:
     return root / "trial.toml"
 
 
+def _errors_serial_and_parallel(manifest, directory: Path) -> list[str]:
+    """The ManifestError text of recording with 1 and with 2 workers (each must fail, leaving nothing)."""
+    messages = []
+    for workers in (1, 2):
+        with pytest.raises(ManifestError) as err:
+            record(manifest, directory / "t.mcap", workers=workers)
+        messages.append(str(err.value))
+        _no_leftovers(directory)
+    return messages
+
+
 def _no_leftovers(directory: Path) -> None:
     assert not multiprocessing.active_children()
     assert not [p.name for p in directory.iterdir() if p.suffix == ".mcap" or ".part-" in p.name]
@@ -119,12 +130,7 @@ def test_damaged_logs_give_the_same_diagnostics_and_summary(tmp_path):
 
 def test_a_log_that_cannot_be_decoded_gives_the_serial_message(tmp_path):
     manifest = load_manifest(_csv_trial(tmp_path, time_format="fortnights"))
-    messages = []
-    for workers in (1, 2):
-        with pytest.raises(ManifestError) as err:
-            record(manifest, tmp_path / "t.mcap", workers=workers)
-        messages.append(str(err.value))
-        _no_leftovers(tmp_path)
+    messages = _errors_serial_and_parallel(manifest, tmp_path)
     assert messages[0] == messages[1]
     assert "range.csv" in messages[0] and "fortnights" in messages[0]
 
@@ -133,36 +139,22 @@ def test_an_earlier_logs_error_comes_first_though_the_main_process_failed_on_a_l
     toml = _csv_trial(tmp_path)
     (tmp_path / "late.csv").write_bytes((tmp_path / "gps.csv").read_bytes())
     toml.write_text(toml.read_text() + LATE_GPS_LOG)
-    real = rec.converters
     main_pid = os.getpid()
 
-    def table():
-        t = real()
-        gps = t[("gps", "csv")]
+    def gps_or_late(gps, data, ctx):
+        if ctx.path == "late.csv":
+            raise FormatError("late broke")
+        if os.getpid() == main_pid:
+            time.sleep(0.3)  # the worker takes range.csv meanwhile; the main process then takes late.csv
+        return gps(data, ctx)
 
-        def gps_or_late(data, ctx):
-            if ctx.path == "late.csv":
-                raise FormatError("late broke")
-            if os.getpid() == main_pid:
-                time.sleep(0.3)  # the worker takes range.csv meanwhile; the main process then takes late.csv
-            return gps(data, ctx)
+    def modem(data, ctx):
+        time.sleep(0.6 if os.getpid() != main_pid else 0)  # still at it when the main process fails on late.csv
+        raise FormatError("range broke")
 
-        def modem(data, ctx):
-            time.sleep(0.6 if os.getpid() != main_pid else 0)  # still at it when the main process fails on late.csv
-            raise FormatError("range broke")
-
-        t[("gps", "csv")] = gps_or_late
-        t[("modem", "csv")] = modem
-        return t
-
-    monkeypatch.setattr(rec, "converters", table)
+    _patch_converters(monkeypatch, gps_or_late, modem)
     manifest = load_manifest(toml)
-    messages = []
-    for workers in (1, 2):
-        with pytest.raises(ManifestError) as err:
-            record(manifest, tmp_path / "t.mcap", workers=workers)
-        messages.append(str(err.value))
-        _no_leftovers(tmp_path)
+    messages = _errors_serial_and_parallel(manifest, tmp_path)
     assert messages[0] == messages[1] and "range.csv" in messages[0] and "range broke" in messages[0]
 
 
@@ -176,25 +168,30 @@ def test_the_cli_gives_one_line_for_it_with_workers(tmp_path, capsys):
 
 def _crashing_table(monkeypatch, how) -> None:
     """The converter of the modem csv log dies in the worker that runs it; the main process lets a worker take it."""
-    real = rec.converters
     main_pid = os.getpid()
+
+    def slow_gps(gps, data, ctx):
+        # the main process takes the first log itself; while it is on it, the worker claims the second
+        if os.getpid() == main_pid:
+            time.sleep(0.5)
+        return gps(data, ctx)
+
+    def modem(data, ctx):
+        if os.getpid() == main_pid:
+            raise AssertionError("the crashing log was decoded in the main process")
+        return how()
+
+    _patch_converters(monkeypatch, slow_gps, modem)
+
+
+def _patch_converters(monkeypatch, gps, modem) -> None:
+    """Record through `gps(real_gps_converter, data, ctx)` for csv GPS logs and `modem(data, ctx)` for csv modem logs."""
+    real = rec.converters
 
     def table():
         t = real()
-        gps = t[("gps", "csv")]
-
-        def slow_gps(data, ctx):
-            # the main process takes the first log itself; while it is on it, the worker claims the second
-            if os.getpid() == main_pid:
-                time.sleep(0.5)
-            return gps(data, ctx)
-
-        def modem(data, ctx):
-            if os.getpid() == main_pid:
-                raise AssertionError("the crashing log was decoded in the main process")
-            return how()
-
-        t[("gps", "csv")] = slow_gps
+        real_gps = t[("gps", "csv")]
+        t[("gps", "csv")] = lambda data, ctx: gps(real_gps, data, ctx)
         t[("modem", "csv")] = modem
         return t
 
