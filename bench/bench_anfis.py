@@ -31,7 +31,7 @@ from anfis_toolbox.membership import BellMF  # noqa: E402
 from bench_aqpso import LAKE_NOTE, jang_case, lake_case  # noqa: E402
 from common import median_time, print_table  # noqa: E402
 
-from replay.stack import anfis as A  # noqa: E402
+from replay.stack.detectors import anfis as A
 
 EPOCHS = 100
 TOOLBOX_RATES = (1e-4, 3e-4, 1e-3, 3e-3, 1e-2)

@@ -25,8 +25,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import median_time, print_table  # noqa: E402
-from replay.stack import anfis as A  # noqa: E402
-from replay.stack.aqpso import AqpsoSettings, train_aqpso_ga  # noqa: E402
+from replay.stack.detectors import anfis as A
+from replay.stack.detectors.aqpso import AqpsoSettings, train_aqpso_ga  # noqa: E402
 
 LAKE_NOTE = ("lake-like features: SYNTHETIC (seeded), not the simulator: e = Z - Z_gps ~ N(0, 3.5 m) with "
              "stale/drift/outlier segments of 10-60 m (~12 % of epochs); r = e + N(0, 2 m); "
@@ -81,7 +81,7 @@ def sample_trial_cases() -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, 
     unisolated there), target |Z - Z_gps|; test: the open-loop ACKF epochs
     after t_a, normalized with the training window's bounds, as the detector does.
     """
-    from replay.sim_arrays import run_on_arrays
+    from tests.sim_arrays import run_on_arrays
     from replay.stack.config import StackConfig
     from samples.scenario import Scenario
     from samples.simulator import simulate_trial

@@ -36,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from bench.common import median_time, print_table  # noqa: E402
 from recorders.manifest import load_manifest  # noqa: E402
 from recorders.record import record  # noqa: E402
-from replay.batch import dask_client, plan_batch, replay_task, run_batch  # noqa: E402
+from replay.run.batch import dask_client, plan_batch, replay_task, run_batch  # noqa: E402
 
 SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"
 FAST = ["methods=dead_reckoning,ckf,ackf,chi_square"]
@@ -95,7 +95,7 @@ def _on_dask(client, tasks: list) -> tuple[float, float]:
 
 def _warm() -> None:
     """Import the replay stack in a worker, so the batch times replays, not imports."""
-    import replay.run  # noqa: F401
+    import replay.run.pipeline  # noqa: F401
 
 
 def bench_overhead(burst: int, repeats: int) -> list[tuple[str, float, float]]:

@@ -24,8 +24,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from replay.stack import ckf, model
-from replay.stack.ckf import State2
+from replay.stack import model
+
+from replay.stack.filters import ckf
+from replay.stack.filters.ckf import State2
 from replay.stack.config import METHODS, StackConfig
 from replay.stack.runner import CooperativeRunner, RunResults
 

@@ -19,9 +19,9 @@ for _key in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import numpy as np  # noqa: E402
 
-from replay.reproduce_kmcdf import reproduce  # noqa: E402
-from replay.stack.kmcdf import kmcdf_batch, kmcdf_epoch  # noqa: E402
-from replay.stack.kmcdf_montecarlo import METHODS, node_layout, simulate, success_point  # noqa: E402
+from replay.reproduce.kmcdf import reproduce  # noqa: E402
+from replay.stack.positioning.kmcdf import kmcdf_batch, kmcdf_epoch  # noqa: E402
+from replay.stack.positioning.kmcdf_montecarlo import METHODS, node_layout, simulate, success_point  # noqa: E402
 
 
 def median_time(fn: Callable[[], object], repeats: int) -> float:

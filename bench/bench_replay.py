@@ -30,7 +30,7 @@ from common import median_time, print_table  # noqa: E402
 CHILD = """
 import json, sys, time
 sys.path.insert(0, {root!r})
-from replay.run import replay_archive
+from replay.run.pipeline import replay_archive
 t = time.perf_counter()
 out = replay_archive({archive!r}, output={output!r})
 wall = time.perf_counter() - t
@@ -42,7 +42,7 @@ print(json.dumps({{"wall_s": wall, "messages": out.messages, "peak_mb": hwm / 10
 def sample_trial(repeats: int) -> list[list[object]]:
     from recorders.manifest import load_manifest
     from recorders.record import record
-    from replay.run import replay_archive
+    from replay.run.pipeline import replay_archive
 
     with tempfile.TemporaryDirectory() as d:
         archive = Path(d) / "lake.mcap"

@@ -25,10 +25,10 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from bench.common import median_time, print_table  # noqa: E402
-from replay import views  # noqa: E402
-from replay.views_common import Run, class_id, floats, groups, make_runs  # noqa: E402
-from replay.views_series import FEATURES, log_detections, log_ranges  # noqa: E402
-from replay.views_tracks import log_range_circles, log_tracks  # noqa: E402
+from replay.views import recording as views
+from replay.views.common import Run, class_id, floats, groups, make_runs  # noqa: E402
+from replay.views.series import FEATURES, log_detections, log_ranges  # noqa: E402
+from replay.views.tracks import log_range_circles, log_tracks  # noqa: E402
 from tests.review_fixtures import synthetic_review  # noqa: E402
 
 REPEATS = 3
@@ -123,7 +123,7 @@ def sample_trial_review(workdir: Path) -> object:
     """The bundled sample trial recorded and replayed with every method: the ReviewData `demo` logs."""
     from recorders.manifest import load_manifest
     from recorders.record import record
-    from replay.run import replay_archive
+    from replay.run.pipeline import replay_archive
 
     archive = workdir / "lake.mcap"
     record(load_manifest(ROOT / "samples/lake_trial/trial.toml"), archive)

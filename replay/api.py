@@ -16,9 +16,9 @@ import pandas as pd
 
 from formats.mcap_reader import ArchiveReader
 
-from .metrics import metrics_table
-from .run import RunOutcome, replay_archive
-from .run_config import load_config
+from replay.run.metrics import metrics_table
+from replay.run.pipeline import RunOutcome, replay_archive
+from replay.run.config import load_config
 
 
 def open_archive(path: str | Path) -> ArchiveReader:

@@ -12,7 +12,7 @@ from importlib.metadata import PackageNotFoundError, version
 
 from formats.records import FormatError
 
-from .errors import UserError
+from replay.errors import UserError
 
 # command name -> (module, one-line help); modules are imported to build the parser,
 # so their top level stays light (heavy imports go inside run)

@@ -13,7 +13,7 @@ import itertools
 import numpy as np
 import pandas as pd
 
-from replay.review_data import ReviewData
+from replay.review.data import ReviewData
 
 T0_NS = 1_476_237_600_000_000_000          # 2016-10-12T02:00:00Z, the sample trial's start
 ORIGIN = (45.70, 126.60)

@@ -7,10 +7,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from replay.stack import anfis as A
-from replay.stack.anfis_detector import AnfisDetector, detectors_for, threshold_from_rule
+from replay.stack.detectors import anfis as A
+from replay.stack.detectors.anfis_detector import AnfisDetector, detectors_for, threshold_from_rule
 from replay.stack.config import AnfisConfig, StackConfig
-from replay.stack.detector import Detector
+from replay.stack.detectors.base import Detector
 
 
 def lake_like(n: int, seed: int, sign: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -9,8 +9,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.stats import chi2
 
-from replay.stack import ckf, cubature, model
-from replay.stack.ckf import State2
+from replay.stack import model
+
+from replay.stack.filters import ckf
+
+from replay.stack.filters import cubature
+from replay.stack.filters.ckf import State2
 
 LAT = math.radians(45.7)
 LON = math.radians(126.6)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from replay.stack.toa_baselines import _grid_ring_votes, _ring_hits
+from replay.stack.positioning.toa_baselines import _grid_ring_votes, _ring_hits
 
 
 def _reference(nodes: np.ndarray, ranges: np.ndarray, base: np.ndarray, step: np.ndarray, half: float,

@@ -14,8 +14,8 @@ from formats.mcap_writer import ArchiveWriter
 from recorders.manifest import load_manifest
 from recorders.record import record
 from replay.cli import main
-from replay.run import replay_archive
-from replay.run_config import load_config
+from replay.run.pipeline import replay_archive
+from replay.run.config import load_config
 
 SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"
 FAST = ["methods=dead_reckoning,ckf,ackf,chi_square,anfis"]
@@ -248,7 +248,7 @@ def test_an_archive_cut_off_mid_write_still_knows_its_vehicles(archive, tmp_path
 
 
 def test_roles_guessed_from_topics_without_trial_metadata():
-    from replay.layout import plan_trial
+    from replay.engine.layout import plan_trial
 
     topics = {"/leader1/ins": 5, "/leader1/modem/range": 3, "/leader2/gps": 5, "/follower/dvl": 9,
               "/follower/modem/range": 7, "/buoy1/usbl": 4, "/buoy1/gps": 2, "/diagnostics": 1}

@@ -9,9 +9,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from replay.stack import kmcdf as km
-from replay.stack import kmcdf_montecarlo as mc
-
+from replay.stack.positioning import kmcdf as km
+from replay.stack.positioning import kmcdf_montecarlo as mc
 PARAMS = km.KmcdfParams()
 KD0 = PARAMS.kappa_d0
 

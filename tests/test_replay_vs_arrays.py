@@ -14,9 +14,9 @@ import pytest
 
 from recorders.manifest import load_manifest
 from recorders.record import record
-from replay.run import replay_archive
-from replay.run_config import load_config
-from replay.sim_arrays import run_on_arrays
+from replay.run.pipeline import replay_archive
+from replay.run.config import load_config
+from tests.sim_arrays import run_on_arrays
 from samples.scenario import Scenario
 from samples.simulator import simulate_trial
 

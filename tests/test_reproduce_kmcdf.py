@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from replay import cli
-from replay import reproduce_kmcdf as rk
-from replay.stack.kmcdf_montecarlo import METHODS
+from replay.reproduce import kmcdf as rk
+from replay.stack.positioning.kmcdf_montecarlo import METHODS
 
 
 @pytest.fixture()

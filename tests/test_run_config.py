@@ -9,8 +9,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from replay.errors import UserError
-from replay.run_config import load_config, run_id
-from replay.tracks import Fix, Track
+from replay.run.config import load_config, run_id
+from replay.engine.tracks import Fix, Track
 
 
 def test_defaults_are_stack_md():

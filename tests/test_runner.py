@@ -8,7 +8,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from replay.stack.config import AnfisConfig, StackConfig
-from replay.stack.detector import Decision
+from replay.stack.detectors.base import Decision
 from replay.stack.methods import DETECTOR_FACTORIES
 from replay.stack.model import metric_scales_scalar
 from replay.stack.runner import CooperativeRunner, EpochResult, RunResults

@@ -6,8 +6,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from replay.stack import toa_baselines as tb
-from replay.stack.kmcdf_montecarlo import node_layout, run_baseline, simulate
+from replay.stack.positioning import toa_baselines as tb
+from replay.stack.positioning.kmcdf_montecarlo import node_layout, run_baseline, simulate
 
 NODES = node_layout(6)
 coord = st.floats(-1000.0, 1000.0, allow_nan=False)

@@ -95,7 +95,7 @@ def _image(path: Path) -> np.ndarray:
 
 
 def test_viewer_renders_the_recording(viewer, tmp_path: Path) -> None:  # noqa: ANN001
-    from replay.views import save_rrd
+    from replay.views.recording import save_rrd
 
     client, log = viewer
     review = synthetic_review(5, n_epochs=50, anfis_epochs=4)

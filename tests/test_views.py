@@ -12,18 +12,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from replay.review_data import ReviewData
+from replay.review.data import ReviewData
 from tests.review_fixtures import FOLLOWER, LEADERS, synthetic_review
 
 from rerun.chunk import RrdReader
 
-from replay import views
+from replay.views import recording as views
 from replay.commands import view as view_cmd
 from replay.errors import UserError
-from replay.stack.anfis import AnfisModel, predict
-from replay.views_anfis import SURFACE_GRID, grid_triangles, history_of, surface
-from replay.views_series import CDF_SNAPSHOTS, PERCENTILES, expanding_quantiles
-from replay.views_tracks import decimate
+from replay.stack.detectors.anfis import AnfisModel, predict
+from replay.views.anfis import SURFACE_GRID, grid_triangles, history_of, surface
+from replay.views.series import CDF_SNAPSHOTS, PERCENTILES, expanding_quantiles
+from replay.views.tracks import decimate
 
 N_EPOCHS, ANFIS_EPOCHS = 40, 6
 

@@ -10,7 +10,7 @@ import time
 import urllib.request
 from pathlib import Path
 
-from replay import views
+from replay.views import recording as views
 from tests.processes import end_group
 from tests.review_fixtures import synthetic_review
 

@@ -16,7 +16,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print the comparison; exit 0 (differences are information, not failure)."""
-    from replay.compare import compare_runs, format_comparison
+    from replay.run.compare import compare_runs, format_comparison
 
     result = compare_runs(args.a, args.b)
     if args.json:

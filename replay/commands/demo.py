@@ -24,7 +24,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _trial_dir(args: argparse.Namespace, out: Path) -> Path:
     if not args.simulate:
-        from replay.reproduce_anfis import sample_trial_dir
+        from replay.reproduce.anfis import sample_trial_dir
 
         return sample_trial_dir()
     from samples.scenario import Scenario
@@ -43,9 +43,9 @@ def run(args: argparse.Namespace) -> int:
     from recorders.record import record
     from replay.commands.record import print_summary
     from replay.commands.view import has_display
-    from replay.metrics import format_table
-    from replay.run import replay_archive
-    from replay.views import open_viewer, save_rrd, viewer_command
+    from replay.run.metrics import format_table
+    from replay.run.pipeline import replay_archive
+    from replay.views.recording import open_viewer, save_rrd, viewer_command
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

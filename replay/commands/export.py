@@ -17,7 +17,7 @@ def run(args: argparse.Namespace) -> int:
     """Write the topic; an unknown topic is bad input (exit 1) naming the topics there are."""
     from formats.mcap_reader import ArchiveReader
 
-    from ..errors import UserError
+    from replay.errors import UserError
 
     with ArchiveReader(args.file) as reader:
         topics = reader.summary().topics

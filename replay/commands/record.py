@@ -72,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
     from recorders.manifest import ManifestError, load_manifest
     from recorders.record import record
 
-    from ..errors import UserError
+    from replay.errors import UserError
 
     try:
         manifest = load_manifest(args.manifest)

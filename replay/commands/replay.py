@@ -25,9 +25,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the replay and print the metrics table (or JSON)."""
-    from replay.metrics import format_table
-    from replay.run import replay_archive
-    from replay.run_config import load_config
+    from replay.run.metrics import format_table
+    from replay.run.pipeline import replay_archive
+    from replay.run.config import load_config
 
     from replay.errors import UserError
 
@@ -36,11 +36,11 @@ def run(args: argparse.Namespace) -> int:
     config = load_config(args.config, args.set, tuple(args.window) if args.window else None, args.rate)
     outcome = replay_archive(args.archive, config, args.output, review=bool(args.rrd))
     if args.rrd:
-        from replay.views import save_rrd
+        from replay.views.recording import save_rrd
 
         reviews = [outcome.review]
         if args.compare:
-            from replay.rebuild import review_from_results
+            from replay.review.rebuild import review_from_results
 
             reviews.append(review_from_results(args.compare))
         save_rrd(reviews, args.rrd)

@@ -14,7 +14,7 @@ import sys
 from contextlib import AbstractContextManager, nullcontext
 from typing import Any
 
-from ..errors import UserError
+from replay.errors import UserError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -47,9 +47,9 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--trials must be at least 1")
     if args.phase_noise <= 0:
         raise UserError("--phase-noise must be positive")
-    from ..reproduce_kmcdf import (format_claims, format_curves, format_sensitivity, reproduce,
+    from replay.reproduce.kmcdf import (format_claims, format_curves, format_sensitivity, reproduce,
                                    save_png, save_rrd, sensitivity)
-    from ..stack.kmcdf import KmcdfParams
+    from replay.stack.positioning.kmcdf import KmcdfParams
 
     params = KmcdfParams(sigma_phase_rad=args.phase_noise)
     with _dask(args.scheduler, args.workers) as client:
@@ -80,17 +80,17 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _dask(scheduler: str | None, workers: int) -> AbstractContextManager[Any]:
-    """A Dask client when --scheduler is given (see replay.batch.dask_client), else None."""
+    """A Dask client when --scheduler is given (see replay.run.batch.dask_client), else None."""
     if scheduler is None:
         return nullcontext(None)
-    from ..batch import dask_client
+    from replay.run.batch import dask_client
 
     return dask_client(scheduler, workers)
 
 
 def _run_anfis(args: argparse.Namespace) -> int:
     """Paper A's table: record (if needed) and replay the trial in both ANFIS model modes."""
-    from ..reproduce_anfis import format_report, json_object, reproduce
+    from replay.reproduce.anfis import format_report, json_object, reproduce
 
     modes = reproduce(args.trial, args.set)
     if args.json:

@@ -13,7 +13,7 @@ import shlex
 from collections.abc import Mapping
 from pathlib import Path
 
-from ..errors import UserError
+from replay.errors import UserError
 
 SUFFIXES = (".rrd", ".mcap")
 
@@ -45,7 +45,7 @@ def check_file(name: str) -> Path:
 
 def _recording_of_results(args: argparse.Namespace) -> Path | None:
     """Results archives become one recording (re-run from their inputs); None for a plain file."""
-    from replay.rebuild import review_from_results, run_metadata
+    from replay.review.rebuild import review_from_results, run_metadata
 
     paths = [check_file(f) for f in args.file]
     metas = [run_metadata(p) if p.suffix.lower() == ".mcap" else None for p in paths]
@@ -53,7 +53,7 @@ def _recording_of_results(args: argparse.Namespace) -> Path | None:
         return None
     if any(m is None for m in metas) or len(paths) > 2:
         raise UserError("give one .rrd or .mcap file, or one or two replay results archives")
-    from replay.views import save_rrd
+    from replay.views.recording import save_rrd
 
     reviews = [review_from_results(p, args.archive) for p in paths]
     out = Path(args.save) if args.save else paths[0].with_suffix(".rrd")
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     """Open the file in Rerun and wait for it; print the command instead when there is no display."""
     built = _recording_of_results(args)
     path = built if built is not None else check_file(args.file[0])
-    from replay.views import open_viewer, viewer_command
+    from replay.views.recording import open_viewer, viewer_command
 
     if not args.web and not has_display(os.environ):
         cmd = shlex.join(viewer_command(path))

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from .model import horizontal_range
+from replay.stack.model import horizontal_range
 
 UNKNOWN: int = -1
 """Label of an epoch without GPS truth."""

@@ -9,10 +9,10 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
-from .chi_square import ChiSquareDetector
-from .config import DETECTING_METHODS, METHODS, StackConfig
-from .detector import Detector
-from .dual_threshold import DualThresholdDetector
+from replay.stack.detectors.chi_square import ChiSquareDetector
+from replay.stack.config import DETECTING_METHODS, METHODS, StackConfig
+from replay.stack.detectors.base import Detector
+from replay.stack.detectors.dual_threshold import DualThresholdDetector
 
 DetectorFactory = Callable[[StackConfig], Detector]
 
@@ -29,7 +29,7 @@ def _anfis(trainer: str, compensation: bool) -> DetectorFactory:
     """A factory building an AnfisDetector, imported on first use."""
     def build(config: StackConfig) -> Detector:
         """A fresh AnfisDetector for this trainer and mode."""
-        from .anfis_detector import AnfisDetector
+        from replay.stack.detectors.anfis_detector import AnfisDetector
         return AnfisDetector(config, trainer=trainer, compensation=compensation)
     return build
 

@@ -53,13 +53,13 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from .ckf import (RangeInnovation, State2, dr_predict, isolation_action, position_update, range_innovation,
+from replay.stack.filters.ckf import (RangeInnovation, State2, dr_predict, isolation_action, position_update, range_innovation,
                   range_update)
-from .config import StackConfig
-from .detector import Decision, Detector
-from .labels import UNKNOWN, label_one
-from .methods import DETECTOR_FACTORIES, DetectorFactory, filter_kind
-from .model import cov_radians_to_metres, metric_scales_scalar, slant_to_horizontal
+from replay.stack.config import StackConfig
+from replay.stack.detectors.base import Decision, Detector
+from replay.stack.labels import UNKNOWN, label_one
+from replay.stack.methods import DETECTOR_FACTORIES, DetectorFactory, filter_kind
+from replay.stack.model import cov_radians_to_metres, metric_scales_scalar, slant_to_horizontal
 
 if TYPE_CHECKING:
     import pandas as pd

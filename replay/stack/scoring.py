@@ -19,11 +19,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .labels import interpolate_track
-from .model import horizontal_distance_m
+from replay.stack.labels import interpolate_track
+from replay.stack.model import horizontal_distance_m
 
 if TYPE_CHECKING:
-    from .runner import RunResults
+    from replay.stack.runner import RunResults
 
 RESULT_KEYS: tuple[str, ...] = (
     "tp", "tn", "fp", "fn", "accuracy", "precision", "recall", "fpr", "fnr", "auc",

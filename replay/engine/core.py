@@ -1,0 +1,321 @@
+"""The replay engine: an archive streamed in time order through every method, side by side.
+
+Push-style core (`Engine.push(message)`), with `replay_archive` as the thin
+loop over an archive. Per follower a `FollowerPipeline` drives the stack's
+`CooperativeRunner`; USBL observations go through KMCDF. What cannot run is
+said once per cause (`Engine.notes`), never raised.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from array import array
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from replay.engine.follower import ErrorSample, FollowerPipeline, VehicleTracks
+from replay.engine.layout import TrialLayout
+from replay.run.config import RunConfig
+from replay.stack.positioning.kmcdf import KmcdfParams
+from replay.stack.model import horizontal_offset_m, offset_to_latlon
+from replay.stack.runner import EpochResult, RunResults
+from replay.engine.tracks import Fix
+from replay.engine.usbl.epochs import UsblEpoch, UsblEpochBuilder
+
+DEG = math.pi / 180.0
+NS = 1_000_000_000
+POSITIONING_METHODS = ("kmcdf1", "kmcdf2", "gar", "ear", "lms", "lhc")
+
+
+class Listener:
+    """Receives what the engine produces; the results writer and the review collector implement it."""
+
+    def epoch(self, follower: str, results: list[EpochResult]) -> None:
+        """One range epoch: a result per method."""
+
+    def estimates(self, follower: str, t_s: float, estimates: dict[str, tuple[float, ...]]) -> None:
+        """Every method's estimate (lat, lon rad, nn, ne, ee m²) at t."""
+
+    def errors(self, follower: str, samples: list[ErrorSample]) -> None:
+        """Horizontal errors against GPS."""
+
+    def usbl(self, epoch: UsblEpoch, positions: dict[str, tuple[float, float]]) -> None:
+        """One USBL epoch with each positioning method's east/north fix."""
+
+    def trained(self, follower: str, runner: Any, t_s: float) -> None:
+        """The detectors of a follower's runner were trained at t."""
+
+    def finished(self, follower: str, results: RunResults) -> None:
+        """A follower's runner finished."""
+
+    def position(self, vehicle: str, source: str, fix: Fix) -> None:
+        """A recorded position (source "gps" or "ins") of any vehicle."""
+
+    def event(self, t_s: float, level: str, text: str) -> None:
+        """Something a reviewer should read: a rejected record, training finished, a note."""
+
+
+@dataclass
+class _Scores:
+    """What scoring needs of one follower, kept compact: typed arrays, a few bytes per epoch or fix."""
+
+    flagged: dict[str, array] = field(default_factory=dict)
+    labels: dict[str, array] = field(default_factory=dict)
+    errors: dict[str, array] = field(default_factory=dict)
+    epochs: int = 0
+    anomalous: int = 0
+
+
+class Engine:
+    """Streams one trial's messages through the stack (push one message at a time, in time order)."""
+
+    def __init__(self, layout: TrialLayout, config: RunConfig, t0_ns: int, listeners: list[Listener] = ()):
+        self.layout, self.config, self.t0_ns = layout, config, t0_ns
+        self.listeners = list(listeners)
+        self.notes: list[str] = list(layout.notes)
+        self.counts: Counter = Counter()
+        self.tracks: dict[str, VehicleTracks] = {v: VehicleTracks() for v in layout.roles}
+        self.training_end_s = config.stack.training_window_s
+        self.followers: dict[str, FollowerPipeline] = {}
+        self.scores: dict[str, _Scores] = {}
+        for plan in layout.followers:
+            self.notes.extend(plan.notes)
+            if plan.runnable:
+                self.followers[plan.name] = FollowerPipeline(plan, config, self.tracks, self._on_epoch,
+                                                             self._on_estimates, self._on_errors)
+                self.scores[plan.name] = _Scores()
+        self._trained: set[str] = set()
+        self._usbl: UsblEpochBuilder | None = None
+        self._origin: tuple[float, float] | None = None
+        self.usbl_epochs = 0
+        self.positioning_errors: dict[str, array] = {m: array("d") for m in POSITIONING_METHODS}
+        self.messages = 0
+        self.last_s = -math.inf
+        self._routes: dict[str, tuple[str | None, Callable[[Engine, str, float, Any], None] | None]] = {}
+        self._lag_s = config.engine.lag_s
+
+    # -- intake ----------------------------------------------------------------
+    def push(self, topic: str, log_time_ns: int, msg: Any) -> None:
+        """Feed one archive message (log time order)."""
+        self.messages += 1
+        t_s = (log_time_ns - self.t0_ns) / NS
+        if t_s < self.last_s:
+            self.counts["out_of_order_messages"] += 1
+        else:
+            self.last_s = t_s
+        route = self._routes.get(topic)
+        if route is None:
+            route = self._routes[topic] = self._route(topic)
+        vehicle, handler = route
+        if handler is None:
+            if vehicle is None:
+                if topic == "/diagnostics":
+                    for listener in self.listeners:
+                        listener.event(t_s, "WARN", f"rejected record: {msg.message}")
+                return
+        else:
+            handler(self, vehicle, t_s, msg)
+        self._release(self.last_s - self._lag_s)
+
+    def _route(self, topic: str) -> tuple[str | None, Callable[[Engine, str, float, Any], None] | None]:
+        """(vehicle, handler) of a topic, parsed once per topic: (None, None) for one to skip."""
+        if topic == "/diagnostics":
+            return None, None
+        parts = topic.strip("/").split("/")
+        vehicle, sensor = parts[0], "/".join(parts[1:])
+        if vehicle not in self.tracks:
+            return None, None
+        return vehicle, _HANDLERS.get(sensor)
+
+    def _gps(self, vehicle: str, t_s: float, msg: Any) -> None:
+        if not (math.isfinite(msg.latitude) and math.isfinite(msg.longitude)):
+            self.counts["gps_without_position"] += 1
+            return
+        fix = Fix(t_s, msg.latitude * DEG, msg.longitude * DEG, 0.0)
+        self.tracks[vehicle].gps.add(fix)
+        for listener in self.listeners:
+            listener.position(vehicle, "gps", fix)
+        if self._origin is None:
+            self._origin = (fix.lat_rad, fix.lon_rad)
+        if vehicle in self.followers:
+            self.followers[vehicle].on_gps(t_s, fix)
+
+    def _ins(self, vehicle: str, t_s: float, msg: Any) -> None:
+        if math.isfinite(msg.latitude) and math.isfinite(msg.longitude):
+            depth = msg.depth_m if math.isfinite(msg.depth_m) else 0.0
+            fix = Fix(t_s, msg.latitude * DEG, msg.longitude * DEG, depth)
+            self.tracks[vehicle].ins.add(fix)
+            for listener in self.listeners:
+                listener.position(vehicle, "ins", fix)
+        if vehicle in self.followers:
+            self.followers[vehicle].on_ins(t_s, msg)
+
+    def _dvl(self, vehicle: str, t_s: float, msg: Any) -> None:
+        if vehicle in self.followers:
+            self.followers[vehicle].on_dvl(t_s, msg)
+
+    def _range(self, vehicle: str, t_s: float, msg: Any) -> None:
+        if vehicle in self.followers:
+            self.followers[vehicle].on_range(t_s, msg)
+        else:
+            self.counts["range_logged_by_non_follower"] += 1
+
+    def _usbl_obs(self, vehicle: str, t_s: float, msg: Any) -> None:
+        if not self.config.engine.kmcdf:
+            return
+        if self._usbl is None:
+            if self._origin is None:
+                self.counts["usbl_before_any_gps"] += 1
+                return
+            e = self.config.engine
+            params = KmcdfParams(rho_m=e.kmcdf_rho_m, sigma_phase_rad=e.kmcdf_phase_noise_rad)
+            self._usbl = UsblEpochBuilder(self.tracks, self._origin, e.usbl_group_s, params, e.node_max_gap_s,
+                                          self._on_usbl_batch, self._usbl_truth)
+        self._usbl.add(t_s, msg)
+
+    # -- release and callbacks ---------------------------------------------------
+    def _release(self, until_s: float) -> None:
+        feeding = self._usbl is not None and bool(self.config.engine.usbl_update)
+        if feeding:
+            # fixes go to the followers' queues before they are released past them; an epoch is
+            # complete once the stream is usbl_group_s past its first observation
+            self._usbl.flush(min(until_s, self.last_s - self.config.engine.usbl_group_s))
+            self._usbl.position_due(until_s)
+        for name, pipe in self.followers.items():
+            # most messages release nothing; training only happens while events are released
+            if pipe.due(until_s):
+                pipe.release(until_s)
+                self._check_trained(name, pipe)
+        if self._usbl is not None and not feeding:
+            self._usbl.flush(until_s - 1.0)
+
+    def _check_trained(self, name: str, pipe: FollowerPipeline) -> None:
+        runner = pipe.runner
+        if runner is not None and name not in self._trained and getattr(runner, "trained", False):
+            self._trained.add(name)
+            for listener in self.listeners:
+                listener.event(runner.training_end_s, "INFO", f"{name}: detectors trained at t_a = "
+                               f"{runner.training_end_s:.0f} s" + "".join(
+                                   f"; {k}: {v}" for k, v in runner.training_errors.items()))
+            for listener in self.listeners:
+                listener.trained(name, runner, runner.training_end_s)
+
+    def _on_epoch(self, follower: str, results: list[EpochResult]) -> None:
+        sc = self.scores[follower]
+        t = results[0].time_s
+        if t > self.training_end_s:
+            label = results[0].label
+            if label >= 0:
+                sc.epochs += 1
+                sc.anomalous += label == 1
+            for r in results:
+                if r.label >= 0:
+                    sc.flagged.setdefault(r.method, array("b")).append(bool(r.flagged))
+                    sc.labels.setdefault(r.method, array("b")).append(int(r.label))
+        for listener in self.listeners:
+            listener.epoch(follower, results)
+
+    def _on_estimates(self, follower: str, t_s: float, est: dict[str, tuple[float, ...]]) -> None:
+        for listener in self.listeners:
+            listener.estimates(follower, t_s, est)
+
+    def _on_errors(self, follower: str, samples: list[ErrorSample]) -> None:
+        sc = self.scores[follower]
+        for s in samples:
+            if s.t_s >= self.training_end_s:
+                sc.errors.setdefault(s.method, array("d")).append(s.error_m)
+        for listener in self.listeners:
+            listener.errors(follower, samples)
+
+    def _usbl_truth(self, target: str, t_s: float) -> tuple[float, float] | None:
+        """The target's GPS east/north at an epoch, read when the epoch closes (tracks keep recent fixes only)."""
+        truth = self.tracks.get(target)
+        fix = truth.gps.at(t_s, self.config.engine.max_gap_s) if truth is not None else None
+        if fix is None or self._origin is None:
+            return None
+        n, e = horizontal_offset_m(fix.lat_rad, fix.lon_rad, *self._origin)
+        return float(e), float(n)
+
+    def _on_usbl_batch(self, epochs: list[UsblEpoch], truths: list[tuple[float, float] | None]) -> None:
+        from replay.engine.usbl.positioning import positions_for_epochs
+
+        for epoch, truth, positions in zip(epochs, truths, positions_for_epochs(epochs)):
+            self._on_usbl(epoch, truth, positions)
+
+    def _on_usbl(self, epoch: UsblEpoch, truth: tuple[float, float] | None,
+                 positions: dict[str, tuple[float, float]]) -> None:
+        self.usbl_epochs += 1
+        if truth is not None:
+            e, n = truth
+            for method, (pe, pn) in positions.items():
+                if math.isfinite(pe) and math.isfinite(pn):
+                    self.positioning_errors[method].append(math.hypot(pe - float(e), pn - float(n)))
+        self._feed_fix(epoch, positions)
+        for listener in self.listeners:
+            listener.usbl(epoch, positions)
+
+    def _feed_fix(self, epoch: UsblEpoch, positions: dict[str, tuple[float, float]]) -> None:
+        """With engine.usbl_update set, the chosen method's fix of a follower goes to its filters."""
+        method = self.config.engine.usbl_update
+        pipe = self.followers.get(epoch.target) if method else None
+        if pipe is None or self._origin is None:
+            return
+        e, n = positions.get(method, (math.nan, math.nan))
+        if not (math.isfinite(e) and math.isfinite(n)):
+            self.counts["usbl_fixes_undetermined"] += 1
+            return
+        cov = epoch.fix.covariance if method == "kmcdf2" else None
+        if cov is not None and np.all(np.isfinite(cov)):
+            nn, ne, ee = float(cov[1, 1]), float(cov[0, 1]), float(cov[0, 0])   # fix covariance is east, north
+        else:
+            nn = ee = self.config.engine.usbl_update_sigma_m ** 2
+            ne = 0.0
+        lat, lon = offset_to_latlon(n, e, *self._origin)
+        pipe.on_position_fix(epoch.t_s, lat, lon, nn, ne, ee)
+        self.counts["usbl_fixes_to_filters"] += 1
+
+    # -- end ---------------------------------------------------------------------
+    def finish(self) -> dict[str, RunResults]:
+        """Release everything, finish every runner; returns their RunResults by follower."""
+        out = {}
+        if self._usbl is not None and self.config.engine.usbl_update:
+            self._usbl.flush()     # the last fixes reach the followers before their queues empty
+        for name, pipe in self.followers.items():
+            pipe.finish()
+            self._check_trained(name, pipe)
+            if pipe.runner is None:
+                self.notes.append(f"follower {name}: never started (no position fix to start from)")
+                continue
+            out[name] = pipe.runner.finish()
+            for listener in self.listeners:
+                listener.finished(name, out[name])
+        if self._usbl is not None:
+            self._usbl.flush()
+            self.counts.update(self._usbl.counts)
+        return out
+
+    @property
+    def origin(self) -> tuple[float, float] | None:
+        """The local frame's origin (lat, lon rad): the first GPS fix of the trial."""
+        return self._origin
+
+
+_HANDLERS: dict[str, Callable[[Engine, str, float, Any], None]] = {
+    "gps": Engine._gps,
+    "ins": Engine._ins,
+    "dvl": Engine._dvl,
+    "modem/range": Engine._range,
+    "usbl": Engine._usbl_obs,
+}
+
+
+def pace(rate: float, t0_wall: float, t_s: float) -> None:
+    """Sleep so that trial time t_s is reached at rate x wall time (rate 0: never sleep)."""
+    if rate > 0:
+        ahead = t_s / rate - (time.monotonic() - t0_wall)
+        if ahead > 0:
+            time.sleep(ahead)

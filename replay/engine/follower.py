@@ -1,0 +1,200 @@
+"""One follower's pipeline: archive messages in, DR samples and range epochs to the stack runner.
+
+Events are queued and released `lag_s` behind the stream, so that a range
+epoch can use the ranged leader's position interpolated at the ranging time
+(from its INS, else its GPS) and the GPS truth on both sides of it. The
+queue holds only those few seconds, so memory does not grow with the trial.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any, Callable, NamedTuple
+
+from replay.engine.layout import FollowerPlan
+from replay.run.config import RunConfig
+from replay.stack.model import horizontal_distance_scalar
+from replay.stack.runner import CooperativeRunner, EpochResult
+from replay.engine.tracks import Fix, Track
+
+DEG = math.pi / 180.0
+BODY_FRD, EARTH_NED = 1, 2  # auvreplay.DvlVelocity.Frame
+
+
+@dataclass
+class VehicleTracks:
+    """Recent GPS and INS positions of one vehicle."""
+
+    gps: Track = field(default_factory=lambda: Track(keep_s=120.0))
+    ins: Track = field(default_factory=lambda: Track(keep_s=120.0))
+
+    def position(self, t_s: float, max_gap_s: float) -> Fix | None:
+        """Position at t from the INS if it covers t, else from GPS."""
+        return self.ins.at(t_s, max_gap_s) or self.gps.at(t_s, max_gap_s)
+
+
+class ErrorSample(NamedTuple):
+    """Horizontal error of one method's estimate at one follower GPS fix."""
+
+    # a NamedTuple, not a frozen dataclass: one per method at every GPS fix, built ~3x cheaper
+
+    t_s: float
+    method: str
+    error_m: float
+
+
+class FollowerPipeline:
+    """Queues one follower's samples and drives its CooperativeRunner in time order."""
+
+    def __init__(self, plan: FollowerPlan, config: RunConfig, tracks: dict[str, VehicleTracks],
+                 on_epoch: Callable[[str, list[EpochResult]], None],
+                 on_estimates: Callable[[str, float, dict[str, tuple[float, ...]]], None],
+                 on_error: Callable[[str, list[ErrorSample]], None]):
+        self.plan, self.config, self.tracks = plan, config, tracks
+        self.on_epoch, self.on_estimates, self.on_error = on_epoch, on_estimates, on_error
+        self.runner: CooperativeRunner | None = None
+        self.counts: Counter = Counter()
+        self._queue: list[tuple[float, int, str, tuple[Any, ...]]] = []
+        self._seq = 0
+        self._heading: tuple[float, float] | None = None   # (t_s, heading deg)
+        self._depth = 0.0
+        self._prev: tuple[float, dict[str, tuple[float, float]]] | None = None
+        self._pending_gps: list[Fix] = []
+        self._last_output_s = -math.inf
+
+    # -- intake ----------------------------------------------------------------
+    def _push(self, t_s: float, kind: str, payload: tuple[Any, ...]) -> None:
+        self._seq += 1
+        heapq.heappush(self._queue, (t_s, self._seq, kind, payload))
+
+    def on_ins(self, t_s: float, msg: Any) -> None:
+        """Follower INS: remember heading and depth for the DVL samples that follow."""
+        if math.isfinite(msg.heading_deg):
+            self._heading = (t_s, msg.heading_deg)
+        if math.isfinite(msg.depth_m):
+            self._depth = msg.depth_m
+
+    def on_dvl(self, t_s: float, msg: Any) -> None:
+        """A DVL sample becomes a DR event (body-frame forward/lateral speed, heading, depth)."""
+        if not msg.valid or not (math.isfinite(msg.velocity_x_mps) and math.isfinite(msg.velocity_y_mps)):
+            self.counts["dvl_invalid"] += 1
+            return
+        fresh = self._heading is not None and t_s - self._heading[0] <= self.config.engine.max_gap_s
+        if msg.frame == EARTH_NED:
+            theta = self._heading[1] * DEG if fresh else 0.0
+            vn, ve = msg.velocity_x_mps, msg.velocity_y_mps
+            fwd, lat = vn * math.cos(theta) + ve * math.sin(theta), -vn * math.sin(theta) + ve * math.cos(theta)
+        elif msg.frame == BODY_FRD:
+            if not fresh:
+                self.counts["dvl_without_heading"] += 1
+                return
+            theta, fwd, lat = self._heading[1] * DEG, msg.velocity_x_mps, msg.velocity_y_mps
+        else:
+            self.counts["dvl_frame_unusable"] += 1
+            return
+        self._push(t_s, "dr", (fwd, lat, theta, self._depth))
+
+    def on_range(self, t_s: float, msg: Any) -> None:
+        """An acoustic range from a leader becomes a range event."""
+        if msg.source not in self.plan.leaders:
+            self.counts["range_from_unknown_leader"] += 1
+            return
+        slant = msg.range_m
+        if not math.isfinite(slant) and math.isfinite(msg.travel_time_s):
+            speed = msg.sound_speed_mps if math.isfinite(msg.sound_speed_mps) and msg.sound_speed_mps > 0 else 1500.0
+            slant = msg.travel_time_s * speed
+        self._push(t_s, "range", (msg.source, slant))
+
+    def on_position_fix(self, t_s: float, lat_rad: float, lon_rad: float, cov_nn_m2: float, cov_ne_m2: float,
+                        cov_ee_m2: float) -> None:
+        """A position fix of this follower (a USBL epoch's fix) becomes a position-update event."""
+        self._push(t_s, "fix", (lat_rad, lon_rad, cov_nn_m2, cov_ne_m2, cov_ee_m2))
+
+    def on_gps(self, t_s: float, fix: Fix) -> None:
+        """A follower GPS fix: the reference for position errors."""
+        self._push(t_s, "gps", (fix,))
+
+    # -- release ---------------------------------------------------------------
+    def due(self, until_s: float) -> bool:
+        """True when `release(until_s)` would process an event."""
+        return bool(self._queue) and self._queue[0][0] <= until_s
+
+    def release(self, until_s: float) -> None:
+        """Process every queued event with time <= until_s, in time order."""
+        while self._queue and self._queue[0][0] <= until_s:
+            t_s, _, kind, payload = heapq.heappop(self._queue)
+            if kind == "gps":
+                self._pending_gps.append(payload[0])
+                continue
+            if self.runner is None and not self._start(t_s):
+                self.counts[f"{kind}_before_initial_fix"] += 1
+                continue
+            if kind == "dr":
+                if self.runner.dead_reckon(t_s, *payload):
+                    self._after_step(t_s)
+            elif kind == "fix":
+                if self.runner.position_fix(t_s, *payload):
+                    self._after_step(t_s, force=True)
+            else:
+                self._range(t_s, *payload)
+
+    def _start(self, t_s: float) -> bool:
+        own = self.tracks[self.plan.name]
+        fix = own.gps.at(t_s, self.config.engine.max_gap_s) or own.ins.at(t_s, self.config.engine.max_gap_s)
+        if fix is None:
+            return False
+        self.runner = CooperativeRunner(
+            self.config.stack, self.plan.name, self.plan.leaders, start_time_s=0.0,
+            initial_lat_rad=fix.lat_rad, initial_lon_rad=fix.lon_rad, initial_depth_m=self._depth,
+            keep_history=False)
+        self._prev = (0.0, self.runner.positions())
+        return True
+
+    def _range(self, t_s: float, leader: str, slant_m: float) -> None:
+        gap = self.config.engine.max_gap_s
+        pos = self.tracks[leader].position(t_s, gap)
+        if pos is None:
+            self.counts["range_without_leader_position"] += 1
+            return
+        truth = math.nan
+        own, other = self.tracks[self.plan.name].gps.at(t_s, gap), self.tracks[leader].gps.at(t_s, gap)
+        if own is not None and other is not None:
+            truth = horizontal_distance_scalar(own.lat_rad, own.lon_rad, other.lat_rad, other.lon_rad)
+        results = self.runner.range_epoch(t_s, leader, pos.lat_rad, pos.lon_rad, pos.depth_m, slant_m, truth)
+        if results:
+            self.on_epoch(self.plan.name, results)
+            self._after_step(t_s, force=True)
+
+    def _after_step(self, t_s: float, force: bool = False) -> None:
+        """Errors at GPS fixes between the last two estimates; estimates out at most once a second."""
+        now = self.runner.positions()
+        prev_t, prev = self._prev
+        samples: list[ErrorSample] = []
+        keep: list[Fix] = []
+        for fix in self._pending_gps:
+            if fix.t_s > t_s:
+                keep.append(fix)
+                continue
+            if fix.t_s < prev_t:
+                continue  # before the runner started
+            w = 0.0 if t_s == prev_t else (fix.t_s - prev_t) / (t_s - prev_t)
+            for method, est in now.items():
+                p = prev.get(method, est)
+                lat = p[0] + w * (est[0] - p[0])
+                lon = p[1] + w * (est[1] - p[1])
+                samples.append(ErrorSample(fix.t_s, method,
+                                           horizontal_distance_scalar(lat, lon, fix.lat_rad, fix.lon_rad)))
+        self._pending_gps = keep
+        if samples:
+            self.on_error(self.plan.name, samples)
+        self._prev = (t_s, now)
+        if force or t_s - self._last_output_s >= 1.0:
+            self._last_output_s = t_s
+            self.on_estimates(self.plan.name, t_s, self.runner.estimates())
+
+    def finish(self) -> None:
+        """Release everything still queued."""
+        self.release(math.inf)

@@ -1,0 +1,1 @@
+"""LBL/USBL in the engine: epochs grouped from buoy observations, and positioned by every method."""

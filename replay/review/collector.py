@@ -1,0 +1,144 @@
+"""Collecting a run into ReviewData for the views (only when a reviewer asked for it: --rrd, the API)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from replay.engine.core import Listener
+from replay.engine.follower import ErrorSample
+from replay.engine.layout import TrialLayout
+from replay.review.data import ReviewData
+from replay.stack.config import DETECTING_METHODS
+from replay.stack.model import horizontal_offset_m
+from replay.stack.runner import EpochResult, RunResults
+from replay.engine.tracks import Fix
+from replay.engine.usbl.epochs import UsblEpoch
+
+RAD = 180.0 / math.pi
+INS_DECIMATE_S = 1.0
+
+
+class ReviewCollector(Listener):
+    """Keeps rows for every ReviewData table while the engine runs."""
+
+    def __init__(self, run_id: str, trial: dict[str, Any], t0_ns: int, layout: TrialLayout):
+        self.run_id, self.trial, self.t0_ns, self.layout = run_id, trial, t0_ns, layout
+        self.engine: Any = None
+        self.rows: dict[str, list[dict[str, Any]]] = {k: [] for k in (
+            "tracks", "ranges", "detections", "errors", "anfis_epochs", "anfis_explain", "kmcdf", "events")}
+        self._last_ins: dict[str, float] = {}
+        self._runners: dict[str, Any] = {}
+
+    def _en(self, lat: float, lon: float) -> tuple[float, float]:
+        origin = self.engine.origin if self.engine is not None else None
+        if origin is None:
+            return math.nan, math.nan
+        n, e = horizontal_offset_m(lat, lon, *origin)
+        return float(e), float(n)
+
+    def _track_row(self, t_s: float, vehicle: str, source: str, lat: float, lon: float,
+                   std_e: float = math.nan, std_n: float = math.nan) -> None:
+        e, n = self._en(lat, lon)
+        self.rows["tracks"].append({"t_s": t_s, "vehicle": vehicle, "source": source, "lat_deg": lat * RAD,
+                                    "lon_deg": lon * RAD, "east_m": e, "north_m": n,
+                                    "std_east_m": std_e, "std_north_m": std_n})
+
+    def position(self, vehicle: str, source: str, fix: Fix) -> None:
+        if source == "ins":
+            last = self._last_ins.get(vehicle, -math.inf)
+            if fix.t_s - last < INS_DECIMATE_S:
+                return
+            self._last_ins[vehicle] = fix.t_s
+        self._track_row(fix.t_s, vehicle, source, fix.lat_rad, fix.lon_rad)
+
+    def estimates(self, follower: str, t_s: float, est: dict[str, tuple[float, ...]]) -> None:
+        for method, (lat, lon, nn, _ne, ee) in est.items():
+            self._track_row(t_s, follower, method, lat, lon, math.sqrt(max(ee, 0.0)), math.sqrt(max(nn, 0.0)))
+
+    def epoch(self, follower: str, results: list[EpochResult]) -> None:
+        r0 = results[0]
+        leader_fix = self.engine.tracks[r0.leader].position(r0.time_s, self.engine.config.engine.max_gap_s)
+        le, ln = self._en(leader_fix.lat_rad, leader_fix.lon_rad) if leader_fix else (math.nan, math.nan)
+        truth = getattr(r0, "truth_range_m", math.nan)
+        self.rows["ranges"].append({"t_s": r0.time_s, "follower": follower, "leader": r0.leader,
+                                    "measured_m": r0.range_m, "true_m": truth, "residual_m": r0.range_m - truth,
+                                    "leader_east_m": le, "leader_north_m": ln, "horizontal_m": r0.range_m})
+        runner = self.engine.followers[follower].runner
+        for r in results:
+            if r.method not in DETECTING_METHODS:
+                continue
+            self.rows["detections"].append({
+                "t_s": r.time_s, "follower": follower, "leader": r.leader, "method": r.method,
+                "flagged": bool(r.flagged), "score": r.score, "threshold": r.threshold, "f1_innovation_m": r.f1,
+                "f2_mahalanobis2": r.f2, "f3_r_adapted_m2": r.f3, "label": int(r.label),
+                "isolated": bool(r.isolated), "capped": bool(r.capped)})
+            if r.flagged:
+                self.event(r.time_s, "INFO", f"{follower}: {r.method} flagged the range to {r.leader} "
+                                             f"(score {r.score:.2f} > {r.threshold:.2f}, label {r.label})")
+            if r.method == "anfis" and r.time_s > runner.training_end_s:
+                self._explain(runner, r)
+
+    def _explain(self, runner: Any, r: EpochResult) -> None:
+        det = runner.detectors("anfis").get(r.leader)
+        if det is None or not hasattr(det, "explain"):
+            return
+        ex = det.explain(np.array([r.f1, r.f2, r.f3]))
+        self.rows["anfis_explain"].append({
+            "t_s": r.time_s, "model": r.leader, "inputs": np.asarray(ex.normalized_inputs).tolist(),
+            "memberships": np.asarray(ex.memberships).tolist(), "firing": np.asarray(ex.normalized_firing).tolist(),
+            "output": float(np.asarray(ex.output)), "threshold": r.threshold, "flagged": bool(r.flagged)})
+
+    def errors(self, follower: str, samples: list[ErrorSample]) -> None:
+        self.rows["errors"].extend({"t_s": s.t_s, "follower": follower, "method": s.method, "error_m": s.error_m}
+                                   for s in samples)
+
+    def trained(self, follower: str, runner: Any, t_s: float) -> None:
+        for method in DETECTING_METHODS:
+            per_leader = runner.detectors(method)
+            if method != "anfis":
+                continue
+            for leader, det in per_leader.items():
+                if det is None or not hasattr(det, "snapshots"):
+                    continue
+                for snap in det.snapshots():
+                    self.rows["anfis_epochs"].append({"model": leader, "epoch": int(snap.epoch),
+                                                      "rmse": float(snap.training_rmse), "params": {
+                        "a": snap.a.tolist(), "b": snap.b.tolist(), "c": snap.c.tolist(),
+                        "consequents": snap.consequents.tolist(), "input_min": snap.input_min.tolist(),
+                        "input_max": snap.input_max.tolist(), "threshold": float(snap.threshold),
+                        "rule_structure": snap.rule_structure}})
+
+    def usbl(self, epoch: UsblEpoch, positions: dict[str, tuple[float, float]]) -> None:
+        fixes = epoch.fix.fixes
+        for method, (e, n) in positions.items():
+            self.rows["kmcdf"].append({
+                "t_s": epoch.t_s, "target": epoch.target, "method": method, "east_m": e, "north_m": n,
+                "fixes_east_m": [f.xy[0] for f in fixes] if method == "kmcdf2" else [],
+                "fixes_north_m": [f.xy[1] for f in fixes] if method == "kmcdf2" else [],
+                "fixes_cluster": [f.cluster for f in fixes] if method == "kmcdf2" else [],
+                "nodes_east_m": epoch.node_en[:, 0].tolist(), "nodes_north_m": epoch.node_en[:, 1].tolist(),
+                "delay_normal": np.asarray(epoch.fix.delay_normal).tolist(),
+                "phase_normal": np.asarray(epoch.fix.phase_normal).tolist()})
+
+    def event(self, t_s: float, level: str, text: str) -> None:
+        self.rows["events"].append({"t_s": t_s, "level": level, "text": text})
+
+    def finished(self, follower: str, results: RunResults) -> None:
+        pass
+
+    def finish(self, metrics: dict[str, Any]) -> ReviewData:
+        """The collected ReviewData."""
+        origin = self.engine.origin if self.engine is not None else None
+        data = ReviewData(self.run_id, str(self.trial.get("name", "")), self.t0_ns,
+                          origin[0] * RAD if origin else math.nan, origin[1] * RAD if origin else math.nan,
+                          dict(self.layout.roles), list(metrics.get("methods", {})), metrics=metrics)
+        for note in self.engine.notes:
+            self.event(0.0, "WARN", note)
+        for name, rows in self.rows.items():
+            if rows:
+                setattr(data, name, pd.DataFrame(rows))
+        return data

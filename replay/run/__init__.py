@@ -1,0 +1,1 @@
+"""Running replays: configuration, the archive-to-results pipeline, metrics, results archives, comparisons, batches."""

@@ -1,0 +1,92 @@
+"""The metrics of a replay run: DESIGN.md "Machine-readable results", pooled over followers."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from replay.stack.config import DETECTING_METHODS
+from replay.stack.runner import RunResults
+from replay.stack.scoring import RESULT_KEYS, detection_scores, error_stats
+
+
+def _pool(parts: list[np.ndarray]) -> np.ndarray:
+    return np.concatenate(parts) if parts else np.empty(0)
+
+
+def run_metrics(engine: Any, results: dict[str, RunResults], run_id: str, end_s: float) -> dict[str, Any]:
+    """The `replay --json` object: run id, scoring window, epoch counts and per-method figures."""
+    methods: dict[str, dict[str, Any]] = {}
+    names = list(engine.config.stack.methods)
+    for method in names:
+        row: dict[str, Any] = {k: None for k in RESULT_KEYS}
+        flagged = _pool([np.asarray(s.flagged.get(method, []), dtype=bool) for s in engine.scores.values()])
+        labels = _pool([np.asarray(s.labels.get(method, []), dtype=int) for s in engine.scores.values()])
+        if method in DETECTING_METHODS:
+            ol = [r.open_loop[method] for r in results.values() if method in r.open_loop]
+            ol_labels = _pool([o["label"].astype(int) for o in ol])
+            ol_scores = _pool([o["score"].astype(float) for o in ol])
+            row.update(detection_scores(flagged, labels, ol_labels, ol_scores))
+        errors = _pool([np.asarray(s.errors.get(method, []), float) for s in engine.scores.values()])
+        row.update(error_stats(errors))
+        row["capped"] = int(sum(r.capped.get(method, 0) for r in results.values()))
+        methods[method] = row
+    for method, errs in engine.positioning_errors.items():
+        if len(errs):
+            row = {k: None for k in RESULT_KEYS}
+            row.update(error_stats(np.asarray(errs)))
+            row["epochs"] = len(errs)
+            methods[method] = row
+    return {
+        "run_id": run_id,
+        "window": [engine.training_end_s, end_s],
+        "epochs": int(sum(s.epochs for s in engine.scores.values())),
+        "anomalous": int(sum(s.anomalous for s in engine.scores.values())),
+        "methods": _clean(methods),
+        "followers": sorted(engine.scores),
+        "usbl_epochs": engine.usbl_epochs,
+        "rejected": {f: dict(r.rejected) for f, r in results.items()},
+        "training_errors": {f: r.training_errors for f, r in results.items() if r.training_errors},
+        "notes": list(engine.notes),
+        "counts": {**dict(engine.counts), **{f"{f}:{k}": v for f, p in engine.followers.items()
+                                              for k, v in p.counts.items()}},
+    }
+
+
+def _clean(obj: Any) -> Any:
+    """JSON-safe: numpy scalars to Python, NaN to None."""
+    if isinstance(obj, dict):
+        return {k: _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return None if not math.isfinite(float(obj)) else float(obj)
+    return obj
+
+
+def metrics_table(metrics: dict[str, Any]) -> list[dict[str, Any]]:
+    """One row per method (for CSV and the printed table)."""
+    return [{"method": m, **{k: v.get(k) for k in RESULT_KEYS}} for m, v in metrics["methods"].items()]
+
+
+def format_table(metrics: dict[str, Any]) -> str:
+    """The printed metrics table."""
+    cols = ["method", "tp", "tn", "fp", "fn", "accuracy", "fpr", "fnr", "auc", "error_p50_m", "error_p90_m"]
+    rows = [[_fmt(r.get(c)) for c in cols] for r in metrics_table(metrics)]
+    widths = [max(len(c), *(len(r[i]) for r in rows)) if rows else len(c) for i, c in enumerate(cols)]
+    lines = ["  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in enumerate(zip(cols, widths)))]
+    lines.append("  ".join("-" * w for w in widths))
+    lines += ["  ".join(v.rjust(w) if i else v.ljust(w) for i, (v, w) in enumerate(zip(r, widths))) for r in rows]
+    return "\n".join(lines)
+
+
+def _fmt(v: Any) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        return f"{v:.3f}" if abs(v) < 100 else f"{v:.1f}"
+    return str(v)

@@ -1,0 +1,100 @@
+"""Writing a run's results into MCAP: /replay/<run>/... channels and the `run` metadata record."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from formats import schemas as S
+from formats.mcap_writer import ArchiveWriter
+
+from replay.engine.core import Listener
+from replay.engine.follower import ErrorSample
+from replay.stack.config import DETECTING_METHODS
+from replay.stack.model import offset_to_latlon
+from replay.stack.runner import EpochResult, RunResults
+from replay.engine.usbl.epochs import UsblEpoch
+
+RAD = 180.0 / math.pi
+NS = 1_000_000_000
+
+
+def _cov_enu(nn: float, ne: float, ee: float) -> tuple[float, ...]:
+    """ENU 3x3 (row-major) from north-east covariances; vertical unknown."""
+    return (ee, ne, 0.0, ne, nn, 0.0, 0.0, 0.0, math.nan)
+
+
+class ResultsWriter(Listener):
+    """Streams a run's estimates, detections, ANFIS snapshots and USBL fixes to an archive."""
+
+    def __init__(self, writer: ArchiveWriter, run_id: str, t0_ns: int, origin: Any):
+        self.w, self.run, self.t0_ns = writer, run_id, t0_ns
+        self.origin = origin  # callable returning (lat, lon rad) or None
+
+    def _ns(self, t_s: float) -> int:
+        return self.t0_ns + round(t_s * NS)
+
+    def estimates(self, follower: str, t_s: float, est: dict[str, tuple[float, ...]]) -> None:
+        t = self._ns(t_s)
+        for method, (lat, lon, nn, ne, ee) in est.items():
+            fix = S.location_fix(t, follower, lat * RAD, lon * RAD, math.nan, _cov_enu(nn, ne, ee),
+                                 S.COVARIANCE_KNOWN)
+            self.w.write(f"/replay/{self.run}/{follower}/{method}", fix, t)
+
+    def epoch(self, follower: str, results: list[EpochResult]) -> None:
+        t = self._ns(results[0].time_s)
+        for r in results:
+            if r.method not in DETECTING_METHODS:
+                continue
+            msg = S.Detection(timestamp=S.timestamp(t), follower=follower, leader=r.leader, method=r.method,
+                              flagged=bool(r.flagged), score=r.score, threshold=r.threshold,
+                              feature_innovation_m=r.f1, feature_mahalanobis2=r.f2, feature_r_adapted_m2=r.f3,
+                              label=int(r.label), isolation_capped=bool(r.capped))
+            self.w.write(f"/replay/{self.run}/{follower}/detections", msg, t)
+
+    def errors(self, follower: str, samples: list[ErrorSample]) -> None:
+        pass  # errors are derived data: the metrics carry them
+
+    def trained(self, follower: str, runner: Any, t_s: float) -> None:
+        t = self._ns(t_s)
+        for method in DETECTING_METHODS:
+            per_leader = runner.detectors(method)
+            for leader, det in per_leader.items():
+                if det is None or not hasattr(det, "snapshots"):
+                    continue
+                for snap in det.snapshots():
+                    self.w.write(f"/replay/{self.run}/anfis/{leader}", snapshot_message(snap, t, leader, method), t)
+
+    def usbl(self, epoch: UsblEpoch, positions: dict[str, tuple[float, float]]) -> None:
+        origin = self.origin()
+        if origin is None:
+            return
+        t = self._ns(epoch.t_s)
+        for method, (e, n) in positions.items():
+            if not (math.isfinite(e) and math.isfinite(n)):
+                continue
+            cov = epoch.fix.covariance if method == "kmcdf2" else None
+            cov_enu = _cov_enu(cov[1, 1], cov[0, 1], cov[0, 0]) if cov is not None else None
+            lat, lon = offset_to_latlon(n, e, *origin)     # the inverse of how the engine made e, n
+            fix = S.location_fix(t, epoch.target, lat * RAD, lon * RAD, math.nan,
+                                 cov_enu, S.COVARIANCE_KNOWN if cov_enu else S.COVARIANCE_UNKNOWN)
+            self.w.write(f"/replay/{self.run}/{epoch.target}/{method}", fix, t)
+
+    def finished(self, follower: str, results: RunResults) -> None:
+        pass
+
+
+def snapshot_message(snap: Any, t_ns: int, leader: str, method: str) -> Any:
+    """An auvreplay.AnfisSnapshot from a ModelSnapshot."""
+    msg = S.AnfisSnapshot(time=S.timestamp(t_ns), leader=leader, epoch=int(snap.epoch),
+                          training_rmse=float(snap.training_rmse), inputs=int(snap.a.shape[0]),
+                          mfs_per_input=int(snap.mfs_per_input), rule_structure=snap.rule_structure,
+                          threshold=float(snap.threshold), trainer=f"{method}:{snap.trainer}")
+    for i in range(snap.a.shape[0]):
+        for j in range(snap.a.shape[1]):
+            msg.membership.add(input=i, index=j, a=float(snap.a[i, j]), b=float(snap.b[i, j]),
+                               c=float(snap.c[i, j]))
+    msg.consequents.extend(float(v) for v in snap.consequents.ravel())
+    msg.input_min.extend(float(v) for v in snap.input_min)
+    msg.input_max.extend(float(v) for v in snap.input_max)
+    return msg

@@ -1,0 +1,1 @@
+"""LBL/USBL positioning: KMCDF (seed 003), the delay-only baselines GAR, EAR, LMS, LHC, and their geometry."""

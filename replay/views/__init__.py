@@ -1,0 +1,1 @@
+"""The Rerun views: the only package that imports rerun (entry point: `replay.views.recording`)."""

@@ -1,0 +1,121 @@
+"""Rerun views of replay runs: one recording (one run, or two compared) with its blueprint, saved as .rrd.
+
+`build_recording` turns `ReviewData` into a Rerun recording with the columnar API
+(`send_columns`: one call per entity and series, no Python loop per sample);
+`save_rrd` writes it atomically with the blueprint inside; `open_viewer` opens a
+file in Rerun's native viewer, or in the web viewer bound to 127.0.0.1 only.
+
+Timelines: `time` (UTC timestamps, trial_start_ns + t_s) for mission data and
+`anfis_epoch` (sequence) for ANFIS training. Entity layout per run under
+``/<run_id>``: ``map``, ``local``, ``series``, ``cdf``, ``anfis``, ``kmcdf``,
+``events``, ``info`` (see the other modules of ``replay.views``). This package's modules are
+the only ones that import `rerun` (with `replay.views.kmcdf`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import rerun as rr
+
+from replay.review.data import ReviewData
+from replay.views.anfis import log_anfis
+from replay.views.blueprint import build_blueprint
+from replay.views.common import Run, annotation_context, make_runs, run_names
+from replay.views.positioning import log_events, log_kmcdf
+from replay.views.series import cdf_scale, log_detections, log_errors, log_ranges
+from replay.views.tracks import log_range_circles, log_tracks
+
+WEB_BIND = "127.0.0.1"
+
+
+def recording_id(reviews: list[ReviewData]) -> str:
+    """A deterministic recording id from the run ids (no random default)."""
+    return "auvreplay:" + "+".join(r.run_id or f"run{i}" for i, r in enumerate(reviews))
+
+
+def _summary(run: Run) -> str:
+    rv = run.review
+    vehicles = ", ".join(f"{k} ({v})" for k, v in rv.vehicles.items())
+    lines = [f"# {rv.trial}: run {rv.run_id}", "", f"vehicles: {vehicles}", "",
+             f"methods: {', '.join(rv.methods)}", ""]
+    if rv.metrics:
+        lines += ["```json", json.dumps(rv.metrics, indent=1, default=str)[:20000], "```"]
+    return "\n".join(lines)
+
+
+def log_review(rec: rr.RecordingStream, run: Run, scale: dict[str, float]) -> None:
+    """Every view's entities for one run."""
+    rec.log(run.prefix, annotation_context(run, run_names(run.review)), static=True)
+    rec.log(run.path("info"), rr.TextDocument(_summary(run), media_type="text/markdown"), static=True)
+    log_tracks(rec, run)
+    log_range_circles(rec, run)
+    log_ranges(rec, run)
+    log_detections(rec, run)
+    log_errors(rec, run, scale)
+    log_anfis(rec, run)
+    log_kmcdf(rec, run)
+    log_events(rec, run)
+
+
+def build_recording(reviews: list[ReviewData], application_id: str = "auvreplay",
+                    path: str | os.PathLike[str] | None = None, active_tab: int | str = 0) -> rr.RecordingStream:
+    """A recording of one or two runs with the blueprint; streamed to `path` (.rrd) when given, else buffered."""
+    if not 1 <= len(reviews) <= 2:
+        raise ValueError(f"build_recording takes one run or two to compare, got {len(reviews)}")
+    runs = make_runs(reviews)
+    scale = cdf_scale([r.errors for r in reviews])
+    blueprint = build_blueprint(runs, scale, active_tab)
+    rec = rr.RecordingStream(application_id, recording_id=recording_id(reviews), send_properties=False)
+    if path is not None:
+        rec.save(str(path), default_blueprint=blueprint)
+    else:
+        rec.send_blueprint(blueprint)
+    rec.send_recording_name(" vs ".join(f"{r.trial} {r.run_id}" for r in reviews))
+    rec.send_recording_start_time_nanos(int(reviews[0].trial_start_ns))
+    for run in runs:
+        log_review(rec, run, scale)
+    return rec
+
+
+def save_rrd(reviews: list[ReviewData], path: str | os.PathLike[str], application_id: str = "auvreplay",
+             active_tab: int | str = 0) -> Path:
+    """Write the recording with its blueprint to `path`: a temporary name first, renamed when complete."""
+    out = Path(path)
+    tmp = out.with_name(out.name + ".partial")
+    rec = build_recording(reviews, application_id, tmp, active_tab)
+    rec.flush()
+    rec.disconnect()
+    os.replace(tmp, out)
+    return out
+
+
+def rerun_executable() -> str:
+    """The `rerun` CLI installed with rerun-sdk (beside this interpreter first, then PATH)."""
+    local = Path(sys.executable).parent / "rerun"
+    if local.exists():
+        return str(local)
+    found = shutil.which("rerun")
+    if found is None:
+        raise FileNotFoundError("the rerun command (installed with rerun-sdk) was not found")
+    return found
+
+
+def viewer_command(path: str | os.PathLike[str], web: bool = False) -> list[str]:
+    """The command that opens an .rrd or .mcap file: native viewer, or web viewer on 127.0.0.1 only."""
+    cmd = [rerun_executable(), str(path)]
+    if web:
+        cmd += ["--web-viewer", "--bind", WEB_BIND]
+    return cmd
+
+
+def open_viewer(path: str | os.PathLike[str], web: bool = False) -> int:
+    """Open a file in Rerun and wait for the viewer (or the web server) to exit; its exit code."""
+    if not Path(path).exists():
+        raise FileNotFoundError(f"{path}: no such file")
+    return subprocess.run(viewer_command(path, web), check=False).returncode
