@@ -15,10 +15,9 @@ from typing import Any, Mapping, Sequence
 import pandas as pd
 
 from formats.mcap_reader import ArchiveReader
-
+from replay.run.config import load_config
 from replay.run.metrics import metrics_table
 from replay.run.pipeline import RunOutcome, replay_archive
-from replay.run.config import load_config
 
 
 def open_archive(path: str | Path) -> ArchiveReader:

@@ -11,7 +11,6 @@ import sys
 from importlib.metadata import PackageNotFoundError, version
 
 from formats.records import FormatError
-
 from replay.errors import UserError
 
 # command name -> (module, one-line help); modules are imported to build the parser,

@@ -79,8 +79,8 @@ def _text(df: pd.DataFrame) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Run the batch, write the tables, print a summary; 1 when any run failed."""
-    from replay.run.batch import batch, parse_seeds, parse_sweeps, summary_table
     from replay.errors import UserError
+    from replay.run.batch import batch, parse_seeds, parse_sweeps, summary_table
 
     if not args.archives and not args.simulate_seeds:
         raise UserError("give archives, or --simulate-seeds")

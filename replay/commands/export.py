@@ -16,7 +16,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Write the topic; an unknown topic is bad input (exit 1) naming the topics there are."""
     from formats.mcap_reader import ArchiveReader
-
     from replay.errors import UserError
 
     with ArchiveReader(args.file) as reader:

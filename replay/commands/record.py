@@ -71,7 +71,6 @@ def run(args: argparse.Namespace) -> int:
     """Record the trial; exit 0 even when records were skipped (they are counted and reported)."""
     from recorders.manifest import ManifestError, load_manifest
     from recorders.record import record
-
     from replay.errors import UserError
 
     try:

@@ -25,11 +25,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the replay and print the metrics table (or JSON)."""
+    from replay.errors import UserError
+    from replay.run.config import load_config
     from replay.run.metrics import format_table
     from replay.run.pipeline import replay_archive
-    from replay.run.config import load_config
-
-    from replay.errors import UserError
 
     if args.compare and not args.rrd:
         raise UserError("--compare needs --rrd (the comparison is a recording)")

@@ -47,8 +47,15 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--trials must be at least 1")
     if args.phase_noise <= 0:
         raise UserError("--phase-noise must be positive")
-    from replay.reproduce.kmcdf import (format_claims, format_curves, format_sensitivity, reproduce,
-                                   save_png, save_rrd, sensitivity)
+    from replay.reproduce.kmcdf import (
+        format_claims,
+        format_curves,
+        format_sensitivity,
+        reproduce,
+        save_png,
+        save_rrd,
+        sensitivity,
+    )
     from replay.stack.positioning.kmcdf import KmcdfParams
 
     params = KmcdfParams(sigma_phase_rad=args.phase_noise)

@@ -12,62 +12,22 @@ import math
 import time
 from array import array
 from collections import Counter
-from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
 
-from replay.engine.follower import ErrorSample, FollowerPipeline, VehicleTracks
+from replay.engine.follower import FollowerPipeline, VehicleTracks
 from replay.engine.layout import TrialLayout
+from replay.engine.usbl.epochs import UsblEpochBuilder
+from replay.engine.usbl import positioning
+from replay.events import EpochResult, ErrorSample, Fix, FollowerScores, Listener, RunResults, RunScores, UsblEpoch
 from replay.run.config import RunConfig
-from replay.stack.positioning.kmcdf import KmcdfParams
 from replay.stack.model import horizontal_offset_m, offset_to_latlon
-from replay.stack.runner import EpochResult, RunResults
-from replay.engine.tracks import Fix
-from replay.engine.usbl.epochs import UsblEpoch, UsblEpochBuilder
+from replay.stack.positioning.kmcdf import KmcdfParams
 
 DEG = math.pi / 180.0
 NS = 1_000_000_000
 POSITIONING_METHODS = ("kmcdf1", "kmcdf2", "gar", "ear", "lms", "lhc")
-
-
-class Listener:
-    """Receives what the engine produces; the results writer and the review collector implement it."""
-
-    def epoch(self, follower: str, results: list[EpochResult]) -> None:
-        """One range epoch: a result per method."""
-
-    def estimates(self, follower: str, t_s: float, estimates: dict[str, tuple[float, ...]]) -> None:
-        """Every method's estimate (lat, lon rad, nn, ne, ee m²) at t."""
-
-    def errors(self, follower: str, samples: list[ErrorSample]) -> None:
-        """Horizontal errors against GPS."""
-
-    def usbl(self, epoch: UsblEpoch, positions: dict[str, tuple[float, float]]) -> None:
-        """One USBL epoch with each positioning method's east/north fix."""
-
-    def trained(self, follower: str, runner: Any, t_s: float) -> None:
-        """The detectors of a follower's runner were trained at t."""
-
-    def finished(self, follower: str, results: RunResults) -> None:
-        """A follower's runner finished."""
-
-    def position(self, vehicle: str, source: str, fix: Fix) -> None:
-        """A recorded position (source "gps" or "ins") of any vehicle."""
-
-    def event(self, t_s: float, level: str, text: str) -> None:
-        """Something a reviewer should read: a rejected record, training finished, a note."""
-
-
-@dataclass
-class _Scores:
-    """What scoring needs of one follower, kept compact: typed arrays, a few bytes per epoch or fix."""
-
-    flagged: dict[str, array] = field(default_factory=dict)
-    labels: dict[str, array] = field(default_factory=dict)
-    errors: dict[str, array] = field(default_factory=dict)
-    epochs: int = 0
-    anomalous: int = 0
 
 
 class Engine:
@@ -81,13 +41,13 @@ class Engine:
         self.tracks: dict[str, VehicleTracks] = {v: VehicleTracks() for v in layout.roles}
         self.training_end_s = config.stack.training_window_s
         self.followers: dict[str, FollowerPipeline] = {}
-        self.scores: dict[str, _Scores] = {}
+        self._scores: dict[str, FollowerScores] = {}
         for plan in layout.followers:
             self.notes.extend(plan.notes)
             if plan.runnable:
                 self.followers[plan.name] = FollowerPipeline(plan, config, self.tracks, self._on_epoch,
                                                              self._on_estimates, self._on_errors)
-                self.scores[plan.name] = _Scores()
+                self._scores[plan.name] = FollowerScores()
         self._trained: set[str] = set()
         self._usbl: UsblEpochBuilder | None = None
         self._origin: tuple[float, float] | None = None
@@ -141,6 +101,8 @@ class Engine:
             listener.position(vehicle, "gps", fix)
         if self._origin is None:
             self._origin = (fix.lat_rad, fix.lon_rad)
+            for listener in self.listeners:
+                listener.origin(*self._origin)
         if vehicle in self.followers:
             self.followers[vehicle].on_gps(t_s, fix)
 
@@ -205,7 +167,9 @@ class Engine:
                 listener.trained(name, runner, runner.training_end_s)
 
     def _on_epoch(self, follower: str, results: list[EpochResult]) -> None:
-        sc = self.scores[follower]
+        # the runner trains inside the release that delivers its first epoch past t_a: say so before that epoch
+        self._check_trained(follower, self.followers[follower])
+        sc = self._scores[follower]
         t = results[0].time_s
         if t > self.training_end_s:
             label = results[0].label
@@ -216,15 +180,17 @@ class Engine:
                 if r.label >= 0:
                     sc.flagged.setdefault(r.method, array("b")).append(bool(r.flagged))
                     sc.labels.setdefault(r.method, array("b")).append(int(r.label))
-        for listener in self.listeners:
-            listener.epoch(follower, results)
+        if self.listeners:
+            leader_fix = self.tracks[results[0].leader].position(t, self.config.engine.max_gap_s)
+            for listener in self.listeners:
+                listener.epoch(follower, results, leader_fix)
 
     def _on_estimates(self, follower: str, t_s: float, est: dict[str, tuple[float, ...]]) -> None:
         for listener in self.listeners:
             listener.estimates(follower, t_s, est)
 
     def _on_errors(self, follower: str, samples: list[ErrorSample]) -> None:
-        sc = self.scores[follower]
+        sc = self._scores[follower]
         for s in samples:
             if s.t_s >= self.training_end_s:
                 sc.errors.setdefault(s.method, array("d")).append(s.error_m)
@@ -241,9 +207,7 @@ class Engine:
         return float(e), float(n)
 
     def _on_usbl_batch(self, epochs: list[UsblEpoch], truths: list[tuple[float, float] | None]) -> None:
-        from replay.engine.usbl.positioning import positions_for_epochs
-
-        for epoch, truth, positions in zip(epochs, truths, positions_for_epochs(epochs)):
+        for epoch, truth, positions in zip(epochs, truths, positioning.positions_for_epochs(epochs)):
             self._on_usbl(epoch, truth, positions)
 
     def _on_usbl(self, epoch: UsblEpoch, truth: tuple[float, float] | None,
@@ -297,6 +261,13 @@ class Engine:
             self._usbl.flush()
             self.counts.update(self._usbl.counts)
         return out
+
+    def scores(self) -> RunScores:
+        """What the metrics need of the run so far: per-follower scores after t_a, positioning errors, notes."""
+        counts = {**dict(self.counts), **{f"{f}:{k}": v for f, p in self.followers.items()
+                                          for k, v in p.counts.items()}}
+        return RunScores(tuple(self.config.stack.methods), self.training_end_s, dict(self._scores),
+                         dict(self.positioning_errors), self.usbl_epochs, list(self.notes), counts)
 
     @property
     def origin(self) -> tuple[float, float] | None:

@@ -12,13 +12,14 @@ import heapq
 import math
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Any, Callable, NamedTuple
+from typing import Any, Callable
 
 from replay.engine.layout import FollowerPlan
+from replay.engine.tracks import Track
+from replay.events import EpochResult, ErrorSample, Fix
 from replay.run.config import RunConfig
 from replay.stack.model import horizontal_distance_scalar
-from replay.stack.runner import CooperativeRunner, EpochResult
-from replay.engine.tracks import Fix, Track
+from replay.stack.runner import CooperativeRunner
 
 DEG = math.pi / 180.0
 BODY_FRD, EARTH_NED = 1, 2  # auvreplay.DvlVelocity.Frame
@@ -34,16 +35,6 @@ class VehicleTracks:
     def position(self, t_s: float, max_gap_s: float) -> Fix | None:
         """Position at t from the INS if it covers t, else from GPS."""
         return self.ins.at(t_s, max_gap_s) or self.gps.at(t_s, max_gap_s)
-
-
-class ErrorSample(NamedTuple):
-    """Horizontal error of one method's estimate at one follower GPS fix."""
-
-    # a NamedTuple, not a frozen dataclass: one per method at every GPS fix, built ~3x cheaper
-
-    t_s: float
-    method: str
-    error_m: float
 
 
 class FollowerPipeline:

@@ -9,17 +9,8 @@ from __future__ import annotations
 import math
 from bisect import bisect_left
 from collections import deque
-from dataclasses import dataclass
 
-
-@dataclass(frozen=True, slots=True)
-class Fix:
-    """A position sample: time (s since the trial start), latitude/longitude (rad), depth (m)."""
-
-    t_s: float
-    lat_rad: float
-    lon_rad: float
-    depth_m: float = 0.0
+from replay.events import Fix
 
 
 class Track:

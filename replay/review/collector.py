@@ -8,15 +8,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from replay.engine.core import Listener
-from replay.engine.follower import ErrorSample
 from replay.engine.layout import TrialLayout
+from replay.events import EpochResult, ErrorSample, Fix, Listener, RunResults, TrainedDetectors, UsblEpoch
 from replay.review.data import ReviewData
 from replay.stack.config import DETECTING_METHODS
 from replay.stack.model import horizontal_offset_m
-from replay.stack.runner import EpochResult, RunResults
-from replay.engine.tracks import Fix
-from replay.engine.usbl.epochs import UsblEpoch
 
 RAD = 180.0 / math.pi
 INS_DECIMATE_S = 1.0
@@ -27,17 +23,19 @@ class ReviewCollector(Listener):
 
     def __init__(self, run_id: str, trial: dict[str, Any], t0_ns: int, layout: TrialLayout):
         self.run_id, self.trial, self.t0_ns, self.layout = run_id, trial, t0_ns, layout
-        self.engine: Any = None
+        self._origin: tuple[float, float] | None = None
         self.rows: dict[str, list[dict[str, Any]]] = {k: [] for k in (
             "tracks", "ranges", "detections", "errors", "anfis_epochs", "anfis_explain", "kmcdf", "events")}
         self._last_ins: dict[str, float] = {}
-        self._runners: dict[str, Any] = {}
+        self._models: dict[str, TrainedDetectors] = {}
+
+    def origin(self, lat_rad: float, lon_rad: float) -> None:
+        self._origin = (lat_rad, lon_rad)
 
     def _en(self, lat: float, lon: float) -> tuple[float, float]:
-        origin = self.engine.origin if self.engine is not None else None
-        if origin is None:
+        if self._origin is None:
             return math.nan, math.nan
-        n, e = horizontal_offset_m(lat, lon, *origin)
+        n, e = horizontal_offset_m(lat, lon, *self._origin)
         return float(e), float(n)
 
     def _track_row(self, t_s: float, vehicle: str, source: str, lat: float, lon: float,
@@ -59,15 +57,14 @@ class ReviewCollector(Listener):
         for method, (lat, lon, nn, _ne, ee) in est.items():
             self._track_row(t_s, follower, method, lat, lon, math.sqrt(max(ee, 0.0)), math.sqrt(max(nn, 0.0)))
 
-    def epoch(self, follower: str, results: list[EpochResult]) -> None:
+    def epoch(self, follower: str, results: list[EpochResult], leader_fix: Fix | None) -> None:
         r0 = results[0]
-        leader_fix = self.engine.tracks[r0.leader].position(r0.time_s, self.engine.config.engine.max_gap_s)
         le, ln = self._en(leader_fix.lat_rad, leader_fix.lon_rad) if leader_fix else (math.nan, math.nan)
         truth = getattr(r0, "truth_range_m", math.nan)
         self.rows["ranges"].append({"t_s": r0.time_s, "follower": follower, "leader": r0.leader,
                                     "measured_m": r0.range_m, "true_m": truth, "residual_m": r0.range_m - truth,
                                     "leader_east_m": le, "leader_north_m": ln, "horizontal_m": r0.range_m})
-        runner = self.engine.followers[follower].runner
+        models = self._models.get(follower)
         for r in results:
             if r.method not in DETECTING_METHODS:
                 continue
@@ -79,11 +76,11 @@ class ReviewCollector(Listener):
             if r.flagged:
                 self.event(r.time_s, "INFO", f"{follower}: {r.method} flagged the range to {r.leader} "
                                              f"(score {r.score:.2f} > {r.threshold:.2f}, label {r.label})")
-            if r.method == "anfis" and r.time_s > runner.training_end_s:
-                self._explain(runner, r)
+            if r.method == "anfis" and models is not None and r.time_s > models.training_end_s:
+                self._explain(models, r)
 
-    def _explain(self, runner: Any, r: EpochResult) -> None:
-        det = runner.detectors("anfis").get(r.leader)
+    def _explain(self, models: TrainedDetectors, r: EpochResult) -> None:
+        det = models.detectors("anfis").get(r.leader)
         if det is None or not hasattr(det, "explain"):
             return
         ex = det.explain(np.array([r.f1, r.f2, r.f3]))
@@ -96,9 +93,10 @@ class ReviewCollector(Listener):
         self.rows["errors"].extend({"t_s": s.t_s, "follower": follower, "method": s.method, "error_m": s.error_m}
                                    for s in samples)
 
-    def trained(self, follower: str, runner: Any, t_s: float) -> None:
+    def trained(self, follower: str, models: TrainedDetectors, t_s: float) -> None:
+        self._models[follower] = models
         for method in DETECTING_METHODS:
-            per_leader = runner.detectors(method)
+            per_leader = models.detectors(method)
             if method != "anfis":
                 continue
             for leader, det in per_leader.items():
@@ -132,11 +130,11 @@ class ReviewCollector(Listener):
 
     def finish(self, metrics: dict[str, Any]) -> ReviewData:
         """The collected ReviewData."""
-        origin = self.engine.origin if self.engine is not None else None
+        origin = self._origin
         data = ReviewData(self.run_id, str(self.trial.get("name", "")), self.t0_ns,
                           origin[0] * RAD if origin else math.nan, origin[1] * RAD if origin else math.nan,
                           dict(self.layout.roles), list(metrics.get("methods", {})), metrics=metrics)
-        for note in self.engine.notes:
+        for note in metrics.get("notes", []):
             self.event(0.0, "WARN", note)
         for name, rows in self.rows.items():
             if rows:

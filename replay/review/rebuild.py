@@ -12,9 +12,10 @@ from pathlib import Path
 from typing import Any
 
 from formats.mcap_reader import ArchiveReader
-
 from replay.errors import UserError
 from replay.review.data import ReviewData
+from replay.run.config import RunConfig, config_from_parameters
+from replay.run.pipeline import file_sha256, replay_archive
 
 
 def run_metadata(results: str | Path) -> dict[str, Any] | None:
@@ -23,17 +24,13 @@ def run_metadata(results: str | Path) -> dict[str, Any] | None:
         return reader.metadata_json("run")
 
 
-def _config_from(meta: dict[str, Any]):
-    from replay.run.config import RunConfig, _apply
-
+def _config_from(meta: dict[str, Any]) -> RunConfig:
     params = meta["parameters"] if isinstance(meta["parameters"], dict) else json.loads(meta["parameters"])
-    return _apply(RunConfig(), params, "")
+    return config_from_parameters(params)
 
 
 def find_input(results: Path, meta: dict[str, Any], archive: str | Path | None = None) -> Path:
     """The run's input archive: the one given, its recorded path, or its name near the results; sha256-checked."""
-    from replay.run.pipeline import file_sha256
-
     candidates = [Path(archive)] if archive else [
         Path(meta.get("input_path", "")), results.parent / meta.get("input_file", ""), Path(meta.get("input_file", ""))]
     for path in candidates:
@@ -45,8 +42,6 @@ def find_input(results: Path, meta: dict[str, Any], archive: str | Path | None =
 
 def review_from_results(results: str | Path, archive: str | Path | None = None) -> ReviewData:
     """ReviewData of the run stored in a results archive."""
-    from replay.run.pipeline import replay_archive
-
     results = Path(results)
     meta = run_metadata(results)
     if meta is None:

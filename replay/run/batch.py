@@ -201,8 +201,8 @@ def plan_simulated(seeds: Sequence[int], duration_s: float | None, out_dir: str 
 def replay_task(archive: str, overrides: Sequence[str], out_dir: str, trial: str,
                 config_path: str | None = None) -> dict[str, Any]:
     """Worker entry: replay one archive into out_dir/runs/<trial>-<run>.mcap; metrics, or the error text."""
-    from replay.run.pipeline import file_sha256, package_version, replay_archive
     from replay.run.config import load_config, run_id
+    from replay.run.pipeline import file_sha256, package_version, replay_archive
 
     record: dict[str, Any] = {"trial": trial, "archive": archive, "run_id": "", "output": None,
                               "metrics": None, "error": None, "notes": []}

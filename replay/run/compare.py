@@ -7,7 +7,6 @@ from pathlib import Path
 from typing import Any
 
 from formats.mcap_reader import ArchiveReader
-
 from replay.errors import UserError
 from replay.stack.scoring import RESULT_KEYS
 

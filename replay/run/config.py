@@ -21,7 +21,6 @@ from typing import Any
 from replay.errors import UserError
 from replay.stack.config import METHODS, AnfisConfig, StackConfig
 
-
 # the positioning methods the engine runs on archived USBL epochs (replay.engine.usbl.positioning)
 USBL_UPDATE_METHODS: tuple[str, ...] = ("kmcdf2", "gar", "ear", "lms", "lhc")
 
@@ -97,6 +96,11 @@ def _coerce(value: Any, hint: Any, key: str) -> Any:
     except (ValueError, TypeError, json.JSONDecodeError) as exc:
         raise UserError(f"configuration {key}: {value!r} is not a valid {getattr(hint, '__name__', hint)}") from exc
     return value
+
+
+def config_from_parameters(params: dict[str, Any]) -> RunConfig:
+    """The RunConfig a run's stored `parameters` (its `to_dict`) describe, over today's defaults."""
+    return _apply(RunConfig(), params, "")
 
 
 def _apply(obj: Any, updates: dict[str, Any], prefix: str) -> Any:

@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
+from replay.events import RunResults, RunScores
 from replay.stack.config import DETECTING_METHODS
-from replay.stack.runner import RunResults
 from replay.stack.scoring import RESULT_KEYS, detection_scores, error_stats
 
 
@@ -16,24 +16,24 @@ def _pool(parts: list[np.ndarray]) -> np.ndarray:
     return np.concatenate(parts) if parts else np.empty(0)
 
 
-def run_metrics(engine: Any, results: dict[str, RunResults], run_id: str, end_s: float) -> dict[str, Any]:
-    """The `replay --json` object: run id, scoring window, epoch counts and per-method figures."""
+def run_metrics(scores: RunScores, results: dict[str, RunResults], run_id: str, end_s: float) -> dict[str, Any]:
+    """The `replay --json` object from the engine's scores: run id, scoring window, epoch counts, per-method figures."""
     methods: dict[str, dict[str, Any]] = {}
-    names = list(engine.config.stack.methods)
+    names = list(scores.methods)
     for method in names:
         row: dict[str, Any] = {k: None for k in RESULT_KEYS}
-        flagged = _pool([np.asarray(s.flagged.get(method, []), dtype=bool) for s in engine.scores.values()])
-        labels = _pool([np.asarray(s.labels.get(method, []), dtype=int) for s in engine.scores.values()])
+        flagged = _pool([np.asarray(s.flagged.get(method, []), dtype=bool) for s in scores.followers.values()])
+        labels = _pool([np.asarray(s.labels.get(method, []), dtype=int) for s in scores.followers.values()])
         if method in DETECTING_METHODS:
             ol = [r.open_loop[method] for r in results.values() if method in r.open_loop]
             ol_labels = _pool([o["label"].astype(int) for o in ol])
             ol_scores = _pool([o["score"].astype(float) for o in ol])
             row.update(detection_scores(flagged, labels, ol_labels, ol_scores))
-        errors = _pool([np.asarray(s.errors.get(method, []), float) for s in engine.scores.values()])
+        errors = _pool([np.asarray(s.errors.get(method, []), float) for s in scores.followers.values()])
         row.update(error_stats(errors))
         row["capped"] = int(sum(r.capped.get(method, 0) for r in results.values()))
         methods[method] = row
-    for method, errs in engine.positioning_errors.items():
+    for method, errs in scores.positioning_errors.items():
         if len(errs):
             row = {k: None for k in RESULT_KEYS}
             row.update(error_stats(np.asarray(errs)))
@@ -41,17 +41,16 @@ def run_metrics(engine: Any, results: dict[str, RunResults], run_id: str, end_s:
             methods[method] = row
     return {
         "run_id": run_id,
-        "window": [engine.training_end_s, end_s],
-        "epochs": int(sum(s.epochs for s in engine.scores.values())),
-        "anomalous": int(sum(s.anomalous for s in engine.scores.values())),
+        "window": [scores.training_end_s, end_s],
+        "epochs": int(sum(s.epochs for s in scores.followers.values())),
+        "anomalous": int(sum(s.anomalous for s in scores.followers.values())),
         "methods": _clean(methods),
-        "followers": sorted(engine.scores),
-        "usbl_epochs": engine.usbl_epochs,
+        "followers": sorted(scores.followers),
+        "usbl_epochs": scores.usbl_epochs,
         "rejected": {f: dict(r.rejected) for f, r in results.items()},
         "training_errors": {f: r.training_errors for f, r in results.items() if r.training_errors},
-        "notes": list(engine.notes),
-        "counts": {**dict(engine.counts), **{f"{f}:{k}": v for f, p in engine.followers.items()
-                                              for k, v in p.counts.items()}},
+        "notes": list(scores.notes),
+        "counts": dict(scores.counts),
     }
 
 

@@ -7,18 +7,21 @@ import hashlib
 import json
 import time
 from dataclasses import dataclass, field
+from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from formats import schemas as S
 from formats.mcap_reader import ArchiveReader
 from formats.mcap_writer import ArchiveWriter
-
 from replay.engine.core import Engine, pace
-from replay.errors import UserError
 from replay.engine.layout import plan_trial
-from replay.run.metrics import format_table, metrics_table, run_metrics
+from replay.errors import UserError
+from replay.events import Listener, RunResults
+from replay.review.collector import ReviewCollector
 from replay.run.config import RunConfig, canonical_json, run_id, to_dict
-from replay.stack.runner import RunResults
+from replay.run.metrics import format_table, metrics_table, run_metrics
+from replay.run.results_writer import ResultsWriter
 
 SENSORS = ("gps", "ins", "dvl", "modem/range", "usbl")
 NS = 1_000_000_000
@@ -50,11 +53,9 @@ def file_sha256(path: str | Path) -> str:
 
 def package_version() -> str:
     """The installed auvreplay version."""
-    from importlib.metadata import PackageNotFoundError, version
-
     try:
-        return version("auvreplay")
-    except PackageNotFoundError:
+        return metadata.version("auvreplay")
+    except metadata.PackageNotFoundError:
         return "0+unknown"
 
 
@@ -83,29 +84,23 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
         window = config.engine.window_s
         start_ns = t0_ns + round(window[0] * NS) if window else None
         end_ns = t0_ns + round(window[1] * NS) + 1 if window else None
-        listeners: list[Any] = []
+        listeners: list[Listener] = []
         collector = None
         if review:
-            from replay.review.collector import ReviewCollector
-
             collector = ReviewCollector(rid, reader.metadata_json("trial") or {}, t0_ns, layout)
             listeners.append(collector)
         writer = ArchiveWriter(out_path) if out_path is not None else None
         try:
-            engine = Engine(layout, config, t0_ns, listeners)
             if writer is not None:
-                from replay.run.results_writer import ResultsWriter
-
-                engine.listeners.append(ResultsWriter(writer, rid, t0_ns, lambda: engine.origin))
-            if collector is not None:
-                collector.engine = engine
+                listeners.append(ResultsWriter(writer, rid, t0_ns))
+            engine = Engine(layout, config, t0_ns, listeners)
             for m in reader.messages(topics, start_ns, end_ns):
                 engine.push(m.topic, m.log_time_ns, m.message)
                 if config.engine.rate > 0:
                     pace(config.engine.rate, wall0, engine.last_s)
             results = engine.finish()
             end_s = max(engine.last_s, 0.0)
-            metrics = run_metrics(engine, results, rid, end_s)
+            metrics = run_metrics(engine.scores(), results, rid, end_s)
             wall = time.monotonic() - wall0
             metrics["wall_s"] = wall
             if writer is not None:
@@ -127,8 +122,6 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
 
 def _write_run_metadata(writer: ArchiveWriter, config: RunConfig, rid: str, sha: str, version: str,
                         archive: Any, wall: float, metrics: dict[str, Any], t0_ns: int, engine: Engine) -> None:
-    from formats import schemas as S
-
     for note in engine.notes:
         writer.write(f"/replay/{rid}/events", S.Log(timestamp=S.timestamp(t0_ns), level=3, message=note,
                                                     name="engine"), t0_ns)

@@ -7,13 +7,9 @@ from typing import Any
 
 from formats import schemas as S
 from formats.mcap_writer import ArchiveWriter
-
-from replay.engine.core import Listener
-from replay.engine.follower import ErrorSample
+from replay.events import EpochResult, ErrorSample, Fix, Listener, RunResults, TrainedDetectors, UsblEpoch
 from replay.stack.config import DETECTING_METHODS
 from replay.stack.model import offset_to_latlon
-from replay.stack.runner import EpochResult, RunResults
-from replay.engine.usbl.epochs import UsblEpoch
 
 RAD = 180.0 / math.pi
 NS = 1_000_000_000
@@ -27,9 +23,12 @@ def _cov_enu(nn: float, ne: float, ee: float) -> tuple[float, ...]:
 class ResultsWriter(Listener):
     """Streams a run's estimates, detections, ANFIS snapshots and USBL fixes to an archive."""
 
-    def __init__(self, writer: ArchiveWriter, run_id: str, t0_ns: int, origin: Any):
+    def __init__(self, writer: ArchiveWriter, run_id: str, t0_ns: int):
         self.w, self.run, self.t0_ns = writer, run_id, t0_ns
-        self.origin = origin  # callable returning (lat, lon rad) or None
+        self._origin: tuple[float, float] | None = None
+
+    def origin(self, lat_rad: float, lon_rad: float) -> None:
+        self._origin = (lat_rad, lon_rad)
 
     def _ns(self, t_s: float) -> int:
         return self.t0_ns + round(t_s * NS)
@@ -41,7 +40,7 @@ class ResultsWriter(Listener):
                                  S.COVARIANCE_KNOWN)
             self.w.write(f"/replay/{self.run}/{follower}/{method}", fix, t)
 
-    def epoch(self, follower: str, results: list[EpochResult]) -> None:
+    def epoch(self, follower: str, results: list[EpochResult], leader_fix: Fix | None) -> None:
         t = self._ns(results[0].time_s)
         for r in results:
             if r.method not in DETECTING_METHODS:
@@ -55,10 +54,10 @@ class ResultsWriter(Listener):
     def errors(self, follower: str, samples: list[ErrorSample]) -> None:
         pass  # errors are derived data: the metrics carry them
 
-    def trained(self, follower: str, runner: Any, t_s: float) -> None:
+    def trained(self, follower: str, models: TrainedDetectors, t_s: float) -> None:
         t = self._ns(t_s)
         for method in DETECTING_METHODS:
-            per_leader = runner.detectors(method)
+            per_leader = models.detectors(method)
             for leader, det in per_leader.items():
                 if det is None or not hasattr(det, "snapshots"):
                     continue
@@ -66,7 +65,7 @@ class ResultsWriter(Listener):
                     self.w.write(f"/replay/{self.run}/anfis/{leader}", snapshot_message(snap, t, leader, method), t)
 
     def usbl(self, epoch: UsblEpoch, positions: dict[str, tuple[float, float]]) -> None:
-        origin = self.origin()
+        origin = self._origin
         if origin is None:
             return
         t = self._ns(epoch.t_s)

@@ -9,9 +9,9 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
-from replay.stack.detectors.chi_square import ChiSquareDetector
 from replay.stack.config import DETECTING_METHODS, METHODS, StackConfig
 from replay.stack.detectors.base import Detector
+from replay.stack.detectors.chi_square import ChiSquareDetector
 from replay.stack.detectors.dual_threshold import DualThresholdDetector
 
 DetectorFactory = Callable[[StackConfig], Detector]

@@ -49,86 +49,29 @@ from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from itertools import chain
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from replay.stack.filters.ckf import (RangeInnovation, State2, dr_predict, isolation_action, position_update, range_innovation,
-                  range_update)
+from replay.events import NAN, EpochResult, RunResults, Track
 from replay.stack.config import StackConfig
 from replay.stack.detectors.base import Decision, Detector
+from replay.stack.filters.ckf import (
+    RangeInnovation,
+    State2,
+    dr_predict,
+    isolation_action,
+    position_update,
+    range_innovation,
+    range_update,
+)
 from replay.stack.labels import UNKNOWN, label_one
 from replay.stack.methods import DETECTOR_FACTORIES, DetectorFactory, filter_kind
 from replay.stack.model import cov_radians_to_metres, metric_scales_scalar, slant_to_horizontal
 
 if TYPE_CHECKING:
-    import pandas as pd
+    pass
 
-NAN = float("nan")
-
-
-class EpochResult(NamedTuple):
-    """One method's outcome at one range epoch, with its position estimate after the epoch.
-
-    A NamedTuple: a run builds one per method and epoch, and a 21-field frozen
-    dataclass costs four times as much to make.
-    """
-
-    time_s: float
-    leader: str
-    method: str
-    flagged: bool
-    score: float
-    threshold: float
-    f1: float                 # |innovation| (m)
-    f2: float                 # squared Mahalanobis distance, unadapted P_zz
-    f3: float                 # adapted measurement variance R* (m²)
-    label: int                # 1 anomalous, 0 normal, -1 unknown
-    isolated: bool
-    capped: bool
-    compensated: bool
-    range_m: float            # horizontal range used (after slant conversion / compensation)
-    predicted_range_m: float
-    lat_rad: float
-    lon_rad: float
-    cov_nn_m2: float          # position covariance north-north, north-east, east-east (m²)
-    cov_ne_m2: float
-    cov_ee_m2: float
-    truth_range_m: float = NAN   # horizontal range from the GPS fixes (NaN without truth)
-
-
-@dataclass(frozen=True)
-class Track:
-    """A method's estimates after every DR step and epoch: times, [L, λ] and north-east covariances."""
-
-    t_s: np.ndarray
-    lat_rad: np.ndarray
-    lon_rad: np.ndarray
-    cov_m2: np.ndarray        # (n, 2, 2), north-east
-
-
-@dataclass(frozen=True)
-class RunResults:
-    """Everything a run produced, as arrays ready for DataFrames and for ``scoring``."""
-
-    methods: tuple[str, ...]
-    leaders: tuple[str, ...]
-    start_time_s: float
-    training_end_s: float
-    epochs: dict[str, np.ndarray]
-    tracks: dict[str, Track]
-    open_loop: dict[str, dict[str, np.ndarray]]
-    rejected: dict[str, int]
-    capped: dict[str, int]
-    clamped_ranges: int
-    trained: bool
-    training_errors: dict[str, str]
-    position_fixes: int = 0       # position fixes (USBL) applied to the filters
-
-    def epochs_frame(self) -> pd.DataFrame:
-        """The epochs table as a pandas DataFrame (pandas imported on first use)."""
-        import pandas as pd
-        return pd.DataFrame(self.epochs)
 
 
 @dataclass

@@ -28,23 +28,9 @@ from typing import Any, Callable
 import numpy as np
 
 from replay.engine.follower import VehicleTracks
-from replay.stack.positioning.kmcdf import KmcdfFix, KmcdfParams, kmcdf_epochs
+from replay.events import UsblEpoch
 from replay.stack.model import horizontal_offset_m
-
-
-@dataclass(frozen=True)
-class UsblEpoch:
-    """One target's epoch: emission time, node names and positions, delays, phases, and the KMCDF fix."""
-
-    t_s: float
-    target: str
-    nodes: tuple[str, ...]
-    node_en: np.ndarray           # (N, 2) east, north metres
-    delays_s: np.ndarray
-    phase_x: np.ndarray
-    phase_y: np.ndarray
-    fix: KmcdfFix
-    params: KmcdfParams
+from replay.stack.positioning.kmcdf import KmcdfFix, KmcdfParams, kmcdf_epochs
 
 
 @dataclass(frozen=True)

@@ -18,10 +18,10 @@ from typing import Sequence
 
 import numpy as np
 
+from replay.events import UsblEpoch
 from replay.stack.positioning.kmcdf import KmcdfParams
 from replay.stack.positioning.kmcdf_montecarlo import delay_baseline
 from replay.stack.positioning.toa_baselines import BaselineResult
-from replay.engine.usbl.epochs import UsblEpoch
 
 BASELINES = ("gar", "ear", "lms", "lhc")
 # LHC's majorization creeps along flat Huber valleys for hundreds of steps; per epoch

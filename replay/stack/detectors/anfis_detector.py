@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from replay.stack.config import StackConfig
 from replay.stack.detectors.anfis import (
     AnfisModel,
     PointPredictor,
@@ -35,7 +36,6 @@ from replay.stack.detectors.anfis import (
     train_hybrid,
 )
 from replay.stack.detectors.aqpso import AqpsoSettings, train_aqpso_ga
-from replay.stack.config import StackConfig
 from replay.stack.detectors.base import Decision
 
 TRAINERS: tuple[str, ...] = ("hybrid", "aqpso_ga")

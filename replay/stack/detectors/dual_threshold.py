@@ -34,9 +34,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from replay.stack.detectors.chi_square import chi_square_threshold
 from replay.stack.config import StackConfig
 from replay.stack.detectors.base import Decision
+from replay.stack.detectors.chi_square import chi_square_threshold
 
 BP_ITERATIONS: int = 1500
 BP_STEP: float = 0.01
