@@ -18,16 +18,16 @@ import numpy as np
 
 from replay.engine.follower import FollowerPipeline, VehicleTracks
 from replay.engine.layout import TrialLayout
-from replay.engine.usbl.epochs import UsblEpochBuilder
 from replay.engine.usbl import positioning
+from replay.engine.usbl.epochs import UsblEpochBuilder
 from replay.events import EpochResult, ErrorSample, Fix, FollowerScores, Listener, RunResults, RunScores, UsblEpoch
 from replay.run.config import RunConfig
+from replay.stack.config import POSITIONING_METHODS
 from replay.stack.model import horizontal_offset_m, offset_to_latlon
 from replay.stack.positioning.kmcdf import KmcdfParams
 
 DEG = math.pi / 180.0
 NS = 1_000_000_000
-POSITIONING_METHODS = ("kmcdf1", "kmcdf2", "gar", "ear", "lms", "lhc")
 
 
 class Engine:
@@ -213,7 +213,7 @@ class Engine:
     def _on_usbl(self, epoch: UsblEpoch, truth: tuple[float, float] | None,
                  positions: dict[str, tuple[float, float]]) -> None:
         self.usbl_epochs += 1
-        if truth is not None:
+        if truth is not None and epoch.t_s >= self.training_end_s:   # every method is scored on one window
             e, n = truth
             for method, (pe, pn) in positions.items():
                 if math.isfinite(pe) and math.isfinite(pn):

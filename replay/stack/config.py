@@ -15,6 +15,8 @@ METHODS: tuple[str, ...] = (
 DETECTING_METHODS: tuple[str, ...] = (
     "chi_square", "dual_threshold", "anfis", "anfis_aqpso", "anfis_compensation",
 )
+# the positioning methods run on archived LBL/USBL epochs (KMCDF, seed 003, and its delay-only baselines)
+POSITIONING_METHODS: tuple[str, ...] = ("kmcdf1", "kmcdf2", "gar", "ear", "lms", "lhc")
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,68 @@
+"""The scoreboard: every method of a run ranked, with exactly the figures of its metrics (`metrics.json`).
+
+One rule for the Rerun views, the HTML report and the command line: rows come
+straight from `metrics["methods"]`, nothing is recomputed, so what a reviewer
+reads on screen is what `replay --json` printed. Methods are ranked by
+horizontal error p50 after t_a (ties and missing errors by p90, then name);
+detection columns sit beside the errors for the methods that detect.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from replay.stack.config import DETECTING_METHODS, POSITIONING_METHODS
+
+ERROR_COLUMNS: tuple[str, ...] = ("error_p50_m", "error_p90_m", "error_rms_m")
+DETECTION_COLUMNS: tuple[str, ...] = ("tp", "fp", "fn", "fpr", "fnr", "auc")
+
+
+@dataclass(frozen=True)
+class ScoreRow:
+    """One method's line: its rank, its kind (filter, detector or positioning) and its metrics figures."""
+
+    rank: int
+    method: str
+    kind: str
+    figures: dict[str, Any]
+
+
+def method_kind(method: str) -> str:
+    """'detector' (an ACKF isolated by a detector), 'positioning' (USBL/LBL fixes) or 'filter'."""
+    if method in DETECTING_METHODS:
+        return "detector"
+    if method in POSITIONING_METHODS:
+        return "positioning"
+    return "filter"
+
+
+def _rank_key(item: tuple[str, dict[str, Any]]) -> tuple[float, float, str]:
+    method, row = item
+    p50, p90 = row.get("error_p50_m"), row.get("error_p90_m")
+    return (p50 if isinstance(p50, (int, float)) and math.isfinite(p50) else math.inf,
+            p90 if isinstance(p90, (int, float)) and math.isfinite(p90) else math.inf, method)
+
+
+def scoreboard(metrics: dict[str, Any]) -> list[ScoreRow]:
+    """Every method of `metrics["methods"]`, best first, with its error and detection figures unchanged."""
+    ranked = sorted(metrics.get("methods", {}).items(), key=_rank_key)
+    return [ScoreRow(i + 1, method, method_kind(method),
+                     {k: row.get(k) for k in ERROR_COLUMNS + DETECTION_COLUMNS})
+            for i, (method, row) in enumerate(ranked)]
+
+
+def window_text(metrics: dict[str, Any]) -> str:
+    """The scoring window as a reviewer reads it: 't_a = 600 s to 1700 s (mission seconds)'."""
+    window = metrics.get("window") or [math.nan, math.nan]
+    return f"after t_a: {window[0]:.0f} s to {window[1]:.0f} s (mission seconds)"
+
+
+def format_value(value: Any) -> str:
+    """A figure as printed on the scoreboard: '-' for none, 3 decimals under 100, 1 above."""
+    if value is None:
+        return "-"
+    if isinstance(value, float):
+        return f"{value:.3f}" if abs(value) < 100 else f"{value:.1f}"
+    return str(value)
