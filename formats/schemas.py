@@ -21,12 +21,13 @@ UsblObservation = pb.UsblObservation
 Detection = pb.Detection
 BellMembership = pb.BellMembership
 AnfisSnapshot = pb.AnfisSnapshot
+RawBytes = pb.RawBytes
 
 MESSAGE_CLASSES: dict[str, Any] = {
     cls.DESCRIPTOR.full_name: cls
     for cls in (
         LocationFix, Log, GnssStatus, InsState, DvlVelocity, AcousticRange,
-        UsblObservation, Detection, AnfisSnapshot,
+        UsblObservation, Detection, AnfisSnapshot, RawBytes,
     )
 }
 

@@ -14,7 +14,7 @@ from typing import Any
 
 ROLES = ("leader", "follower", "buoy")
 SENSORS = ("gps", "dvl", "ins", "modem", "usbl")
-_LOG_KEYS = {"sensor", "format", "path", "clock_offset_s", "prefix"}
+_LOG_KEYS = {"sensor", "format", "path", "source", "clock_offset_s", "prefix"}
 
 
 class ManifestError(ValueError):
@@ -32,6 +32,8 @@ class LogSpec:
     clock_offset_s: float = 0.0
     prefix: str = "auto"
     options: dict[str, Any] = field(default_factory=dict)
+    # a live source (`auvreplay capture`) instead of a file: serial://, udp://, tcp://, tcp-listen://, tail:
+    source: str = ""
 
 
 @dataclass(frozen=True)
@@ -84,6 +86,11 @@ def _parse_log(raw: Any, vehicle: str, index: int, where: str) -> LogSpec:
     label = f"{where}: vehicle {vehicle!r}, log {index + 1}"
     if not isinstance(raw, dict):
         raise ManifestError(f"{label}: expected a table")
+    source = raw.get("source", "")
+    if not isinstance(source, str):
+        raise ManifestError(f"{label}: 'source' must be text such as udp://127.0.0.1:5000")
+    if source and not raw.get("path"):  # a live log's name (in the archive, for unpack) when it gives none
+        raw = {**raw, "path": f"{vehicle}/{raw.get('sensor')}.{raw.get('format')}"}
     for key in ("sensor", "format", "path"):
         if not isinstance(raw.get(key), str) or not raw[key]:
             raise ManifestError(f"{label}: missing or empty '{key}'")
@@ -95,7 +102,8 @@ def _parse_log(raw: Any, vehicle: str, index: int, where: str) -> LogSpec:
     except (TypeError, ValueError) as exc:
         raise ManifestError(f"{label} ({raw['path']}): clock_offset_s must be a number") from exc
     options = {k: v for k, v in raw.items() if k not in _LOG_KEYS}
-    return LogSpec(vehicle, raw["sensor"], raw["format"], str(path), offset, str(raw.get("prefix", "auto")), options)
+    return LogSpec(vehicle, raw["sensor"], raw["format"], str(path), offset, str(raw.get("prefix", "auto")), options,
+                   source)
 
 
 def _parse_vehicle(raw: Any, index: int, where: str) -> Vehicle:
@@ -162,6 +170,6 @@ def load_manifest(path: str | Path) -> Manifest:
     manifest = parse_manifest(text, path)
     for log in manifest.logs():
         full = manifest.root / log.path
-        if not full.is_file():
+        if not log.source and not full.is_file():
             raise ManifestError(f"{path}: vehicle {log.vehicle!r}: log file {log.path} not found (looked in {full})")
     return manifest

@@ -303,6 +303,10 @@ def record(manifest: Manifest, output_path, progress: Progress | None = None,
     """
     table = converters()
     _check_formats(manifest, table)
+    live = next((log for log in manifest.logs() if log.source), None)
+    if live is not None:
+        raise ManifestError(f"{manifest.path}: log {live.path} is a live source ({live.source}): "
+                            "use `auvreplay capture`")
     summary = RecordingSummary(workers=resolve_workers(manifest, workers))
     fallback = date_to_ns(manifest.date) if manifest.date else 0
     with ExitStack() as stack:
@@ -321,3 +325,10 @@ def record(manifest: Manifest, output_path, progress: Progress | None = None,
             _record_parallel(manifest, writer, pool, table, fallback, summary, progress)
         writer.add_metadata("recording", {"files": [f.as_json() for f in summary.files]})
     return summary
+
+
+# what `recorders.capture` shares with file recording: the same statistics, diagnostics and metadata
+LogRecorder = _LogRecorder
+log_context = _context
+trial_metadata = _trial_metadata
+check_formats = _check_formats
