@@ -6,6 +6,9 @@ import hashlib
 import os
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
+from typing import BinaryIO
+
+RAW_PREFIX = "/raw/"  # a capture's raw streams (recorders.capture.session)
 
 
 @dataclass
@@ -15,6 +18,7 @@ class UnpackResult:
     written: list[Path] = field(default_factory=list)
     refused: list[str] = field(default_factory=list)
     mismatched: list[str] = field(default_factory=list)
+    incomplete: list[str] = field(default_factory=list)  # captured streams with bytes missing (a gap)
 
 
 def safe_target(root: Path, name: str) -> Path | None:
@@ -61,4 +65,44 @@ def unpack(archive_path: str | os.PathLike[str], target_dir: str | os.PathLike[s
             want = expected.get(att.name)
             if want and hashlib.sha256(att.data).hexdigest() != want:
                 result.mismatched.append(att.name)
+        _unpack_streams(reader, root, expected, result)
     return result
+
+
+def _unpack_streams(reader, root: Path, expected: dict[str, str], result: UnpackResult) -> None:
+    """A capture's streams (its RawBytes messages), each written back at its offsets: the bytes as received."""
+    topics = [t for t in reader.summary().topics if t.startswith(RAW_PREFIX)]
+    if not topics:
+        return
+    files: dict[str, tuple[BinaryIO, list[int]]] = {}  # stream -> (file, [bytes written, end])
+    try:
+        for m in reader.messages(topics):
+            raw = m.message
+            got = files.get(raw.stream)
+            if got is None:
+                target = safe_target(root, raw.stream)
+                if target is None or raw.stream in result.refused:
+                    if raw.stream not in result.refused:
+                        result.refused.append(raw.stream)
+                    continue
+                target.parent.mkdir(parents=True, exist_ok=True)
+                if safe_target(root, raw.stream) is None or target.is_symlink():
+                    result.refused.append(raw.stream)
+                    continue
+                got = files[raw.stream] = (open(target, "wb"), [0, 0])
+                result.written.append(target)
+            f, counts = got
+            f.seek(raw.offset)  # in offset order whatever the receive times say
+            f.write(raw.data)
+            counts[0] += len(raw.data)
+            counts[1] = max(counts[1], raw.offset + len(raw.data))
+    finally:
+        for f, _ in files.values():
+            f.close()
+    for stream, (f, (written, end)) in files.items():
+        if written != end:
+            result.incomplete.append(stream)
+            continue
+        want = expected.get(stream)
+        if want and hashlib.sha256(Path(f.name).read_bytes()).hexdigest() != want:
+            result.mismatched.append(stream)

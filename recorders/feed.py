@@ -35,13 +35,16 @@ class FeedError(ValueError):
 
 
 def segments(manifest: Manifest, log: LogSpec, data: bytes, table: dict) -> list[tuple[int, int, int]]:
-    """(time ns, start, end) byte ranges of one log, cut at its records; times never go backwards."""
+    """(time ns, start, end) byte ranges of one log, cut at its records; times never go backwards.
+
+    A log without a timed record is one segment at time -1: it goes out when the trial starts.
+    """
     starts: list[tuple[int, int]] = []
     for item in table[(log.sensor, log.format)](data, log_context(manifest, log)):
         if type(item) is Output and item.where is not None:
             starts.append((item.where.offset, item.log_time_ns))
     if not starts:
-        return [(0, 0, len(data))] if data else []
+        return [(-1, 0, len(data))] if data else []
     starts.sort()
     out = []
     t_max = starts[0][1]
@@ -260,14 +263,15 @@ def _schedule(manifest: Manifest, seconds: float | None) -> Iterator[tuple[int, 
     for i, log in enumerate(manifest.logs()):
         data = (manifest.root / log.path).read_bytes()
         per_log.append([(t, i, data[a:b]) for t, a, b in segments(manifest, log, data, table)])
-    starts = [segs[0][0] for segs in per_log if segs]
-    if not starts:
+    starts = [segs[0][0] for segs in per_log if segs and segs[0][0] >= 0]
+    if not any(per_log):
         return
-    end = min(starts) + round(seconds * 1e9) if seconds is not None else None
+    first = min(starts, default=0)
+    end = first + round(seconds * 1e9) if seconds is not None else None
     for t, i, data in heapq.merge(*per_log, key=lambda s: (s[0], s[1])):
         if end is not None and t > end:
             return
-        yield t, i, data
+        yield max(t, first), i, data
 
 
 def play(manifest: Manifest, targets: list[Target], rate: float = 1.0, seconds: float | None = None,

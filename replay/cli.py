@@ -18,6 +18,9 @@ from replay.errors import UserError
 COMMANDS: dict[str, tuple[str, str]] = {
     "record": ("replay.commands.record", "archive a trial's logs into one MCAP file"),
     "info": ("replay.commands.info", "what is inside an archive"),
+    "capture": ("replay.commands.capture", "live sensor streams into a crash-safe archive as they arrive"),
+    "recover": ("replay.commands.recover", "salvage every intact chunk of a damaged archive"),
+    "feed": ("replay.commands.feed", "play a recorded trial's logs out as live streams (tests, dry runs)"),
     "replay": ("replay.commands.replay", "replay an archive through every method side by side"),
     "batch": ("replay.commands.batch", "replay many archives under a parameter sweep on Dask (local or a cluster)"),
     "compare": ("replay.commands.compare", "two replay runs side by side"),

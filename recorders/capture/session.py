@@ -22,6 +22,7 @@ from typing import Callable
 from formats import schemas as S
 from formats.mcap_writer import ArchiveWriter
 
+from ..attachments import RAW_PREFIX
 from ..base import Output
 from ..clock import date_to_ns
 from ..manifest import LogSpec, Manifest, ManifestError
@@ -32,7 +33,6 @@ from .decoder import StreamDecoder
 from .sources import make_source
 from .status import SourceStatus
 
-RAW_PREFIX = "/raw/"  # + the log's name: its bytes as received
 Listener = Callable[[LogSpec, list[Output]], None]
 Reporter = Callable[[str], None]
 RETRY_MAX_S = 5.0

@@ -24,4 +24,7 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
     for name in result.mismatched:
         print(f"auvreplay unpack: {name}: sha256 differs from the one recorded", file=sys.stderr)
-    return 1 if result.refused or result.mismatched else 0
+    for name in result.incomplete:
+        print(f"auvreplay unpack: {name}: bytes missing from the captured stream (written with a gap)",
+              file=sys.stderr)
+    return 1 if result.refused or result.mismatched or result.incomplete else 0
