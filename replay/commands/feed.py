@@ -24,6 +24,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seconds", type=float, default=None, help="only the first S seconds of the trial")
     parser.add_argument("--manifest-out", default=None, metavar="FILE",
                         help="write the manifest `capture` reads these streams with")
+    parser.add_argument("--hold-s", type=float, default=1.0,
+                        help="keep the targets open this long after the last byte (default 1 s)")
     parser.add_argument("--start-after", default=None, metavar="FILE",
                         help="wait until FILE exists before playing (start the capture first)")
 
@@ -62,7 +64,11 @@ def run(args: argparse.Namespace) -> int:
             stats = play(manifest, targets, args.rate, args.seconds, should_stop=lambda: bool(stop))
         except FeedError as exc:
             raise UserError(str(exc)) from None
-        print(f"sent {stats.bytes} bytes in {stats.segments} pieces over {stats.seconds:.1f} s", file=sys.stderr)
+        print(f"sent {stats.bytes} bytes in {stats.segments} pieces over {stats.seconds:.1f} s", file=sys.stderr,
+              flush=True)
+        deadline = time.monotonic() + args.hold_s  # readers drain what is still in flight
+        while time.monotonic() < deadline and not stop:
+            time.sleep(0.02)
     finally:
         for target in targets:
             target.close()
