@@ -35,12 +35,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from bench.common import print_table  # noqa: E402 - after the path set-up
-from formats.mcap_reader import ArchiveReader  # noqa: E402
-from recorders.capture.session import CaptureOptions, CaptureSession  # noqa: E402
-from recorders.feed import live_manifest, make_targets  # noqa: E402
-from recorders.manifest import load_manifest, parse_manifest  # noqa: E402
-from recorders.record import record  # noqa: E402
+from bench.common import print_table
+from formats.mcap_reader import ArchiveReader
+from recorders.capture.session import CaptureOptions, CaptureSession
+from recorders.feed import live_manifest, make_targets
+from recorders.manifest import load_manifest, parse_manifest
+from recorders.record import record
 
 SAMPLE = ROOT / "samples" / "lake_trial" / "trial.toml"
 
@@ -128,7 +128,7 @@ def latency(tmp: Path, rates: list[float], seconds: float) -> None:
     for rate in rates:
         lat: list[float] = []
 
-        def listen(log, outputs) -> None:
+        def listen(log, outputs, lat=lat) -> None:
             now = time.time_ns()
             if log.format in ("nmea", "phins"):  # stamped with their receive time (see the docstring)
                 lat.extend((now - o.where.host_time_ns) / 1e6 for o in outputs

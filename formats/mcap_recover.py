@@ -90,9 +90,9 @@ class RecoveryReport:
 class _Reader:
     """Bounds-checked reads from a buffer; every overrun is `_Bad`."""
 
-    __slots__ = ("buf", "pos", "end")
+    __slots__ = ("buf", "end", "pos")
 
-    def __init__(self, buf: bytes | memoryview, pos: int = 0, end: int | None = None):
+    def __init__(self, buf: bytes | mmap.mmap, pos: int = 0, end: int | None = None):
         self.buf, self.pos, self.end = buf, pos, len(buf) if end is None else end
 
     def take(self, n: int) -> bytes:
@@ -366,17 +366,16 @@ def recover(source: str | os.PathLike[str], output: str | os.PathLike[str]) -> R
     src, out = Path(source), Path(output)
     if src.resolve() == out.resolve():
         raise FormatError(f"{out}: recover writes a new file; give an output other than the input")
+    report = RecoveryReport(str(src), str(out))
     try:
-        f = open(src, "rb")
+        with open(src, "rb") as f:
+            report.size = os.fstat(f.fileno()).st_size
+            if report.size < len(MAGIC) or f.read(len(MAGIC)) != MAGIC:
+                raise FormatError(f"{src}: not an MCAP file (no MCAP magic at the start)")
+            with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+                found = scan(buf, report)
     except OSError as exc:
         raise FormatError(f"{src}: cannot read ({exc.strerror or exc})") from None
-    report = RecoveryReport(str(src), str(out))
-    with f:
-        report.size = os.fstat(f.fileno()).st_size
-        if report.size < len(MAGIC) or f.read(len(MAGIC)) != MAGIC:
-            raise FormatError(f"{src}: not an MCAP file (no MCAP magic at the start)")
-        with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
-            found = scan(buf, report)
     report.chunks_kept = len(found.chunk_spans)
     report.messages = len(found.messages)
     report.attachments, report.metadata = len(found.attachments), len(found.metadata)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import BinaryIO
@@ -75,7 +76,7 @@ def _unpack_streams(reader, root: Path, expected: dict[str, str], result: Unpack
     if not topics:
         return
     files: dict[str, tuple[BinaryIO, list[int]]] = {}  # stream -> (file, [bytes written, end])
-    try:
+    with ExitStack() as stack:
         for m in reader.messages(topics):
             raw = m.message
             got = files.get(raw.stream)
@@ -89,16 +90,13 @@ def _unpack_streams(reader, root: Path, expected: dict[str, str], result: Unpack
                 if safe_target(root, raw.stream) is None or target.is_symlink():
                     result.refused.append(raw.stream)
                     continue
-                got = files[raw.stream] = (open(target, "wb"), [0, 0])
+                got = files[raw.stream] = (stack.enter_context(open(target, "wb")), [0, 0])
                 result.written.append(target)
             f, counts = got
             f.seek(raw.offset)  # in offset order whatever the receive times say
             f.write(raw.data)
             counts[0] += len(raw.data)
             counts[1] = max(counts[1], raw.offset + len(raw.data))
-    finally:
-        for f, _ in files.values():
-            f.close()
     for stream, (f, (written, end)) in files.items():
         if written != end:
             result.incomplete.append(stream)

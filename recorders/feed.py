@@ -18,8 +18,8 @@ import re
 import socket
 import time
 import tty
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Callable, Iterator
 from urllib.parse import urlsplit
 
 from .base import Output
@@ -239,8 +239,9 @@ def live_manifest(manifest: Manifest, targets: list[Target]) -> str:
     """The manifest's text with each log given `source = ...` of its target (its path stays as its name)."""
     text = manifest.text
     for log, target in zip(manifest.logs(), targets):
-        pattern = re.compile(r"^(\s*path\s*=\s*)([\"'])" + re.escape(log.path) + r"\2[^\n]*$", re.M)
-        text, n = pattern.subn(lambda m: f"{m.group(0)}\nsource = \"{target.source}\"", text, count=1)
+        pattern = re.compile(r"^(\s*path\s*=\s*)([\"'])" + re.escape(log.path) + r"\2[^\n]*$", re.MULTILINE)
+        line = f"\nsource = \"{target.source}\""
+        text, n = pattern.subn("\\g<0>" + line.replace("\\", "\\\\"), text, count=1)
         if n != 1:
             raise ManifestError(f"{manifest.path}: cannot find the path line of log {log.path} to add its source")
     return text

@@ -6,13 +6,14 @@ import random
 from pathlib import Path
 
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from formats.lines import strip_prefix
 from recorders.base import Output
+from recorders.capture.base import SourceError
 from recorders.capture.decoder import StreamDecoder, stamp_prefix
 from recorders.capture.sources import make_source
-from recorders.capture.base import SourceError
 from recorders.manifest import ManifestError, load_manifest, parse_manifest
 from recorders.record import log_context, record
 from recorders.registry import converters

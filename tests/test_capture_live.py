@@ -189,7 +189,7 @@ class _Logged:
         return getattr(self.target, name)
 
 
-FLUSH_S, SLACK_S = 0.2, 0.5  # slack: scheduling of two busy processes on a loaded machine
+FLUSH_S, SLACK_S = 0.2, 1.0  # slack: a feed thread and a capture process sharing a loaded machine
 
 
 def test_kill_9_then_recover_keeps_all_but_the_last_flush(tmp_path):
@@ -213,10 +213,9 @@ def test_kill_9_then_recover_keeps_all_but_the_last_flush(tmp_path):
                 err.wait_for("capturing", cap)
                 feeder = threading.Thread(target=play, args=(MANIFEST, logged, 20.0, 120.0, stop.is_set, 0.0))
                 feeder.start()
-                time.sleep(delay)
                 if run == 0:  # info reads the part file while it grows
-                    growing = describe(str(part_path(out)))
-                    assert growing["recovered"] and growing["topics"]["/raw/leader1/gps.log"]["count"] > 0
+                    _wait_growing(part_path(out))
+                time.sleep(delay)
                 killed_at = time.time()
                 cap.send_signal(signal.SIGKILL)
                 cap.wait(timeout=WAIT_S)
@@ -244,6 +243,18 @@ def test_kill_9_then_recover_keeps_all_but_the_last_flush(tmp_path):
     finally:
         for t in targets:
             t.close()
+
+
+def _wait_growing(part: Path) -> None:
+    """`info` on the part file shows flushed raw messages before long (and says the file was recovered)."""
+    deadline = time.monotonic() + WAIT_S
+    while True:
+        growing = describe(str(part))
+        assert growing["recovered"]
+        if growing["topics"].get("/raw/leader1/gps.log", {}).get("count", 0) > 0:
+            return
+        assert time.monotonic() < deadline, growing
+        time.sleep(0.05)
 
 
 def _raw_streams(path: Path) -> dict[str, bytes]:

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import random
-import struct
 from pathlib import Path
 
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from mcap.reader import make_reader
 
 from formats import schemas as S

@@ -27,7 +27,7 @@ Binary formats are decoded as received.
 from __future__ import annotations
 
 import time
-from typing import Iterable
+from collections.abc import Iterable
 
 from formats.lines import strip_prefix
 from formats.records import Reject, Where
@@ -153,10 +153,10 @@ def _rebase(item: Item, base: int, lines: int) -> Item:
     if where is None or (base == 0 and lines == 0):
         return item
     moved = Where(where.offset + base, None if where.line is None else where.line + lines, where.host_time_ns)
-    if type(item) is Output:
-        item.where = moved
-        return item
-    return Reject(moved, item.reason, item.bad_checksum)
+    if isinstance(item, Reject):
+        return Reject(moved, item.reason, item.bad_checksum)
+    item.where = moved
+    return item
 
 
 def _offset(item: Item) -> int:

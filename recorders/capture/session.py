@@ -15,9 +15,9 @@ from __future__ import annotations
 import hashlib
 import selectors
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 from formats import schemas as S
 from formats.mcap_writer import ArchiveWriter
@@ -26,7 +26,14 @@ from ..attachments import RAW_PREFIX
 from ..base import Output
 from ..clock import date_to_ns
 from ..manifest import LogSpec, Manifest, ManifestError
-from ..record import FileStats, LogRecorder, RecordingSummary, check_formats, log_context, trial_metadata
+from ..record import (
+    FileStats,
+    LogRecorder,
+    RecordingSummary,
+    check_formats,
+    log_context,
+    trial_metadata,
+)
 from ..registry import converters
 from .base import Source, SourceClosed, SourceError
 from .decoder import StreamDecoder

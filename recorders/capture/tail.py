@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-from typing import BinaryIO
 
 from .base import READ_SIZE, Source, SourceClosed, SourceError
 
@@ -18,35 +17,36 @@ class TailSource(Source):
         self.path = url.partition(":")[2]
         if not self.path:
             raise SourceError(f"{url}: expected tail:PATH")
-        self._file: BinaryIO | None = None
+        self._fd = -1
         self._inode = -1
+        self._pos = 0
 
     def open(self) -> None:
         """Open the file (raises OSError while it does not exist)."""
-        self._file = open(self.path, "rb")
-        self._inode = os.fstat(self._file.fileno()).st_ino
+        self._fd = os.open(self.path, os.O_RDONLY)
+        self._inode = os.fstat(self._fd).st_ino
+        self._pos = 0
 
     def fileno(self) -> int:
         """The file's descriptor."""
-        assert self._file is not None
-        return self._file.fileno()
+        return self._fd
 
     def read(self) -> bytes:
         """New bytes; SourceClosed when the file was rotated, truncated or removed."""
-        assert self._file is not None
-        data = self._file.read(READ_SIZE)
+        data = os.read(self._fd, READ_SIZE)
         if data:
+            self._pos += len(data)
             return data
         try:
             st = os.stat(self.path)
         except OSError as exc:
             raise SourceClosed(f"{self.path} is gone") from exc
-        if st.st_ino != self._inode or st.st_size < self._file.tell():
+        if st.st_ino != self._inode or st.st_size < self._pos:
             raise SourceClosed(f"{self.path} was replaced or truncated")
         return b""
 
     def close(self) -> None:
         """Close the file."""
-        if self._file is not None:
-            self._file.close()
-            self._file = None
+        if self._fd >= 0:
+            os.close(self._fd)
+            self._fd = -1
