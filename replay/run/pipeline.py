@@ -147,4 +147,7 @@ def save_metrics(metrics: dict[str, Any], output: Path) -> tuple[Path, Path]:
     return csv_path, json_path
 
 
-__all__ = ["RunOutcome", "format_table", "replay_archive", "save_metrics"]
+# the online run (replay.run.online) writes the same run record
+write_run_metadata = _write_run_metadata
+
+__all__ = ["RunOutcome", "format_table", "replay_archive", "save_metrics", "write_run_metadata"]
