@@ -8,10 +8,11 @@ duration over the CPU seconds the capture used (this process, one thread):
 how many times the trial's data rate one core sustains. The run also checks
 that nothing was lost (every byte received, as many messages as `record`).
 
-Latency: from a line received to its decoded message handed to a listener
-(what a live view logs), over the lines the capture stamps with their
+Latency: from a line received to its position sent to Rerun by the live
+view (`replay.views.live.LiveView`, into an .rrd file, batches at most every
+0.1 s as in `capture --view`), over the lines the capture stamps with their
 receive time (the NMEA GPS and PHINS INS logs: the others carry the
-logger's own 2016 prefix or are binary). A GPS epoch or a PHINS burst is
+logger's own 2016 prefix or are binary); also to the decoded message alone. A GPS epoch or a PHINS burst is
 complete only when the next one starts, so the latency includes one epoch
 of the stream at the feed rate: at 1x that is about a second, by design of
 the formats, at 20x a twentieth of it. Median and p95 are printed per rate.
@@ -41,6 +42,7 @@ from recorders.capture.session import CaptureOptions, CaptureSession
 from recorders.feed import live_manifest, make_targets
 from recorders.manifest import load_manifest, parse_manifest
 from recorders.record import record
+from replay.views.live import LiveView, open_stream
 
 SAMPLE = ROOT / "samples" / "lake_trial" / "trial.toml"
 
@@ -127,19 +129,27 @@ def latency(tmp: Path, rates: list[float], seconds: float) -> None:
     rows = []
     for rate in rates:
         lat: list[float] = []
+        view = LiveView(open_stream(f"bench-{rate:g}", rrd=str(tmp / f"live-{rate:g}.rrd")), f"bench-{rate:g}",
+                        measure=True)
 
-        def listen(log, outputs, lat=lat) -> None:
+        def listen(log, outputs, lat=lat, view=view) -> None:
             now = time.time_ns()
-            if log.format in ("nmea", "phins"):  # stamped with their receive time (see the docstring)
-                lat.extend((now - o.where.host_time_ns) / 1e6 for o in outputs
-                           if o.where is not None and o.where.host_time_ns is not None)
+            if log.format not in ("nmea", "phins"):  # only these are stamped with their receive time
+                return
+            for o in outputs:
+                if o.where is not None and o.where.host_time_ns is not None:
+                    lat.append((now - o.where.host_time_ns) / 1e6)
+                    view.recorded(o.topic, o.log_time_ns, o.message, o.where.host_time_ns)
+            view.flush()
 
         _capture(tmp, rate, seconds * rate, listen)
-        q = statistics.quantiles(lat, n=20)
-        rows.append([f"{rate:g}x", len(lat), f"{statistics.median(lat):.1f}", f"{q[18]:.1f}",
-                     f"{1000 / rate:.0f}"])
-    print_table("capture latency: line received -> decoded message to the listener (ms)",
-                ["feed rate", "messages", "median ms", "p95 ms", "one epoch at this rate, ms"], rows)
+        view.finish(None)
+        for what, values in (("decoded", lat), ("sent to Rerun", view.latencies_ms)):
+            q = statistics.quantiles(values, n=20)
+            rows.append([f"{rate:g}x", what, len(values), f"{statistics.median(values):.1f}", f"{q[18]:.1f}",
+                         f"{1000 / rate:.0f}"])
+    print_table("capture latency: line received -> decoded, -> position sent to Rerun by the live view (ms)",
+                ["feed rate", "to", "messages", "median ms", "p95 ms", "one 1 Hz epoch at this rate, ms"], rows)
 
 
 def main() -> None:

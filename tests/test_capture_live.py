@@ -13,6 +13,7 @@ its publish time (and its log time where the format has no clock; the sample's f
 
 from __future__ import annotations
 
+import json
 import os
 import random
 import shutil
@@ -26,6 +27,7 @@ from pathlib import Path
 
 import pytest
 from mcap.reader import make_reader
+from rerun.chunk import RrdReader
 
 from formats.mcap_reader import ArchiveReader
 from formats.mcap_recover import recover
@@ -36,6 +38,8 @@ from recorders.manifest import load_manifest, parse_manifest
 from recorders.record import record
 from recorders.registry import converters
 from replay.commands.info import describe
+from replay.run.config import load_config
+from replay.run.pipeline import replay_archive
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "samples" / "lake_trial" / "trial.toml"
@@ -146,7 +150,9 @@ def test_fed_trial_captured_equals_record(tmp_path, reference, to):
         while not live.exists():
             assert feed.poll() is None and time.monotonic() < deadline, "".join(feed_err.lines)
             time.sleep(0.02)
-        cap = _cli("capture", str(live), "-o", str(out), "--flush-s", "0.2")
+        online = ["--results", str(tmp_path / "online.mcap"), "--rrd", str(tmp_path / "live.rrd"), *ONLINE_SET] \
+            if to == "udp" else []  # one transport is enough for the online run and the live view
+        cap = _cli("capture", str(live), "-o", str(out), "--flush-s", "0.2", *online)
         cap_err = _Lines(cap.stderr)
         try:
             cap_err.wait_for("capturing", cap)
@@ -173,6 +179,23 @@ def test_fed_trial_captured_equals_record(tmp_path, reference, to):
     assert not result.refused and not result.mismatched and not result.incomplete
     for name, data in prefixes.items():
         assert (tmp_path / "unpacked" / name).read_bytes() == data, name
+    if to == "udp":
+        _check_online(tmp_path, out)
+
+
+ONLINE_SET = ["--set", "training_window_s=12", "--set", "anfis.epochs=4"]
+
+
+def _check_online(tmp_path: Path, capture: Path) -> None:
+    """The online run's metrics are those of `replay` of the capture; the live recording has the replay views."""
+    online = json.loads((tmp_path / "online.metrics.json").read_text())
+    offline = replay_archive(capture, load_config(None, ONLINE_SET[1::2]), tmp_path / "offline.mcap")
+    assert online["methods"] == offline.metrics["methods"] and online["epochs"] == offline.metrics["epochs"] > 0
+    reader = RrdReader(tmp_path / "live.rrd")
+    paths = {chunk.entity_path for chunk in reader.stream().to_chunks()}
+    rid = online["run_id"]
+    assert {f"/{rid}/map/follower/gps/position", f"/{rid}/map/follower/ackf/position", f"/{rid}/events"} <= paths
+    assert reader.blueprints()  # the complete replay views, laid out, at the end
 
 
 class _Logged:
