@@ -109,6 +109,7 @@ def throughput(tmp: Path, rate: float) -> None:
     record(manifest, tmp / "ref.mcap", workers=1)
     with ArchiveReader(tmp / "ref.mcap") as r:
         want = r.summary()
+        assert want.start_ns is not None and want.end_ns is not None
         trial_s = (want.end_ns - want.start_ns) / 1e9
         want_messages = want.message_count
     session, cpu, wall = _capture(tmp, rate, None)

@@ -36,7 +36,9 @@ def _archive(path: Path, n: int = 1500) -> list[tuple[int, bytes]]:
 
 def _chunks(path: Path) -> list:
     with open(path, "rb") as f:
-        return sorted(make_reader(f).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset)
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    return sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
 
 
 def _read(path: Path) -> list[tuple[int, bytes]]:

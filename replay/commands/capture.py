@@ -8,12 +8,16 @@ import signal
 import sys
 import threading
 import time
+from typing import TYPE_CHECKING
 
 from recorders.base import Output
 from recorders.capture.session import CaptureOptions, CaptureSession
 from recorders.capture.status import status_block
 from recorders.manifest import LogSpec, Manifest, load_manifest
 from recorders.record import trial_metadata
+
+if TYPE_CHECKING:
+    from replay.views.live import LiveView
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -88,15 +92,15 @@ class _Online:
         viewing = bool(args.view or args.connect or args.rrd)
         topics = sorted({f"/{log.vehicle}/{'modem/range' if log.sensor == 'modem' else log.sensor}"
                          for log in manifest.logs()} | {"/diagnostics"})
-        self.view = None
-        factories = []
+        self.view: LiveView | None = None
         self.run = OnlineRun(trial_metadata(manifest), topics, load_config(args.config, args.set),
-                             args.results, review=viewing, label=str(args.output), listeners=factories)
+                             args.results, review=viewing, label=str(args.output))
         if viewing:
             from replay.views.live import LiveView, open_stream
 
-            self.view = LiveView(open_stream(self.run.run_id, args.view, args.connect, args.rrd), self.run.run_id)
-            factories.append(lambda rid, t0, engine: self.view.attach(t0))
+            view = self.view = LiveView(open_stream(self.run.run_id, args.view, args.connect, args.rrd),
+                                        self.run.run_id)
+            self.run.factories.append(lambda rid, t0, engine: view.attach(t0))
 
         # the engine and the view run on their own thread: training at t_a takes seconds, and the capture
         # loop must keep reading meanwhile

@@ -22,17 +22,23 @@ from __future__ import annotations
 import hashlib
 import heapq
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from formats.mcap_writer import ArchiveWriter
-
 from replay.engine.core import Engine, Listener
 from replay.engine.layout import TrialLayout, plan_trial
 from replay.review.collector import ReviewCollector
 from replay.run.config import RunConfig, run_id
 from replay.run.metrics import run_metrics
-from replay.run.pipeline import SENSORS, RunOutcome, package_version, save_metrics, write_run_metadata
+from replay.run.pipeline import (
+    SENSORS,
+    RunOutcome,
+    package_version,
+    save_metrics,
+    write_run_metadata,
+)
 from replay.run.results_writer import ResultsWriter
 
 MAX_LAG_S = 60.0
@@ -46,7 +52,7 @@ class OnlineRun:
 
     def __init__(self, trial: dict[str, Any], topics: list[str], config: RunConfig,
                  results: str | Path | None = None, review: bool = False,
-                 listeners: list[ListenerFactory] = (), max_lag_s: float = MAX_LAG_S, start_hold_s: float = START_HOLD_S,
+                 listeners: tuple[ListenerFactory, ...] | list[ListenerFactory] = (), max_lag_s: float = MAX_LAG_S, start_hold_s: float = START_HOLD_S,
                  label: str = "live"):
         self.trial, self.config = trial, config
         self.layout: TrialLayout = plan_trial(trial, {t: 1 for t in topics})
@@ -55,7 +61,7 @@ class OnlineRun:
         self.run_id = run_id(config, hashlib.sha256(f"capture:{label}".encode()).hexdigest(), package_version())
         self.results = Path(results) if results is not None else None
         self.review = review
-        self._factories = list(listeners)
+        self.factories = list(listeners)  # more may be added until the first message is pushed
         self.max_lag_ns, self.start_hold_ns = round(max_lag_s * 1e9), round(start_hold_s * 1e9)
         self._streams: dict[str, int] = {}  # stream -> latest log time
         self._first: int | None = None
@@ -115,7 +121,7 @@ class OnlineRun:
         if self.results is not None:
             self._writer = ArchiveWriter(self.results)
             engine.listeners.append(ResultsWriter(self._writer, self.run_id, t0_ns, lambda: engine.origin))
-        for factory in self._factories:
+        for factory in self.factories:
             engine.listeners.append(factory(self.run_id, t0_ns, engine))
 
     def finish(self, source: str = "capture") -> RunOutcome | None:

@@ -22,8 +22,8 @@ import rerun as rr
 
 from replay.engine.core import Listener
 from replay.review.data import ReviewData
-from replay.views.common import class_id, make_runs, part
 from replay.views.blueprint import build_blueprint
+from replay.views.common import class_id, make_runs, part
 from replay.views.recording import log_review
 from replay.views.series import cdf_scale
 
@@ -59,7 +59,7 @@ class LiveView(Listener):
         self.measure = measure
         self.latencies_ms: list[float] = []  # receive -> sent to Rerun, with `measure`
 
-    def attach(self, t0_ns: int) -> "LiveView":
+    def attach(self, t0_ns: int) -> LiveView:
         """The trial start the engine's times count from (the online run calls this when it starts)."""
         self.t0_ns = t0_ns
         return self
