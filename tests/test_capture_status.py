@@ -80,3 +80,14 @@ def test_live_view_sends_positions_and_estimates_on_the_time_timeline(tmp_path):
     est = temporal["/run-x/map/follower/ackf/position"][0]
     assert est.column("time").cast("int64").to_pylist() == [T0 + 2_500_000_000]
     assert "/run-x/events" in temporal
+
+
+def test_duration_stops_cleanly_and_renames(tmp_path):
+    text = f"""[trial]\nname = "t"\n[[vehicles]]\nname = "a"\nrole = "leader"\n
+[[vehicles.logs]]\nsensor = "gps"\nformat = "nmea"\nsource = "udp://127.0.0.1:{_udp_port()}"\n"""
+    out = tmp_path / "d.mcap"
+    session = CaptureSession(parse_manifest(text, tmp_path / "m.toml"), out, CaptureOptions(duration_s=0.3))
+    assert session.part.exists() and not out.exists()
+    started = time.monotonic()
+    session.run(lambda: time.monotonic() - started > 20)
+    assert out.exists() and not session.part.exists()
