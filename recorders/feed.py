@@ -209,7 +209,7 @@ class PtyTarget(Target):
 
 
 def make_targets(to: str, count: int) -> list[Target]:
-    """`count` targets for --to: udp://HOST:PORT, tcp-listen://HOST:PORT or tcp://HOST:PORT (PORT, PORT+1, ...), or pty."""
+    """`count` targets for --to: udp://, tcp-listen:// or tcp://HOST:PORT (PORT, PORT+1, ...), or pty."""
     if to == "pty":
         return [PtyTarget() for _ in range(count)]
     parts = urlsplit(to)

@@ -15,6 +15,8 @@ from recorders.capture.session import CaptureOptions, CaptureSession
 from recorders.capture.status import status_block
 from recorders.manifest import LogSpec, Manifest, load_manifest
 from recorders.record import trial_metadata
+from replay.run.config import load_config
+from replay.run.online import OnlineRun
 
 if TYPE_CHECKING:
     from replay.views.live import LiveView
@@ -85,10 +87,6 @@ class _Online:
     """The capture's decoded messages into the online engine and the live view."""
 
     def __init__(self, args: argparse.Namespace, manifest: Manifest) -> None:
-        # heavy imports (the estimator stack, rerun) only when asked for, as the other commands do
-        from replay.run.config import load_config
-        from replay.run.online import OnlineRun
-
         viewing = bool(args.view or args.connect or args.rrd)
         topics = sorted({f"/{log.vehicle}/{'modem/range' if log.sensor == 'modem' else log.sensor}"
                          for log in manifest.logs()} | {"/diagnostics"})
@@ -96,11 +94,12 @@ class _Online:
         self.run = OnlineRun(trial_metadata(manifest), topics, load_config(args.config, args.set),
                              args.results, review=viewing, label=str(args.output))
         if viewing:
+            # rerun only when a view is asked for (replay.views is the one importer of rerun)
             from replay.views.live import LiveView, open_stream
 
             view = self.view = LiveView(open_stream(self.run.run_id, args.view, args.connect, args.rrd),
                                         self.run.run_id)
-            self.run.factories.append(lambda rid, t0, engine: view.attach(t0))
+            self.run.factories.append(lambda rid, t0: view.attach(t0))
 
         # the engine and the view run on their own thread: training at t_a takes seconds, and the capture
         # loop must keep reading meanwhile

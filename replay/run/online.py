@@ -27,8 +27,9 @@ from pathlib import Path
 from typing import Any
 
 from formats.mcap_writer import ArchiveWriter
-from replay.engine.core import Engine, Listener
+from replay.engine.core import Engine
 from replay.engine.layout import TrialLayout, plan_trial
+from replay.events import Listener
 from replay.review.collector import ReviewCollector
 from replay.run.config import RunConfig, run_id
 from replay.run.metrics import run_metrics
@@ -44,7 +45,7 @@ from replay.run.results_writer import ResultsWriter
 MAX_LAG_S = 60.0
 START_HOLD_S = 10.0
 START_HOLD_WALL_S = 1.0
-ListenerFactory = Callable[[str, int, Engine], Listener]  # (run id, trial start ns, engine) -> a listener
+ListenerFactory = Callable[[str, int], Listener]  # (run id, trial start ns) -> a listener
 
 
 class OnlineRun:
@@ -52,7 +53,8 @@ class OnlineRun:
 
     def __init__(self, trial: dict[str, Any], topics: list[str], config: RunConfig,
                  results: str | Path | None = None, review: bool = False,
-                 listeners: tuple[ListenerFactory, ...] | list[ListenerFactory] = (), max_lag_s: float = MAX_LAG_S, start_hold_s: float = START_HOLD_S,
+                 listeners: tuple[ListenerFactory, ...] | list[ListenerFactory] = (),
+                 max_lag_s: float = MAX_LAG_S, start_hold_s: float = START_HOLD_S,
                  label: str = "live"):
         self.trial, self.config = trial, config
         self.layout: TrialLayout = plan_trial(trial, {t: 1 for t in topics})
@@ -113,16 +115,15 @@ class OnlineRun:
 
     def _start(self, t0_ns: int) -> None:
         """The engine and its listeners, at the first message pushed (the trial's start)."""
-        engine = self.engine = Engine(self.layout, self.config, t0_ns, [])
+        listeners: list[Listener] = []
         if self.review:
             self.collector = ReviewCollector(self.run_id, self.trial, t0_ns, self.layout)
-            self.collector.engine = engine
-            engine.listeners.append(self.collector)
+            listeners.append(self.collector)
         if self.results is not None:
             self._writer = ArchiveWriter(self.results)
-            engine.listeners.append(ResultsWriter(self._writer, self.run_id, t0_ns, lambda: engine.origin))
-        for factory in self.factories:
-            engine.listeners.append(factory(self.run_id, t0_ns, engine))
+            listeners.append(ResultsWriter(self._writer, self.run_id, t0_ns))
+        listeners += [factory(self.run_id, t0_ns) for factory in self.factories]
+        self.engine = Engine(self.layout, self.config, t0_ns, listeners)
 
     def finish(self, source: str = "capture") -> RunOutcome | None:
         """Push what is left, finish the engine, write the results; None when no message came."""
@@ -135,7 +136,7 @@ class OnlineRun:
         try:
             results = engine.finish()
             end_s = max(engine.last_s, 0.0)
-            metrics = run_metrics(engine, results, self.run_id, end_s)
+            metrics = run_metrics(engine.scores(), results, self.run_id, end_s)
             wall = time.monotonic() - self._wall0
             metrics["wall_s"] = wall
             if self._writer is not None:

@@ -15,12 +15,13 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 import rerun as rr
 
-from replay.engine.core import Listener
+from replay.events import Listener
 from replay.review.data import ReviewData
 from replay.views.blueprint import build_blueprint
 from replay.views.common import class_id, make_runs, part
@@ -77,7 +78,7 @@ class LiveView(Listener):
         if self.measure and received_ns is not None:
             self._received.append(received_ns)
 
-    def estimates(self, follower: str, t_s: float, estimates: dict[str, tuple[float, ...]]) -> None:
+    def estimates(self, follower: str, t_s: float, estimates: Mapping[str, tuple[float, ...]]) -> None:
         """Every method's estimate at t (lat, lon in radians)."""
         if self.t0_ns is None:
             return
@@ -109,9 +110,9 @@ class LiveView(Listener):
                                              radii=np.full(n, rr.Radius.ui_points(5.0), dtype=np.float32)))
             rows.clear()
         if self._events:
+            times = np.array([e[0] for e in self._events], dtype="datetime64[ns]")
             self.rec.send_columns(
-                f"{self.prefix}/events",
-                indexes=[rr.TimeColumn("time", timestamp=np.array([e[0] for e in self._events], dtype="datetime64[ns]"))],
+                f"{self.prefix}/events", indexes=[rr.TimeColumn("time", timestamp=times)],
                 columns=rr.TextLog.columns(text=[e[2] for e in self._events], level=[e[1] for e in self._events]))
             self._events.clear()
         if self._received:
