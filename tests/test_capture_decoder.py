@@ -49,7 +49,7 @@ def _fed(log, data: bytes, cuts: list[int], decode_every: int, stamp: bool) -> l
     return out + d.decode(final=True)
 
 
-@settings(max_examples=12, deadline=None)
+@settings(max_examples=8, deadline=None)
 @given(path=st.sampled_from(sorted(LOGS)), seed=st.integers(0, 2**31), step=st.integers(1, 4),
        largest=st.sampled_from([7, 200, 3000]))
 def test_windowed_decode_equals_whole_log(path, seed, step, largest):
