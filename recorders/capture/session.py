@@ -141,6 +141,7 @@ class CaptureSession:
         self._next_flush = now + options.flush_s
         self._next_decode = now + options.decode_s
         self._announced = False
+        self.first_receive_ns: int | None = None  # the first raw message's time: where the archive starts
 
     # -- sources ----------------------------------------------------------------
     def _open_due(self, now: float) -> None:
@@ -198,6 +199,8 @@ class CaptureSession:
         if not data:
             return
         t = time.time_ns()
+        if self.first_receive_ns is None:
+            self.first_receive_ns = t
         st = live.status
         self.writer.write(live.topic, S.RawBytes(timestamp=S.timestamp(t), stream=live.log.path, offset=st.bytes,
                                                  data=data, connection=st.opens), t)

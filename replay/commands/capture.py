@@ -91,8 +91,10 @@ class _Online:
         topics = sorted({f"/{log.vehicle}/{'modem/range' if log.sensor == 'modem' else log.sensor}"
                          for log in manifest.logs()} | {"/diagnostics"})
         self.view: LiveView | None = None
+        self.session: CaptureSession | None = None  # set once it exists: its first receive time starts the run
         self.run = OnlineRun(trial_metadata(manifest), topics, load_config(args.config, args.set),
-                             args.results, review=viewing, label=str(args.output))
+                             args.results, review=viewing, label=str(args.output),
+                             earliest=lambda: self.session.first_receive_ns if self.session else None)
         if viewing:
             # rerun only when a view is asked for (replay.views is the one importer of rerun)
             from replay.views.live import LiveView, open_stream
@@ -149,6 +151,8 @@ def run(args: argparse.Namespace) -> int:
     options = CaptureOptions(flush_s=args.flush_s, duration_s=args.duration, quiet_s=args.quiet_s)
     online = _Online(args, manifest) if args.view or args.connect or args.rrd or args.results else None
     session = CaptureSession(manifest, args.output, options, listener=online, report=status.note)
+    if online is not None:
+        online.session = session
     stop: list[bool] = []
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.append(True))

@@ -12,7 +12,9 @@ on a backlog gets many seconds of every stream at once).
 A message older than the last one pushed is counted and left out of the
 online run (it is in the archive; `replay` of the capture gives the
 offline run). The trial
-starts at the first message pushed; training happens at t_a after it, as in
+starts at the first message pushed, or at `earliest()` when that is earlier
+(a capture passes its first receive time: the archive's start, which is what
+`replay` of the capture counts from); training happens at t_a after it, as in
 replay. At the end the results go to an archive and metrics files exactly
 as `replay -o` writes them.
 """
@@ -55,7 +57,7 @@ class OnlineRun:
                  results: str | Path | None = None, review: bool = False,
                  listeners: tuple[ListenerFactory, ...] | list[ListenerFactory] = (),
                  max_lag_s: float = MAX_LAG_S, start_hold_s: float = START_HOLD_S,
-                 label: str = "live"):
+                 label: str = "live", earliest: Callable[[], int | None] = lambda: None):
         self.trial, self.config = trial, config
         self.layout: TrialLayout = plan_trial(trial, {t: 1 for t in topics})
         self.wanted = {t for t in topics if t == "/diagnostics"
@@ -63,6 +65,7 @@ class OnlineRun:
         self.run_id = run_id(config, hashlib.sha256(f"capture:{label}".encode()).hexdigest(), package_version())
         self.results = Path(results) if results is not None else None
         self.review = review
+        self.earliest = earliest  # the archive's first time (a capture's first receive time), if earlier
         self.factories = list(listeners)  # more may be added until the first message is pushed
         self.max_lag_ns, self.start_hold_ns = round(max_lag_s * 1e9), round(start_hold_s * 1e9)
         self._streams: dict[str, int] = {}  # stream -> latest log time
@@ -108,7 +111,8 @@ class OnlineRun:
                 self.late_topics[topic] = self.late_topics.get(topic, 0) + 1
                 continue
             if self.engine is None:
-                self._start(t)
+                floor = self.earliest()
+                self._start(t if floor is None else min(t, floor))
             assert self.engine is not None
             self.engine.push(topic, t, message)
             self._last_pushed = t
