@@ -12,6 +12,7 @@ from formats import schemas as S
 from recorders.capture.session import CaptureOptions, CaptureSession
 from recorders.capture.status import SourceStatus, status_block
 from recorders.manifest import parse_manifest
+from replay.cli import main
 from replay.views.live import LiveView, open_stream
 
 T0 = 1_476_237_600 * 10**9
@@ -91,3 +92,16 @@ def test_duration_stops_cleanly_and_renames(tmp_path):
     started = time.monotonic()
     session.run(lambda: time.monotonic() - started > 20)
     assert out.exists() and not session.part.exists()
+
+
+def test_bad_manifests_are_one_line_errors(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[trial]\nname = "t"\n[[vehicles]]\nname = "a"\nrole = "leader"\n[[vehicles.logs]]\n'
+                   'sensor = "gps"\nformat = "nmea"\nsource = "bogus://1"\n')
+    assert main(["capture", str(bad), "-o", str(tmp_path / "x.mcap")]) == 1
+    assert main(["feed", str(tmp_path / "missing.toml"), "--to", "pty"]) == 1
+    assert main(["recover", str(bad), "-o", str(tmp_path / "y.mcap")]) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert [line.split(":")[0] for line in err] == ["auvreplay capture", "auvreplay feed", "auvreplay recover"]
+    assert "unknown source kind 'bogus'" in err[0] and "not an MCAP file" in err[2]
+    assert not (tmp_path / "x.mcap.part").exists()

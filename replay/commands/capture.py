@@ -13,8 +13,9 @@ from typing import TYPE_CHECKING
 from recorders.base import Output
 from recorders.capture.session import CaptureOptions, CaptureSession
 from recorders.capture.status import status_block
-from recorders.manifest import LogSpec, Manifest, load_manifest
+from recorders.manifest import LogSpec, Manifest, ManifestError, load_manifest
 from recorders.record import trial_metadata
+from replay.errors import UserError
 from replay.run.config import load_config
 from replay.run.online import OnlineRun
 
@@ -146,11 +147,14 @@ class _Online:
 
 def run(args: argparse.Namespace) -> int:
     """Capture until Ctrl-C, SIGTERM or --duration; then write the summary and rename the part file."""
-    manifest = load_manifest(args.manifest)
     status = _StatusLines(args.status_s)
     options = CaptureOptions(flush_s=args.flush_s, duration_s=args.duration, quiet_s=args.quiet_s)
-    online = _Online(args, manifest) if args.view or args.connect or args.rrd or args.results else None
-    session = CaptureSession(manifest, args.output, options, listener=online, report=status.note)
+    try:
+        manifest = load_manifest(args.manifest)
+        online = _Online(args, manifest) if args.view or args.connect or args.rrd or args.results else None
+        session = CaptureSession(manifest, args.output, options, listener=online, report=status.note)
+    except ManifestError as exc:
+        raise UserError(str(exc)) from None
     if online is not None:
         online.session = session
     stop: list[bool] = []

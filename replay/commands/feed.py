@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from recorders.feed import FeedError, live_manifest, make_targets, play
-from recorders.manifest import load_manifest
+from recorders.manifest import ManifestError, load_manifest
 from replay.errors import UserError
 
 START_WAIT_S = 600.0
@@ -40,7 +40,10 @@ def _wait_for(path: Path, stop: list[bool]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print each log's target, then play; exit 0 when every log was sent."""
-    manifest = load_manifest(args.manifest)
+    try:
+        manifest = load_manifest(args.manifest)
+    except ManifestError as exc:
+        raise UserError(str(exc)) from None
     live = [log.path for log in manifest.logs() if log.source]
     if live:
         raise UserError(f"{args.manifest}: {live[0]} is a live source; feed plays recorded files")
@@ -62,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
             _wait_for(Path(args.start_after), stop)
         try:
             stats = play(manifest, targets, args.rate, args.seconds, should_stop=lambda: bool(stop))
-        except FeedError as exc:
+        except (FeedError, ManifestError) as exc:
             raise UserError(str(exc)) from None
         print(f"sent {stats.bytes} bytes in {stats.segments} pieces over {stats.seconds:.1f} s", file=sys.stderr,
               flush=True)
