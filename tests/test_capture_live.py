@@ -137,8 +137,10 @@ def reference(tmp_path_factory):
     return prefixes, _messages(_reference(tmp, prefixes))
 
 
-@pytest.mark.parametrize("to", ["udp", "tcp-listen", "pty"])
-def test_fed_trial_captured_equals_record(tmp_path, reference, to):
+# the feed listens (capture connects, tcp://) or connects (capture listens, tcp-listen://); SIGTERM stops as SIGINT
+@pytest.mark.parametrize("to, stop", [("udp", signal.SIGINT), ("tcp-listen", signal.SIGTERM), ("tcp", signal.SIGINT),
+                                      ("pty", signal.SIGINT)], ids=["udp", "tcp-sigterm", "tcp-into-listener", "pty"])
+def test_fed_trial_captured_equals_record(tmp_path, reference, to, stop):
     prefixes, want = reference
     target = "pty" if to == "pty" else f"{to}://127.0.0.1:{_free_ports(N_LOGS)}"
     live, go, out = tmp_path / "live.toml", tmp_path / "go", tmp_path / "trial.mcap"
@@ -159,7 +161,7 @@ def test_fed_trial_captured_equals_record(tmp_path, reference, to):
             go.touch()
             feed_err.wait_for("sent ", feed)
             time.sleep(0.5)  # the last bytes in flight
-            cap.send_signal(signal.SIGINT)
+            cap.send_signal(stop)
             assert cap.wait(timeout=WAIT_S) == 0, "".join(cap_err.lines)
         finally:
             if cap.poll() is None:
