@@ -1,7 +1,7 @@
 """Capture end to end: the sample trial fed over UDP, TCP and ptys; kill -9 and recover; tail and tcp-listen.
 
 Everything binds 127.0.0.1 only; every wait is bounded; the processes stop by themselves
-(capture by SIGINT, feed when its logs are sent). Feeds play the first seconds of the trial
+(capture by SIGINT or SIGTERM, feed when its logs are sent). Feeds play the first seconds of the trial
 at high rate to keep the whole file to seconds.
 
 How capture and `record` are compared: the same bytes (the prefix of each log the feed sent,
