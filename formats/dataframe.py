@@ -54,3 +54,11 @@ def messages_to_dataframe(messages: Iterable[Any]) -> pd.DataFrame:
         times.append(item.log_time_ns)
     index = pd.DatetimeIndex(pd.to_datetime(np.asarray(times, dtype="int64"), unit="ns", utc=True), name="log_time")
     return pd.DataFrame(rows, index=index)
+
+
+def with_mission_seconds(df: pd.DataFrame, start_ns: int) -> pd.DataFrame:
+    """A copy of a log-time-indexed frame with a first column `mission_s`: seconds from `start_ns`."""
+    out = df.copy()
+    ns = out.index.asi8 if isinstance(out.index, pd.DatetimeIndex) else np.asarray(out.index, dtype="int64")
+    out.insert(0, "mission_s", (ns - np.int64(start_ns)) / 1e9)
+    return out

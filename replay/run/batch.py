@@ -212,7 +212,7 @@ def replay_task(archive: str, overrides: Sequence[str], out_dir: str, trial: str
         record["run_id"] = rid
         output = Path(out_dir) / "runs" / f"{trial}-{rid}.mcap"
         output.parent.mkdir(parents=True, exist_ok=True)
-        outcome = replay_archive(archive, config, output)
+        outcome = replay_archive(archive, config, output, force=True)   # batch owns DIR/runs
         record.update(output=str(output), metrics=outcome.metrics, notes=list(outcome.notes))
     except Exception as exc:        # a failed run is data for the table; the batch goes on
         record["error"] = describe_error(exc)
