@@ -31,12 +31,12 @@ def run(args: argparse.Namespace) -> int:
     from replay.errors import UserError
     from replay.run.outputs import claim_output
 
-    out = claim_output(args.output, args.force)
     if args.format in TRACK_FORMATS:
         from pathlib import Path
 
         from replay.run.track_export import archive_tracks, tracks_bytes
 
+        out = claim_output(args.output, args.force)
         tracks = archive_tracks(args.file, args.topic or None)
         data = tracks_bytes(tracks, args.format, Path(args.file).stem)
         out.write_bytes(data)
@@ -53,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
         topics = reader.summary().topics
         if topic not in topics:
             raise UserError(f"{args.file}: no topic {topic}; topics: {', '.join(sorted(topics))}")
+        out = claim_output(args.output, args.force)
         df = with_mission_seconds(reader.to_dataframe(topic), trial_start_ns(reader))
     for col in df.columns:  # Parquet needs one type per column; timestamps stay typed
         if df[col].dtype == object:
