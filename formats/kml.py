@@ -8,13 +8,21 @@ the track's first and last time. Coordinates are "longitude latitude altitude"
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable
-from xml.sax.saxutils import escape
+from xml.sax.saxutils import escape as _escape
 
 from formats.tracks import Track, iso_utc
 
 KML_NS = "http://www.opengis.net/kml/2.2"
 GX_NS = "http://www.google.com/kml/ext/2.2"
+# characters XML 1.0 cannot hold at all (names come from archives, which are other people's files)
+_NOT_XML = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+
+
+def escape(text: str) -> str:
+    """Text for an XML element: markup escaped, characters XML cannot hold dropped."""
+    return _escape(_NOT_XML.sub("", text))
 
 
 def _placemark(track: Track, color_abgr: str) -> list[str]:
