@@ -253,6 +253,9 @@ def test_no_command_overwrites_a_file_it_did_not_create(archive, runs, tmp_path,
     _refused(["reproduce", "kmcdf", "--trials", "1", "--png", str(png), "--rrd", str(tmp_path / "k.rrd")], png,
              capsys)
     assert not (tmp_path / "k.rrd").exists()
+    table = _keep(tmp_path / "batch" / "metrics.csv")
+    _refused(["batch", str(archive), "-o", str(table.parent), "--quiet"], table, capsys)
+    assert not (table.parent / "runs").exists()
 
 
 def test_force_replaces(runs, tmp_path):
