@@ -113,7 +113,7 @@ def test_report_fetches_nothing(report):
     text, _, _ = report
     parsed = _Cells()
     parsed.feed(text)
-    assert parsed.links and not [u for u in parsed.links if re.match(r"\s*(https?:)?//", u, re.I)]
+    assert parsed.links and not [u for u in parsed.links if re.match(r"\s*(https?:)?//", u, re.IGNORECASE)]
     assert "<script" not in text and "<link" not in text and "@import" not in text and "url(" not in text
     images = [u for u in parsed.links if u.startswith("data:")]
     assert len(images) == 3
@@ -208,12 +208,12 @@ def test_compare_prints_mission_seconds_truth_and_which_run_was_right(runs, caps
     assert right["b"] == sum(r["b"] == bool(r["label"]) for r in rows)
     assert main(["compare", str(a), str(b), "--limit", "1000"]) == 0
     out = capsys.readouterr().out
-    listed = re.findall(r"^\s+(\d+\.\d) s  follower <- (leader\d)\s+A (\w+)\s+B (\w+)\s+truth (\w+)$", out, re.M)
+    listed = re.findall(r"^\s+(\d+\.\d) s  follower <- (leader\d)\s+A (\w+)\s+B (\w+)\s+truth (\w+)$", out, re.MULTILINE)
     assert len(listed) == sum(len(v) for v in result["differing_epochs"].values())
     assert {x[4] for x in listed} <= {"normal", "anomalous"}
     assert "t=14" not in out and all(float(x[0]) < 1800 for x in listed)
     assert f"right on {right['a']} of {right['epochs']}" in out
-    assert re.search(r"^all detectors: (A|B) was right more often", out, re.M)
+    assert re.search(r"^all detectors: (A|B) was right more often", out, re.MULTILINE)
 
 
 def _keep(path: Path) -> Path:

@@ -82,7 +82,13 @@ def _text(df: pd.DataFrame) -> str:
 def run(args: argparse.Namespace) -> int:
     """Run the batch, write the tables, print a summary; 1 when any run failed."""
     from replay.errors import UserError
-    from replay.run.batch import batch, parse_seeds, parse_sweeps, summary_table, table_paths
+    from replay.run.batch import (
+        batch,
+        parse_seeds,
+        parse_sweeps,
+        summary_table,
+        table_paths,
+    )
     from replay.run.outputs import claim_outputs
 
     if not args.archives and not args.simulate_seeds:

@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
           f"({m['anomalous']} anomalous), {m['usbl_epochs']} USBL epochs, {outcome.wall_s:.2f} s")
     print(format_table(m))
     save_rrd([outcome.review], rrd)
-    print(f"\nresults: {outcome.output}\nmetrics: {outcome.output.with_suffix('.metrics.csv')}\nrecording: {rrd}")
+    print(f"\nresults: {results}\nmetrics: {results.with_suffix('.metrics.csv')}\nrecording: {rrd}")
     if not args.no_viewer and has_display(os.environ):
         return open_viewer(rrd)
     me = shlex.quote(sys.argv[0]) if sys.argv and sys.argv[0].endswith("auvreplay") else "auvreplay"

@@ -23,8 +23,21 @@ import pandas as pd
 from replay.review.anomaly_kinds import NONE, KindInterval, epoch_kinds, not_ranging
 from replay.review.data import ReviewData
 from replay.review.palette import method_hex
-from replay.review.report_plots import Lane, Span, cdf_figure, figure_uri, series_figure, timeline_figure
-from replay.review.scoreboard import DETECTION_COLUMNS, ERROR_COLUMNS, format_value, scoreboard, window_text
+from replay.review.report_plots import (
+    Lane,
+    Span,
+    cdf_figure,
+    figure_uri,
+    series_figure,
+    timeline_figure,
+)
+from replay.review.scoreboard import (
+    DETECTION_COLUMNS,
+    ERROR_COLUMNS,
+    format_value,
+    scoreboard,
+    window_text,
+)
 from replay.stack.config import DETECTING_METHODS
 
 KIND_ORDER = ("stale", "drift", "outlier", "dropout", "usbl_delay")
@@ -240,16 +253,16 @@ def build_report(meta: dict[str, Any], review: ReviewData, intervals: list[KindI
     title = f"auvreplay report: {review.trial or meta.get('input_file', '')} run {meta.get('run_id')}"
     body = [
         f"<h1>{_esc(title)}</h1>",
-        f'<p class="sub">{_esc(window_text(metrics))}; {metrics.get("epochs")} scored ranging epochs '
-        f'({metrics.get("anomalous")} labelled anomalous), {metrics.get("usbl_epochs")} USBL epochs; '
-        f"followers {_esc(', '.join(metrics.get('followers', [])))}. "
-        + (f"Best by p50 error: <b>{_esc(best[0].method)}</b>.</p>" if best else "</p>"),
-        '<nav><a href="#scoreboard">Scoreboard</a><a href="#cdf">Error CDF</a><a href="#series">Error over time</a>'
-        '<a href="#timeline">Detections</a><a href="#kinds">By anomaly kind</a><a href="#run">Run</a></nav>',
+        (f'<p class="sub">{_esc(window_text(metrics))}; {metrics.get("epochs")} scored ranging epochs '
+         f'({metrics.get("anomalous")} labelled anomalous), {metrics.get("usbl_epochs")} USBL epochs; '
+         f"followers {_esc(', '.join(metrics.get('followers', [])))}. "
+         + (f"Best by p50 error: <b>{_esc(best[0].method)}</b>.</p>" if best else "</p>")),
+        ('<nav><a href="#scoreboard">Scoreboard</a><a href="#cdf">Error CDF</a><a href="#series">Error over time</a>'
+         '<a href="#timeline">Detections</a><a href="#kinds">By anomaly kind</a><a href="#run">Run</a></nav>'),
         '<h2 id="scoreboard">Scoreboard</h2>',
-        f'<p class="sub">Every method ranked by horizontal error p50 {_esc(window_text(metrics))}; figures exactly '
-        "those of the run's metrics.json; detection columns for the detectors (an ACKF isolating what they "
-        "flag).</p>",
+        (f'<p class="sub">Every method ranked by horizontal error p50 {_esc(window_text(metrics))}; figures '
+         "exactly those of the run's metrics.json; detection columns for the detectors (an ACKF isolating what "
+         "they flag).</p>"),
         _scoreboard_html(metrics),
         '<h2 id="cdf">Error CDF</h2>', cdf,
         '<h2 id="series">Error over time</h2>',

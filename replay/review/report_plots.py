@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from matplotlib import rc_context
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
@@ -57,7 +58,7 @@ def figure_uri(fig: Figure) -> str:
     return "data:image/svg+xml;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
-def _t_a_line(ax, t_a: float) -> None:
+def _t_a_line(ax: Axes, t_a: float) -> None:
     ax.axvline(t_a, color="#444444", ls="--", lw=1.0)
 
 

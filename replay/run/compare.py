@@ -95,12 +95,12 @@ def compare_runs(a: str | Path, b: str | Path) -> dict[str, Any]:
         metrics[method] = row
     differing: dict[str, list[dict[str, Any]]] = {}
     right: dict[str, dict[str, int]] = {}
-    for key in sorted(set(det_a) | set(det_b)):
-        da, db = det_a.get(key), det_b.get(key)
+    for dkey in sorted(set(det_a) | set(det_b)):
+        da, db = det_a.get(dkey), det_b.get(dkey)
         fa, fb = (da[0] if da else None), (db[0] if db else None)
         if fa == fb:
             continue
-        t_ns, follower, leader, method = key
+        t_ns, follower, leader, method = dkey
         label = (da or db or (False, 0))[1]
         differing.setdefault(method, []).append({"mission_s": t_ns / NS, "follower": follower, "leader": leader,
                                                  "a": fa, "b": fb, "label": label})
