@@ -91,10 +91,11 @@ def detection_tallies(review: ReviewData, t_a: float) -> list[DetectionTally]:
     det = review.detections
     if not len(det):
         return []
+    leaders, present = sorted(det["leader"].unique()), set(det["method"])
     det = det[det["t_s"] >= t_a]
     out = []
-    for leader in sorted(det["leader"].unique()):
-        for method in [m for m in DETECTING_METHODS if m in set(det["method"])]:
+    for leader in leaders:
+        for method in [m for m in DETECTING_METHODS if m in present]:
             d = det[(det["leader"] == leader) & (det["method"] == method)]
             flagged, label = d["flagged"].to_numpy(bool), d["label"].to_numpy(int) > 0
             t = d["t_s"].to_numpy(float)
@@ -133,16 +134,22 @@ def _scoreboard_html(metrics: dict[str, Any]) -> str:
 
 def _error_sections(review: ReviewData, metrics: dict[str, Any], t_a: float, end_s: float) -> tuple[str, str]:
     err = review.errors
-    order = [r.method for r in scoreboard(metrics)]
-    methods = [m for m in order if len(err) and (err["method"] == m).any()]
+    ranked = [r.method for r in scoreboard(metrics)]
+    seen = list(dict.fromkeys(err["method"])) if len(err) else []
+    order = ranked + [m for m in seen if m not in ranked]     # a series scored nowhere (no epoch after t_a) last
+    methods = [m for m in order if m in seen]
     missing = [m for m in order if m not in methods]
     rows = {m: metrics["methods"].get(m, {}) for m in order}
     after = {m: err.loc[(err["method"] == m) & (err["t_s"] >= t_a), "error_m"].to_numpy(float) for m in methods}
+    scored = [m for m in methods if len(after[m])]
     labels = {m: f"{m} ({format_value(rows[m].get('error_p50_m'))}, {format_value(rows[m].get('error_p90_m'))} m)"
-              for m in methods}
+              for m in scored}
     note = (f'<p class="note">No error series in the run for: {_esc(", ".join(missing))}.</p>' if missing else "")
-    cdf = (f'<img class="plot" alt="error CDF of every method" src="{figure_uri(cdf_figure(after, labels, window_text(metrics)))}">'
-           if methods else '<p class="note">No error series in this run.</p>') + note
+    if scored:
+        uri = figure_uri(cdf_figure(after, labels, window_text(metrics)))
+        cdf = f'<img class="plot" alt="error CDF of every method" src="{uri}">' + note
+    else:
+        cdf = f'<p class="note">No error sample {_esc(window_text(metrics))}: nothing to draw.</p>'
     series = {m: (err.loc[err["method"] == m, "t_s"].to_numpy(float), err.loc[err["method"] == m, "error_m"]
                   .to_numpy(float)) for m in methods}
     titles = {m: f"{m}: p50 after t_a {format_value(rows[m].get('error_p50_m'))} m" for m in methods}
@@ -179,10 +186,10 @@ def _timeline_section(review: ReviewData, tallies: list[DetectionTally], t_a: fl
 
 def _kinds_section(review: ReviewData, t_a: float, intervals: list[KindInterval] | None) -> str:
     det = review.detections
-    det = det[det["t_s"] >= t_a] if len(det) else det
     methods = [m for m in DETECTING_METHODS if len(det) and m in set(det["method"])]
     if not methods:
         return '<p class="note">No detecting method ran: nothing to tabulate.</p>'
+    det = det[det["t_s"] >= t_a]
     epochs = det.drop_duplicates(["t_s", "follower", "leader"])
     if intervals is None:
         note = ('<p class="note">The archive records each range\'s truth label (|Z<sub>GPS</sub> − Z| &gt; T1) but '
@@ -250,13 +257,15 @@ def build_report(meta: dict[str, Any], review: ReviewData, intervals: list[KindI
     tallies = detection_tallies(review, t_a)
     cdf, over_time = _error_sections(review, metrics, t_a, end_s)
     best = scoreboard(metrics)
+    best_p50 = best[0].figures.get("error_p50_m") if best else None
     title = f"auvreplay report: {review.trial or meta.get('input_file', '')} run {meta.get('run_id')}"
     body = [
         f"<h1>{_esc(title)}</h1>",
         (f'<p class="sub">{_esc(window_text(metrics))}; {metrics.get("epochs")} scored ranging epochs '
          f'({metrics.get("anomalous")} labelled anomalous), {metrics.get("usbl_epochs")} USBL epochs; '
          f"followers {_esc(', '.join(metrics.get('followers', [])))}. "
-         + (f"Best by p50 error: <b>{_esc(best[0].method)}</b>.</p>" if best else "</p>")),
+         + (f"Best by p50 error: <b>{_esc(best[0].method)}</b>.</p>" if best_p50 is not None else
+           " No epoch was scored: the run ended before t_a.</p>")),
         ('<nav><a href="#scoreboard">Scoreboard</a><a href="#cdf">Error CDF</a><a href="#series">Error over time</a>'
          '<a href="#timeline">Detections</a><a href="#kinds">By anomaly kind</a><a href="#run">Run</a></nav>'),
         '<h2 id="scoreboard">Scoreboard</h2>',

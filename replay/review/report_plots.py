@@ -118,7 +118,7 @@ def timeline_figure(lanes: Sequence[Lane], spans: Sequence[Span], t_a: float, en
     n = len(lanes)
     fig = Figure(figsize=(13, 0.42 * n + 1.6))
     ax = fig.add_subplot()
-    ax.axvspan(0, t_a, color=TRAINING_GREY, zorder=0)
+    ax.axvspan(0, min(t_a, end_s), color=TRAINING_GREY, zorder=0)
     for s in spans:
         mid, half = 0.5 * (s.start_s + s.end_s), 0.5 * max(s.end_s - s.start_s, MIN_SPAN_S)
         ax.fill_between([mid - half, mid + half], n - 1 - s.last_lane - 0.45,
@@ -131,8 +131,9 @@ def timeline_figure(lanes: Sequence[Lane], spans: Sequence[Span], t_a: float, en
         ax.vlines(lane.hits, y - 0.35, y + 0.35, color=HIT, lw=1.0, zorder=3)
         ax.vlines(lane.false_alarms, y, y + 0.4, color=FALSE_ALARM, lw=1.0, zorder=3)
         ax.vlines(lane.misses, y - 0.4, y, color=MISS, lw=1.0, zorder=3)
-    _t_a_line(ax, t_a)
-    ax.text(t_a, n - 0.35, " t_a", fontsize=8, va="bottom")
+    if t_a <= end_s:
+        _t_a_line(ax, t_a)
+        ax.text(t_a, n - 0.35, " t_a", fontsize=8, va="bottom")
     ax.set_yticks(range(n))
     ax.set_yticklabels([lane.name for lane in reversed(lanes)], fontsize=8)
     ax.set_ylim(-0.6, n - 0.1)
