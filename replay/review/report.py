@@ -154,7 +154,7 @@ def _error_sections(review: ReviewData, metrics: dict[str, Any], t_a: float, end
                   .to_numpy(float)) for m in methods}
     titles = {m: f"{m}: p50 after t_a {format_value(rows[m].get('error_p50_m'))} m" for m in methods}
     over_time = (f'<img class="plot" alt="error over mission time per method" '
-                 f'src="{figure_uri(series_figure(series, titles, t_a, end_s))}">' if methods else "") + note
+                 f'src="{figure_uri(series_figure(series, titles, t_a, end_s), tight=False)}">' if methods else "") + note
     return cdf, over_time
 
 

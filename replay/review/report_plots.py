@@ -18,6 +18,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
+from matplotlib.ticker import NullLocator
 
 from replay.review.palette import method_hex
 
@@ -50,11 +51,14 @@ class Span:
     kind: str
 
 
-def figure_uri(fig: Figure) -> str:
-    """The figure as a data:image/svg+xml URI (no creation date, so a report is the same for the same run)."""
+def figure_uri(fig: Figure, tight: bool = True) -> str:
+    """The figure as a data:image/svg+xml URI (no creation date, so a report is the same for the same run).
+
+    `tight` crops to what is drawn (legends outside the axes included), at the cost of one more layout pass.
+    """
     buf = io.BytesIO()
     with rc_context({"svg.fonttype": "none"}):     # text as text (a third of the size); the browser's sans font
-        fig.savefig(buf, format="svg", bbox_inches="tight", metadata={"Date": None})
+        fig.savefig(buf, format="svg", bbox_inches="tight" if tight else None, metadata={"Date": None})
     return "data:image/svg+xml;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
@@ -91,14 +95,18 @@ def series_figure(series: dict[str, tuple[np.ndarray, np.ndarray]], titles: dict
     methods = [m for m in titles if m in series]
     cols = 2
     rows = max(1, -(-len(methods) // cols))
-    fig = Figure(figsize=(12, 1.9 * rows + 0.6))
-    axes = fig.subplots(rows, cols, sharex=True, squeeze=False)
+    height = 1.9 * rows + 0.6
+    fig = Figure(figsize=(12, height))
+    # a fixed layout: tight_layout over a dozen log axes costs seconds and finds the same margins
+    fig.subplots_adjust(left=0.06, right=0.99, top=1 - 0.3 / height, bottom=0.5 / height, hspace=0.5, wspace=0.12)
+    axes = fig.subplots(rows, cols, sharex=True, sharey=True, squeeze=False)
     top = max([float(np.nanmax(e)) for _, e in series.values() if len(e) and np.isfinite(e).any()] + [1.0])
     for ax, method in zip(axes.ravel(), methods):
         t, e = series[method]
         ax.plot(t, np.maximum(e, 1e-2), color=method_hex(method), lw=0.9)
         _t_a_line(ax, t_a)
         ax.set_yscale("log")
+        ax.yaxis.set_minor_locator(NullLocator())
         ax.set_ylim(0.1, top * 1.5)
         ax.set_xlim(0, end_s)
         ax.grid(True, which="major", color="#eeeeee", lw=0.6)
@@ -109,7 +117,6 @@ def series_figure(series: dict[str, tuple[np.ndarray, np.ndarray]], titles: dict
         ax.set_visible(False)
     for ax in axes[-1]:
         ax.set_xlabel("mission time (s from the trial start)", fontsize=8)
-    fig.tight_layout()
     return fig
 
 
