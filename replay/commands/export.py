@@ -10,6 +10,7 @@ with UTC times and mission seconds.
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 TABLE_FORMATS = ("csv", "parquet")
 TRACK_FORMATS = ("geojson", "kml")
@@ -32,8 +33,6 @@ def run(args: argparse.Namespace) -> int:
     from replay.run.outputs import claim_output
 
     if args.format in TRACK_FORMATS:
-        from pathlib import Path
-
         from replay.run.track_export import archive_tracks, tracks_bytes
 
         out = claim_output(args.output, args.force)

@@ -12,6 +12,7 @@ anomalies.csv when given with --anomalies (the archive holds only labels).
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -26,8 +27,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Build and write the report; a file that is no results archive is bad input (exit 1)."""
-    from pathlib import Path
-
     from replay.errors import UserError
     from replay.review.anomaly_kinds import load_intervals
     from replay.review.rebuild import review_from_results, run_metadata
