@@ -23,6 +23,7 @@ from formats.tracks import Track
 from recorders.manifest import load_manifest
 from recorders.record import record
 from replay.cli import main
+from replay.review.anomaly_kinds import load_intervals
 from replay.review.rebuild import run_metadata
 from replay.review.report import build_report, detection_tallies
 from replay.review.scoreboard import format_value
@@ -139,6 +140,11 @@ def test_report_lanes_and_kinds_count_what_the_scoreboard_counts(report):
     for method in ("chi_square", "anfis"):   # every flag lands in exactly one kind's row
         assert sum(v for (k, m), v in flagged.items() if m == method) == methods[method]["tp"] + methods[method]["fp"]
     assert "a missed reply leaves no ranging epoch" in text
+
+
+def test_the_same_run_gives_the_same_report(report):
+    text, meta, review = report         # the CLI's report of the re-run against the original run's review data
+    assert build_report(meta, review, load_intervals(SAMPLE / "anomalies.csv")) == text
 
 
 def test_report_without_kinds_says_the_archive_has_none(report, tmp_path, capsys):

@@ -57,7 +57,8 @@ def figure_uri(fig: Figure, tight: bool = True) -> str:
     `tight` crops to what is drawn (legends outside the axes included), at the cost of one more layout pass.
     """
     buf = io.BytesIO()
-    with rc_context({"svg.fonttype": "none"}):     # text as text (a third of the size); the browser's sans font
+    # text as text (a third of the size; the browser's sans font); element ids from a fixed salt, not random
+    with rc_context({"svg.fonttype": "none", "svg.hashsalt": "auvreplay"}):
         fig.savefig(buf, format="svg", bbox_inches="tight" if tight else None, metadata={"Date": None})
     return "data:image/svg+xml;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
