@@ -34,8 +34,10 @@ from typing import Callable
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
 
 import pynmea2  # noqa: E402
+from common import interleaved  # noqa: E402
 
 from formats import nmea  # noqa: E402
 from formats import schemas as S  # noqa: E402
@@ -75,15 +77,6 @@ def gga_only(epochs: int) -> bytes:
     return "".join(nmea.encode_gga(T0 + k * 10**9, 45.7 + k * 1e-6, 126.6, hdop=0.9) for k in range(epochs)).encode()
 
 
-def interleaved(fns: dict[str, Callable[[], object]], repeats: int = REPEATS) -> dict[str, float]:
-    """Median wall time (s) of each function over `repeats` rounds, one call of each per round."""
-    times: dict[str, list[float]] = {name: [] for name in fns}
-    for _ in range(repeats):
-        for name, fn in fns.items():
-            start = time.perf_counter()
-            fn()
-            times[name].append(time.perf_counter() - start)
-    return {name: statistics.median(ts) for name, ts in times.items()}
 
 
 def pynmea2_parse(data: bytes) -> int:
@@ -107,7 +100,7 @@ def ours_mcap(data: bytes, path: Path) -> int:
 def row(name: str, data: bytes, tmp: Path) -> list[object]:
     """Timings (us per sentence) of every pipeline on one log, and the ratios."""
     lines = data.count(b"\n")
-    t = interleaved({
+    t = interleaved(repeats=REPEATS, fns={
         "pynmea2": lambda: pynmea2_parse(data),
         "decode": lambda: sum(1 for _ in nmea.decode(data)),
         "reference": lambda: sum(1 for _ in convert_nmea_reference(data, CTX)),

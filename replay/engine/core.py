@@ -12,7 +12,8 @@ import math
 import time
 from array import array
 from collections import Counter
-from typing import Any, Callable
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -33,7 +34,7 @@ NS = 1_000_000_000
 class Engine:
     """Streams one trial's messages through the stack (push one message at a time, in time order)."""
 
-    def __init__(self, layout: TrialLayout, config: RunConfig, t0_ns: int, listeners: list[Listener] = ()):
+    def __init__(self, layout: TrialLayout, config: RunConfig, t0_ns: int, listeners: Sequence[Listener] = ()):
         self.layout, self.config, self.t0_ns = layout, config, t0_ns
         self.listeners = list(listeners)
         self.notes: list[str] = list(layout.notes)
@@ -71,14 +72,12 @@ class Engine:
         if route is None:
             route = self._routes[topic] = self._route(topic)
         vehicle, handler = route
-        if handler is None:
-            if vehicle is None:
-                if topic == "/diagnostics":
-                    for listener in self.listeners:
-                        listener.event(t_s, "WARN", f"rejected record: {msg.message}")
-                return
-        else:
-            handler(self, vehicle, t_s, msg)
+        if handler is None or vehicle is None:     # a handled topic always has its vehicle
+            if vehicle is None and topic == "/diagnostics":
+                for listener in self.listeners:
+                    listener.event(t_s, "WARN", f"rejected record: {msg.message}")
+            return
+        handler(self, vehicle, t_s, msg)
         self._release(self.last_s - self._lag_s)
 
     def _route(self, topic: str) -> tuple[str | None, Callable[[Engine, str, float, Any], None] | None]:
@@ -142,7 +141,7 @@ class Engine:
     # -- release and callbacks ---------------------------------------------------
     def _release(self, until_s: float) -> None:
         feeding = self._usbl is not None and bool(self.config.engine.usbl_update)
-        if feeding:
+        if feeding and self._usbl is not None:
             # fixes go to the followers' queues before they are released past them; an epoch is
             # complete once the stream is usbl_group_s past its first observation
             self._usbl.flush(min(until_s, self.last_s - self.config.engine.usbl_group_s))
@@ -185,7 +184,7 @@ class Engine:
             for listener in self.listeners:
                 listener.epoch(follower, results, leader_fix)
 
-    def _on_estimates(self, follower: str, t_s: float, est: dict[str, tuple[float, ...]]) -> None:
+    def _on_estimates(self, follower: str, t_s: float, est: Mapping[str, tuple[float, ...]]) -> None:
         for listener in self.listeners:
             listener.estimates(follower, t_s, est)
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -53,7 +54,7 @@ class ReviewCollector(Listener):
             self._last_ins[vehicle] = fix.t_s
         self._track_row(fix.t_s, vehicle, source, fix.lat_rad, fix.lon_rad)
 
-    def estimates(self, follower: str, t_s: float, est: dict[str, tuple[float, ...]]) -> None:
+    def estimates(self, follower: str, t_s: float, est: Mapping[str, tuple[float, ...]]) -> None:
         for method, (lat, lon, nn, _ne, ee) in est.items():
             self._track_row(t_s, follower, method, lat, lon, math.sqrt(max(ee, 0.0)), math.sqrt(max(nn, 0.0)))
 
