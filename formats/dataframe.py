@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -38,7 +39,8 @@ def flatten(message: Any) -> dict[str, Any]:
             for i, v in enumerate(value):
                 row[f"{field.name}_{i}"] = v
         elif field.type == FieldDescriptor.TYPE_ENUM:
-            row[field.name] = field.enum_type.values_by_number[value].name if value in field.enum_type.values_by_number else value
+            names = field.enum_type.values_by_number
+            row[field.name] = names[value].name if value in names else value
         else:
             row[field.name] = value
     return row

@@ -214,7 +214,8 @@ def test_compare_prints_mission_seconds_truth_and_which_run_was_right(runs, caps
     assert right["b"] == sum(r["b"] == bool(r["label"]) for r in rows)
     assert main(["compare", str(a), str(b), "--limit", "1000"]) == 0
     out = capsys.readouterr().out
-    listed = re.findall(r"^\s+(\d+\.\d) s  follower <- (leader\d)\s+A (\w+)\s+B (\w+)\s+truth (\w+)$", out, re.MULTILINE)
+    line = r"^\s+(\d+\.\d) s  follower <- (leader\d)\s+A (\w+)\s+B (\w+)\s+truth (\w+)$"
+    listed = re.findall(line, out, re.MULTILINE)
     assert len(listed) == sum(len(v) for v in result["differing_epochs"].values())
     assert {x[4] for x in listed} <= {"normal", "anomalous"}
     assert "t=14" not in out and all(float(x[0]) < 1800 for x in listed)

@@ -57,7 +57,8 @@ span.swatch { display: inline-block; width: 12px; height: 12px; border-radius: 2
               vertical-align: -1px; }
 img.plot { max-width: 100%; height: auto; display: block; margin: 8px 0; }
 nav a { margin-right: 14px; } code { background: #f5f5f5; padding: 0 3px; }
-table.config td { padding: 2px 9px; } table.config td:first-child { font-family: ui-monospace, Menlo, Consolas, monospace; }
+table.config td { padding: 2px 9px; }
+table.config td:first-child { font-family: ui-monospace, Menlo, Consolas, monospace; }
 """
 
 
@@ -153,8 +154,10 @@ def _error_sections(review: ReviewData, metrics: dict[str, Any], t_a: float, end
     series = {m: (err.loc[err["method"] == m, "t_s"].to_numpy(float), err.loc[err["method"] == m, "error_m"]
                   .to_numpy(float)) for m in methods}
     titles = {m: f"{m}: p50 after t_a {format_value(rows[m].get('error_p50_m'))} m" for m in methods}
-    over_time = (f'<img class="plot" alt="error over mission time per method" '
-                 f'src="{figure_uri(series_figure(series, titles, t_a, end_s), tight=False)}">' if methods else "") + note
+    over_time = note
+    if methods:
+        uri = figure_uri(series_figure(series, titles, t_a, end_s), tight=False)
+        over_time = f'<img class="plot" alt="error over mission time per method" src="{uri}">' + note
     return cdf, over_time
 
 
@@ -181,7 +184,8 @@ def _timeline_section(review: ReviewData, tallies: list[DetectionTally], t_a: fl
     what = ("simulator intervals by kind (anomalies.csv)" if intervals is not None
             else "runs of labelled epochs (kinds not recorded in the archive)")
     return (f'<p class="sub">Every lane counts after t_a = {t_a:.0f} s, as the scoreboard does; shaded: {what}.</p>'
-            f'<img class="plot" alt="detection timeline" src="{figure_uri(timeline_figure(lanes, spans, t_a, end_s))}">')
+            f'<img class="plot" alt="detection timeline" '
+            f'src="{figure_uri(timeline_figure(lanes, spans, t_a, end_s))}">')
 
 
 def _kinds_section(review: ReviewData, t_a: float, intervals: list[KindInterval] | None) -> str:

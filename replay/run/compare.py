@@ -14,6 +14,7 @@ from typing import Any
 
 from formats.mcap_reader import ArchiveReader
 from replay.errors import UserError
+from replay.run.metrics import format_value
 from replay.run.mission_time import NS, trial_start_ns
 from replay.stack.scoring import RESULT_KEYS
 
@@ -140,9 +141,9 @@ def format_comparison(result: dict[str, Any], limit: int = 20) -> str:
         for key, v in row.items():
             if v["a"] is None and v["b"] is None:
                 continue
-            fmt = (lambda x: "-" if x is None else (f"{x:.3f}" if isinstance(x, float) else str(x)))
             if v["diff"] not in (0, 0.0, None) or key in ("tp", "fp", "fn", "error_p50_m"):
-                lines.append(f"{method:<20} {key:<16} {fmt(v['a']):>10} {fmt(v['b']):>10} {fmt(v['diff']):>10}")
+                a, b, d = (format_value(v[k]) for k in ("a", "b", "diff"))
+                lines.append(f"{method:<20} {key:<16} {a:>10} {b:>10} {d:>10}")
     if result["differing_epochs"]:
         lines.append("decisions that differ (mission seconds from the trial start; truth: the range's label):")
     for method, rows in result["differing_epochs"].items():
