@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import base64
 import io
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -102,12 +103,14 @@ def series_figure(series: dict[str, tuple[np.ndarray, np.ndarray]], titles: dict
     fig.subplots_adjust(left=0.06, right=0.99, top=1 - 0.3 / height, bottom=0.5 / height, hspace=0.5, wspace=0.12)
     axes = fig.subplots(rows, cols, sharex=True, sharey=True, squeeze=False)
     top = max([float(np.nanmax(e)) for _, e in series.values() if len(e) and np.isfinite(e).any()] + [1.0])
+    decades = 10.0 ** np.arange(-1, math.ceil(math.log10(top * 1.5)))
     for ax, method in zip(axes.ravel(), methods):
         t, e = series[method]
         ax.plot(t, np.maximum(e, 1e-2), color=method_hex(method), lw=0.9)
         _t_a_line(ax, t_a)
         ax.set_yscale("log")
         ax.yaxis.set_minor_locator(NullLocator())
+        ax.set_yticks(decades, labels=[f"{d:g}" for d in decades])    # every decade, read as plain metres
         ax.set_ylim(0.1, top * 1.5)
         ax.set_xlim(0, end_s)
         ax.grid(True, which="major", color="#eeeeee", lw=0.6)
