@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/auvreplay demo
+	$(BIN)/auvreplay demo --force
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -32,7 +32,7 @@ class Fix:
 
 
 class ErrorSample(NamedTuple):
-    """Horizontal error of one method's estimate at one follower GPS fix."""
+    """Horizontal error of one method's estimate against GPS: at a follower GPS fix, or at a USBL epoch."""
 
     # a NamedTuple, not a frozen dataclass: one per method at every GPS fix, built ~3x cheaper
 

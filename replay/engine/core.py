@@ -212,14 +212,19 @@ class Engine:
     def _on_usbl(self, epoch: UsblEpoch, truth: tuple[float, float] | None,
                  positions: dict[str, tuple[float, float]]) -> None:
         self.usbl_epochs += 1
-        if truth is not None and epoch.t_s >= self.training_end_s:   # every method is scored on one window
+        samples: list[ErrorSample] = []
+        if truth is not None:
             e, n = truth
-            for method, (pe, pn) in positions.items():
-                if math.isfinite(pe) and math.isfinite(pn):
-                    self.positioning_errors[method].append(math.hypot(pe - float(e), pn - float(n)))
+            samples = [ErrorSample(epoch.t_s, method, math.hypot(pe - float(e), pn - float(n)))
+                       for method, (pe, pn) in positions.items() if math.isfinite(pe) and math.isfinite(pn)]
+        if epoch.t_s >= self.training_end_s:   # every method is scored on one window
+            for s in samples:
+                self.positioning_errors[s.method].append(s.error_m)
         self._feed_fix(epoch, positions)
         for listener in self.listeners:
             listener.usbl(epoch, positions)
+            if samples:     # the positioning methods' error series, beside the filters' (views, report)
+                listener.errors(epoch.target, samples)
 
     def _feed_fix(self, epoch: UsblEpoch, positions: dict[str, tuple[float, float]]) -> None:
         """With engine.usbl_update set, the chosen method's fix of a follower goes to its filters."""

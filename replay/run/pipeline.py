@@ -21,6 +21,7 @@ from replay.events import Listener, RunResults
 from replay.review.collector import ReviewCollector
 from replay.run.config import RunConfig, canonical_json, run_id, to_dict
 from replay.run.metrics import format_table, metrics_table, run_metrics
+from replay.run.outputs import claim_outputs
 from replay.run.results_writer import ResultsWriter
 
 SENSORS = ("gps", "ins", "dvl", "modem/range", "usbl")
@@ -65,13 +66,19 @@ def default_output(archive: str | Path, rid: str) -> Path:
 
 
 def replay_archive(archive: str | Path, config: RunConfig | None = None, output: str | Path | None = None,
-                   write_output: bool = True, review: bool = False) -> RunOutcome:
-    """Replay an archive with a configuration; see the module docstring for what comes out."""
+                   write_output: bool = True, review: bool = False, force: bool = False) -> RunOutcome:
+    """Replay an archive with a configuration; see the module docstring for what comes out.
+
+    The results archive and its metrics files are claimed (replay.run.outputs) before the run:
+    an existing one is refused unless `force`.
+    """
     config = config or RunConfig()
     sha = file_sha256(archive)
     version = package_version()
     rid = run_id(config, sha, version)
     out_path = Path(output) if output is not None else (default_output(archive, rid) if write_output else None)
+    if out_path is not None:
+        claim_outputs(results_paths(out_path), force)
     wall0 = time.monotonic()
     with ArchiveReader(archive) as reader:
         summary = reader.summary()
@@ -104,7 +111,7 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
             wall = time.monotonic() - wall0
             metrics["wall_s"] = wall
             if writer is not None:
-                _write_run_metadata(writer, config, rid, sha, version, archive, wall, metrics, t0_ns, engine)
+                write_run_metadata(writer, config, rid, sha, version, archive, wall, metrics, t0_ns, engine)
                 writer.close()
         except BaseException:
             if writer is not None:
@@ -120,7 +127,8 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
     return outcome
 
 
-def _write_run_metadata(writer: ArchiveWriter, config: RunConfig, rid: str, sha: str, version: str,
+def write_run_metadata(writer: ArchiveWriter, config: RunConfig, rid: str, sha: str, version: str,
+    """The run's notes as events and its `run` metadata record (parameters, version, input hash, metrics)."""
                         archive: Any, wall: float, metrics: dict[str, Any], t0_ns: int, engine: Engine) -> None:
     for note in engine.notes:
         writer.write(f"/replay/{rid}/events", S.Log(timestamp=S.timestamp(t0_ns), level=3, message=note,
@@ -134,10 +142,14 @@ def _write_run_metadata(writer: ArchiveWriter, config: RunConfig, rid: str, sha:
     })
 
 
+def results_paths(output: Path) -> tuple[Path, Path, Path]:
+    """The files a run with results archive `output` writes: the archive, <output>.metrics.csv and .json."""
+    return output, output.with_suffix(".metrics.csv"), output.with_suffix(".metrics.json")
+
+
 def save_metrics(metrics: dict[str, Any], output: Path) -> tuple[Path, Path]:
     """<output>.metrics.csv (one row per method) and <output>.metrics.json."""
-    csv_path = output.with_suffix(".metrics.csv")
-    json_path = output.with_suffix(".metrics.json")
+    _, csv_path, json_path = results_paths(output)
     rows = metrics_table(metrics)
     with open(csv_path, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]) if rows else ["method"])
@@ -147,7 +159,4 @@ def save_metrics(metrics: dict[str, Any], output: Path) -> tuple[Path, Path]:
     return csv_path, json_path
 
 
-# the online run (replay.run.online) writes the same run record
-write_run_metadata = _write_run_metadata
-
-__all__ = ["RunOutcome", "format_table", "replay_archive", "save_metrics", "write_run_metadata"]
+__all__ = ["RunOutcome", "format_table", "replay_archive", "results_paths", "save_metrics", "write_run_metadata"]
