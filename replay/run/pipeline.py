@@ -128,8 +128,8 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
 
 
 def write_run_metadata(writer: ArchiveWriter, config: RunConfig, rid: str, sha: str, version: str,
-    """The run's notes as events and its `run` metadata record (parameters, version, input hash, metrics)."""
                         archive: Any, wall: float, metrics: dict[str, Any], t0_ns: int, engine: Engine) -> None:
+    """The run's notes as events and its `run` metadata record (parameters, version, input hash, metrics)."""
     for note in engine.notes:
         writer.write(f"/replay/{rid}/events", S.Log(timestamp=S.timestamp(t0_ns), level=3, message=note,
                                                     name="engine"), t0_ns)
