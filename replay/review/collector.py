@@ -200,7 +200,12 @@ class ReviewCollector(Listener):
             if rows:
                 setattr(data, name, pd.DataFrame(rows))
         data.parameters = self.parameters
-        data.errors = pd.concat([data.errors, positioning_errors(data.kmcdf, data.tracks)], ignore_index=True)
+        # an engine that already hands the positioning errors to errors() keeps its own rows
+        have = set(zip(data.errors["follower"], data.errors["method"], strict=True)) if not data.errors.empty else set()
+        extra = positioning_errors(data.kmcdf, data.tracks)
+        if not extra.empty:
+            extra = extra[[(f, m) not in have for f, m in zip(extra["follower"], extra["method"], strict=True)]]
+        data.errors = pd.concat([data.errors, extra], ignore_index=True) if not extra.empty else data.errors
         data.events = data.events.sort_values("t_s", kind="stable", ignore_index=True)
         return data
 

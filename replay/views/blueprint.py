@@ -85,7 +85,7 @@ def map_zoom(reviews: list[ReviewData], width_px: float = 450.0) -> float | None
 def _navigation(runs: list[Run]) -> rrb.Container:
     reviews = [r.review for r in runs]
     return rrb.Horizontal(
-        rrb.MapView(name="Map: GPS truth (grey) and every track", contents=_contents(runs, "map"),
+        rrb.MapView(name="Map: GPS truth and every track", contents=_contents(runs, "map"),
                     overrides=_trail_overrides(runs, "map"), zoom=map_zoom(reviews)),
         rrb.Spatial2DView(name="Local east/north (m), range circles", contents=_contents(runs, "local"),
                           overrides=_trail_overrides(runs, "local"), visual_bounds=_local_bounds(reviews)),
@@ -155,7 +155,7 @@ def _anfis_model(run: Run, model: str) -> rrb.Container:
                             visual_bounds=mf_bounds) for i, n in enumerate(names, start=1)]
     now = [rrb.Spatial2DView(name=f"{n}: now", contents=[f"+ {base}/explain/mf/in{i}/**"],
                              visual_bounds=mf_bounds) for i, n in enumerate(names, start=1)]
-    surface = rrb.Spatial3DView(name="Output surface (f3 median); red plane T2",
+    surface = rrb.Spatial3DView(name="Output surface (f3 at median)",
                                 eye_controls=rrb.EyeControls3D(kind="Orbital", position=(2.5, -1.7, 1.8),
                                                                look_target=(0.45, 0.45, 0.3), eye_up=(0, 0, 1)),
                                 contents=[f"+ {base}/training/surface", f"+ {base}/training/axes",
@@ -167,7 +167,7 @@ def _anfis_model(run: Run, model: str) -> rrb.Container:
                                                contents=[f"+ {base}/training/rmse_bars"],
                                                plot_legend=rrb.PlotLegend(visible=False)), row_shares=[3, 1]),
         rrb.Vertical(*now),
-        rrb.Vertical(rrb.Spatial2DView(name="Rule firing", contents=[f"+ {base}/explain/firing"],
+        rrb.Vertical(rrb.Spatial2DView(name="Rule firing strengths", contents=[f"+ {base}/explain/firing"],
                                        visual_bounds=rrb.VisualBounds2D(x_range=[-0.1, 1.1], y_range=[-1.1, 0.1])),
                      rrb.TextDocumentView(name="Why (not) flagged", contents=[f"+ {base}/explain/verdict"])),
         column_shares=[1, 1.4, 1, 1], name=f"{model}{tag}",
@@ -211,7 +211,7 @@ def build_blueprint(runs: list[Run], error_top: float, active_tab: int | str = 0
     """The workstation layout for one run or two compared; `error_top` the error plots' y extent."""
     tabs = [_scoreboard(runs, error_top), _detection(runs), _navigation(runs), _anfis(runs), _kmcdf(runs)]
     main = rrb.Tabs(*(t for t in tabs if t is not None), active_tab=active_tab)
-    log = rrb.TextLogView(name="Events (mission s)", contents=_contents(runs, "events"),
+    log = rrb.TextLogView(name="Events", contents=_contents(runs, "events"),
                           columns=rrb.archetypes.TextLogColumns(
                               timeline_columns=[rrb.encodings.TimelineColumn("mission_s")],
                               text_log_columns=[rrb.encodings.TextLogColumn("LogLevel"), rrb.encodings.TextLogColumn("Body")]))
