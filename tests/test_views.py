@@ -13,21 +13,19 @@ import pandas as pd
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from replay.review.data import ReviewData
-from tests.review_fixtures import FOLLOWER, LEADERS, synthetic_review
-
 from rerun.chunk import RrdReader
 
-from replay.views import recording as views
-from replay.views.common import make_runs
 from replay.commands import view as view_cmd
 from replay.errors import UserError
+from replay.review.data import ReviewData
 from replay.review.scoreboard import format_value, scoreboard
 from replay.stack.detectors.anfis import AnfisModel, predict
+from replay.views import recording as views
 from replay.views.anfis import SURFACE_GRID, grid_triangles, history_of, surface
 from replay.views.cdf import CDF_SNAPSHOTS, PERCENTILES, error_axis, expanding_quantiles
+from replay.views.common import make_runs
 from replay.views.tracks import decimate
+from tests.review_fixtures import FOLLOWER, LEADERS, synthetic_review
 
 N_EPOCHS, ANFIS_EPOCHS = 40, 6
 
