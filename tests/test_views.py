@@ -192,7 +192,7 @@ def test_error_cdf_grows_with_readable_percentiles(rrd: Rrd, review: ReviewData)
     ticks = rrd.static[f"/run-a/cdf/{FOLLOWER}/axes/x_ticks"][0].column("Points2D:labels").to_pylist()[0]
     assert all(float(t) == pytest.approx(v) for t, v in zip(ticks, axis.ticks(), strict=True)) and len(ticks) >= 3
     legend = rrd.static[f"/run-a/cdf/{FOLLOWER}/legend/names"][0].column("Points2D:labels").to_pylist()[0]
-    assert sorted(legend) == sorted(review.errors.method.unique())
+    assert sorted(t.split()[0] for t in legend) == sorted(review.errors.method.unique())
     for method in review.errors.method.unique():
         assert rrd.rows(f"/run-a/series/error/{FOLLOWER}/{method}") == (review.errors.method == method).sum()
 
@@ -368,9 +368,14 @@ def test_comparison_names_runs_by_what_differs_and_says_what_changed(review: Rev
     assert "ckf [r_m=2.5]" in info and "ckf [r_m=2]" in info_a and info["ckf [r_m=2.5]"] != info_a["ckf [r_m=2]"]
     assert not any("] " in n and n.count("[") > 1 for n in out.view_names)          # no doubled tags
     changes = out.static["/run-b/changes"][0].column("TextDocument:text").to_pylist()[0][0]
-    assert "**r_m=2** against **r_m=2.5**" in changes
+    assert "**A = r_m=2** against **B = r_m=2.5**" in changes
     assert sum(n.startswith("Scoreboard") for n in out.view_names) == 2
     assert sum(n.startswith("Detection lanes") for n in out.view_names) == 1     # both runs in one view
+    # a detector's lanes of both runs are neighbours: one root, the run last
+    assert out.rows("/lanes/follower/leader1/2_chi_square/1_r_m_2") == (
+        (a.detections.leader == "leader1") & (a.detections.method == "chi_square")).sum()
+    assert out.rows("/lanes/follower/leader1/2_chi_square/2_r_m_2.5") == (
+        (b.detections.leader == "leader1") & (b.detections.method == "chi_square")).sum()
 
 
 def _view_args(*argv: str) -> argparse.Namespace:

@@ -239,9 +239,9 @@ def _log_surface_frame(rec: rr.RecordingStream, run: Run, model: str, h: ModelHi
     lo, hi = h.input_min, h.input_max
     real = lo[:2, None] + frame.grid * (hi[:2, None] - lo[:2, None])          # grid values in the inputs' units
     mid = SURFACE_GRID // 2
-    labels = [f"{INPUT_NAMES[0]}: epochs below (median {real[0, mid]:.3g}, 99 % {real[0, -1]:.3g})",
-              f"{INPUT_NAMES[1]}: epochs below (median {real[1, mid]:.3g}, 99 % {real[1, -1]:.3g})",
-              f"output, top {frame.z_top:.3g} m"]
+    labels = [f"f1 by rank: median {real[0, mid]:.3g} m, 99 % {real[0, -1]:.3g} m",
+              f"f2 by rank: median {real[1, mid]:.3g}, 99 % {real[1, -1]:.3g}",
+              f"output (m), top {frame.z_top:.3g}"]
     axes = [np.array([[0, 0, 0], [1, 0, 0]]), np.array([[0, 0, 0], [0, 1, 0]]), np.array([[0, 0, 0], [0, 0, 1]])]
     rec.log(run.path("anfis", model, "training", "axes"),
             rr.LineStrips3D(axes, labels=labels, colors=[(128, 128, 128)]), static=True)

@@ -25,7 +25,7 @@ from rerun.encodings import EntityPathLike
 from replay.review.data import ReviewData
 from replay.views.cdf import HEIGHT, WIDTH
 from replay.views.common import Run, floats, groups, part
-from replay.views.lanes import training_end_s
+from replay.views.lanes import COMPARED_ROOT, training_end_s
 from replay.views.positioning import fix_methods, kmcdf_half_width
 from replay.views.tracks import KEY, KEY_STEP, geo_bounds, key_rows, track_bounds
 
@@ -104,7 +104,7 @@ def _scoreboard(runs: list[Run], error_top: float) -> rrb.Container:
                                          contents=[f"+ {runs[1].path('changes')}"]))
     cdfs: list[rrb.View | rrb.Container] = []
     for f in followers:
-        bounds = rrb.VisualBounds2D(x_range=[-13.0, WIDTH + 4.0], y_range=[-HEIGHT - 8.0, 11.0])
+        bounds = rrb.VisualBounds2D(x_range=[-13.0, WIDTH + 8.0], y_range=[-HEIGHT - 8.0, 11.0])
         cdfs.append(rrb.Spatial2DView(name=f"Error CDF of {f} after t_a, so far",
                                       contents=[f"+ {r.path('cdf', f)}/**" for r in runs]
                                       + [f"- {r.path('cdf', f, 'table')}" for r in runs], visual_bounds=bounds))
@@ -113,8 +113,11 @@ def _scoreboard(runs: list[Run], error_top: float) -> rrb.Container:
             contents=[f"+ {r.path('cdf', f, 'table')}"]) for r in runs)))
     errors = _series("Error vs GPS (m), whole mission; colours as in the CDF; grey line: t_a",
                      _contents(runs, "series", "error") + _contents(runs, "series", "marks"), error_top, legend=False)
+    # two runs: what changed first, the two scoreboards as tabs beneath (side by side they would not fit)
+    left = (rrb.Vertical(docs[0], errors, row_shares=[1, 1]) if len(docs) == 1 else
+            rrb.Vertical(docs[2], rrb.Tabs(*docs[:2]), errors, row_shares=[1.1, 1.1, 1]))
     return rrb.Horizontal(
-        rrb.Vertical(rrb.Horizontal(*docs) if len(docs) > 1 else docs[0], errors, row_shares=[1, 1]),
+        left,
         rrb.Vertical(*cdfs, row_shares=[1.4, 1] * len(followers)) if cdfs else rrb.Vertical(),
         column_shares=[1.45, 1], name="Scoreboard",
     )
@@ -124,7 +127,8 @@ def _detection(runs: list[Run]) -> rrb.Container:
     t_a = ", ".join(f"{training_end_s(r):.0f} s" for r in runs)
     lanes = rrb.StateTimelineView(
         name=f"Detection lanes: truth, then hit / false alarm / miss / quiet per detector (t_a = {t_a})",
-        contents=_contents(runs, "lanes"), time_view=_whole_mission())
+        contents=_contents(runs, "lanes") if len(runs) == 1 else [f"+ {COMPARED_ROOT}/**"],
+        time_view=_whole_mission())
     features = [_series(f, [f"+ {r.path('series', f)}/**" for r in runs])
                 for f in ("f1_innovation_m", "f2_mahalanobis2", "f3_r_adapted_m2")]
     return rrb.Vertical(
@@ -133,7 +137,7 @@ def _detection(runs: list[Run]) -> rrb.Container:
                 anfis_top(runs)),
         rrb.Horizontal(*features, _series("Ranges measured / true (m)", _contents(runs, "series", "range")),
                        _series("Residual measured - true (m)", _contents(runs, "series", "residual"))),
-        row_shares=[5.5, 2, 1.5], name="Detection",
+        row_shares=[7, 2, 1.5], name="Detection",
     )
 
 
@@ -194,7 +198,7 @@ def _kmcdf(runs: list[Run]) -> rrb.Container | None:
             methods = sorted(rows["method"].astype(str).unique())
             prelim = ", ".join(with_fixes) if with_fixes else "none"
             views.append(rrb.Spatial2DView(
-                name=f"KMCDF {t}{tag}: final fixes minus GPS (m); preliminary fixes of {prelim} (green kept)",
+                name=f"KMCDF {t}{tag}: fixes minus GPS (m); preliminary fixes of {prelim}: green kept, red C2",
                 contents=[f"+ {run.path('kmcdf', t, m)}/final" for m in methods]
                 + [f"+ {run.path('kmcdf', t, m)}/fixes" for m in with_fixes]
                 + [f"+ {run.path('kmcdf', t, 'truth')}/**"],

@@ -184,21 +184,24 @@ def _log_axes(rec: rr.RecordingStream, path: str, axis: LogAxis) -> None:
 
 
 def _log_legend(rec: rr.RecordingStream, runs: list[Run], follower: str, path: str) -> None:
-    """One entry per run and method, its name in its colour, best first (scoreboard order)."""
+    """One entry per method, its name and p50 in its colour, best first (the first run's scoreboard order)."""
     entries: list[tuple[str, tuple[int, int, int]]] = []
-    for run in runs:
-        present = {str(k[1]) for k, _ in groups(run.review.errors, ["follower", "method"]) if str(k[0]) == follower}
-        ranked = [r.method for r in scoreboard(run.review.metrics) if r.method in present]
-        for m in ranked + sorted(present - set(ranked)):
-            p50 = run.review.metrics.get("methods", {}).get(m, {}).get("error_p50_m")
-            text = run.name(m) + (f"  p50 {p50:.2f} m" if isinstance(p50, float) else "")
-            entries.append((text, method_rgb(m, run.index)))
+    present = [{str(k[1]) for k, _ in groups(r.review.errors, ["follower", "method"]) if str(k[0]) == follower}
+               for r in runs]
+    first = runs[0]
+    ranked = [r.method for r in scoreboard(first.review.metrics) if r.method in present[0]]
+    for m in ranked + sorted(set().union(*present) - set(ranked)):
+        p50 = [r.review.metrics.get("methods", {}).get(m, {}).get("error_p50_m") for r in runs]
+        figures = " / ".join(f"{v:.2f}" if isinstance(v, float) else "-" for v in p50)
+        entries.append((f"{m}  p50 {figures} m", method_rgb(m, 0)))
+    if len(runs) == 2:       # one line per method, both runs' p50 (A / B); B's curves are the shade
+        entries.insert(0, ("A / B: B's curves lighter or darker", (128, 128, 128)))
     if not entries:
         return
     step = min(4.5, 0.6 * HEIGHT / len(entries))
     y = -step * np.arange(len(entries))[::-1] - step
     x0 = 0.64 * WIDTH
-    rec.log(path + "/names", rr.Points2D(np.column_stack([np.full(y.size, x0 + 20.0), y]),
+    rec.log(path + "/names", rr.Points2D(np.column_stack([np.full(y.size, x0 + 17.0), y]),
                                          labels=[t for t, _ in entries], colors=[c for _, c in entries],
                                          radii=rr.Radius.ui_points(0.1)), static=True)
 
@@ -212,9 +215,10 @@ def _log_table(rec: rr.RecordingStream, run: Run, follower: str, at: np.ndarray,
     head = "| method | " + " | ".join(f"p{int(p * 100)} (m)" for p in PERCENTILES) + " |\n|---|" + "---:|" * len(
         PERCENTILES) + "\n"
     order = sorted(table, key=lambda m: (np.nan_to_num(table[m][-1, 0], nan=np.inf), m))
-    rows = [[f"| {run.name(m)} | " + " | ".join(np.char.mod("%.2f", table[m][i]).tolist()) + " |" for m in order]
+    rows = [[f"| {m} | " + " | ".join(np.char.mod("%.2f", table[m][i]).tolist()) + " |" for m in order]
             for i in range(at.size)]
-    docs = [f"**Errors of {follower} from t_a = {t_a:.0f} s to {t:.0f} s** (mission seconds; the metrics "
+    tag = f" [{run.label}]" if run.label else ""
+    docs = [f"**Errors of {follower}{tag} from t_a = {t_a:.0f} s to {t:.0f} s** (mission seconds; the metrics "
             f"window, so at the end these are the scoreboard's p50/p90)\n\n" + head + "\n".join(rows[i])
             for i, t in enumerate(at)]
     rec.send_columns(run.path("cdf", follower, "table"), indexes=run.times(at),

@@ -8,7 +8,8 @@ Entities under a run prefix P, on `time` and `mission_s` (StateChange, one row p
 - ``P/lanes/<follower>/0 scoring window``: "training" before t_a, "scored" after.
 Every lane has a static StateConfiguration that fixes each state's label and colour, so hits, false
 alarms and misses read the same in every lane. The number in a lane's name keeps the truth first
-and the detectors in the run's own method order.
+and the detectors in the run's own method order. In a comparison the lanes of both runs sit under
+one root instead, the run last (see `lane_path`), so a detector's two runs are neighbours.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import numpy as np
 import pandas as pd
 import rerun as rr
 
-from replay.views.common import Run, groups
+from replay.views.common import Run, groups, part
 
 # state -> colour; the same in every lane and every run (errors loud, correct silence quiet)
 STATES: tuple[tuple[str, tuple[int, int, int]], ...] = (
@@ -54,10 +55,22 @@ def training_end_s(run: Run) -> float:
     return float(ex["t_s"].min()) if not ex.empty and "t_s" in ex else 0.0
 
 
+COMPARED_ROOT = "/lanes"
+"""In a comparison every run's lane sits under one root, the run last, so the two runs' lanes of one
+detector are neighbours: `/lanes/<follower>/<leader>/<k> <method>/<i> <run label>`."""
+
+
+def lane_path(run: Run, *parts: str) -> str:
+    """A lane's entity path: under the run's prefix, or in a comparison under COMPARED_ROOT with the run last."""
+    if not run.label:
+        return run.path("lanes", *parts)
+    return "/".join([COMPARED_ROOT, *(part(p) for p in (*parts, f"{run.index + 1} {run.label}"))])
+
+
 def lane_paths(run: Run, follower: str, leader: str, methods: list[str]) -> list[str]:
     """The lanes of one leader, truth first, then the detectors in the order given."""
-    return ([run.path("lanes", follower, leader, "1 truth")]
-            + [run.path("lanes", follower, leader, f"{k + 2} {m}") for k, m in enumerate(methods)])
+    return ([lane_path(run, follower, leader, "1 truth")]
+            + [lane_path(run, follower, leader, f"{k + 2} {m}") for k, m in enumerate(methods)])
 
 
 def _configure(rec: rr.RecordingStream, path: str) -> None:
@@ -80,7 +93,7 @@ def log_lanes(rec: rr.RecordingStream, run: Run) -> None:
         t = np.unique(f_rows["t_s"].to_numpy(dtype=float))
         if t.size:
             marks = np.array([t[0], t_a, t[-1]]) if t[0] < t_a < t[-1] else np.array([t[0], t[-1]])
-            _send(rec, run, run.path("lanes", str(follower), "0 scoring window"), marks,
+            _send(rec, run, lane_path(run, str(follower), "0 scoring window"), marks,
                   np.where(marks < t_a, "training", "scored").astype(object))
         methods = order + sorted({str(m) for m in f_rows["method"].unique()} - set(order))
         for (leader,), rows in groups(f_rows, ["leader"]):

@@ -34,6 +34,10 @@ def _number(value: Any) -> float:
     return float(value) if isinstance(value, (int, float)) and math.isfinite(value) else math.nan
 
 
+def _count(value: float) -> str:
+    return str(int(value)) if math.isfinite(value) else "-"
+
+
 def best_detector(rows: list[ScoreRow]) -> ScoreRow | None:
     """The detector with the fewest wrong decisions (FP + FN) after t_a; ties by AUC, then name."""
     det = [r for r in rows if r.kind == "detector" and r.figures.get("fp") is not None]
@@ -70,20 +74,19 @@ def changes_markdown(runs: list[Run]) -> str:
     """What differs between two runs' configurations, and per method which run had the lower error p50."""
     a, b = runs
     names = run_labels([a.review.parameters, b.review.parameters])
-    lines = [f"**{a.label or names[0]}** against **{b.label or names[1]}**", ""]
+    lines = [f"**A = {a.label or names[0]}** against **B = {b.label or names[1]}** (after t_a)", ""]
     ma, mb = a.review.metrics.get("methods", {}), b.review.metrics.get("methods", {})
-    lines += ["| method | p50 (m) | p50 (m) | FP+FN | FP+FN | better |", "|---|---:|---:|---:|---:|---|"]
+    lines += ["| method | p50 A (m) | p50 B (m) | FP+FN A | FP+FN B | better |", "|---|---:|---:|---:|---:|---|"]
     for method in [m for m in ma if m in mb]:
         pa, pb = _number(ma[method].get("error_p50_m")), _number(mb[method].get("error_p50_m"))
         wa = _number(ma[method].get("fp")) + _number(ma[method].get("fn"))
         wb = _number(mb[method].get("fp")) + _number(mb[method].get("fn"))
         key = (wa, pa) if math.isfinite(wa) and math.isfinite(wb) and wa != wb else (pa, 0.0)
         other = (wb, pb) if math.isfinite(wa) and math.isfinite(wb) and wa != wb else (pb, 0.0)
-        better = "-" if key == other or not (math.isfinite(key[0]) and math.isfinite(other[0])) else (
-            a.label if key < other else b.label)
+        better = "same" if key == other or not (math.isfinite(key[0]) and math.isfinite(other[0])) else (
+            "A" if key < other else "B")
         lines.append(f"| {method} | {format_value(ma[method].get('error_p50_m'))} | "
-                     f"{format_value(mb[method].get('error_p50_m'))} | {format_value(wa if math.isfinite(wa) else None)}"
-                     f" | {format_value(wb if math.isfinite(wb) else None)} | {better} |")
+                     f"{format_value(mb[method].get('error_p50_m'))} | {_count(wa)} | {_count(wb)} | {better} |")
     lines += ["", "better: fewer wrong detections (FP + FN) where both runs detect, else the lower error p50."]
     return "\n".join(lines)
 

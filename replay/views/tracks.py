@@ -156,10 +156,9 @@ def log_range_circles(rec: rr.RecordingStream, run: Run) -> None:
         centre = np.column_stack([floats(rows, "leader_east_m"), -floats(rows, "leader_north_m")])
         label = _epoch_labels(run, rows)
         rgb = np.where((label == 1)[:, None], ANOMALOUS_RGB, np.where((label == 0)[:, None], NORMAL_RGB, UNKNOWN_RGB))
-        text = (f"{leader} " + pd.Series(radius).round(1).astype(str) + " m").to_numpy()
         rec.send_columns(run.path("local", "ranges", str(follower), str(leader)), indexes=run.times(rows["t_s"]),
                          columns=rr.Ellipses2D.columns(half_sizes=np.column_stack([radius, radius]), centers=centre,
-                                                       colors=rgb.astype(np.uint8), labels=text,
+                                                       colors=rgb.astype(np.uint8),
                                                        line_radii=np.full(len(rows), rr.Radius.ui_points(1.0),
                                                                           dtype=np.float32)))
 
