@@ -9,6 +9,7 @@ last snapshot's p50/p90 are the scoreboard's.
 Entities under a run prefix P, for each follower F:
 - ``P/cdf/F/<method>/curve`` LineStrips2D on `time`/`mission_s`: the CDF so far, at up to
   `CDF_SNAPSHOTS` instants from t_a; ``.../percentiles`` Points2D marking p50, p90, p95;
+  ``.../final`` static and faint: the whole window's CDF (what the curve grows into);
 - ``P/cdf/F/table`` TextDocument: p50/p90/p95 of each method from t_a up to the instant;
 - ``P/cdf/F/axes`` and ``P/cdf/F/legend`` static (shared by both runs of a comparison, under the
   first run's prefix).
@@ -154,6 +155,9 @@ def _log_curve(rec: rr.RecordingStream, run: Run, follower: str, method: str, at
     rec.send_columns(run.path("cdf", follower, method, "curve"), indexes=run.times(at),
                      columns=rr.LineStrips2D.columns(strips=np.ascontiguousarray(strips), colors=np.tile(rgb, (k, 1)),
                                                      radii=np.full(k, rr.Radius.ui_points(1.5), dtype=np.float32)))
+    # the whole window's CDF, faint and static: the plot reads before the cursor reaches the end
+    rec.log(run.path("cdf", follower, method, "final"),
+            rr.LineStrips2D([strips[-1]], colors=[(*rgb.tolist(), 70)], radii=rr.Radius.ui_points(1.0)), static=True)
     n_marks = len(PERCENTILES)
     pos = np.stack([axis.x(marks.ravel()), np.tile(-np.array(PERCENTILES) * HEIGHT, k)], axis=-1)
     cols = rr.Points2D.columns(positions=pos, colors=np.tile(rgb, (k * n_marks, 1)),
