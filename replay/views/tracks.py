@@ -76,6 +76,7 @@ def _log_track(rec: rr.RecordingStream, run: Run, vehicle: str, source: str, row
     size, trail_size = (6.0, 2.0) if truth else (4.5, 1.0)
     times = run.times(rows["t_s"])
     trail = trail_indices(t)
+    trail_times = run.times(t[trail])
     # what is the same on every row (colour, size, name) is logged once, static; the rows carry positions
     geo_ok = np.isfinite(lat) & np.isfinite(lon)
     if geo_ok.any():
@@ -93,7 +94,7 @@ def _log_track(rec: rr.RecordingStream, run: Run, vehicle: str, source: str, row
                          columns=rr.GeoPoints.columns(positions=np.column_stack([lat, lon])))
         rec.log(base + "/trail", rr.GeoPoints.from_fields(colors=[rgb], radii=rr.Radius.ui_points(trail_size)),
                 static=True)
-        rec.send_columns(base + "/trail", indexes=run.times(t[trail]),
+        rec.send_columns(base + "/trail", indexes=trail_times,
                          columns=rr.GeoPoints.columns(positions=np.column_stack([lat[trail], lon[trail]])))
     local_ok = np.isfinite(east) & np.isfinite(north)
     if local_ok.any():
@@ -112,7 +113,7 @@ def _log_track(rec: rr.RecordingStream, run: Run, vehicle: str, source: str, row
         rec.log(base + "/trail", rr.Points2D.from_fields(class_ids=[cid], show_labels=False,
                                                          radii=rr.Radius.ui_points(trail_size),
                                                          draw_order=20.0 if truth else 10.0), static=True)
-        rec.send_columns(base + "/trail", indexes=run.times(t[trail]),
+        rec.send_columns(base + "/trail", indexes=trail_times,
                          columns=rr.Points2D.columns(positions=np.column_stack([east[trail], -north[trail]])))
 
 
