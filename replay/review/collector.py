@@ -10,10 +10,18 @@ import numpy as np
 import pandas as pd
 
 from replay.engine.layout import TrialLayout
-from replay.events import EpochResult, ErrorSample, Fix, Listener, RunResults, TrainedDetectors, UsblEpoch
+from replay.events import (
+    EpochResult,
+    ErrorSample,
+    Fix,
+    Listener,
+    RunResults,
+    TrainedDetectors,
+    UsblEpoch,
+)
 from replay.review.data import ReviewData
 from replay.stack.config import DETECTING_METHODS
-from replay.stack.model import horizontal_offset_m
+from replay.stack.model import horizontal_offset_m, offset_to_latlon
 
 RAD = 180.0 / math.pi
 INS_DECIMATE_S = 1.0
@@ -22,8 +30,13 @@ INS_DECIMATE_S = 1.0
 class ReviewCollector(Listener):
     """Keeps rows for every ReviewData table while the engine runs."""
 
-    def __init__(self, run_id: str, trial: dict[str, Any], t0_ns: int, layout: TrialLayout):
+    def __init__(self, run_id: str, trial: dict[str, Any], t0_ns: int, layout: TrialLayout,
+                 parameters: dict[str, Any] | None = None):
         self.run_id, self.trial, self.t0_ns, self.layout = run_id, trial, t0_ns, layout
+        self.parameters = dict(parameters or {})
+        self._label: dict[tuple[str, str], tuple[int, float, int]] = {}    # (follower, leader) -> label, since, n
+        # with one follower, events need not name it
+        self._many = sum(role == "follower" for role in dict(layout.roles).values()) > 1
         self._origin: tuple[float, float] | None = None
         self.rows: dict[str, list[dict[str, Any]]] = {k: [] for k in (
             "tracks", "ranges", "detections", "errors", "anfis_epochs", "anfis_explain", "kmcdf", "events")}
@@ -66,6 +79,9 @@ class ReviewCollector(Listener):
                                     "measured_m": r0.range_m, "true_m": truth, "residual_m": r0.range_m - truth,
                                     "leader_east_m": le, "leader_north_m": ln, "horizontal_m": r0.range_m})
         models = self._models.get(follower)
+        self._interval(follower, r0)
+        if models is not None and r0.time_s > models.training_end_s:
+            self._verdict_event(follower, [r for r in results if r.method in DETECTING_METHODS])
         for r in results:
             if r.method not in DETECTING_METHODS:
                 continue
@@ -74,11 +90,50 @@ class ReviewCollector(Listener):
                 "flagged": bool(r.flagged), "score": r.score, "threshold": r.threshold, "f1_innovation_m": r.f1,
                 "f2_mahalanobis2": r.f2, "f3_r_adapted_m2": r.f3, "label": int(r.label),
                 "isolated": bool(r.isolated), "capped": bool(r.capped)})
-            if r.flagged:
-                self.event(r.time_s, "INFO", f"{follower}: {r.method} flagged the range to {r.leader} "
-                                             f"(score {r.score:.2f} > {r.threshold:.2f}, label {r.label})")
             if r.method == "anfis" and models is not None and r.time_s > models.training_end_s:
                 self._explain(models, r)
+
+    def _who(self, follower: str, leader: str) -> str:
+        return f"{follower}/{leader}" if self._many else leader
+
+    def _interval(self, follower: str, r: EpochResult) -> None:
+        """Anomaly intervals of the truth labels: an event where one starts and where it ends."""
+        key = (follower, r.leader)
+        last, since, n = self._label.get(key, (0, r.time_s, 0))
+        label = int(r.label)
+        if label == 1 and last != 1:
+            self.event(r.time_s, "INFO", f"ANOMALY STARTS {self._who(follower, r.leader)} (truth label 1)")
+            since, n = r.time_s, 0
+        elif label != 1 and last == 1:
+            self.event(r.time_s, "INFO", f"ANOMALY ENDS {self._who(follower, r.leader)}: {n} epochs, {since:.1f} s to "
+                                         f"{r.time_s:.1f} s")
+        self._label[key] = (label, since, n + (label == 1))
+
+    def _verdict_event(self, follower: str, results: list[EpochResult]) -> None:
+        """One line per epoch where a detector flagged or the truth is anomalous; WARN on a miss or false alarm."""
+        if not results:
+            return
+        r0 = results[0]
+        who = self._who(follower, r0.leader)
+        flagged = [r for r in results if r.flagged]
+        if r0.label != 1 and not flagged:
+            return
+        why = f"|innovation| {r0.f1:.1f} m, range error {r0.range_m - r0.truth_range_m:+.1f} m"
+        if r0.label == 1:
+            missed = [r for r in results if not r.flagged]
+            hits = ", ".join(r.method for r in flagged) or "none"
+            if missed:
+                self.event(r0.time_s, "WARN", f"MISS {who}: " + ", ".join(
+                    f"{r.method} ({r.score:.2f} <= T {r.threshold:.2f})" for r in missed)
+                    + f"; anomalous range, {why}; hit by {hits}")
+            else:
+                self.event(r0.time_s, "INFO", f"HIT {who} by every detector; anomalous range, {why}")
+        elif r0.label == 0:
+            self.event(r0.time_s, "WARN", f"FALSE ALARM {who}: " + ", ".join(
+                f"{r.method} ({r.score:.2f} > T {r.threshold:.2f})" for r in flagged) + f"; normal range, {why}")
+        else:
+            self.event(r0.time_s, "INFO", f"FLAGGED {who} (no truth label): "
+                       + ", ".join(r.method for r in flagged))
 
     def _explain(self, models: TrainedDetectors, r: EpochResult) -> None:
         det = models.detectors("anfis").get(r.leader)
@@ -114,6 +169,11 @@ class ReviewCollector(Listener):
     def usbl(self, epoch: UsblEpoch, positions: dict[str, tuple[float, float]]) -> None:
         fixes = epoch.fix.fixes
         for method, (e, n) in positions.items():
+            if self._origin is not None and math.isfinite(e) and math.isfinite(n):
+                lat, lon = offset_to_latlon(n, e, *self._origin)
+                self.rows["tracks"].append({"t_s": epoch.t_s, "vehicle": epoch.target, "source": method,
+                                            "lat_deg": lat * RAD, "lon_deg": lon * RAD, "east_m": e, "north_m": n,
+                                            "std_east_m": math.nan, "std_north_m": math.nan})
             self.rows["kmcdf"].append({
                 "t_s": epoch.t_s, "target": epoch.target, "method": method, "east_m": e, "north_m": n,
                 "fixes_east_m": [f.xy[0] for f in fixes] if method == "kmcdf2" else [],
@@ -121,7 +181,7 @@ class ReviewCollector(Listener):
                 "fixes_cluster": [f.cluster for f in fixes] if method == "kmcdf2" else [],
                 "nodes_east_m": epoch.node_en[:, 0].tolist(), "nodes_north_m": epoch.node_en[:, 1].tolist(),
                 "delay_normal": np.asarray(epoch.fix.delay_normal).tolist(),
-                "phase_normal": np.asarray(epoch.fix.phase_normal).tolist()})
+                "phase_normal": np.asarray(epoch.fix.phase_normal).tolist(), "nodes": list(epoch.nodes)})
 
     def event(self, t_s: float, level: str, text: str) -> None:
         self.rows["events"].append({"t_s": t_s, "level": level, "text": text})
@@ -140,4 +200,34 @@ class ReviewCollector(Listener):
         for name, rows in self.rows.items():
             if rows:
                 setattr(data, name, pd.DataFrame(rows))
+        data.parameters = self.parameters
+        # an engine that already hands the positioning errors to errors() keeps its own rows
+        have = set(zip(data.errors["follower"], data.errors["method"], strict=True)) if not data.errors.empty else set()
+        extra = positioning_errors(data.kmcdf, data.tracks)
+        if not extra.empty:
+            extra = extra[[(f, m) not in have for f, m in zip(extra["follower"], extra["method"], strict=True)]]
+        data.errors = pd.concat([data.errors, extra], ignore_index=True) if not extra.empty else data.errors
+        data.events = data.events.sort_values("t_s", kind="stable", ignore_index=True)
         return data
+
+
+def positioning_errors(kmcdf: pd.DataFrame, tracks: pd.DataFrame) -> pd.DataFrame:
+    """Horizontal error of every positioning fix against its target's GPS, linearly interpolated (as the engine).
+
+    Fixes outside the span of the target's GPS track, or undetermined (NaN), get no row.
+    """
+    parts = []
+    for (target, method), rows in kmcdf.groupby(["target", "method"], sort=True) if not kmcdf.empty else []:
+        gps = tracks[(tracks["vehicle"] == target) & (tracks["source"] == "gps")].sort_values("t_s")
+        if gps.empty:
+            continue
+        t = rows["t_s"].to_numpy(dtype=float)
+        gt = gps["t_s"].to_numpy(dtype=float)
+        e = np.interp(t, gt, gps["east_m"].to_numpy(dtype=float))
+        n = np.interp(t, gt, gps["north_m"].to_numpy(dtype=float))
+        err = np.hypot(rows["east_m"].to_numpy(dtype=float) - e, rows["north_m"].to_numpy(dtype=float) - n)
+        ok = np.isfinite(err) & (t >= gt[0]) & (t <= gt[-1])
+        parts.append(pd.DataFrame({"t_s": t[ok], "follower": str(target), "method": str(method),
+                                   "error_m": err[ok]}))
+    return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(
+        {"t_s": [], "follower": [], "method": [], "error_m": []})

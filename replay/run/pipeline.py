@@ -94,7 +94,8 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
         listeners: list[Listener] = []
         collector = None
         if review:
-            collector = ReviewCollector(rid, reader.metadata_json("trial") or {}, t0_ns, layout)
+            collector = ReviewCollector(rid, reader.metadata_json("trial") or {}, t0_ns, layout,
+                                        to_dict(config))
             listeners.append(collector)
         writer = ArchiveWriter(out_path) if out_path is not None else None
         try:
