@@ -9,7 +9,6 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -399,20 +398,6 @@ def test_view_never_replaces_a_recording_it_did_not_make(tmp_path: Path) -> None
     assert view_cmd.recording_path([a], str(tmp_path / "a.rrd"), True) == tmp_path / "a.rrd"
     assert _view_args(str(a), "--force").force and not _view_args(str(a)).force
     assert (tmp_path / "a.rrd").read_bytes() == b"earlier"
-
-
-def test_positioning_errors_against_interpolated_gps() -> None:
-    from replay.review.collector import positioning_errors
-
-    tracks = pd.DataFrame({"t_s": [0.0, 10.0, 0.0], "vehicle": ["f", "f", "g"], "source": ["gps", "gps", "gps"],
-                           "east_m": [0.0, 10.0, 5.0], "north_m": [0.0, 20.0, 5.0]})
-    kmcdf = pd.DataFrame({"t_s": [5.0, 5.0, 12.0, 7.5], "target": ["f", "f", "f", "f"],
-                          "method": ["kmcdf2", "gar", "gar", "lhc"], "east_m": [8.0, 5.0, 0.0, np.nan],
-                          "north_m": [14.0, 10.0, 0.0, 1.0]})
-    out = positioning_errors(kmcdf, tracks).sort_values(["method", "t_s"], ignore_index=True)
-    # gps at 5 s is (5, 10): kmcdf2 is 5 m off, gar on it; 12 s is past the track, lhc undetermined
-    assert out[["t_s", "method"]].values.tolist() == [[5.0, "gar"], [5.0, "kmcdf2"]]
-    np.testing.assert_allclose(out.error_m, [0.0, 5.0])
 
 
 @pytest.fixture(scope="module")

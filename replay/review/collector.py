@@ -201,33 +201,5 @@ class ReviewCollector(Listener):
             if rows:
                 setattr(data, name, pd.DataFrame(rows))
         data.parameters = self.parameters
-        # an engine that already hands the positioning errors to errors() keeps its own rows
-        have = set(zip(data.errors["follower"], data.errors["method"], strict=True)) if not data.errors.empty else set()
-        extra = positioning_errors(data.kmcdf, data.tracks)
-        if not extra.empty:
-            extra = extra[[(f, m) not in have for f, m in zip(extra["follower"], extra["method"], strict=True)]]
-        data.errors = pd.concat([data.errors, extra], ignore_index=True) if not extra.empty else data.errors
         data.events = data.events.sort_values("t_s", kind="stable", ignore_index=True)
         return data
-
-
-def positioning_errors(kmcdf: pd.DataFrame, tracks: pd.DataFrame) -> pd.DataFrame:
-    """Horizontal error of every positioning fix against its target's GPS, linearly interpolated (as the engine).
-
-    Fixes outside the span of the target's GPS track, or undetermined (NaN), get no row.
-    """
-    parts = []
-    for (target, method), rows in kmcdf.groupby(["target", "method"], sort=True) if not kmcdf.empty else []:
-        gps = tracks[(tracks["vehicle"] == target) & (tracks["source"] == "gps")].sort_values("t_s")
-        if gps.empty:
-            continue
-        t = rows["t_s"].to_numpy(dtype=float)
-        gt = gps["t_s"].to_numpy(dtype=float)
-        e = np.interp(t, gt, gps["east_m"].to_numpy(dtype=float))
-        n = np.interp(t, gt, gps["north_m"].to_numpy(dtype=float))
-        err = np.hypot(rows["east_m"].to_numpy(dtype=float) - e, rows["north_m"].to_numpy(dtype=float) - n)
-        ok = np.isfinite(err) & (t >= gt[0]) & (t <= gt[-1])
-        parts.append(pd.DataFrame({"t_s": t[ok], "follower": str(target), "method": str(method),
-                                   "error_m": err[ok]}))
-    return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(
-        {"t_s": [], "follower": [], "method": [], "error_m": []})

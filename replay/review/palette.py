@@ -1,7 +1,8 @@
-"""One colour per method, for every picture of a run (the HTML report, KML tracks; the Rerun views' table
-in replay/views/common.py holds the same RGB values and should come to import them from here).
+"""One colour per method, for every picture of a run: the Rerun views, the HTML report, KML tracks.
 
-Truth is drawn in a neutral that reads on dark and light backgrounds alike.
+Every colour is of middle lightness so it reads on the viewer's dark theme,
+the web viewer's light one and a white page alike; the truth is a middle
+grey (drawn wider), never white.
 """
 
 from __future__ import annotations
@@ -9,23 +10,28 @@ from __future__ import annotations
 import zlib
 
 METHOD_RGB: dict[str, tuple[int, int, int]] = {
-    "gps": (90, 90, 90),
-    "ins": (150, 150, 150),
+    "gps": (128, 128, 128),
+    "ins": (176, 150, 110),
     "dead_reckoning": (166, 118, 29),
     "ckf": (31, 119, 230),
-    "ackf": (23, 190, 207),
+    "ackf": (23, 180, 200),
     "chi_square": (255, 127, 14),
     "dual_threshold": (148, 103, 189),
-    "anfis": (44, 200, 44),
-    "anfis_aqpso": (188, 230, 34),
-    "anfis_compensation": (0, 150, 120),
+    "anfis": (44, 170, 44),
+    "anfis_aqpso": (150, 190, 20),
+    "anfis_compensation": (0, 140, 110),
     "kmcdf1": (214, 39, 40),
-    "kmcdf2": (227, 119, 194),
-    "gar": (240, 220, 60),
-    "ear": (255, 152, 150),
+    "kmcdf2": (227, 80, 170),
+    "gar": (200, 170, 0),
+    "ear": (240, 120, 110),
     "lms": (128, 128, 0),
-    "lhc": (120, 170, 255),
+    "lhc": (100, 140, 255),
+    "truth": (128, 128, 128),
+    "measured": (255, 170, 40),
+    "cusum_drift": (160, 80, 50),
+    "anfis_hybrid": (90, 60, 200),
 }
+"""Method (or source) name -> RGB; the order is the views' fixed class-id order: new names go last."""
 
 
 def method_rgb(name: str) -> tuple[int, int, int]:
@@ -34,7 +40,7 @@ def method_rgb(name: str) -> tuple[int, int, int]:
     if rgb is not None:
         return rgb
     h = zlib.crc32(name.encode())
-    return (80 + h % 160, 80 + (h >> 8) % 160, 80 + (h >> 16) % 160)
+    return (60 + h % 160, 60 + (h >> 8) % 160, 60 + (h >> 16) % 160)
 
 
 def method_hex(name: str) -> str:

@@ -19,33 +19,13 @@ import pandas as pd
 import rerun as rr
 
 from replay.review.data import ReviewData
+from replay.review.palette import METHOD_RGB
+from replay.review.palette import method_rgb as palette_rgb
 from replay.run.compare import run_labels
 
-# (name, RGB); the order fixes the class ids (1-based) and never changes. Every colour is of middle
-# lightness so it reads on the viewer's dark theme and on the web viewer's light one alike (the truth
-# is a middle grey drawn wider, not white).
-METHOD_STYLE: tuple[tuple[str, tuple[int, int, int]], ...] = (
-    ("gps", (128, 128, 128)),
-    ("ins", (176, 150, 110)),
-    ("dead_reckoning", (166, 118, 29)),
-    ("ckf", (31, 119, 230)),
-    ("ackf", (23, 180, 200)),
-    ("chi_square", (255, 127, 14)),
-    ("dual_threshold", (148, 103, 189)),
-    ("anfis", (44, 170, 44)),
-    ("anfis_aqpso", (150, 190, 20)),
-    ("anfis_compensation", (0, 140, 110)),
-    ("kmcdf1", (214, 39, 40)),
-    ("kmcdf2", (227, 80, 170)),
-    ("gar", (200, 170, 0)),
-    ("ear", (240, 120, 110)),
-    ("lms", (128, 128, 0)),
-    ("lhc", (100, 140, 255)),
-    ("truth", (128, 128, 128)),
-    ("measured", (255, 170, 40)),
-)
+# the palette's order fixes the class ids (1-based) and never changes: new names are added at its end
+METHOD_STYLE: tuple[tuple[str, tuple[int, int, int]], ...] = tuple(METHOD_RGB.items())
 _IDS = {name: i + 1 for i, (name, _) in enumerate(METHOD_STYLE)}
-_RGB = dict(METHOD_STYLE)
 FIRST_FREE_ID = 100
 # KMCDF cluster of a preliminary fix: 1 = C1 (consistent, kept) green, 2 = C2 red; 0 = unclustered grey
 CLUSTER_COLORS = np.array([[160, 160, 160], [60, 200, 90], [220, 60, 50], [230, 200, 60]], dtype=np.uint8)
@@ -60,10 +40,7 @@ def class_id(name: str) -> int:
 
 def method_rgb(name: str, run_index: int = 0) -> tuple[int, int, int]:
     """A method's colour; in a comparison the second run gets the same hue, clearly lighter or darker."""
-    rgb = _RGB.get(name)
-    if rgb is None:
-        h = zlib.crc32(name.encode())
-        rgb = (60 + h % 160, 60 + (h >> 8) % 160, 60 + (h >> 16) % 160)
+    rgb = palette_rgb(name)
     if run_index == 0:
         return rgb
     hue, light, sat = colorsys.rgb_to_hls(*(c / 255 for c in rgb))
