@@ -29,7 +29,7 @@ from typing import Iterator, Sequence
 
 from .lines import iter_lines
 from .records import Reject, Where
-from .sentence import build, frame
+from .nmea.framing import build, frame
 
 BAD_VELOCITY = -32.768
 BAD_FOM = 10.0

@@ -18,9 +18,10 @@ import math
 from dataclasses import dataclass
 from typing import Iterator
 
-from .nmea import NAN, iter_frames, parse_tod
+from .nmea.fields import NAN, parse_tod
+from .nmea.sentences import iter_frames
 from .records import Reject, Where
-from .sentence import build
+from .nmea.framing import build
 
 
 @dataclass(frozen=True, slots=True)

@@ -28,6 +28,7 @@ import struct
 from dataclasses import dataclass
 from typing import Iterator, Sequence
 
+from .pd0.frames import beam_to_instrument
 from .records import Reject, Where
 
 SYNC = 0x7D
@@ -141,12 +142,10 @@ def vehicle_velocity(coordinates: str, velocity: Sequence[float], beam_angle_deg
     Ship (x port→starboard, y aft→forward, z to surface) becomes BODY_FRD as
     (y, x, -z); earth (east, north, up) becomes EARTH_NED the same way;
     instrument is kept; beam velocities go through the Janus transform
-    (`formats.pd0.beam_to_instrument`, convex head assumed) to INSTRUMENT.
+    (`formats.pd0.frames.beam_to_instrument`, convex head assumed) to INSTRUMENT.
     """
     v = tuple(velocity)
     if coordinates == "beam":
-        from .pd0 import beam_to_instrument
-
         v = beam_to_instrument(v, beam_angle_deg, True)
         coordinates = "instrument"
     if coordinates == "instrument":

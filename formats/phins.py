@@ -32,9 +32,10 @@ from dataclasses import dataclass
 from typing import Callable, Iterator, Union
 
 from .lines import PREFIX_STYLES
-from .nmea import NAN, iter_frames, parse_tod
+from .nmea.fields import NAN, parse_tod
+from .nmea.sentences import iter_frames
 from .records import Reject, Where
-from .sentence import HEX, build, prefix_xor
+from .nmea.framing import HEX, build, prefix_xor
 
 
 @dataclass(frozen=True, slots=True)

@@ -3,7 +3,7 @@
 Every message carries the VEHICLE velocity over ground (m/s) in the frame
 the data are in: PD0 from the fixed leader's EX coordinate bits (bottom-track
 values negated, RDI ship axes x starboard / y forward / z up turned into
-BODY_FRD x forward / y starboard / z down: see `formats.pd0.vehicle_velocity`),
+BODY_FRD x forward / y starboard / z down: see `formats.pd0.frames.vehicle_velocity`),
 PD4/PD5 from their config byte, PD6 from the line used (BS, BE or BI), Nortek
 and Water Linked from the manifest option ``dvl_frame`` (default INSTRUMENT
 for Nortek, BODY_FRD for Water Linked, whose axes are the mounted frame).
@@ -30,7 +30,10 @@ from typing import Any, Iterator, Sequence
 
 import numpy as np
 
-from formats import nortek, pd0, pd0_blocks, pd4, pd6, waterlinked
+from formats import nortek, pd4, pd6, waterlinked
+from formats.pd0 import ensembles as pd0
+from formats.pd0 import blocks as pd0_blocks
+from formats.pd0.frames import vehicle_velocity
 from formats.records import FormatError, Reject, Where
 from formats.schemas import DvlVelocity, timestamp
 
@@ -99,7 +102,7 @@ def _host_time(ctx: LogContext, where: Where) -> int | None:
 # --- Teledyne RDI ------------------------------------------------------------------------
 
 
-def _pd0_items(rec: pd0.Ensemble, fixed: pd0.FixedLeader | None, ctx: LogContext) -> Iterator[Output | Reject]:
+def pd0_items(rec: pd0.Ensemble, fixed: pd0.FixedLeader | None, ctx: LogContext) -> Iterator[Output | Reject]:
     """The message of one ensemble, or why it has none (`fixed`: its own or the last one seen)."""
     number = rec.variable.ensemble_number if rec.variable else "?"
     if rec.time_ns is None:
@@ -112,21 +115,10 @@ def _pd0_items(rec: pd0.Ensemble, fixed: pd0.FixedLeader | None, ctx: LogContext
         yield _pd0_output(ctx, rec, fixed)
 
 
-def convert_pd0_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
-    """`convert_pd0` the obvious way, over `pd0.decode` records: the judge of the fast path in tests."""
-    fixed: pd0.FixedLeader | None = None
-    for rec in pd0.decode(data):
-        if isinstance(rec, Reject):
-            yield rec
-            continue
-        fixed = rec.fixed or fixed  # an ensemble without a fixed leader uses the last one
-        yield from _pd0_items(rec, fixed, ctx)
-
-
 def _pd0_output(ctx: LogContext, rec: pd0.Ensemble, fixed: pd0.FixedLeader) -> Output:
     bt, var = rec.bottom_track, rec.variable
     angle = beam_angle(ctx, fixed.beam_angle_deg)
-    frame, x, y, z, err = pd0.vehicle_velocity(fixed.coordinates, bt.velocity_mps, angle,
+    frame, x, y, z, err = vehicle_velocity(fixed.coordinates, bt.velocity_mps, angle,
                                                fixed.convex)
     slant, alt = ranges_from_vertical(bt.range_m, angle)
     t = rec.time_ns + ctx.clock_offset_ns
@@ -150,24 +142,17 @@ _PD0_NUMBERS = struct.Struct("<BdBdBdBdBB4dBdBBBdBd")
 def _pd0_motion(block: pd0_blocks.Block, fixed: pd0.FixedLeader, ctx: LogContext) -> tuple:
     """(frame name, columns x, y, z, error, slant ranges, altitude, valid) of a block (`_pd0_output`)."""
     angle = beam_angle(ctx, fixed.beam_angle_deg)
-    bt, coords = block.velocity_mps, fixed.coordinates
-    if coords == "beam":  # rare: the Janus transform row by row, as the reference does it
-        rows = [pd0.vehicle_velocity(coords, b, angle, fixed.convex) for b in bt.tolist()]  # type: ignore[union-attr]
-        frame = rows[0][0]
-        x, y, z, err = (np.array([r[k] for r in rows]) for k in range(1, 5))
-    elif coords == "instrument":
-        frame, x, y, z, err = "INSTRUMENT", -bt[:, 0], -bt[:, 1], -bt[:, 2], bt[:, 3]  # type: ignore[index]
-    else:
-        frame = "BODY_FRD" if coords == "ship" else "EARTH_NED"
-        x, y, z, err = -bt[:, 1], -bt[:, 0], bt[:, 2], bt[:, 3]  # type: ignore[index]
-    vertical = block.range_m
-    good = np.isfinite(vertical)  # type: ignore[arg-type]
+    bt, vertical = block.velocity_mps, block.range_m
+    if bt is None or vertical is None:
+        raise ValueError("a block without bottom track has no motion")  # the caller rejects those first
+    frame, x, y, z, err = vehicle_velocity(fixed.coordinates, tuple(bt.T), angle, fixed.convex)
+    good = np.isfinite(vertical)
     # `ranges_from_vertical`'s sum(good) / len(good): adding 0.0 for a bad beam leaves the sum's bits alone
-    w = np.where(good, vertical, 0.0)  # type: ignore[call-overload]
+    w = np.where(good, vertical, 0.0)
     count = good.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         alt = np.where(count > 0, (((w[:, 0] + w[:, 1]) + w[:, 2]) + w[:, 3]) / count, NAN)
-    slant = vertical / math.cos(math.radians(angle))  # type: ignore[operator]
+    slant = vertical / math.cos(math.radians(angle))
     valid = np.isfinite(x) & np.isfinite(y) & np.isfinite(z)
     return frame, x.tolist(), y.tolist(), z.tolist(), err.tolist(), slant.tolist(), alt.tolist(), valid.tolist()
 
@@ -216,7 +201,7 @@ def convert_pd0(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
             yield from _pd0_block_outputs(item, fixed, ctx)  # type: ignore[arg-type]
         else:  # an ensemble off the block path: the reference's own steps
             fixed = item.fixed or fixed  # type: ignore[union-attr]
-            yield from _pd0_items(item, fixed, ctx)  # type: ignore[arg-type]
+            yield from pd0_items(item, fixed, ctx)  # type: ignore[arg-type]
 
 
 def convert_pd4(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:

@@ -4,7 +4,7 @@ Conventions of InsState: heading true, clockwise from north; roll positive
 starboard side down (= port side up); pitch positive bow up; longitude in
 [-180, 180); depth positive down; velocity north/east/down; NaN when absent.
 
-Epochs (see `recorders.gps.group_epochs`):
+Epochs (see `recorders.epochs.group_epochs`):
 
 - phins: PHINS writes one burst per output epoch, each sentence type once
   ($HEHDT, $PIXSE ATITUD, POSITI, SPEED_, ..., TIME__, STDHRP, ...). An
@@ -28,20 +28,19 @@ from __future__ import annotations
 import math
 from typing import Iterator
 
-from formats import nmea, novatel, novatel_scan, pashr, phins
+from formats import pashr, phins
+from formats.nmea import sentences as nmea
+from formats.novatel import scan as novatel_scan
 from formats import schemas as S
 from formats.records import Reject, Where
 
 from .base import Converter, LogContext, Output, output
 from .clock import DayClock
-from .gps import (
-    group_epochs, host_time_ns, nmea_epoch_time, nmea_key, nmea_motion, nmea_position, nmea_update_date,
-    novatel_key, novatel_time,
-)
+from .epochs import group_epochs, host_time_ns
+from .nmea_epochs import NmeaEpoch, gga_altitude, nmea_epoch_time, nmea_key, nmea_motion, nmea_position, nmea_update_date
 from .novatel_epochs import novatel_scan_epochs, novatel_scan_time
 
 NAN = float("nan")
-NAV = (phins.Heading, phins.Atitud, phins.Positi, phins.Speed, phins.Phtro)
 
 
 def ins_state(t_ns: int, ctx: LogContext, source: str, **fields: object) -> S.InsState:  # type: ignore[name-defined]
@@ -66,64 +65,6 @@ _INS_FIELDS = frozenset((
 
 
 # ---------------------------------------------------------------- PHINS
-
-
-def phins_key(rec: phins.PhinsRecord) -> tuple[str, None]:
-    """Epoch key of a PHINS record: its sentence kind (bursts are delimited by repetition)."""
-    return (rec.kind if type(rec) is phins.StatusWords else type(rec).__name__), None  # type: ignore[union-attr]
-
-
-def _phins_fields(epoch: list) -> dict[str, object]:
-    f: dict[str, object] = {}
-    words = []
-    for r in epoch:
-        kind = type(r)
-        if kind is phins.Heading and r.mode != "V":
-            f["heading_deg"] = r.heading_deg
-        elif kind is phins.Atitud:
-            f["roll_deg"], f["pitch_deg"] = r.roll_port_up_deg, -r.pitch_bow_down_deg
-        elif kind is phins.Phtro and "roll_deg" not in f:
-            f["roll_deg"], f["pitch_deg"] = r.roll_port_up_deg, r.pitch_bow_up_deg
-        elif kind is phins.Positi:
-            f["latitude"], f["longitude"] = r.latitude, r.longitude
-            f["altitude_m"], f["depth_m"] = r.altitude_m, 0.0 - r.altitude_m
-        elif kind is phins.Speed:
-            f["velocity_north_mps"], f["velocity_east_mps"], f["velocity_down_mps"] = r.north_mps, r.east_mps, 0.0 - r.up_mps
-        elif kind is phins.StdHrp:
-            f["heading_std_deg"], f["roll_std_deg"], f["pitch_std_deg"] = r.heading_std_deg, r.roll_std_deg, r.pitch_std_deg
-        elif kind is phins.StdPos:
-            f["position_std_north_m"], f["position_std_east_m"] = r.lat_std_m, r.lon_std_m
-        elif kind is phins.StatusWords:
-            words.append(f"{r.kind}={r.lsb:08X}" + ("" if r.kind == "HT_STS" else f",{r.msb:08X}"))
-    f["status"] = " ".join(words)
-    return f
-
-
-def _phins_outputs(epoch: list, ctx: LogContext, clock: DayClock) -> Iterator[Output | Reject]:
-    if not any(type(r) in NAV for r in epoch):
-        return
-    stamp = next((r for r in epoch if type(r) is phins.Time and r.time_s == r.time_s), None)
-    if stamp is not None:
-        t = clock.resolve(stamp.time_s)
-        if t is None:
-            yield Reject(stamp.where, "no date for PHINS TIME__: set the [trial] date in the manifest")
-            return
-    else:
-        t = host_time_ns(epoch, ctx)
-        if t is None:
-            yield Reject(epoch[0].where, "no time: PHINS burst without TIME__ and without a host timestamp")
-            return
-    yield output(ctx, "ins", ins_state(t, ctx, "phins", **_phins_fields(epoch)), t, epoch[0].where)
-
-
-def convert_phins_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
-    """`convert_phins` the obvious way, over `phins.decode` records: the judge of the fast path in tests."""
-    clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
-    for epoch in group_epochs(phins.decode(data, ctx.prefix), phins_key):
-        if type(epoch) is Reject:
-            yield epoch
-        else:
-            yield from _phins_outputs(epoch, ctx, clock)  # type: ignore[arg-type]
 
 
 # ---------------------------------------------------------------- PHINS, fast path
@@ -229,43 +170,6 @@ def convert_pashr(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
 # ---------------------------------------------------------------- NovAtel SPAN
 
 
-def _span_fields(epoch: list) -> dict[str, object]:
-    f: dict[str, object] = {}
-    status = []
-    for r in epoch:
-        f.update(
-            latitude=r.latitude, longitude=r.longitude, altitude_m=r.height_m,
-            velocity_north_mps=r.north_mps, velocity_east_mps=r.east_mps, velocity_down_mps=0.0 - r.up_mps,
-            roll_deg=r.roll_deg, pitch_deg=r.pitch_deg, heading_deg=r.azimuth_deg,
-        )
-        status.append(r.status)
-        if type(r) is novatel.InsPvax:
-            u = r.undulation_m
-            f.update(
-                depth_m=-(r.height_m - u) if u == u else NAN, heading_std_deg=r.azimuth_std_deg,
-                roll_std_deg=r.roll_std_deg, pitch_std_deg=r.pitch_std_deg,
-                position_std_north_m=r.lat_std_m, position_std_east_m=r.lon_std_m,
-            )
-            status.append(r.position_type)
-    f["status"] = " ".join(dict.fromkeys(status))
-    return f
-
-
-def convert_span_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
-    """`convert_span` the obvious way, over `novatel.decode` records: the judge of the fast path in tests."""
-    records = (r for r in novatel.decode(data, ctx.prefix) if isinstance(r, (Reject, novatel.InsPva, novatel.InsPvax)))
-    for epoch in group_epochs(records, novatel_key):
-        if type(epoch) is Reject:
-            yield epoch
-            continue
-        t = novatel_time(epoch, ctx)  # type: ignore[arg-type]
-        if type(t) is Reject:
-            yield t
-            continue
-        source = "novatel:" + ",".join(r.header.message + ("B" if r.header.encoding.startswith("binary") else "A") for r in epoch)  # type: ignore[union-attr]
-        yield output(ctx, "ins", ins_state(t, ctx, source, **_span_fields(epoch)), t, epoch[0].where)  # type: ignore[arg-type,index]
-
-
 # ---------------------------------------------------------------- NovAtel SPAN, fast path
 # The same epochs and messages as `convert_span_reference`, over scanned tuples
 # grouped by `novatel_epochs` (values at the record fields' positions).
@@ -314,39 +218,37 @@ def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
 # ---------------------------------------------------------------- NMEA heading / INS-as-NMEA
 
 
-def _nmea_ins(epoch: list, ctx: LogContext, clock: DayClock) -> Iterator[Output | Reject]:
-    by = {type(r): r for r in epoch}
-    _, _, heading = nmea_motion(by)
-    pos = nmea_position(by)
-    if heading != heading and pos is None:
-        nmea_update_date(by, clock)  # says nothing about the INS, but its date counts
+def _nmea_ins(records: list[nmea.NmeaRecord], ctx: LogContext, clock: DayClock) -> Iterator[Output | Reject]:
+    epoch = NmeaEpoch.of(records)
+    speed, course, heading = nmea_motion(epoch)
+    pos = nmea_position(epoch)
+    if math.isnan(heading) and pos is None:
+        nmea_update_date(epoch, clock)  # says nothing about the INS, but its date counts
         return
-    t = nmea_epoch_time(by, epoch, clock, ctx)
-    if type(t) is Reject:
+    t = nmea_epoch_time(epoch, clock, ctx)
+    if isinstance(t, Reject):
         yield t
         return
     f: dict[str, object] = {"heading_deg": heading}
     if pos is not None:
         f["latitude"], f["longitude"] = pos.latitude, pos.longitude
-        if type(pos) is nmea.Gga:
-            sep = pos.geoid_separation_m
-            f["altitude_m"] = pos.altitude_msl_m + sep if sep == sep else pos.altitude_msl_m
-    speed, course, _ = nmea_motion(by)
-    if speed == speed and course == course:
+        if isinstance(pos, nmea.Gga):
+            f["altitude_m"] = gga_altitude(pos)
+    if not (math.isnan(speed) or math.isnan(course)):
         f["velocity_north_mps"] = speed * math.cos(math.radians(course))
         f["velocity_east_mps"] = speed * math.sin(math.radians(course))
-    source = "nmea:" + ",".join(type(r).__name__.upper() for r in epoch)
-    yield output(ctx, "ins", ins_state(t, ctx, source, **f), t, epoch[0].where)  # type: ignore[arg-type]
+    source = "nmea:" + ",".join(type(r).__name__.upper() for r in records)
+    yield output(ctx, "ins", ins_state(t, ctx, source, **f), t, records[0].where)
 
 
 def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """NMEA heading ($--HDT, $--THS) and position/velocity sentences from an INS or gyrocompass."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     for epoch in group_epochs(nmea.decode(data, ctx.prefix), nmea_key):
-        if type(epoch) is Reject:
+        if isinstance(epoch, Reject):
             yield epoch
         else:
-            yield from _nmea_ins(epoch, ctx, clock)  # type: ignore[arg-type]
+            yield from _nmea_ins(epoch, ctx, clock)
 
 
 CONVERTERS: dict[str, Converter] = {

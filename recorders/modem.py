@@ -34,10 +34,9 @@ from datetime import datetime, timezone
 from typing import Any, Iterator, Mapping
 
 from formats import acoustic_messages as AM
-from formats import evologics as ev
-from formats import evologics_scan as evs
-from formats import micromodem as mm
-from formats import micromodem_scan as mms
+from formats.evologics import scan as evs
+from formats.micromodem import sentences as mm
+from formats.micromodem import scan as mms
 from formats import regex_lines as rx
 from formats.records import FormatError, Reject, Where
 from formats.schemas import AcousticRange, timestamp
@@ -130,36 +129,20 @@ def acoustic_range(
 # ---- Micro-Modem
 
 @dataclass(frozen=True)
-class _MmOptions:
+class MicromodemOptions:
     round_trip: bool
     period_s: float | None
     offset_s: float
     c: float
 
 
-def _mm_options(ctx: LogContext) -> _MmOptions:
+def micromodem_options(ctx: LogContext) -> MicromodemOptions:
     round_trip = option_choice(ctx, "campr_travel_time", ("one_way", "round_trip")) == "round_trip"
     offset = option_float(ctx, "owtt_offset_s", 0.0, positive=False)
-    return _MmOptions(round_trip, option_float(ctx, "owtt_period_s", None), offset or 0.0, sound_speed(ctx))
+    return MicromodemOptions(round_trip, option_float(ctx, "owtt_period_s", None), offset or 0.0, sound_speed(ctx))
 
 
-def _ping(ctx: LogContext, rec: mm.PingReply, own: frozenset[int], c: float) -> Output | Reject:
-    heard, measurer = rec.src, rec.dest
-    if own and heard in own and measurer not in own:
-        heard, measurer = measurer, heard  # firmware that writes the pinger first
-    elif own and measurer not in own:
-        return Reject(rec.where, f"ping reply between modems {heard} and {measurer}: neither is {ctx.vehicle}'s")
-    arrival = rec.utc_ns + ctx.clock_offset_ns if rec.utc_ns is not None else host_time(ctx, rec.where)
-    if arrival is None:
-        return Reject(rec.where, "no time: the ping reply carries none and the line has no host timestamp")
-    t = arrival - round(rec.one_way_travel_time_s * NS)
-    return acoustic_range(
-        ctx, t, rec.where, (ctx.vehicle_for_address(heard), heard), (ctx.vehicle, measurer),
-        rec.one_way_travel_time_s, "ping", "micromodem", c,
-    )
-
-
-def _toa(ctx: LogContext, where: Where, arrival: int | None, src: int | None, opts: _MmOptions) -> Output | Reject:
+def toa_range(ctx: LogContext, where: Where, arrival: int | None, src: int | None, opts: MicromodemOptions) -> Output | Reject:
     if arrival is None:
         return Reject(where, "no date: time of arrival without a trial date or a modem date")
     if src is None:
@@ -172,39 +155,12 @@ def _toa(ctx: LogContext, where: Where, arrival: int | None, src: int | None, op
     return acoustic_range(ctx, t, where, heard, (ctx.vehicle, own_address(ctx)), travel, "toa", "micromodem", opts.c)
 
 
-def _set_date(clock: DayClock, rec: mm.TransmitStats | mm.Clock) -> None:
+def set_modem_date(clock: DayClock, rec: mm.TransmitStats | mm.Clock) -> None:
     if isinstance(rec, mm.TransmitStats):
         clock.set_date(rec.date, rec.tod_s)
         return
     dt = datetime.fromtimestamp(rec.utc_ns // NS, tz=timezone.utc)
     clock.set_date(dt.date(), (rec.utc_ns % DAY_NS) / NS)
-
-
-def _micromodem(data: bytes, ctx: LogContext, opts: _MmOptions) -> Iterator[Output | Reject]:
-    clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
-    own = own_addresses(ctx)
-    last_src: int | None = None
-    for rec in mm.decode(data, ctx.prefix, opts.round_trip):
-        if isinstance(rec, Reject):
-            yield rec
-        elif isinstance(rec, mm.PingReply):
-            yield _ping(ctx, rec, own, opts.c)
-        elif isinstance(rec, (mm.TransmitStats, mm.Clock)):
-            _set_date(clock, rec)
-        elif isinstance(rec, (mm.CycleInit, mm.ReceivedData, mm.PingHeard)) and rec.src not in own:
-            last_src = rec.src
-        elif isinstance(rec, mm.ReceiveStats):
-            last_src = rec.src
-            if opts.period_s is not None:
-                yield _toa(ctx, rec.where, clock.resolve(rec.tod_s), rec.src, opts)
-        elif isinstance(rec, mm.TimeOfArrival) and opts.period_s is not None:
-            arrival = clock.resolve(rec.tod_s) if rec.tod_s is not None else rec.utc_ns + ctx.clock_offset_ns  # type: ignore[operator]
-            yield _toa(ctx, rec.where, arrival, last_src, opts)
-
-
-def convert_micromodem_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
-    """`convert_micromodem` the obvious way, over `micromodem.decode` records: the judge of the fast path in tests."""
-    return _micromodem(data, ctx, _mm_options(ctx))
 
 
 # ---- Micro-Modem, fast path: the same ranges over `micromodem_scan.scan` tuples
@@ -237,7 +193,7 @@ class _ScanPings:
         return Output(self.topic, msg, t, t if publish is None else publish, Where(offset, line, host))
 
 
-def _micromodem_scan(data: bytes, ctx: LogContext, opts: _MmOptions) -> Iterator[Output | Reject]:
+def _micromodem_scan(data: bytes, ctx: LogContext, opts: MicromodemOptions) -> Iterator[Output | Reject]:
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     ping = _ScanPings(ctx, opts.c)
     own = ping.own
@@ -255,52 +211,22 @@ def _micromodem_scan(data: bytes, ctx: LogContext, opts: _MmOptions) -> Iterator
         elif kind == "date":
             clock.set_date(v[0], v[1])
         elif kind == "clock":
-            _set_date(clock, mm.Clock(Where(offset, line, host), v[0]))
+            set_modem_date(clock, mm.Clock(Where(offset, line, host), v[0]))
         elif kind == "rxstats":
             last_src = v[0]
             if opts.period_s is not None:
-                yield _toa(ctx, Where(offset, line, host), clock.resolve(v[1]), v[0], opts)
+                yield toa_range(ctx, Where(offset, line, host), clock.resolve(v[1]), v[0], opts)
         elif kind == "toa" and opts.period_s is not None:
             arrival = clock.resolve(v[0]) if v[0] is not None else v[1] + ctx.clock_offset_ns
-            yield _toa(ctx, Where(offset, line, host), arrival, last_src, opts)
+            yield toa_range(ctx, Where(offset, line, host), arrival, last_src, opts)
 
 
 def convert_micromodem(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """WHOI Micro-Modem log -> ranges (options are checked before the first record)."""
-    return _micromodem_scan(data, ctx, _mm_options(ctx))
+    return _micromodem_scan(data, ctx, micromodem_options(ctx))
 
 
 # ---- EvoLogics S2C
-
-def _evologics(data: bytes, ctx: LogContext, c: float) -> Iterator[Output | Reject]:
-    me = (ctx.vehicle, own_address(ctx))
-    for rec in ev.decode(data, ctx.prefix):
-        if isinstance(rec, Reject):
-            yield rec
-        elif isinstance(rec, ev.PropagationTime):
-            host = host_time(ctx, rec.where)
-            if rec.peer is None:
-                yield Reject(rec.where, "propagation time before any delivery or reception names the peer")
-            elif host is None:
-                yield Reject(rec.where, "no time: EvoLogics line without host timestamp")
-            else:
-                tt = rec.propagation_time_us * 1e-6
-                heard = (ctx.vehicle_for_address(rec.peer), rec.peer)
-                yield acoustic_range(ctx, host - round(tt * NS), rec.where, heard, me, tt, "ping", "evologics", c)
-        elif isinstance(rec, ev.UsblLong):
-            arrival = usbl_reception_ns(ctx, rec.where, rec.current_time_s, rec.measurement_time_s)
-            if arrival is None:
-                yield Reject(rec.where, "no time: EvoLogics line without host timestamp")
-                continue
-            tt = rec.propagation_time_us * 1e-6
-            heard = (ctx.vehicle_for_address(rec.address), rec.address)
-            yield acoustic_range(ctx, arrival - round(tt * NS), rec.where, heard, me, tt, "usbl", "evologics", c)
-
-
-def convert_evologics_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
-    """`convert_evologics` the obvious way, over `evologics.decode` records: the judge of the fast path in tests."""
-    return _evologics(data, ctx, sound_speed(ctx))
-
 
 def _evologics_scan(data: bytes, ctx: LogContext, c: float) -> Iterator[Output | Reject]:
     """`_evologics` over `evologics_scan.scan` tuples, messages from packed wire bytes."""

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Iterator
 
-from formats import novatel_scan
+from formats.novatel import scan as novatel_scan
 from formats.gpstime import gps_to_unix_ns
 from formats.records import Reject, Where
 

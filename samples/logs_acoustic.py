@@ -11,7 +11,8 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from formats import evologics, micromodem
+from formats.evologics import notifications as evologics
+from formats.micromodem import sentences as micromodem
 
 from .simulator import SimulatedTrial
 

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from formats import novatel as nv
+from formats.novatel import logs as nv
 from formats.gpstime import gps_to_unix_ns
 from formats.records import Reject
 

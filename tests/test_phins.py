@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from formats import phins
 from formats.records import Reject
-from formats.sentence import build
+from formats.nmea.framing import build
 
 # One PHINS standard burst as printed in the iXblue protocol description (checksums theirs).
 BURST = b"""$HEHDT,116.581,T*25\r

@@ -29,9 +29,9 @@ import zlib
 from dataclasses import dataclass, replace
 from typing import Iterator, Union
 
-from .gpstime import gps_to_unix_ns, unix_ns_to_gps
-from .lines import PREFIX_STYLES, strip_prefix
-from .records import Reject, Where
+from ..gpstime import gps_to_unix_ns, unix_ns_to_gps
+from ..lines import PREFIX_STYLES, strip_prefix
+from ..records import Reject, Where
 
 NAN = float("nan")
 

@@ -17,8 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .nmea import NAN, VALUES, _ddmmyy, _zda_date
-from .sentence_columns import CleanLines, angle_column, clean_lines, field_table, number_column, select, tod_column
+from .clean import CleanLines, clean_lines, field_table, select
+from .fields import NAN, angle_column, number_column, parse_ddmmyy, parse_zda_date, tod_column
+from .sentences import VALUES
 
 KINDS = ("GGA", "GST", "RMC", "VTG", "GLL", "ZDA", "HDT", "THS")  # kind codes 0..7
 _WIDTH = {"GGA": 15, "GST": 9, "RMC": 13, "VTG": 10, "GLL": 8, "ZDA": 7, "HDT": 3, "THS": 3}  # with the address
@@ -60,7 +61,7 @@ def _gst(f: list[list[str]]) -> dict | None:
 
 def _rmc(f: list[list[str]]) -> dict | None:
     try:
-        dates = list(map(_ddmmyy, f[9]))
+        dates = list(map(parse_ddmmyy, f[9]))
     except (ValueError, IndexError, OverflowError):
         return None
     cols = {
@@ -91,7 +92,7 @@ def _gll(f: list[list[str]]) -> dict | None:
 
 def _zda(f: list[list[str]]) -> dict | None:
     try:  # one date() per distinct (day, month, year): a log holds one or two
-        table = {k: _zda_date(k[2], k[1], k[0]) if k[0] and k[1] and k[2] else None
+        table = {k: parse_zda_date(k[2], k[1], k[0]) if k[0] and k[1] and k[2] else None
                  for k in set(zip(f[2], f[3], f[4]))}
     except (ValueError, OverflowError):
         return None
