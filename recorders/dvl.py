@@ -25,7 +25,6 @@ order or repeated times are kept as they come.
 from __future__ import annotations
 
 import math
-import struct
 from typing import Any, Iterator, Sequence
 
 import numpy as np
@@ -36,6 +35,7 @@ from formats.pd0 import blocks as pd0_blocks
 from formats.pd0.frames import vehicle_velocity
 from formats.records import FormatError, Reject, Where
 from formats.schemas import DvlVelocity, timestamp
+from formats.wire import DVL_VELOCITY
 
 from .base import NS, Converter, LogContext, Output, output
 from .clock import DayClock
@@ -132,12 +132,7 @@ def _pd0_output(ctx: LogContext, rec: pd0.Ensemble, fixed: pd0.FixedLeader) -> O
 # The same messages as `convert_pd0_reference`, over `pd0_blocks.scan`: a run
 # of like ensembles has its velocities, ranges and altitudes computed as
 # arrays (the same IEEE operations in the same order, so the same bits, NaN
-# signs included), and each DvlVelocity is parsed from packed wire bytes.
-
-# velocity x, y, z, error (4..7), beam_range_m packed (8, 4 doubles), altitude (9), valid (10),
-# sound speed (12), temperature (14): tags (field << 3 | wire type) included
-_PD0_NUMBERS = struct.Struct("<BdBdBdBdBB4dBdBBBdBd")
-
+# signs included), and each DvlVelocity is parsed from wire bytes packed by `formats.wire`.
 
 def _pd0_motion(block: pd0_blocks.Block, fixed: pd0.FixedLeader, ctx: LogContext) -> tuple:
     """(frame name, columns x, y, z, error, slant ranges, altitude, valid) of a block (`_pd0_output`)."""
@@ -174,7 +169,8 @@ def _pd0_block_outputs(block: pd0_blocks.Block, fixed: pd0.FixedLeader | None, c
     frame, xs, ys, zs, errs, slants, alts, valids = _pd0_motion(block, fixed, ctx)
     head = DvlVelocity(frame_id=ctx.vehicle, frame=FRAMES[frame], figure_of_merit=NAN,
                        source_format="pd0").SerializeToString()
-    pack, parse, topic, offset_ns = _PD0_NUMBERS.pack, DvlVelocity.FromString, f"/{ctx.vehicle}/dvl", ctx.clock_offset_ns
+    pack, parse, topic, offset_ns = DVL_VELOCITY.struct.pack, DvlVelocity.FromString, f"/{ctx.vehicle}/dvl", ctx.clock_offset_ns
+    k0, k1, k2, k3, k4, k5, k6, k7, k8 = DVL_VELOCITY.keys
     for off, t, number, x, y, z, err, r, alt, valid, sound, temp in zip(
             offsets, times, block.numbers, xs, ys, zs, errs, slants, alts, valids,  # type: ignore[arg-type]
             block.sound_speed_mps, block.temperature_c):  # type: ignore[arg-type]
@@ -182,8 +178,7 @@ def _pd0_block_outputs(block: pd0_blocks.Block, fixed: pd0.FixedLeader | None, c
             yield Reject(Where(off), f"ensemble {number}: no variable leader or invalid RTC time")
             continue
         t += offset_ns
-        msg = parse(head + pack(0x21, x, 0x29, y, 0x31, z, 0x39, err, 0x42, 32, *r, 0x49, alt, 0x50, valid,
-                                0x61, sound, 0x71, temp))
+        msg = parse(head + pack(k0, x, k1, y, k2, z, k3, err, k4, *r, k5, alt, k6, valid, k7, sound, k8, temp))
         ts = msg.timestamp
         ts.seconds, ts.nanos = divmod(t, NS)
         yield Output(topic, msg, t, t, Where(off))
