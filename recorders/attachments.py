@@ -7,6 +7,8 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
+from formats.mcap_reader import ArchiveReader
+
 
 @dataclass
 class UnpackResult:
@@ -38,8 +40,6 @@ def safe_target(root: Path, name: str) -> Path | None:
 
 def unpack(archive_path: str | os.PathLike[str], target_dir: str | os.PathLike[str]) -> UnpackResult:
     """Write every attachment under target_dir; refuse unsafe names, verify recorded sha256."""
-    from formats.mcap_reader import ArchiveReader
-
     root = Path(target_dir)
     root.mkdir(parents=True, exist_ok=True)
     result = UnpackResult()

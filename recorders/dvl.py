@@ -188,15 +188,14 @@ def convert_pd0(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """Teledyne RDI PD0 ensembles (bottom track); frame from the EX coordinate bits."""
     fixed: pd0.FixedLeader | None = None
     for item in pd0_blocks.scan(data):
-        kind = type(item)
-        if kind is Reject:
-            yield item  # type: ignore[misc]
-        elif kind is pd0_blocks.Block:
-            fixed = item.fixed or fixed  # type: ignore[union-attr]
-            yield from _pd0_block_outputs(item, fixed, ctx)  # type: ignore[arg-type]
+        if isinstance(item, Reject):
+            yield item
+        elif isinstance(item, pd0_blocks.Block):
+            fixed = item.fixed or fixed
+            yield from _pd0_block_outputs(item, fixed, ctx)
         else:  # an ensemble off the block path: the reference's own steps
-            fixed = item.fixed or fixed  # type: ignore[union-attr]
-            yield from pd0_items(item, fixed, ctx)  # type: ignore[arg-type]
+            fixed = item.fixed or fixed
+            yield from pd0_items(item, fixed, ctx)
 
 
 def convert_pd4(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:

@@ -127,8 +127,8 @@ def convert_phins(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     burst: dict[str, phins.Scanned] = {}
     for item in phins.scan(data, ctx.prefix):
-        if type(item) is Reject:
-            yield item  # type: ignore[misc]
+        if isinstance(item, Reject):
+            yield item
             continue
         if item[0] in burst:  # a repeated sentence starts the next burst (`group_epochs` with no times)
             yield from _phins_scan_outputs(burst, ctx, clock)
@@ -145,7 +145,7 @@ def convert_pashr(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """$PASHR attitude/heading sentences, one InsState each."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     for r in pashr.decode(data, ctx.prefix):
-        if type(r) is Reject:
+        if isinstance(r, Reject):
             yield r
             continue
         if r.time_s == r.time_s:  # type: ignore[union-attr]
@@ -201,12 +201,12 @@ def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """NovAtel SPAN INSPVA / INSPVAS / INSPVAX logs (ASCII or binary), merged per GPS time."""
     topic = f"/{ctx.vehicle}/ins"
     for epoch in novatel_scan_epochs(data, ctx, _SPAN_KINDS):
-        if type(epoch) is Reject:
-            yield epoch  # type: ignore[misc]
+        if isinstance(epoch, Reject):
+            yield epoch
             continue
         t = novatel_scan_time(epoch, ctx)  # type: ignore[arg-type]
-        if type(t) is Reject:
-            yield t  # type: ignore[misc]
+        if isinstance(t, Reject):
+            yield t
             continue
         items = list(epoch.values())  # type: ignore[union-attr]
         source = "novatel:" + ",".join([item[1] for item in items])
@@ -248,7 +248,7 @@ def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
         if isinstance(epoch, Reject):
             yield epoch
         else:
-            yield from _nmea_ins(epoch, ctx, clock)
+            yield from _nmea_ins(epoch, ctx, clock)  # type: ignore[arg-type]  # group_epochs' R is inferred as object
 
 
 CONVERTERS: dict[str, Converter] = {

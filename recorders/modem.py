@@ -199,10 +199,10 @@ def _micromodem_scan(data: bytes, ctx: LogContext, opts: MicromodemOptions) -> I
     own = ping.own
     last_src: int | None = None
     for item in mms.scan(data, ctx.prefix, opts.round_trip):
-        if type(item) is Reject:
-            yield item  # type: ignore[misc]
+        if isinstance(item, Reject):
+            yield item
             continue
-        kind, v, offset, line, host = item  # type: ignore[misc]
+        kind, v, offset, line, host = item
         if kind == "reply":
             yield ping(v, offset, line, host)
         elif kind == "heard":
@@ -231,12 +231,12 @@ def convert_micromodem(data: bytes, ctx: LogContext) -> Iterator[Output | Reject
 def _evologics_scan(data: bytes, ctx: LogContext, c: float) -> Iterator[Output | Reject]:
     """`_evologics` over `evologics_scan.scan` tuples, messages from packed wire bytes."""
     me, address, offset_ns = ctx.vehicle, own_address(ctx), ctx.clock_offset_ns
-    topic, names = f"/{me}/{SUFFIX}", {}
+    topic, names = f"/{me}/{SUFFIX}", dict[int, str]()
     for item in evs.scan(data, ctx.prefix):
-        if type(item) is Reject:
-            yield item  # type: ignore[misc]
+        if isinstance(item, Reject):
+            yield item
             continue
-        keyword, v, offset, line, host = item  # type: ignore[misc]
+        keyword, v, offset, line, host = item
         if keyword == "AT?T":
             us, heard = v
             if heard is None:

@@ -23,8 +23,8 @@ def novatel_scan_epochs(data: bytes, ctx: LogContext, kinds: frozenset[str]
     epoch: dict[str, novatel_scan.Scanned] = {}
     epoch_time: tuple[int, int] | None = None
     for item in novatel_scan.scan(data, ctx.prefix):
-        if type(item) is Reject:
-            yield item  # type: ignore[misc]
+        if isinstance(item, Reject):
+            yield item
             continue
         kind = names[item[0]]  # type: ignore[index]
         if kind not in kinds:

@@ -139,8 +139,8 @@ def _evologics_scan(data: bytes, ctx: LogContext, opts: UsblOptions) -> Iterator
     first: evs.Scanned | None = None
     parts: dict[str, list] = {}
     for item in evs.scan(data, ctx.prefix):
-        if type(item) is Reject:
-            yield item  # type: ignore[misc]
+        if isinstance(item, Reject):
+            yield item
             continue
         keyword, v = item[0], item[1]
         if keyword not in _USBL_KEYWORDS:

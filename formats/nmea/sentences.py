@@ -362,9 +362,9 @@ def _frame_values(frame: Frame) -> Scanned | Reject | None:
 def parse_frame(frame: Frame) -> NmeaRecord | Reject | None:
     """The record for a framed sentence; None for proprietary and other sentence types."""
     item = _frame_values(frame)
-    if item is None or type(item) is Reject:
-        return item  # type: ignore[return-value]
-    kind, talker, values, _, _, _ = item  # type: ignore[misc]
+    if item is None or isinstance(item, Reject):
+        return item
+    kind, talker, values, _, _, _ = item
     return RECORDS[kind](frame[2], talker, *values)
 
 
@@ -420,11 +420,11 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
 def _scan_general(raw: str, line_start: int, number: int, prefix: str) -> Iterator[Scanned | Reject]:
     """A line off the fast path: prefixes, noise, missing checksums, glued sentences, garbage."""
     for item in iter_frames(raw.encode("latin-1"), prefix):
-        if type(item) is Reject:
-            where = item.where  # type: ignore[union-attr]
+        if isinstance(item, Reject):
+            where = item.where
             yield Reject(Where(line_start, number, where.host_time_ns), item.reason, item.bad_checksum)  # type: ignore[union-attr]
             continue
-        address, fields, where = item  # type: ignore[misc]
+        address, fields, where = item
         result = _frame_values((address, fields, Where(line_start, number, where.host_time_ns)))
         if result is not None:
             yield result
@@ -434,10 +434,10 @@ def decode(data: bytes, prefix: str = "auto") -> Iterator[NmeaRecord | Reject]:
     """Stream every GNSS sentence record (or Reject) in a log, in file order (see `scan`)."""
     records = RECORDS
     for item in scan(data, prefix):
-        if type(item) is Reject:
-            yield item  # type: ignore[misc]
+        if isinstance(item, Reject):
+            yield item
         else:
-            kind, talker, values, offset, line, host = item  # type: ignore[misc]
+            kind, talker, values, offset, line, host = item
             yield records[kind](Where(offset, line, host), talker, *values)
 
 

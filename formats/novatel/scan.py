@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections import namedtuple
 from dataclasses import fields
-from typing import Callable, Iterator, Union
+from typing import Any, Callable, Iterator, Union
 
 from . import logs as N
 from ..lines import PREFIX_STYLES, strip_prefix
@@ -27,7 +27,7 @@ NAN = float("nan")
 Scanned = tuple[str, str, int, float, tuple, int, Union[int, None], Union[int, None]]
 
 
-def values_view(record: type) -> type:
+def values_view(record: type) -> Any:
     """A namedtuple type naming a record's scanned values: the record's fields after `where` and `header`."""
     return namedtuple(record.__name__ + "Values", [f.name for f in fields(record)[2:]])
 
@@ -137,7 +137,7 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
         raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
     if N._next_sync(data, 0) >= 0:  # binary logs in the file: ASCII lines are located by offset only
         for rec in N.decode(data, prefix):
-            yield rec if type(rec) is Reject else from_record(rec)  # type: ignore[misc,arg-type]
+            yield rec if isinstance(rec, Reject) else from_record(rec)  # type: ignore[misc,arg-type]
         return
     offset = 0
     for number, raw in enumerate(data.decode("latin-1").split("\n"), start=1):
@@ -147,7 +147,7 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
         if item is _SLOW:
             item = _slow_line(raw, line_start, number, prefix)
         if item is not None:
-            yield item  # type: ignore[misc]
+            yield item
 
 
 def _slow_line(raw: str, line_start: int, number: int, prefix: str) -> Scanned | Reject | None:
@@ -159,6 +159,6 @@ def _slow_line(raw: str, line_start: int, number: int, prefix: str) -> Scanned |
     if prefix != "none" and line[0] not in "#%$":
         line, host = strip_prefix(line, prefix)
     result = N.parse_ascii(line, Where(line_start, number, host))
-    if result is None or type(result) is Reject:
+    if result is None or isinstance(result, Reject):
         return result  # type: ignore[return-value]
     return from_record(result)  # type: ignore[arg-type]
