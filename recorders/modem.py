@@ -34,17 +34,20 @@ from datetime import datetime, timezone
 from typing import Any, Iterator, Mapping
 
 from formats import acoustic_messages as AM
+from formats.evologics import notifications as ev
 from formats.evologics import scan as evs
 from formats.micromodem import sentences as mm
 from formats.micromodem import scan as mms
 from formats import regex_lines as rx
 from formats.records import FormatError, Reject, Where
+from formats.scanned import positions
 from formats.schemas import AcousticRange, timestamp
 
 from .base import Converter, LogContext, Output, output
 from .clock import DAY_NS, NS, DayClock
 
 SUFFIX = "modem/range"
+LONG = positions(ev.UsblLong)  # where each field sits in a scanned USBLLONG's values
 
 
 # ---- helpers shared with recorders.usbl
@@ -103,14 +106,17 @@ def endpoint(ctx: LogContext, text: str) -> tuple[str, int]:
     return text, addresses[0] if len(addresses) == 1 else -1
 
 
-def usbl_reception_ns(ctx: LogContext, where: Where, current_s: float, measured_s: float) -> int | None:
-    """Host time of an EvoLogics USBL line moved back to the modem's measurement time."""
-    host = host_time(ctx, where)
-    if host is None:
-        return None
+def measurement_ns(host_ns: int, current_s: float, measured_s: float) -> int:
+    """An EvoLogics USBL line's host time (offset applied) moved back by the modem's own lag to its measurement."""
     lag = current_s - measured_s
     # the modem clock is its own; trust its lag only when it is plausible
-    return host - round(lag * NS) if 0.0 <= lag < 60.0 else host
+    return host_ns - round(lag * NS) if 0.0 <= lag < 60.0 else host_ns
+
+
+def usbl_reception_ns(ctx: LogContext, where: Where, current_s: float, measured_s: float) -> int | None:
+    """Host time of an EvoLogics USBL line moved back to the modem's measurement time (`measurement_ns`)."""
+    host = host_time(ctx, where)
+    return None if host is None else measurement_ns(host, current_s, measured_s)
 
 
 def acoustic_range(
@@ -244,7 +250,7 @@ def _evologics_scan(data: bytes, ctx: LogContext, c: float) -> Iterator[Output |
                 continue
             kind = "ping"
         elif keyword == "USBLLONG":
-            us, heard, kind = v[12], v[2], "usbl"
+            us, heard, kind = v[LONG.propagation_time_us], v[LONG.address], "usbl"
         else:
             continue
         if host is None:
@@ -252,9 +258,7 @@ def _evologics_scan(data: bytes, ctx: LogContext, c: float) -> Iterator[Output |
             continue
         publish = arrival = host + offset_ns
         if kind == "usbl":
-            lag = v[0] - v[1]
-            # the modem clock is its own; trust its lag only when it is plausible (`usbl_reception_ns`)
-            arrival = publish - round(lag * NS) if 0.0 <= lag < 60.0 else publish
+            arrival = measurement_ns(publish, v[LONG.current_time_s], v[LONG.measurement_time_s])
         tt = us * 1e-6
         t = arrival - round(tt * NS)
         name = names.get(heard)
@@ -312,17 +316,25 @@ def travel_and_range(values: Mapping[str, float], c: float) -> tuple[float, floa
     return r / c, r
 
 
-def _regex(data: bytes, ctx: LogContext, opts: RegexOptions) -> Iterator[Output | Reject]:
+def timed_regex_records(data: bytes, ctx: LogContext, opts: RegexOptions) -> Iterator[tuple[rx.RegexRecord, int] | Reject]:
+    """Each matched line of a regex log with its time (`regex_time`), or a Reject (its own or the time's)."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     for rec in rx.decode(data, opts.pattern, opts.time_format, ctx.prefix, opts.scale):
         if isinstance(rec, Reject):
             yield rec
             continue
         t = regex_time(ctx, rec, clock)
+        yield t if isinstance(t, Reject) else (rec, t)
+
+
+def _regex(data: bytes, ctx: LogContext, opts: RegexOptions) -> Iterator[Output | Reject]:
+    for item in timed_regex_records(data, ctx, opts):
+        if isinstance(item, Reject):
+            yield item
+            continue
+        rec, t = item
         tt, _ = travel_and_range(rec.values, opts.c)
-        if isinstance(t, Reject):
-            yield t
-        elif not math.isfinite(tt):
+        if not math.isfinite(tt):
             yield Reject(rec.where, "no travel time or range on the line")
         elif not rec.source:
             yield Reject(rec.where, "no source: the pattern's 'source' group did not match")

@@ -32,14 +32,14 @@ from typing import Iterator, Mapping
 from formats import acoustic_messages as AM
 from formats.evologics import notifications as ev
 from formats.evologics import scan as evs
-from formats import regex_lines as rx
 from formats.records import FormatError, Reject, Where
+from formats.scanned import positions
 from formats.schemas import UsblObservation, timestamp
 
 from .base import Converter, LogContext, Output, output
-from .clock import NS, DayClock
+from .clock import NS
 from .modem import (
-    RegexOptions, endpoint, option_choice, option_float, regex_options, regex_time, sound_speed,
+    RegexOptions, endpoint, measurement_ns, option_choice, option_float, regex_options, sound_speed, timed_regex_records,
     travel_and_range,
 )
 
@@ -88,6 +88,8 @@ def usbl_options(ctx: LogContext) -> UsblOptions:
 # ---- EvoLogics, fast path: the same groups and messages over `evologics_scan.scan` tuples
 
 _USBL_KEYWORDS = frozenset(("USBLLONG", "USBLANGLES", "USBLPHYD"))
+# where each field sits in a scanned line's values; the three USBL lines start alike (times, then address)
+LONG, ANGLES, PHASE_DELAYS = positions(ev.UsblLong), positions(ev.UsblAngles), positions(ev.UsblPhaseDelays)
 
 
 def _scan_values(parts: dict[str, list], opts: UsblOptions) -> tuple[float, ...]:
@@ -97,14 +99,15 @@ def _scan_values(parts: dict[str, list], opts: UsblOptions) -> tuple[float, ...]
     ang = parts.get("USBLANGLES")
     phyd = parts.get("USBLPHYD")
     if fix is not None:
-        tt = fix[12] * 1e-6
-        rng, east, north, up, integrity, rssi = tt * opts.c, fix[6], fix[7], fix[8], fix[14], fix[13]
+        tt = fix[LONG.propagation_time_us] * 1e-6
+        east, north, up = fix[LONG.east_m], fix[LONG.north_m], fix[LONG.up_m]
+        rng, integrity, rssi = tt * opts.c, fix[LONG.integrity], fix[LONG.rssi_db]
         bearing, elevation = bearing_elevation(east, north, up)
     elif ang is not None:
-        bearing = ev.bearing_from_vendor(ang[5], opts.convention)
-        elevation, integrity, rssi = math.degrees(ang[6]), ang[11], ang[10]
+        bearing = ev.bearing_from_vendor(ang[ANGLES.bearing_rad], opts.convention)
+        elevation, integrity, rssi = math.degrees(ang[ANGLES.elevation_rad]), ang[ANGLES.integrity], ang[ANGLES.rssi_db]
     if phyd is not None and opts.carrier_hz is not None:
-        px, py = ev.phases_from_delays(phyd[4:], opts.carrier_hz)
+        px, py = ev.phases_from_delays(phyd[PHASE_DELAYS.delays_ns:], opts.carrier_hz)
     return tt, rng, bearing, elevation, px, py, east, north, up, integrity, rssi
 
 
@@ -121,15 +124,14 @@ class _ScanEmitter:
         if host is None:
             return Reject(Where(offset, line, host), "no time: EvoLogics line without host timestamp")
         publish = host + self.offset_ns
-        lag = v[0] - v[1]
-        # the modem clock is its own; trust its lag only when it is plausible (`usbl_reception_ns`)
-        arrival = publish - round(lag * NS) if 0.0 <= lag < 60.0 else publish
+        arrival = measurement_ns(publish, v[LONG.current_time_s], v[LONG.measurement_time_s])
         values = _scan_values(parts, self.opts)
         tt = values[0]
         t = arrival - round(tt * NS) if tt == tt else arrival
-        target = self.targets.get(v[2])
+        address = v[LONG.address]
+        target = self.targets.get(address)
         if target is None:
-            target = self.targets[v[2]] = self.ctx.vehicle_for_address(v[2])
+            target = self.targets[address] = self.ctx.vehicle_for_address(address)
         msg = AM.usbl_observation(t, self.ctx.vehicle, target, "evologics", *values)
         return Output(self.topic, msg, t, publish, Where(offset, line, host))
 
@@ -147,7 +149,9 @@ def _evologics_scan(data: bytes, ctx: LogContext, opts: UsblOptions) -> Iterator
             continue
         if first is not None:
             # `_Group.accepts`: same target, a kind not yet in the group, measured within MATCH_S
-            if v[2] == first[1][2] and keyword not in parts and abs(v[1] - first[1][1]) <= MATCH_S:
+            head = first[1]
+            if (v[LONG.address] == head[LONG.address] and keyword not in parts
+                    and abs(v[LONG.measurement_time_s] - head[LONG.measurement_time_s]) <= MATCH_S):
                 parts[keyword] = v
                 continue
             yield emit(first, parts)
@@ -179,15 +183,12 @@ def _regex_values(values: Mapping[str, float], c: float) -> dict[str, float]:
 
 
 def _regex(data: bytes, ctx: LogContext, opts: RegexOptions) -> Iterator[Output | Reject]:
-    clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
-    for rec in rx.decode(data, opts.pattern, opts.time_format, ctx.prefix, opts.scale):
-        if isinstance(rec, Reject):
-            yield rec
+    for item in timed_regex_records(data, ctx, opts):
+        if isinstance(item, Reject):
+            yield item
             continue
-        t = regex_time(ctx, rec, clock)
-        if isinstance(t, Reject):
-            yield t
-        elif not rec.source:
+        rec, t = item
+        if not rec.source:
             yield Reject(rec.where, "no target: the pattern's 'target' group did not match")
         else:
             v = _regex_values(rec.values, opts.c)

@@ -11,13 +11,13 @@ header, a prefix, a bad CRC, a field that does not convert) goes through
 
 from __future__ import annotations
 
-from collections import namedtuple
 from dataclasses import fields
-from typing import Any, Callable, Iterator, Union
+from typing import Callable, Iterator, Union
 
 from . import logs as N
 from ..lines import PREFIX_STYLES, strip_prefix
 from ..records import Reject, Where
+from ..scanned import values_view
 
 NAN = float("nan")
 
@@ -25,11 +25,6 @@ NAN = float("nan")
 # after `header`, byte offset, line or None, host time ns or None); week and seconds are the record's
 # time (INSPVA: its own, else the header's: `novatel.record_time_ns`)
 Scanned = tuple[str, str, int, float, tuple, int, Union[int, None], Union[int, None]]
-
-
-def values_view(record: type) -> Any:
-    """A namedtuple type naming a record's scanned values: the record's fields after `where` and `header`."""
-    return namedtuple(record.__name__ + "Values", [f.name for f in fields(record)[2:]])
 
 
 # `BEST_POS._make(item[4])` names a scanned BESTPOS's values as the record does
