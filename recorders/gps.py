@@ -49,7 +49,7 @@ from .base import Converter, LogContext, Output
 from .clock import DayClock
 from .gnss_covariance import Covariance, fix_covariance, sigma_covariance
 from .nmea_epochs import NO_DATE, NO_TIME
-from .novatel_epochs import novatel_scan_epochs, novatel_scan_time
+from .novatel_epochs import novatel_publish_ns, novatel_scan_epochs, novatel_scan_time
 
 NAN = math.nan
 
@@ -256,7 +256,7 @@ def _novatel_scan_outputs(epoch: dict[str, novatel_scan.Scanned], ctx: LogContex
             alt = pos.height_msl_m if isnan(u) else pos.height_msl_m + u
             cov, kind = sigma_covariance(pos.lat_std_m, pos.lon_std_m, pos.height_std_m)
             fix = S.location_fix(t, ctx.vehicle, pos.latitude, pos.longitude, alt, cov, kind)
-            out.append(Output(topics[0], fix, t, _publish(bp, t, ctx), novatel_scan.where_of(bp)))
+            out.append(Output(topics[0], fix, t, novatel_publish_ns(bp, t, ctx), novatel_scan.where_of(bp)))
             where_item = bp
     speed = course = NAN
     if bv is not None:
@@ -265,14 +265,8 @@ def _novatel_scan_outputs(epoch: dict[str, novatel_scan.Scanned], ctx: LogContex
             speed, course = vel.horizontal_speed_mps, vel.track_deg
     status = S.gnss_status(t, ctx.vehicle, quality, satellites, NAN,
                            "novatel:" + ",".join([item[1] for item in epoch.values()]), speed, course, NAN)
-    out.append(Output(topics[1], status, t, _publish(where_item, t, ctx), novatel_scan.where_of(where_item)))
+    out.append(Output(topics[1], status, t, novatel_publish_ns(where_item, t, ctx), novatel_scan.where_of(where_item)))
     return tuple(out)
-
-
-def _publish(item: novatel_scan.Scanned, t: int, ctx: LogContext) -> int:
-    """A scanned log's publish time: its host time (offset applied), else its own time `t`."""
-    host = item[7]
-    return t if host is None else host + ctx.clock_offset_ns
 
 
 _GNSS_KINDS = frozenset(("BestPos", "BestVel"))

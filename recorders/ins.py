@@ -38,7 +38,7 @@ from .base import Converter, LogContext, Output, output
 from .clock import DayClock
 from .epochs import group_epochs, host_time_ns
 from .nmea_epochs import NmeaEpoch, gga_altitude, nmea_epoch_time, nmea_key, nmea_motion, nmea_position, nmea_update_date
-from .novatel_epochs import novatel_scan_epochs, novatel_scan_time
+from .novatel_epochs import novatel_publish_ns, novatel_scan_epochs, novatel_scan_time
 
 NAN = float("nan")
 
@@ -79,22 +79,27 @@ def _phins_scan_fields(burst: dict[str, phins.Scanned]) -> tuple:
     lat = lon = depth = roll = pitch = heading = vn = ve = vd = NAN
     hstd = pn = pe = rstd = pstd = alt = NAN
     words = []
-    for key, v, _, _, _ in burst.values():
+    for key, v, _, _, _ in burst.values():  # v: the record's fields after `where`, in order
         if key == "Heading":
-            if v[2] != "V":
-                heading = v[1]
+            _, heading_deg, mode = v
+            if mode != "V":
+                heading = heading_deg
         elif key == "Atitud":
-            roll, pitch = v[0], -v[1]
+            roll, pitch_bow_down = v
+            pitch = -pitch_bow_down
         elif key == "Positi":
-            lat, lon, alt, depth = v[0], v[1], v[2], 0.0 - v[2]
+            lat, lon, alt = v
+            depth = 0.0 - alt
         elif key == "Speed":
-            vn, ve, vd = v[1], v[0], 0.0 - v[2]
+            ve, vn, up = v
+            vd = 0.0 - up
         elif key == "StdHrp":
             hstd, rstd, pstd = v
         elif key == "StdPos":
-            pn, pe = v[0], v[1]
+            pn, pe, _ = v
         elif key in ("ALGSTS", "STATUS", "HT_STS"):
-            words.append(f"{key}={v[1]:08X}" + ("" if key == "HT_STS" else f",{v[2]:08X}"))
+            _, lsb, msb = v
+            words.append(f"{key}={lsb:08X}" + ("" if key == "HT_STS" else f",{msb:08X}"))
     ph = burst.get("Phtro")
     if ph is not None and "Atitud" not in burst:
         pitch, roll = ph[1]  # ATITUD wins wherever it stands in the burst
@@ -107,7 +112,7 @@ def _phins_scan_outputs(burst: dict[str, phins.Scanned], ctx: LogContext, clock:
         return
     first = next(iter(burst.values()))
     stamp = burst.get("Time")
-    if stamp is not None and stamp[1][0] == stamp[1][0]:
+    if stamp is not None and not math.isnan(stamp[1][0]):  # TIME__'s only value: time_s
         t = clock.resolve(stamp[1][0])
         if t is None:
             yield Reject(Where(*stamp[2:]), "no date for PHINS TIME__: set the [trial] date in the manifest")
@@ -182,18 +187,19 @@ def _span_scan_fields(epoch: dict[str, novatel_scan.Scanned]) -> tuple:
     lat = lon = depth = roll = pitch = heading = vn = ve = vd = hstd = pn = pe = rstd = pstd = alt = NAN
     status = []
     for kind, item in epoch.items():  # in arrival order: a later log overrides, as f.update does
-        v = item[4]
         if kind == "InsPva":
-            lat, lon, alt, vn, ve, vd = v[2], v[3], v[4], v[5], v[6], 0.0 - v[7]
-            roll, pitch, heading = v[8], v[9], v[10]
-            status.append(v[11])
+            p = novatel_scan.INS_PVA._make(item[4])
+            lat, lon, alt, vn, ve, vd = p.latitude, p.longitude, p.height_m, p.north_mps, p.east_mps, 0.0 - p.up_mps
+            roll, pitch, heading = p.roll_deg, p.pitch_deg, p.azimuth_deg
+            status.append(p.status)
         else:
-            lat, lon, alt, vn, ve, vd = v[2], v[3], v[4], v[6], v[7], 0.0 - v[8]
-            roll, pitch, heading = v[9], v[10], v[11]
-            u = v[5]
-            depth = -(v[4] - u) if u == u else NAN
-            hstd, rstd, pstd, pn, pe = v[20], v[18], v[19], v[12], v[13]
-            status += (v[0], v[1])
+            x = novatel_scan.INS_PVAX._make(item[4])
+            lat, lon, alt, vn, ve, vd = x.latitude, x.longitude, x.height_m, x.north_mps, x.east_mps, 0.0 - x.up_mps
+            roll, pitch, heading = x.roll_deg, x.pitch_deg, x.azimuth_deg
+            u = x.undulation_m
+            depth = NAN if math.isnan(u) else -(x.height_m - u)
+            hstd, rstd, pstd, pn, pe = x.azimuth_std_deg, x.roll_std_deg, x.pitch_std_deg, x.lat_std_m, x.lon_std_m
+            status += (x.status, x.position_type)
     return " ".join(dict.fromkeys(status)), lat, lon, depth, roll, pitch, heading, vn, ve, vd, hstd, pn, pe, rstd, pstd, alt
 
 
@@ -204,15 +210,15 @@ def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
         if isinstance(epoch, Reject):
             yield epoch
             continue
-        t = novatel_scan_time(epoch, ctx)  # type: ignore[arg-type]
+        t = novatel_scan_time(epoch, ctx)
         if isinstance(t, Reject):
             yield t
             continue
-        items = list(epoch.values())  # type: ignore[union-attr]
+        items = list(epoch.values())
         source = "novatel:" + ",".join([item[1] for item in items])
-        state = S.ins_state(t, ctx.vehicle, source, *_span_scan_fields(epoch))  # type: ignore[arg-type]
+        state = S.ins_state(t, ctx.vehicle, source, *_span_scan_fields(epoch))
         first = items[0]
-        yield Output(topic, state, t, t if first[7] is None else first[7] + ctx.clock_offset_ns, Where(*first[5:]))  # type: ignore[arg-type]
+        yield Output(topic, state, t, novatel_publish_ns(first, t, ctx), novatel_scan.where_of(first))
 
 
 # ---------------------------------------------------------------- NMEA heading / INS-as-NMEA
