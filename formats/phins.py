@@ -333,8 +333,8 @@ def _scan_general(raw: str, line_start: int, number: int, prefix: str) -> Iterat
     """A line off the fast path: prefixes, noise, missing checksums, glued sentences, garbage."""
     for item in iter_frames(raw.encode("latin-1"), prefix):
         if isinstance(item, Reject):
-            where = Where(line_start, number, item.where.host_time_ns)  # type: ignore[union-attr]
-            yield Reject(where, item.reason, item.bad_checksum)  # type: ignore[union-attr]
+            where = Where(line_start, number, item.where.host_time_ns)
+            yield Reject(where, item.reason, item.bad_checksum)
             continue
         address, fields, w = item
         where = Where(line_start, number, w.host_time_ns)

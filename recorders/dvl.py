@@ -104,35 +104,34 @@ def _host_time(ctx: LogContext, where: Where) -> int | None:
 
 def pd0_items(rec: pd0.Ensemble, fixed: pd0.FixedLeader | None, ctx: LogContext) -> Iterator[Output | Reject]:
     """The message of one ensemble, or why it has none (`fixed`: its own or the last one seen)."""
-    number = rec.variable.ensemble_number if rec.variable else "?"
-    if rec.time_ns is None:
+    bt, var, time_ns = rec.bottom_track, rec.variable, rec.time_ns
+    number = var.ensemble_number if var else "?"
+    if time_ns is None or var is None:  # no variable leader gives no time either
         yield Reject(rec.where, f"ensemble {number}: no variable leader or invalid RTC time")
-    elif rec.bottom_track is None:
+    elif bt is None:
         yield Reject(rec.where, f"ensemble {number}: no bottom-track data")
     elif fixed is None:
         yield Reject(rec.where, f"ensemble {number}: no fixed leader yet (coordinates unknown)")
     else:
-        yield _pd0_output(ctx, rec, fixed)
+        yield _pd0_output(ctx, rec.where, time_ns + ctx.clock_offset_ns, bt, var, fixed)
 
 
-def _pd0_output(ctx: LogContext, rec: pd0.Ensemble, fixed: pd0.FixedLeader) -> Output:
-    bt, var = rec.bottom_track, rec.variable
+def _pd0_output(ctx: LogContext, where: Where, t: int, bt: pd0.BottomTrack, var: pd0.VariableLeader,
+                fixed: pd0.FixedLeader) -> Output:
     angle = beam_angle(ctx, fixed.beam_angle_deg)
-    frame, x, y, z, err = vehicle_velocity(fixed.coordinates, bt.velocity_mps, angle,
-                                               fixed.convex)
+    frame, x, y, z, err = vehicle_velocity(fixed.coordinates, bt.velocity_mps, angle, fixed.convex)
     slant, alt = ranges_from_vertical(bt.range_m, angle)
-    t = rec.time_ns + ctx.clock_offset_ns
     msg = message(ctx, t, frame, (x, y, z), error=err, ranges=slant, altitude=alt,
                   sound_speed=var.sound_speed_mps, temperature=var.temperature_c, source="pd0")
-    return output(ctx, "dvl", msg, t, rec.where)
-
+    return output(ctx, "dvl", msg, t, where)
 
 
 # ---------------------------------------------------------------- PD0, fast path
-# The same messages as `convert_pd0_reference`, over `pd0_blocks.scan`: a run
+# The same messages as tests/reference_converters.py's `convert_pd0_reference`, over `pd0_blocks.scan`: a run
 # of like ensembles has its velocities, ranges and altitudes computed as
 # arrays (the same IEEE operations in the same order, so the same bits, NaN
 # signs included), and each DvlVelocity is parsed from wire bytes packed by `formats.wire`.
+
 
 def _pd0_motion(block: pd0_blocks.Block, fixed: pd0.FixedLeader, ctx: LogContext) -> tuple:
     """(frame name, columns x, y, z, error, slant ranges, altitude, valid) of a block (`_pd0_output`)."""
@@ -156,7 +155,8 @@ def _pd0_block_outputs(block: pd0_blocks.Block, fixed: pd0.FixedLeader | None, c
                        ) -> Iterator[Output | Reject]:
     """`convert_pd0_reference`'s items for the ensembles of one block."""
     offsets, times, numbers = block.offsets, block.time_ns, block.numbers
-    if times is None or block.velocity_mps is None or fixed is None:
+    sounds, temps = block.sound_speed_mps, block.temperature_c  # None only with `times` (no variable leader)
+    if times is None or numbers is None or sounds is None or temps is None or block.velocity_mps is None or fixed is None:
         for k, off in enumerate(offsets):
             number = numbers[k] if numbers is not None else "?"
             if times is None or times[k] is None:
@@ -172,8 +172,7 @@ def _pd0_block_outputs(block: pd0_blocks.Block, fixed: pd0.FixedLeader | None, c
     pack, parse, topic, offset_ns = DVL_VELOCITY.struct.pack, DvlVelocity.FromString, f"/{ctx.vehicle}/dvl", ctx.clock_offset_ns
     k0, k1, k2, k3, k4, k5, k6, k7, k8 = DVL_VELOCITY.keys
     for off, t, number, x, y, z, err, r, alt, valid, sound, temp in zip(
-            offsets, times, block.numbers, xs, ys, zs, errs, slants, alts, valids,  # type: ignore[arg-type]
-            block.sound_speed_mps, block.temperature_c):  # type: ignore[arg-type]
+            offsets, times, numbers, xs, ys, zs, errs, slants, alts, valids, sounds, temps):
         if t is None:
             yield Reject(Where(off), f"ensemble {number}: no variable leader or invalid RTC time")
             continue

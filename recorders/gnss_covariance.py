@@ -12,7 +12,7 @@ APPROXIMATED; else None and UNKNOWN. UERE depends on the fix quality
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from typing import Any, Mapping
 
 from formats import schemas as S
 
@@ -24,10 +24,10 @@ Covariance = tuple[tuple[float, ...] | None, int]  # (row-major 3x3 ENU matrix o
 UNKNOWN: Covariance = (None, S.COVARIANCE_UNKNOWN)
 
 
-def uere_m(quality: int, options: Mapping[str, object]) -> float:
+def uere_m(quality: int, options: Mapping[str, Any]) -> float:
     """The UERE (m) for a fix quality: the manifest's ``uere_m``, else `UERE_M`'s, else the default."""
     value = options.get("uere_m", UERE_M.get(quality, DEFAULT_UERE_M))
-    return float(value)  # type: ignore[arg-type]  # a manifest value: float() raises a clear ValueError
+    return float(value)
 
 
 def sigma_covariance(lat_std_m: float, lon_std_m: float, alt_std_m: float) -> Covariance:
@@ -43,7 +43,7 @@ def hdop_covariance(hdop: float, uere: float) -> Covariance:
 
 
 def fix_covariance(lat_std_m: float, lon_std_m: float, alt_std_m: float, hdop: float, quality: int,
-                   options: Mapping[str, object]) -> Covariance:
+                   options: Mapping[str, Any]) -> Covariance:
     """An epoch's covariance: its GST sigmas (NaN when it has none), else its GGA HDOP, else UNKNOWN."""
     if not (math.isnan(lat_std_m) or math.isnan(lon_std_m)):
         return sigma_covariance(lat_std_m, lon_std_m, alt_std_m)

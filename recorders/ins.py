@@ -43,22 +43,22 @@ from .novatel_epochs import novatel_publish_ns, novatel_scan_epochs, novatel_sca
 NAN = float("nan")
 
 
-def ins_state(t_ns: int, ctx: LogContext, source: str, **fields: object) -> S.InsState:  # type: ignore[name-defined]
-    """An InsState with every float NaN unless given (proto3 would default them to 0)."""
-    if not fields.keys() <= _INS_FIELDS:
-        raise ValueError(f"InsState has no field {sorted(fields.keys() - _INS_FIELDS)[0]!r}")
-    g = fields.get
+def ins_state(t_ns: int, ctx: LogContext, source: str, status: str = "", /, **values: float) -> S.InsState:
+    """An InsState with its status words and every float NaN unless given (proto3 would default them to 0)."""
+    if not values.keys() <= _INS_VALUES:
+        raise ValueError(f"InsState has no field {sorted(values.keys() - _INS_VALUES)[0]!r}")
+    g = values.get
     return S.ins_state(
-        t_ns, ctx.vehicle, source, g("status", ""), g("latitude", NAN), g("longitude", NAN), g("depth_m", NAN),  # type: ignore[arg-type]
-        g("roll_deg", NAN), g("pitch_deg", NAN), g("heading_deg", NAN), g("velocity_north_mps", NAN),  # type: ignore[arg-type]
-        g("velocity_east_mps", NAN), g("velocity_down_mps", NAN), g("heading_std_deg", NAN),  # type: ignore[arg-type]
-        g("position_std_north_m", NAN), g("position_std_east_m", NAN), g("roll_std_deg", NAN),  # type: ignore[arg-type]
-        g("pitch_std_deg", NAN), g("altitude_m", NAN),  # type: ignore[arg-type]
+        t_ns, ctx.vehicle, source, status, g("latitude", NAN), g("longitude", NAN), g("depth_m", NAN),
+        g("roll_deg", NAN), g("pitch_deg", NAN), g("heading_deg", NAN), g("velocity_north_mps", NAN),
+        g("velocity_east_mps", NAN), g("velocity_down_mps", NAN), g("heading_std_deg", NAN),
+        g("position_std_north_m", NAN), g("position_std_east_m", NAN), g("roll_std_deg", NAN),
+        g("pitch_std_deg", NAN), g("altitude_m", NAN),
     )
 
 
-_INS_FIELDS = frozenset((
-    "status", "latitude", "longitude", "depth_m", "roll_deg", "pitch_deg", "heading_deg", "velocity_north_mps",
+_INS_VALUES = frozenset((
+    "latitude", "longitude", "depth_m", "roll_deg", "pitch_deg", "heading_deg", "velocity_north_mps",
     "velocity_east_mps", "velocity_down_mps", "heading_std_deg", "position_std_north_m", "position_std_east_m",
     "roll_std_deg", "pitch_std_deg", "altitude_m",
 ))
@@ -138,7 +138,7 @@ def convert_phins(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
         if item[0] in burst:  # a repeated sentence starts the next burst (`group_epochs` with no times)
             yield from _phins_scan_outputs(burst, ctx, clock)
             burst = {}
-        burst[item[0]] = item  # type: ignore[index,assignment]
+        burst[item[0]] = item
     if burst:
         yield from _phins_scan_outputs(burst, ctx, clock)
 
@@ -153,8 +153,8 @@ def convert_pashr(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
         if isinstance(r, Reject):
             yield r
             continue
-        if r.time_s == r.time_s:  # type: ignore[union-attr]
-            t = clock.resolve(r.time_s)  # type: ignore[union-attr]
+        if not math.isnan(r.time_s):
+            t = clock.resolve(r.time_s)
             if t is None:
                 yield Reject(r.where, "no date for $PASHR time of day: set the [trial] date in the manifest")
                 continue
@@ -164,10 +164,9 @@ def convert_pashr(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
                 yield Reject(r.where, "no time: $PASHR without time of day or host timestamp")
                 continue
         state = ins_state(
-            t, ctx, "pashr", heading_deg=r.heading_deg if r.heading_true else NAN,  # type: ignore[union-attr]
-            roll_deg=r.roll_deg, pitch_deg=r.pitch_deg, roll_std_deg=r.roll_std_deg,  # type: ignore[union-attr]
-            pitch_std_deg=r.pitch_std_deg, heading_std_deg=r.heading_std_deg,  # type: ignore[union-attr]
-            status=f"gnss_quality={r.gnss_quality} ins_status={r.ins_status}",  # type: ignore[union-attr]
+            t, ctx, "pashr", f"gnss_quality={r.gnss_quality} ins_status={r.ins_status}",
+            heading_deg=r.heading_deg if r.heading_true else NAN, roll_deg=r.roll_deg, pitch_deg=r.pitch_deg,
+            roll_std_deg=r.roll_std_deg, pitch_std_deg=r.pitch_std_deg, heading_std_deg=r.heading_std_deg,
         )
         yield output(ctx, "ins", state, t, r.where)
 
@@ -235,7 +234,7 @@ def _nmea_ins(records: list[nmea.NmeaRecord], ctx: LogContext, clock: DayClock) 
     if isinstance(t, Reject):
         yield t
         return
-    f: dict[str, object] = {"heading_deg": heading}
+    f: dict[str, float] = {"heading_deg": heading}
     if pos is not None:
         f["latitude"], f["longitude"] = pos.latitude, pos.longitude
         if isinstance(pos, nmea.Gga):
@@ -250,11 +249,12 @@ def _nmea_ins(records: list[nmea.NmeaRecord], ctx: LogContext, clock: DayClock) 
 def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """NMEA heading ($--HDT, $--THS) and position/velocity sentences from an INS or gyrocompass."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
-    for epoch in group_epochs(nmea.decode(data, ctx.prefix), nmea_key):
+    epochs: Iterator[list[nmea.NmeaRecord] | Reject] = group_epochs(nmea.decode(data, ctx.prefix), nmea_key)
+    for epoch in epochs:
         if isinstance(epoch, Reject):
             yield epoch
         else:
-            yield from _nmea_ins(epoch, ctx, clock)  # type: ignore[arg-type]  # group_epochs' R is inferred as object
+            yield from _nmea_ins(epoch, ctx, clock)
 
 
 CONVERTERS: dict[str, Converter] = {

@@ -58,7 +58,10 @@ def bearing_elevation(east: float, north: float, up: float) -> tuple[float, floa
 
 def observation(t_ns: int, node: str, target: str, fmt: str, v: Mapping[str, float]) -> UsblObservation:
     """A UsblObservation from named values (missing ones NaN)."""
-    g = lambda k: float(v.get(k, NAN))  # noqa: E731
+
+    def g(key: str) -> float:
+        return float(v.get(key, NAN))
+
     return UsblObservation(
         timestamp=timestamp(t_ns), node=node, target=target, travel_time_s=g("travel_time_s"),
         range_m=g("range_m"), bearing_deg=g("bearing_deg"), elevation_deg=g("elevation_deg"),
@@ -155,7 +158,7 @@ def _evologics_scan(data: bytes, ctx: LogContext, opts: UsblOptions) -> Iterator
                 parts[keyword] = v
                 continue
             yield emit(first, parts)
-        first, parts = item, {keyword: v}  # type: ignore[assignment]
+        first, parts = item, {keyword: v}
     if first is not None:
         yield emit(first, parts)
 

@@ -78,7 +78,8 @@ def _nmea_outputs(records: list[nmea.NmeaRecord], ctx: LogContext, clock: DayClo
 def convert_nmea_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """`recorders.gps.convert_nmea` the obvious way, over `nmea.decode` records."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
-    for epoch in group_epochs(nmea.decode(data, ctx.prefix), nmea_key):
+    epochs: Iterator[list[nmea.NmeaRecord] | Reject] = group_epochs(nmea.decode(data, ctx.prefix), nmea_key)
+    for epoch in epochs:
         if isinstance(epoch, Reject):
             yield epoch
         else:
@@ -139,7 +140,8 @@ def _novatel_outputs(epoch: list[novatel.NovatelRecord], ctx: LogContext) -> Ite
 def convert_novatel_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """`recorders.gps.convert_novatel` the obvious way, over `novatel.decode` records."""
     records = (r for r in novatel.decode(data, ctx.prefix) if isinstance(r, (Reject, novatel.BestPos, novatel.BestVel)))
-    for epoch in group_epochs(records, novatel_key):
+    epochs: Iterator[list[novatel.NovatelRecord] | Reject] = group_epochs(records, novatel_key)
+    for epoch in epochs:
         if isinstance(epoch, Reject):
             yield epoch
         else:
@@ -157,8 +159,8 @@ def phins_key(rec: phins.PhinsRecord) -> tuple[str, None]:
     return (rec.kind if isinstance(rec, phins.StatusWords) else type(rec).__name__), None
 
 
-def _phins_fields(epoch: list[phins.PhinsRecord]) -> dict[str, object]:
-    f: dict[str, object] = {}
+def _phins_fields(epoch: list[phins.PhinsRecord]) -> tuple[str, dict[str, float]]:
+    f: dict[str, float] = {}
     words = []
     for r in epoch:
         if isinstance(r, phins.Heading):
@@ -180,8 +182,7 @@ def _phins_fields(epoch: list[phins.PhinsRecord]) -> dict[str, object]:
             f["position_std_north_m"], f["position_std_east_m"] = r.lat_std_m, r.lon_std_m
         elif isinstance(r, phins.StatusWords):
             words.append(f"{r.kind}={r.lsb:08X}" + ("" if r.kind == "HT_STS" else f",{r.msb:08X}"))
-    f["status"] = " ".join(words)
-    return f
+    return " ".join(words), f
 
 
 def _phins_outputs(epoch: list[phins.PhinsRecord], ctx: LogContext, clock: DayClock) -> Iterator[Output | Reject]:
@@ -198,21 +199,23 @@ def _phins_outputs(epoch: list[phins.PhinsRecord], ctx: LogContext, clock: DayCl
         if t is None:
             yield Reject(epoch[0].where, "no time: PHINS burst without TIME__ and without a host timestamp")
             return
-    yield output(ctx, "ins", ins_state(t, ctx, "phins", **_phins_fields(epoch)), t, epoch[0].where)
+    status, values = _phins_fields(epoch)
+    yield output(ctx, "ins", ins_state(t, ctx, "phins", status, **values), t, epoch[0].where)
 
 
 def convert_phins_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """`recorders.ins.convert_phins` the obvious way, over `phins.decode` records."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
-    for epoch in group_epochs(phins.decode(data, ctx.prefix), phins_key):
+    epochs: Iterator[list[phins.PhinsRecord] | Reject] = group_epochs(phins.decode(data, ctx.prefix), phins_key)
+    for epoch in epochs:
         if isinstance(epoch, Reject):
             yield epoch
         else:
             yield from _phins_outputs(epoch, ctx, clock)
 
 
-def _span_fields(epoch: list[novatel.InsPva | novatel.InsPvax]) -> dict[str, object]:
-    f: dict[str, object] = {}
+def _span_fields(epoch: list[novatel.InsPva | novatel.InsPvax]) -> tuple[str, dict[str, float]]:
+    f: dict[str, float] = {}
     status = []
     for r in epoch:
         f.update(
@@ -229,14 +232,14 @@ def _span_fields(epoch: list[novatel.InsPva | novatel.InsPvax]) -> dict[str, obj
                 position_std_north_m=r.lat_std_m, position_std_east_m=r.lon_std_m,
             )
             status.append(r.position_type)
-    f["status"] = " ".join(dict.fromkeys(status))
-    return f
+    return " ".join(dict.fromkeys(status)), f
 
 
 def convert_span_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """`recorders.ins.convert_span` the obvious way, over `novatel.decode` records."""
     records = (r for r in novatel.decode(data, ctx.prefix) if isinstance(r, (Reject, novatel.InsPva, novatel.InsPvax)))
-    for epoch in group_epochs(records, novatel_key):
+    epochs: Iterator[list[novatel.InsPva | novatel.InsPvax] | Reject] = group_epochs(records, novatel_key)
+    for epoch in epochs:
         if isinstance(epoch, Reject):
             yield epoch
             continue
@@ -245,7 +248,8 @@ def convert_span_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Re
             yield t
             continue
         source = "novatel:" + ",".join(_source(r) for r in epoch)
-        yield output(ctx, "ins", ins_state(t, ctx, source, **_span_fields(epoch)), t, epoch[0].where)
+        status, values = _span_fields(epoch)
+        yield output(ctx, "ins", ins_state(t, ctx, source, status, **values), t, epoch[0].where)
 
 
 # ---------------------------------------------------------------- recorders.dvl

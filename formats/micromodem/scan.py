@@ -34,23 +34,22 @@ _SEEN_MAX = 4096  # distinct sentence texts remembered per log (replies differ b
 
 def _scanned(rec: mm.Record | Reject) -> Scanned | Reject | None:
     """A decoder record as `scan` yields it (None for what the converter does not use)."""
-    t = type(rec)
-    if t is Reject:
-        return rec  # type: ignore[return-value]
+    if isinstance(rec, Reject):
+        return rec
     w = rec.where
     where = w.offset, w.line, w.host_time_ns
-    if t is mm.PingReply:
-        return "reply", (rec.src, rec.dest, rec.one_way_travel_time_s, rec.utc_ns), *where  # type: ignore[union-attr]
-    if t is mm.PingHeard or t is mm.CycleInit or t is mm.ReceivedData:
-        return "heard", (rec.src,), *where  # type: ignore[union-attr]
-    if t is mm.TransmitStats:
-        return "date", (rec.date, rec.tod_s), *where  # type: ignore[union-attr]
-    if t is mm.Clock:
-        return "clock", (rec.utc_ns,), *where  # type: ignore[union-attr]
-    if t is mm.ReceiveStats:
-        return "rxstats", (rec.src, rec.tod_s), *where  # type: ignore[union-attr]
-    if t is mm.TimeOfArrival:
-        return "toa", (rec.tod_s, rec.utc_ns), *where  # type: ignore[union-attr]
+    if isinstance(rec, mm.PingReply):
+        return "reply", (rec.src, rec.dest, rec.one_way_travel_time_s, rec.utc_ns), *where
+    if isinstance(rec, (mm.PingHeard, mm.CycleInit, mm.ReceivedData)):
+        return "heard", (rec.src,), *where
+    if isinstance(rec, mm.TransmitStats):
+        return "date", (rec.date, rec.tod_s), *where
+    if isinstance(rec, mm.Clock):
+        return "clock", (rec.utc_ns,), *where
+    if isinstance(rec, mm.ReceiveStats):
+        return "rxstats", (rec.src, rec.tod_s), *where
+    if isinstance(rec, mm.TimeOfArrival):
+        return "toa", (rec.tod_s, rec.utc_ns), *where
     return None
 
 

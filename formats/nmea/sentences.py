@@ -369,7 +369,7 @@ def parse_frame(frame: Frame) -> NmeaRecord | Reject | None:
 
 
 # (sentence type, talker, values in record field order, byte offset, line, host time ns or None)
-Scanned = tuple[str, str, tuple, int, int, Union[int, None]]
+Scanned = tuple[str, str, tuple, int, Union[int, None], Union[int, None]]
 
 
 def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
@@ -422,7 +422,7 @@ def _scan_general(raw: str, line_start: int, number: int, prefix: str) -> Iterat
     for item in iter_frames(raw.encode("latin-1"), prefix):
         if isinstance(item, Reject):
             where = item.where
-            yield Reject(Where(line_start, number, where.host_time_ns), item.reason, item.bad_checksum)  # type: ignore[union-attr]
+            yield Reject(Where(line_start, number, where.host_time_ns), item.reason, item.bad_checksum)
             continue
         address, fields, where = item
         result = _frame_values((address, fields, Where(line_start, number, where.host_time_ns)))
