@@ -71,7 +71,8 @@ class DvlOutput:
 
 
 def _vel(raw: Sequence[int]) -> tuple[float, float, float, float]:
-    return tuple(math.nan if x == BAD_VELOCITY else x / 1000 for x in raw)  # type: ignore[return-value]
+    v1, v2, v3, v4 = (math.nan if x == BAD_VELOCITY else x / 1000 for x in raw)
+    return v1, v2, v3, v4
 
 
 def _parse(buf: bytes, i: int, nbytes: int) -> DvlOutput:
@@ -91,7 +92,7 @@ def _parse(buf: bytes, i: int, nbytes: int) -> DvlOutput:
                    roll_deg=p[3] / 100, heading_deg=p[4] / 100,
                    dmg_bottom_m=tuple(d / 10 for d in p[5:9]),
                    dmg_reference_m=tuple(d / 10 for d in p[9:13]))
-    return DvlOutput(**rec)  # type: ignore[arg-type]
+    return DvlOutput(**rec)  # type: ignore[arg-type]  # fields gathered by name in a dict: their types are the dataclass's
 
 
 def _candidate(buf: bytes, i: int) -> tuple[str | None, int]:

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Sequence, cast
 
 from foxglove_schemas_protobuf.LocationFix_pb2 import LocationFix
 from google.protobuf.descriptor import FieldDescriptor
@@ -69,7 +69,7 @@ class FieldRun:
             if count == 1:
                 args.append(value)
             else:
-                args.extend(value)  # type: ignore[call-overload]  # a packed field's values: a sequence
+                args.extend(cast(Sequence[float], value))  # a packed field's values
         return self.struct.pack(*args)
 
 

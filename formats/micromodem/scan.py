@@ -20,7 +20,7 @@ Kinds and values:
 from __future__ import annotations
 
 import math
-from typing import Iterator
+from typing import Iterator, Literal
 
 from . import sentences as mm
 from ..host_lines import scan_lines
@@ -58,7 +58,7 @@ def _ascii_int(text: str) -> bool:
     return text.isdigit() and text.isascii()
 
 
-def _fast(fields: list[str], round_trip: bool) -> tuple[str, tuple] | None | bool:
+def _fast(fields: list[str], round_trip: bool) -> tuple[str, tuple] | None | Literal[False]:
     """A ping sentence's (kind, values), None when it is valid and unused, False when in doubt."""
     address = fields[0]
     if len(fields) < 3 or not (_ascii_int(fields[1]) and _ascii_int(fields[2])):
@@ -84,7 +84,7 @@ def scan(data: bytes, prefix: str = "auto", campr_round_trip: bool = False) -> I
     # a ping exchange repeats its command and echo lines word for word: read each text once
     seen: dict[str, tuple[str, tuple] | None] = {}
     for text, offset, number, host, at in scan_lines(data, prefix):
-        found = seen.get(text, False)
+        found: tuple[str, tuple] | None | Literal[False] = seen.get(text, False)
         if found is False and text[:1] == "$":
             body = text[1:].rstrip("\r\n ")
             star = body.rfind("*")
@@ -92,11 +92,11 @@ def scan(data: bytes, prefix: str = "auto", campr_round_trip: bool = False) -> I
             if star >= 0 and len(body) - star - 1 >= 2 and HEX.get(body[star + 1 : star + 3]) == pxor[at + star] ^ pxor[at]:
                 found = _fast(body[:star].split(","), campr_round_trip)
                 if found is not False and len(seen) < _SEEN_MAX:
-                    seen[text] = found  # type: ignore[assignment]
+                    seen[text] = found
         if found is None:
             continue
         if found is not False:
-            yield found[0], found[1], offset, number, host  # type: ignore[index]
+            yield found[0], found[1], offset, number, host
             continue
         item = _scanned(mm.decode_sentence(text, Where(offset, number, host), campr_round_trip))
         if item is not None:

@@ -559,7 +559,7 @@ def header_at(utc_ns: int, message: str, **kw: object) -> Header:
     kw.setdefault("port", "COM1")
     kw.setdefault("idle_percent", 50.0)
     kw.setdefault("time_status", "FINESTEERING")
-    return Header(message, "ascii", week, round(sow * 1000) / 1000.0, **kw)  # type: ignore[arg-type]
+    return Header(message, "ascii", week, round(sow * 1000) / 1000.0, **kw)  # type: ignore[arg-type]  # `kw`: any Header field, by name
 
 
 def encode_bestposa(

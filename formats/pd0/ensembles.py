@@ -213,9 +213,9 @@ def parse_bottom(buf: bytes, start: int, length: int) -> BottomTrack | None:
     if length >= 81:
         for k in range(4):
             ranges_cm[k] += buf[start + 77 + k] * 65536
-    vel = tuple(math.nan if x == BAD_VELOCITY else x / 1000 for x in b[12:16])
-    rng = tuple(r / 100 if r else math.nan for r in ranges_cm)
-    return BottomTrack(b[1], vel, rng, b[16:20], b[20:24], b[24:28])  # type: ignore[arg-type]
+    v1, v2, v3, v4 = (math.nan if x == BAD_VELOCITY else x / 1000 for x in b[12:16])
+    r1, r2, r3, r4 = (r / 100 if r else math.nan for r in ranges_cm)
+    return BottomTrack(b[1], (v1, v2, v3, v4), (r1, r2, r3, r4), b[16:20], b[20:24], b[24:28])
 
 
 def _parse_profile(buf: bytes, start: int, length: int, fixed: FixedLeader | None) -> np.ndarray:
