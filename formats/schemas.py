@@ -30,11 +30,11 @@ MESSAGE_CLASSES: dict[str, Any] = {
     )
 }
 
-# foxglove.LocationFix.position_covariance_type values
-COVARIANCE_UNKNOWN = 0
-COVARIANCE_APPROXIMATED = 1
-COVARIANCE_DIAGONAL_KNOWN = 2
-COVARIANCE_KNOWN = 3
+# foxglove.LocationFix.position_covariance_type values, from the generated enum
+COVARIANCE_UNKNOWN: int = LocationFix.UNKNOWN
+COVARIANCE_APPROXIMATED: int = LocationFix.APPROXIMATED
+COVARIANCE_DIAGONAL_KNOWN: int = LocationFix.DIAGONAL_KNOWN
+COVARIANCE_KNOWN: int = LocationFix.KNOWN
 
 
 def timestamp(ns: int) -> Timestamp:
@@ -49,6 +49,10 @@ def to_ns(ts: Timestamp) -> int:
 
 
 _NAN9 = (float("nan"),) * 9
+# bound once: the builders below run per message
+_FIX_KEYS, _FIX_PACK = LOCATION_FIX.keys, LOCATION_FIX.struct.pack
+_INS_KEYS, _INS_PACK = INS_STATE.keys, INS_STATE.struct.pack
+_GNSS_KEYS, _GNSS_PACK = GNSS_STATUS.keys, GNSS_STATUS.struct.pack
 
 
 def location_fix(
@@ -67,8 +71,8 @@ def location_fix(
         # One parse of packed wire bytes (`formats.wire`): upb sets a repeated double ~0.1 us per element
         # through extend() or a constructor keyword, and a nested Timestamp keyword costs
         # a copy; this way the fix costs about half (bench/bench_nmea.py).
-        k0, k1, k2, k3, k4 = LOCATION_FIX.keys
-        fix = LocationFix.FromString(LOCATION_FIX.struct.pack(
+        k0, k1, k2, k3, k4 = _FIX_KEYS
+        fix = LocationFix.FromString(_FIX_PACK(
             k0, latitude, k1, longitude, k2, altitude, k3, *covariance_enu_m2, k4, covariance_type))
     else:
         fix = LocationFix(latitude=latitude, longitude=longitude, altitude=altitude,
@@ -88,8 +92,8 @@ def ins_state(
 ) -> InsState:
     """An auvreplay.InsState from every field (NaN where absent), built from packed wire bytes."""
     # one parse of packed doubles costs a third of fifteen keyword arguments (see location_fix)
-    t = INS_STATE.keys
-    msg = InsState.FromString(INS_STATE.struct.pack(
+    t = _INS_KEYS
+    msg = InsState.FromString(_INS_PACK(
         t[0], latitude, t[1], longitude, t[2], depth_m, t[3], roll_deg, t[4], pitch_deg, t[5], heading_deg,
         t[6], velocity_north_mps, t[7], velocity_east_mps, t[8], velocity_down_mps, t[9], heading_std_deg,
         t[10], position_std_north_m, t[11], position_std_east_m, t[12], roll_std_deg, t[13], pitch_std_deg,
@@ -107,8 +111,8 @@ def gnss_status(
     speed_mps: float, course_deg: float, heading_deg: float,
 ) -> GnssStatus:
     """An auvreplay.GnssStatus, its doubles parsed from packed wire bytes (as `ins_state`)."""
-    k0, k1, k2, k3 = GNSS_STATUS.keys
-    msg = GnssStatus.FromString(GNSS_STATUS.struct.pack(k0, hdop, k1, speed_mps, k2, course_deg, k3, heading_deg))
+    k0, k1, k2, k3 = _GNSS_KEYS
+    msg = GnssStatus.FromString(_GNSS_PACK(k0, hdop, k1, speed_mps, k2, course_deg, k3, heading_deg))
     msg.frame_id = frame_id
     msg.fix_quality = fix_quality
     msg.satellites = satellites

@@ -1,7 +1,7 @@
-"""`recorders.gps.convert_nmea` over `formats.nmea_columns`: epochs, positions and covariances as arrays.
+"""`recorders.gps.convert_nmea` over `formats.nmea.columns`: epochs, positions and covariances as arrays.
 
 The same messages as the per-line fast path (and so as
-`convert_nmea_reference`), for clean logs of the types `formats.nmea_columns`
+tests/reference_converters.py's `convert_nmea_reference`), for clean logs of the types `formats.nmea.columns`
 takes: epochs are runs of one time of day (ms; a sentence without a time
 joins the run it arrives in), found with numpy; per epoch only the two
 protobuf messages and their Outputs are built in Python. Logs where an epoch

@@ -169,7 +169,7 @@ def set_modem_date(clock: DayClock, rec: mm.TransmitStats | mm.Clock) -> None:
     clock.set_date(dt.date(), (rec.utc_ns % DAY_NS) / NS)
 
 
-# ---- Micro-Modem, fast path: the same ranges over `micromodem_scan.scan` tuples
+# ---- Micro-Modem, fast path: the same ranges over `formats.micromodem.scan` tuples
 
 class _ScanPings:
     """`_ping` on scanned values, with what is the same for every range of a log worked out once."""
@@ -235,7 +235,7 @@ def convert_micromodem(data: bytes, ctx: LogContext) -> Iterator[Output | Reject
 # ---- EvoLogics S2C
 
 def _evologics_scan(data: bytes, ctx: LogContext, c: float) -> Iterator[Output | Reject]:
-    """`_evologics` over `evologics_scan.scan` tuples, messages from packed wire bytes."""
+    """`_evologics` over `formats.evologics.scan` tuples, messages from packed wire bytes."""
     me, address, offset_ns = ctx.vehicle, own_address(ctx), ctx.clock_offset_ns
     topic, names = f"/{me}/{SUFFIX}", dict[int, str]()
     for item in evs.scan(data, ctx.prefix):

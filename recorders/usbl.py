@@ -88,7 +88,7 @@ def usbl_options(ctx: LogContext) -> UsblOptions:
     )
 
 
-# ---- EvoLogics, fast path: the same groups and messages over `evologics_scan.scan` tuples
+# ---- EvoLogics, fast path: the same groups and messages over `formats.evologics.scan` tuples
 
 _USBL_KEYWORDS = frozenset(("USBLLONG", "USBLANGLES", "USBLPHYD"))
 # where each field sits in a scanned line's values; the three USBL lines start alike (times, then address)

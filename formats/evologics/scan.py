@@ -1,4 +1,4 @@
-"""`formats.evologics.decode` as plain tuples: the recording hot path for EvoLogics logs.
+"""`formats.evologics.notifications.decode` as plain tuples: the recording hot path for EvoLogics logs.
 
 `scan` yields what the range and USBL converters use, USBLLONG, USBLANGLES,
 USBLPHYD and AT?T propagation times, as ``(keyword, values, offset, line,

@@ -1,4 +1,4 @@
-"""`formats.micromodem.decode` as plain tuples: the recording hot path for Micro-Modem logs.
+"""`formats.micromodem.sentences.decode` as plain tuples: the recording hot path for Micro-Modem logs.
 
 `scan` yields what the range converter uses as ``(kind, values, offset,
 line, host ns)`` tuples, and every Reject; ping commands and other sentences
@@ -88,7 +88,7 @@ def scan(data: bytes, prefix: str = "auto", campr_round_trip: bool = False) -> I
         if found is False and text[:1] == "$":
             body = text[1:].rstrip("\r\n ")
             star = body.rfind("*")
-            # `sentence.frame`'s checksum: the XOR of the payload's bytes in `data` is pxor's two ends
+            # `nmea.framing.frame`'s checksum: the XOR of the payload's bytes in `data` is pxor's two ends
             if star >= 0 and len(body) - star - 1 >= 2 and HEX.get(body[star + 1 : star + 3]) == pxor[at + star] ^ pxor[at]:
                 found = _fast(body[:star].split(","), campr_round_trip)
                 if found is not False and len(seen) < _SEEN_MAX:
