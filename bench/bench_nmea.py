@@ -37,11 +37,11 @@ sys.path.insert(0, str(ROOT))
 
 import pynmea2  # noqa: E402
 
-from formats.nmea import sentences as nmea  # noqa: E402
 from formats import schemas as S  # noqa: E402
 from formats.mcap_writer import ArchiveWriter  # noqa: E402
-from formats.records import Where  # noqa: E402
+from formats.nmea import sentences as nmea  # noqa: E402
 from formats.nmea.framing import build  # noqa: E402
+from formats.records import Where  # noqa: E402
 from recorders.base import LogContext, Output  # noqa: E402
 from recorders.gps import convert_nmea, gnss_status  # noqa: E402
 from tests.reference_converters import convert_nmea_reference  # noqa: E402

@@ -29,8 +29,8 @@ sys.path.insert(0, str(HERE))
 
 from common import median_time, print_table  # noqa: E402
 
-from formats.pd0 import ensembles as pd0  # noqa: E402
 from formats.pd0 import blocks as pd0_blocks  # noqa: E402
+from formats.pd0 import ensembles as pd0  # noqa: E402
 from recorders.base import LogContext  # noqa: E402
 from recorders.dvl import convert_pd0  # noqa: E402
 from tests.reference_converters import convert_pd0_reference  # noqa: E402

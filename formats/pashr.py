@@ -19,9 +19,9 @@ from dataclasses import dataclass
 from typing import Iterator
 
 from .nmea.fields import NAN, parse_tod
+from .nmea.framing import build
 from .nmea.sentences import iter_frames
 from .records import Reject, Where
-from .nmea.framing import build
 
 
 @dataclass(frozen=True, slots=True)

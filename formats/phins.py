@@ -33,9 +33,9 @@ from typing import Callable, Iterator, Union
 
 from .lines import PREFIX_STYLES
 from .nmea.fields import NAN, parse_tod
+from .nmea.framing import HEX, build, prefix_xor
 from .nmea.sentences import iter_frames
 from .records import Reject, Where
-from .nmea.framing import HEX, build, prefix_xor
 
 
 @dataclass(frozen=True, slots=True)

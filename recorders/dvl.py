@@ -30,8 +30,8 @@ from typing import Any, Iterator, Sequence
 import numpy as np
 
 from formats import nortek, pd4, pd6, waterlinked
-from formats.pd0 import ensembles as pd0
 from formats.pd0 import blocks as pd0_blocks
+from formats.pd0 import ensembles as pd0
 from formats.pd0.frames import vehicle_velocity
 from formats.records import FormatError, Reject, Where
 from formats.schemas import DvlVelocity, timestamp

@@ -3,7 +3,7 @@
 Epochs. A receiver writes several sentences per fix (GGA, RMC, GST, VTG...)
 and the order varies between receivers (GST often comes after GGA). The
 converter therefore groups consecutive records into epochs before emitting
-(`group_epochs`): a record joins the open epoch unless its sentence type is
+(`recorders.epochs.group_epochs`' rule): a record joins the open epoch unless its sentence type is
 already in it or it carries a time of day different from the epoch's.
 Records without a time (VTG, HDT, THS) join the epoch they arrive in. Each
 epoch gives at most one LocationFix and one GnssStatus; a duplicated or
@@ -14,13 +14,8 @@ epoch. GGA quality 0 or an empty position gives a GnssStatus but no fix.
 Altitude is the ellipsoidal height (MSL altitude plus geoid separation) when
 the separation is given, else the MSL altitude; NovAtel likewise.
 
-Covariance (ENU, m²). GST of the same epoch: diag(lon σ², lat σ², alt σ²),
-DIAGONAL_KNOWN; NovAtel BESTPOS σ the same way. Else, from GGA's HDOP:
-horizontal σ = HDOP × UERE split equally on east and north
-(σ_E² = σ_N² = (HDOP·UERE)²/2), vertical σ = 2·HDOP·UERE (VDOP is not in
-GGA; about twice HDOP is typical), APPROXIMATED. UERE depends on the fix
-quality (`UERE_M`) unless the log's manifest entry sets ``uere_m``. Else
-NaN and UNKNOWN.
+Covariance (ENU, m²): `recorders.gnss_covariance` (GST sigmas, else HDOP
+times the UERE, else unknown); NovAtel BESTPOS sigmas as GST's.
 
 Time. NMEA time of day plus the date of the last RMC/ZDA (or the manifest's
 trial date), with midnight rollover (`recorders.clock.DayClock`); an epoch
@@ -35,14 +30,13 @@ import math
 from math import isnan
 from typing import Iterator
 
-from formats.nmea import sentences as nmea
-from formats.nmea import columns as nmea_columns
-from formats.novatel import scan as novatel_scan
-from formats.lines import PREFIX_STYLES
 from formats import schemas as S
-from formats.records import Reject, Where
-
+from formats.lines import PREFIX_STYLES
+from formats.nmea import columns as nmea_columns
+from formats.nmea import sentences as nmea
 from formats.nmea.sentences import KNOT_MPS
+from formats.novatel import scan as novatel_scan
+from formats.records import Reject, Where
 
 from . import gps_columns
 from .base import Converter, LogContext, Output

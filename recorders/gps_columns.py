@@ -17,11 +17,11 @@ from typing import Iterator
 import numpy as np
 
 from formats import schemas as S
-from formats.nmea.sentences import KNOT_MPS
 from formats.nmea.columns import KINDS, NmeaColumns
+from formats.nmea.sentences import KNOT_MPS
 from formats.records import Reject, Where
 
-from .base import Output, LogContext
+from .base import LogContext, Output
 from .clock import DAY_NS, NS, DayClock, date_to_ns
 from .gnss_covariance import fix_covariance
 

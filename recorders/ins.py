@@ -29,15 +29,23 @@ import math
 from typing import Iterator
 
 from formats import pashr, phins
+from formats import schemas as S
 from formats.nmea import sentences as nmea
 from formats.novatel import scan as novatel_scan
-from formats import schemas as S
 from formats.records import Reject, Where
 
 from .base import Converter, LogContext, Output, output
 from .clock import DayClock
 from .epochs import group_epochs, host_time_ns
-from .nmea_epochs import NmeaEpoch, gga_altitude, nmea_epoch_time, nmea_key, nmea_motion, nmea_position, nmea_update_date
+from .nmea_epochs import (
+    NmeaEpoch,
+    gga_altitude,
+    nmea_epoch_time,
+    nmea_key,
+    nmea_motion,
+    nmea_position,
+    nmea_update_date,
+)
 from .novatel_epochs import novatel_publish_ns, novatel_scan_epochs, novatel_scan_time
 
 NAN = float("nan")

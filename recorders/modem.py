@@ -34,11 +34,11 @@ from datetime import datetime, timezone
 from typing import Any, Iterator, Mapping
 
 from formats import acoustic_messages as AM
+from formats import regex_lines as rx
 from formats.evologics import notifications as ev
 from formats.evologics import scan as evs
-from formats.micromodem import sentences as mm
 from formats.micromodem import scan as mms
-from formats import regex_lines as rx
+from formats.micromodem import sentences as mm
 from formats.records import FormatError, Reject, Where
 from formats.scanned import positions
 from formats.schemas import AcousticRange, timestamp

@@ -11,7 +11,18 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from formats.nmea.sentences import KNOT_MPS, Gga, Gll, Gst, Hdt, NmeaRecord, Rmc, Ths, Vtg, Zda
+from formats.nmea.sentences import (
+    KNOT_MPS,
+    Gga,
+    Gll,
+    Gst,
+    Hdt,
+    NmeaRecord,
+    Rmc,
+    Ths,
+    Vtg,
+    Zda,
+)
 from formats.records import Reject
 
 from .base import LogContext

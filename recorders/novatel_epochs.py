@@ -1,4 +1,4 @@
-"""NovAtel logs scanned (`formats.novatel_scan`) and grouped into timed epochs, for the GNSS and INS converters.
+"""NovAtel logs scanned (`formats.novatel.scan`) and grouped into timed epochs, for the GNSS and INS converters.
 
 The fast paths' version of `recorders.gps.group_epochs` with `novatel_key`
 and of `novatel_time`: an epoch is a dict {record kind: scanned tuple} in
@@ -10,8 +10,8 @@ from __future__ import annotations
 import math
 from typing import Iterator
 
-from formats.novatel import scan as novatel_scan
 from formats.gpstime import gps_to_unix_ns
+from formats.novatel import scan as novatel_scan
 from formats.records import Reject
 
 from .base import LogContext

@@ -39,7 +39,14 @@ from formats.schemas import UsblObservation, timestamp
 from .base import Converter, LogContext, Output, output
 from .clock import NS
 from .modem import (
-    RegexOptions, endpoint, measurement_ns, option_choice, option_float, regex_options, sound_speed, timed_regex_records,
+    RegexOptions,
+    endpoint,
+    measurement_ns,
+    option_choice,
+    option_float,
+    regex_options,
+    sound_speed,
+    timed_regex_records,
     travel_and_range,
 )
 

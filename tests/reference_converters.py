@@ -30,11 +30,34 @@ from recorders.gnss_covariance import Covariance, fix_covariance, sigma_covarian
 from recorders.gps import NOVATEL_QUALITY, gnss_status
 from recorders.ins import ins_state
 from recorders.modem import (
-    MicromodemOptions, acoustic_range, host_time, micromodem_options, own_address, own_addresses, set_modem_date,
-    sound_speed, toa_range, usbl_reception_ns,
+    MicromodemOptions,
+    acoustic_range,
+    host_time,
+    micromodem_options,
+    own_address,
+    own_addresses,
+    set_modem_date,
+    sound_speed,
+    toa_range,
+    usbl_reception_ns,
 )
-from recorders.nmea_epochs import NmeaEpoch, gga_altitude, nmea_epoch_time, nmea_key, nmea_motion, nmea_position, nmea_update_date
-from recorders.usbl import MATCH_S, SUFFIX as USBL_SUFFIX, bearing_elevation, usbl_options, UsblOptions, observation
+from recorders.nmea_epochs import (
+    NmeaEpoch,
+    gga_altitude,
+    nmea_epoch_time,
+    nmea_key,
+    nmea_motion,
+    nmea_position,
+    nmea_update_date,
+)
+from recorders.usbl import (
+    MATCH_S,
+    UsblOptions,
+    bearing_elevation,
+    observation,
+    usbl_options,
+)
+from recorders.usbl import SUFFIX as USBL_SUFFIX
 
 NAN = math.nan
 UsblRecord = ev.UsblLong | ev.UsblAngles | ev.UsblPhaseDelays

@@ -9,9 +9,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from formats import acoustic_messages as AM
+from formats import host_lines
 from formats.evologics import notifications as ev
 from formats.evologics import scan as evs
-from formats import host_lines
 from formats.lines import iter_lines
 from formats.schemas import UsblObservation, timestamp
 from recorders import modem, usbl

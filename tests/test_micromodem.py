@@ -9,8 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from formats.micromodem import sentences as mm
-from formats.records import Reject, Where
 from formats.nmea.framing import nmea_checksum
+from formats.records import Reject, Where
 
 W = Where(0, 1)
 

@@ -9,10 +9,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from formats import acoustic_messages as AM
-from formats.micromodem import sentences as mm
 from formats.micromodem import scan as mms
-from formats.schemas import AcousticRange, timestamp
+from formats.micromodem import sentences as mm
 from formats.nmea.framing import build
+from formats.schemas import AcousticRange, timestamp
 from recorders import modem
 from recorders.base import LogContext, Output
 from tests import reference_converters as reference

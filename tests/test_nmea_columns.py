@@ -7,8 +7,8 @@ from datetime import date
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from formats.nmea import sentences as nmea
 from formats.nmea import columns as nmea_columns
+from formats.nmea import sentences as nmea
 from formats.nmea.framing import build
 from recorders import gps, gps_columns
 from recorders.base import LogContext, Output

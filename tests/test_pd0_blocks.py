@@ -9,8 +9,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from formats.pd0 import ensembles as pd0
 from formats.pd0 import blocks as pd0_blocks
+from formats.pd0 import ensembles as pd0
 from formats.records import Reject
 from recorders import dvl
 from recorders.base import LogContext, Output

@@ -8,9 +8,9 @@ from datetime import date
 import pytest
 
 from formats import nortek, pd4, pd6
+from formats import waterlinked as wl
 from formats.pd0 import ensembles as pd0
 from formats.pd0 import frames
-from formats import waterlinked as wl
 from formats.records import FormatError, Reject
 from formats.schemas import DvlVelocity, to_ns
 from recorders.base import LogContext, Output

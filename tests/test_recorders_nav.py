@@ -10,15 +10,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from formats import pashr, phins
-from formats.nmea import sentences as nmea
-from formats.novatel import logs as novatel
 from formats import schemas as S
-from formats.records import Reject, Where
+from formats.nmea import sentences as nmea
 from formats.nmea.framing import build
-from recorders import gps, ins
+from formats.novatel import logs as novatel
+from formats.records import Reject, Where
+from recorders import gnss_covariance, gps, ins
 from recorders.base import LogContext, Output
 from tests import reference_converters as reference
-from recorders import gnss_covariance
 
 DAY = date(2016, 10, 12)
 MIDNIGHT = 1476230400 * 10**9  # 2016-10-12T00:00:00Z

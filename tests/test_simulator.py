@@ -11,8 +11,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from samples import anomalies as an
-from samples.scenario import (AnomalyEvent, Scenario, ScenarioError, TrialConfig, load_scenario,
-                              scenario_from_dict, scenario_to_toml)
+from samples.scenario import (
+    AnomalyEvent,
+    Scenario,
+    ScenarioError,
+    TrialConfig,
+    load_scenario,
+    scenario_from_dict,
+    scenario_to_toml,
+)
 from samples.simulator import simulate_trial
 from samples.trajectories import LocalFrame, gauss_markov, radii, stream
 from samples.writer import render

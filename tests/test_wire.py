@@ -5,9 +5,9 @@ from __future__ import annotations
 import math
 
 import pytest
+from google.protobuf.descriptor import FieldDescriptor
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from google.protobuf.descriptor import FieldDescriptor
 
 from formats import wire
 

@@ -21,9 +21,9 @@ from __future__ import annotations
 import math
 from typing import Iterator
 
-from . import notifications as ev
 from ..host_lines import scan_lines
 from ..records import Reject, Where
+from . import notifications as ev
 
 Scanned = tuple[str, list, int, "int | None", "int | None"]  # keyword, values, offset, line, host ns
 _FIELDS = {"USBLLONG": 16, "USBLANGLES": 13, "USBLPHYD": 12}

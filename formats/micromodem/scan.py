@@ -22,10 +22,10 @@ from __future__ import annotations
 import math
 from typing import Iterator, Literal
 
-from . import sentences as mm
 from ..host_lines import scan_lines
-from ..records import Reject, Where
 from ..nmea.framing import HEX, prefix_xor
+from ..records import Reject, Where
+from . import sentences as mm
 
 Scanned = tuple[str, tuple, int, "int | None", "int | None"]  # kind, values, offset, line, host ns
 _PING_COMMANDS = frozenset(("CCMPC", "CAMPC"))

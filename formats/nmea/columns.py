@@ -18,7 +18,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from .clean import CleanLines, clean_lines, field_table, select
-from .fields import NAN, angle_column, number_column, parse_ddmmyy, parse_zda_date, tod_column
+from .fields import (
+    NAN,
+    angle_column,
+    number_column,
+    parse_ddmmyy,
+    parse_zda_date,
+    tod_column,
+)
 from .sentences import VALUES
 
 KINDS = ("GGA", "GST", "RMC", "VTG", "GLL", "ZDA", "HDT", "THS")  # kind codes 0..7

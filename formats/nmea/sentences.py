@@ -34,7 +34,15 @@ from typing import Callable, Iterator, Union
 
 from ..lines import PREFIX_STYLES, strip_prefix
 from ..records import Reject, Where
-from .fields import NAN, parse_ddmmyy, parse_float, parse_lat, parse_lon, parse_tod, parse_zda_date
+from .fields import (
+    NAN,
+    parse_ddmmyy,
+    parse_float,
+    parse_lat,
+    parse_lon,
+    parse_tod,
+    parse_zda_date,
+)
 from .framing import HEX, nmea_checksum, prefix_xor
 
 KNOT_MPS = 1852.0 / 3600.0

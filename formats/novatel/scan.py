@@ -14,10 +14,10 @@ from __future__ import annotations
 from dataclasses import fields
 from typing import Callable, Iterator, Literal, Union
 
-from . import logs as N
 from ..lines import PREFIX_STYLES, strip_prefix
 from ..records import Reject, Where
 from ..scanned import values_view
+from . import logs as N
 
 NAN = float("nan")
 

@@ -28,8 +28,8 @@ from __future__ import annotations
 import math
 import struct
 from dataclasses import dataclass, field
-from functools import lru_cache
 from datetime import datetime, timezone
+from functools import lru_cache
 from typing import Callable, Iterator, Sequence
 
 import numpy as np
