@@ -36,15 +36,15 @@ from formats.records import Reject, Where
 
 from .base import Converter, LogContext, Output, output
 from .clock import DayClock
-from .epochs import group_epochs, host_time_ns
+from .epochs import host_time_ns
 from .nmea_epochs import (
     NmeaEpoch,
     gga_altitude,
     nmea_epoch_time,
-    nmea_key,
     nmea_motion,
     nmea_position,
     nmea_update_date,
+    record_epochs,
 )
 from .novatel_epochs import novatel_publish_ns, novatel_scan_epochs, novatel_scan_time
 
@@ -257,8 +257,7 @@ def _nmea_ins(records: list[nmea.NmeaRecord], ctx: LogContext, clock: DayClock) 
 def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """NMEA heading ($--HDT, $--THS) and position/velocity sentences from an INS or gyrocompass."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
-    epochs: Iterator[list[nmea.NmeaRecord] | Reject] = group_epochs(nmea.decode(data, ctx.prefix), nmea_key)
-    for epoch in epochs:
+    for epoch in record_epochs(data, ctx.prefix):
         if isinstance(epoch, Reject):
             yield epoch
         else:

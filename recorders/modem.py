@@ -31,7 +31,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from datetime import datetime, timezone
-from typing import Any, Iterator, Mapping
+from functools import partial
+from typing import Any, Callable, Iterator, Mapping
 
 from formats import acoustic_messages as AM
 from formats import regex_lines as rx
@@ -316,31 +317,26 @@ def travel_and_range(values: Mapping[str, float], c: float) -> tuple[float, floa
     return r / c, r
 
 
-def timed_regex_records(data: bytes, ctx: LogContext, opts: RegexOptions) -> Iterator[tuple[rx.RegexRecord, int] | Reject]:
-    """Each matched line of a regex log with its time (`regex_time`), or a Reject (its own or the time's)."""
+def regex_outputs(data: bytes, ctx: LogContext, opts: RegexOptions,
+                  build: Callable[[rx.RegexRecord, int], Output | Reject]) -> Iterator[Output | Reject]:
+    """`build(record, time)` for each matched line of a regex log, or a Reject (the line's own or its time's)."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     for rec in rx.decode(data, opts.pattern, opts.time_format, ctx.prefix, opts.scale):
         if isinstance(rec, Reject):
             yield rec
             continue
         t = regex_time(ctx, rec, clock)
-        yield t if isinstance(t, Reject) else (rec, t)
+        yield t if isinstance(t, Reject) else build(rec, t)
 
 
-def _regex(data: bytes, ctx: LogContext, opts: RegexOptions) -> Iterator[Output | Reject]:
-    for item in timed_regex_records(data, ctx, opts):
-        if isinstance(item, Reject):
-            yield item
-            continue
-        rec, t = item
-        tt, _ = travel_and_range(rec.values, opts.c)
-        if not math.isfinite(tt):
-            yield Reject(rec.where, "no travel time or range on the line")
-        elif not rec.source:
-            yield Reject(rec.where, "no source: the pattern's 'source' group did not match")
-        else:
-            measurer = endpoint(ctx, rec.destination) if rec.destination else (ctx.vehicle, own_address(ctx))
-            yield acoustic_range(ctx, t, rec.where, endpoint(ctx, rec.source), measurer, tt, "user", "regex", opts.c)
+def _regex_range(ctx: LogContext, opts: RegexOptions, rec: rx.RegexRecord, t: int) -> Output | Reject:
+    tt, _ = travel_and_range(rec.values, opts.c)
+    if not math.isfinite(tt):
+        return Reject(rec.where, "no travel time or range on the line")
+    if not rec.source:
+        return Reject(rec.where, "no source: the pattern's 'source' group did not match")
+    measurer = endpoint(ctx, rec.destination) if rec.destination else (ctx.vehicle, own_address(ctx))
+    return acoustic_range(ctx, t, rec.where, endpoint(ctx, rec.source), measurer, tt, "user", "regex", opts.c)
 
 
 def convert_regex(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
@@ -348,7 +344,7 @@ def convert_regex(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     opts = regex_options(ctx)
     if "source" not in opts.pattern.groupindex:
         raise FormatError(f"{ctx.path}: regex format: a modem pattern needs a named group 'source'")
-    return _regex(data, ctx, opts)
+    return regex_outputs(data, ctx, opts, partial(_regex_range, ctx, opts))
 
 
 CONVERTERS: dict[str, Converter] = {

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Iterator
 
 from formats.nmea.sentences import (
     KNOT_MPS,
@@ -22,16 +23,23 @@ from formats.nmea.sentences import (
     Ths,
     Vtg,
     Zda,
+    decode,
 )
 from formats.records import Reject
 
 from .base import LogContext
 from .clock import DayClock
-from .epochs import host_time_ns
+from .epochs import group_epochs, host_time_ns
 
 NAN = math.nan
 NO_DATE = "no date for time of day {:.3f} s: no RMC/ZDA date yet and no [trial] date in the manifest"
 NO_TIME = "no time: the epoch has no timed sentence and no host timestamp"
+
+
+def record_epochs(data: bytes, prefix: str) -> Iterator[list[NmeaRecord] | Reject]:
+    """A log's NMEA records (`sentences.decode`) grouped into epochs by `nmea_key`; Rejects pass through."""
+    epochs: Iterator[list[NmeaRecord] | Reject] = group_epochs(decode(data, prefix), nmea_key)
+    return epochs
 
 
 def nmea_key(rec: NmeaRecord) -> tuple[str, int | None]:

@@ -27,9 +27,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import partial
 from typing import Iterator, Mapping
 
 from formats import acoustic_messages as AM
+from formats import regex_lines as rx
 from formats.evologics import notifications as ev
 from formats.evologics import scan as evs
 from formats.records import FormatError, Reject, Where
@@ -45,8 +47,8 @@ from .modem import (
     option_choice,
     option_float,
     regex_options,
+    regex_outputs,
     sound_speed,
-    timed_regex_records,
     travel_and_range,
 )
 
@@ -192,18 +194,11 @@ def _regex_values(values: Mapping[str, float], c: float) -> dict[str, float]:
     return v
 
 
-def _regex(data: bytes, ctx: LogContext, opts: RegexOptions) -> Iterator[Output | Reject]:
-    for item in timed_regex_records(data, ctx, opts):
-        if isinstance(item, Reject):
-            yield item
-            continue
-        rec, t = item
-        if not rec.source:
-            yield Reject(rec.where, "no target: the pattern's 'target' group did not match")
-        else:
-            v = _regex_values(rec.values, opts.c)
-            msg = observation(t, ctx.vehicle, endpoint(ctx, rec.source)[0], "regex", v)
-            yield output(ctx, SUFFIX, msg, t, rec.where)
+def _regex_observation(ctx: LogContext, opts: RegexOptions, rec: rx.RegexRecord, t: int) -> Output | Reject:
+    if not rec.source:
+        return Reject(rec.where, "no target: the pattern's 'target' group did not match")
+    msg = observation(t, ctx.vehicle, endpoint(ctx, rec.source)[0], "regex", _regex_values(rec.values, opts.c))
+    return output(ctx, SUFFIX, msg, t, rec.where)
 
 
 def convert_regex(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
@@ -214,7 +209,7 @@ def convert_regex(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
         raise FormatError(f"{ctx.path}: regex format: a USBL pattern needs a named group 'target'")
     if not names & set(_USBL_VALUES):
         raise FormatError(f"{ctx.path}: regex format: a USBL pattern needs a measurement group, one of {_USBL_VALUES}")
-    return _regex(data, ctx, opts)
+    return regex_outputs(data, ctx, opts, partial(_regex_observation, ctx, opts))
 
 
 CONVERTERS: dict[str, Converter] = {

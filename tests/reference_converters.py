@@ -45,10 +45,10 @@ from recorders.nmea_epochs import (
     NmeaEpoch,
     gga_altitude,
     nmea_epoch_time,
-    nmea_key,
     nmea_motion,
     nmea_position,
     nmea_update_date,
+    record_epochs,
 )
 from recorders.usbl import (
     MATCH_S,
@@ -101,8 +101,7 @@ def _nmea_outputs(records: list[nmea.NmeaRecord], ctx: LogContext, clock: DayClo
 def convert_nmea_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """`recorders.gps.convert_nmea` the obvious way, over `nmea.decode` records."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
-    epochs: Iterator[list[nmea.NmeaRecord] | Reject] = group_epochs(nmea.decode(data, ctx.prefix), nmea_key)
-    for epoch in epochs:
+    for epoch in record_epochs(data, ctx.prefix):
         if isinstance(epoch, Reject):
             yield epoch
         else:
