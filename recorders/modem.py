@@ -213,18 +213,23 @@ def _micromodem_scan(data: bytes, ctx: LogContext, opts: MicromodemOptions) -> I
         if kind == "reply":
             yield ping(v, offset, line, host)
         elif kind == "heard":
-            if v[0] not in own:
-                last_src = v[0]
+            (src,) = v
+            if src not in own:
+                last_src = src
         elif kind == "date":
-            clock.set_date(v[0], v[1])
+            day, tod_s = v
+            clock.set_date(day, tod_s)
         elif kind == "clock":
-            set_modem_date(clock, mm.Clock(Where(offset, line, host), v[0]))
+            (utc_ns,) = v
+            set_modem_date(clock, mm.Clock(Where(offset, line, host), utc_ns))
         elif kind == "rxstats":
-            last_src = v[0]
+            src, tod_s = v
+            last_src = src
             if opts.period_s is not None:
-                yield toa_range(ctx, Where(offset, line, host), clock.resolve(v[1]), v[0], opts)
+                yield toa_range(ctx, Where(offset, line, host), clock.resolve(tod_s), src, opts)
         elif kind == "toa" and opts.period_s is not None:
-            arrival = clock.resolve(v[0]) if v[0] is not None else v[1] + ctx.clock_offset_ns
+            tod_s, utc_ns = v
+            arrival = clock.resolve(tod_s) if tod_s is not None else utc_ns + ctx.clock_offset_ns
             yield toa_range(ctx, Where(offset, line, host), arrival, last_src, opts)
 
 
