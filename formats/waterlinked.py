@@ -142,7 +142,8 @@ def _serial(kind: str, p: list[str], where: Where) -> WaterLinkedRecord:
     if kind == "wrx":
         return VelocityReport(where, "wrx", (_f(p[1]), _f(p[2]), _f(p[3])), p[6].strip() == "y",
                               _pos(_f(p[5])), _f(p[4]), (), None, None, _f(p[0]), _int(p[7]) or 0)
-    return LegacyDistances(where, tuple(_pos(_f(x)) for x in p[:4]))  # type: ignore[arg-type]
+    d1, d2, d3, d4 = (_pos(_f(x)) for x in p[:4])
+    return LegacyDistances(where, (d1, d2, d3, d4))
 
 
 def parse_serial(text: str, where: Where) -> WaterLinkedRecord | Reject | None:

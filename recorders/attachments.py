@@ -11,6 +11,8 @@ from typing import BinaryIO
 
 RAW_PREFIX = "/raw/"  # a capture's raw streams (recorders.capture.session)
 
+from formats.mcap_reader import ArchiveReader
+
 
 @dataclass
 class UnpackResult:
@@ -43,8 +45,6 @@ def safe_target(root: Path, name: str) -> Path | None:
 
 def unpack(archive_path: str | os.PathLike[str], target_dir: str | os.PathLike[str]) -> UnpackResult:
     """Write every attachment under target_dir; refuse unsafe names, verify recorded sha256."""
-    from formats.mcap_reader import ArchiveReader
-
     root = Path(target_dir)
     root.mkdir(parents=True, exist_ok=True)
     result = UnpackResult()

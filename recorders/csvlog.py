@@ -17,10 +17,11 @@ import math
 from datetime import datetime, timezone
 from typing import Any, Callable, Iterator
 
+from google.protobuf.descriptor import FieldDescriptor
+
 from formats import csv_table
 from formats import schemas as S
 from formats.records import FormatError, Reject
-from google.protobuf.descriptor import FieldDescriptor
 
 from .base import NS, LogContext, Output, output
 from .clock import DayClock

@@ -16,8 +16,16 @@ from formats.records import FormatError, Reject
 from .base import NS, LogContext, Output
 from .clock import date_to_ns, iso_utc
 from .manifest import LogSpec, Manifest, ManifestError
-from .record_parallel import (Capture, Captured, WorkerDied, WorkerPool, available_cores, can_fork, only_thread,
-                              write_captured)
+from .record_parallel import (
+    Capture,
+    Captured,
+    WorkerDied,
+    WorkerPool,
+    available_cores,
+    can_fork,
+    only_thread,
+    write_captured,
+)
 from .registry import converters
 
 LOG_LEVEL_WARNING = 3  # foxglove.Log.Level.WARNING
