@@ -23,10 +23,8 @@ import rerun as rr
 
 from replay.events import Listener
 from replay.review.data import ReviewData
-from replay.views.blueprint import build_blueprint
-from replay.views.common import class_id, make_runs, part
-from replay.views.recording import log_review
-from replay.views.series import cdf_scale
+from replay.views.common import class_id, part
+from replay.views.recording import log_runs, prepare
 
 RAD = 180.0 / math.pi
 NS = 1_000_000_000
@@ -91,6 +89,13 @@ class LiveView(Listener):
         if self.t0_ns is not None:
             self._events.append((self.t0_ns + round(t_s * NS), level.upper(), text))
 
+    def _times(self, t_ns: np.ndarray) -> list[rr.TimeColumn]:
+        """UTC and mission seconds (from the trial start, once the engine said it) of receive-stamped rows."""
+        cols = [rr.TimeColumn("time", timestamp=t_ns.astype("datetime64[ns]"))]
+        if self.t0_ns is not None:
+            cols.append(rr.TimeColumn("mission_s", duration=(t_ns - self.t0_ns).astype("timedelta64[ns]")))
+        return cols
+
     def flush(self, force: bool = False) -> None:
         """Send the buffered rows, at most every `every_s` unless forced."""
         now = time.monotonic()
@@ -104,15 +109,15 @@ class LiveView(Listener):
             n = len(rows)
             self.rec.send_columns(
                 f"{self.prefix}/map/{part(vehicle)}/{part(source)}/position",
-                indexes=[rr.TimeColumn("time", timestamp=np.array([r[0] for r in rows], dtype="datetime64[ns]"))],
+                indexes=self._times(np.array([r[0] for r in rows], dtype=np.int64)),
                 columns=rr.GeoPoints.columns(positions=arr[:, 1:3],
                                              class_ids=np.full(n, class_id(source), dtype=np.uint16),
                                              radii=np.full(n, rr.Radius.ui_points(5.0), dtype=np.float32)))
             rows.clear()
         if self._events:
-            times = np.array([e[0] for e in self._events], dtype="datetime64[ns]")
+            times = np.array([e[0] for e in self._events], dtype=np.int64)
             self.rec.send_columns(
-                f"{self.prefix}/events", indexes=[rr.TimeColumn("time", timestamp=times)],
+                f"{self.prefix}/events", indexes=self._times(times),
                 columns=rr.TextLog.columns(text=[e[2] for e in self._events], level=[e[1] for e in self._events]))
             self._events.clear()
         if self._received:
@@ -124,9 +129,8 @@ class LiveView(Listener):
         """Send what is left; then the complete replay views of the online run, with their blueprint."""
         self.flush(force=True)
         if review is not None:
-            runs = make_runs([review])
-            scale = cdf_scale([review.errors])
-            self.rec.send_blueprint(build_blueprint(runs, scale, 0))
-            log_review(self.rec, runs[0], scale)
+            runs, axes, error_top, blueprint = prepare([review])
+            self.rec.send_blueprint(blueprint)
+            log_runs(self.rec, [review], runs, axes, error_top)
         self.rec.flush()
         self.rec.disconnect()

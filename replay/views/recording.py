@@ -24,6 +24,7 @@ import sys
 from pathlib import Path
 
 import rerun as rr
+import rerun.blueprint as rrb
 
 from replay.review.data import ReviewData
 from replay.views.anfis import log_anfis
@@ -70,20 +71,18 @@ def log_review(rec: rr.RecordingStream, run: Run, axes: dict, error_top: float) 
     log_events(rec, run)
 
 
-def build_recording(reviews: list[ReviewData], application_id: str = "auvreplay",
-                    path: str | os.PathLike[str] | None = None, active_tab: int | str = 0) -> rr.RecordingStream:
-    """A recording of one or two runs with the blueprint; streamed to `path` (.rrd) when given, else buffered."""
+def prepare(reviews: list[ReviewData], active_tab: int | str = 0) -> tuple[list[Run], dict, float, rrb.Blueprint]:
+    """The runs of one or two reviews, their error axes and ceiling, and the workstation blueprint."""
     if not 1 <= len(reviews) <= 2:
-        raise ValueError(f"build_recording takes one run or two to compare, got {len(reviews)}")
+        raise ValueError(f"a recording takes one run or two to compare, got {len(reviews)}")
     runs = make_runs(reviews)
-    axes = error_axis(runs)
     error_top = error_ceiling([r.errors for r in reviews])
-    blueprint = build_blueprint(runs, error_top, active_tab)
-    rec = rr.RecordingStream(application_id, recording_id=recording_id(reviews), send_properties=False)
-    if path is not None:
-        rec.save(str(path), default_blueprint=blueprint)
-    else:
-        rec.send_blueprint(blueprint)
+    return runs, error_axis(runs), error_top, build_blueprint(runs, error_top, active_tab)
+
+
+def log_runs(rec: rr.RecordingStream, reviews: list[ReviewData], runs: list[Run], axes: dict,
+             error_top: float) -> None:
+    """Everything of the runs into a recording: its name and start, scores, colour key, CDF frame, every view."""
     rec.send_recording_name(" vs ".join(f"{r.trial} {run.label or r.run_id}" for r, run in zip(reviews, runs,
                                                                                              strict=True)))
     rec.send_recording_start_time_nanos(int(reviews[0].trial_start_ns))
@@ -92,6 +91,18 @@ def build_recording(reviews: list[ReviewData], application_id: str = "auvreplay"
     log_cdf_frame(rec, runs, axes)
     for run in runs:
         log_review(rec, run, axes, error_top)
+
+
+def build_recording(reviews: list[ReviewData], application_id: str = "auvreplay",
+                    path: str | os.PathLike[str] | None = None, active_tab: int | str = 0) -> rr.RecordingStream:
+    """A recording of one or two runs with the blueprint; streamed to `path` (.rrd) when given, else buffered."""
+    runs, axes, error_top, blueprint = prepare(reviews, active_tab)
+    rec = rr.RecordingStream(application_id, recording_id=recording_id(reviews), send_properties=False)
+    if path is not None:
+        rec.save(str(path), default_blueprint=blueprint)
+    else:
+        rec.send_blueprint(blueprint)
+    log_runs(rec, reviews, runs, axes, error_top)
     return rec
 
 
