@@ -84,7 +84,7 @@ def text_report(ev: Evaluation) -> str:
     lines += ["", *ev.notes,
               (f"train seed {ev.train_seed} (held out; training: each test trial on its own window, mode "
                f"{ev.training!r}); test seeds {_seeds(ev.seeds)}; {ev.trials} trials simulated, recorded and "
-               f"replayed in {ev.wall_s:.1f} s ({ev.workers})")]
+               f"replayed in {ev.wall_s:.1f} s wall ({ev.workers}; {ev.cpu_s:.0f} CPU-s in the trials)")]
     return "\n".join(lines)
 
 
@@ -137,7 +137,8 @@ def run(args: argparse.Namespace) -> int:
             ev = evaluate(seeds, config, args.train_seed, rates, args.duration, client=client, progress=progress)
     if args.json:
         print(json.dumps(ev.to_json(), indent=2))
-        print(f"evaluate: {ev.trials} trials in {ev.wall_s:.1f} s ({ev.workers})", file=sys.stderr)
+        print(f"evaluate: {ev.trials} trials in {ev.wall_s:.1f} s wall ({ev.workers}; {ev.cpu_s:.0f} CPU-s in the "
+              "trials)", file=sys.stderr)
     else:
         print(text_report(ev))
     return 0

@@ -107,6 +107,7 @@ class TrialScores:
     errors: dict[str, np.ndarray]       # method -> horizontal errors (m) at GPS fixes after t_a
     unmatched: int = 0                  # scored epochs the simulator had no epoch for
     wall_s: float = 0.0
+    cpu_s: float = 0.0                  # this process's CPU time for the trial (not slowed by other load)
 
 
 class _EpochLog(Listener):
@@ -164,7 +165,7 @@ def _archive_offset_s(archive: Path, trial: SimulatedTrial) -> float:
 
 def evaluate_trial(spec: TrialSpec, config: RunConfig) -> TrialScores:
     """Simulate, write, record and replay one trial in a temporary directory; its scores after t_a."""
-    wall0 = time.monotonic()
+    wall0, cpu0 = time.monotonic(), time.process_time()
     trial = simulate_trial(spec.scenario(), spec.seed)
     log = _EpochLog(config.stack.training_window_s)
     with tempfile.TemporaryDirectory(prefix=f"auvreplay-evaluate-{spec.seed}-") as tmp:
@@ -195,7 +196,7 @@ def evaluate_trial(spec: TrialSpec, config: RunConfig) -> TrialScores:
         open_scores[m] = np.concatenate([o["score"].astype(float) for o in ol])
     errors = {m: np.asarray(log.error_m.get(m, []), dtype=float) for m in methods}
     return TrialScores(spec, methods, detecting, flagged, labels, kinds, open_labels, open_scores, errors,
-                       unmatched, time.monotonic() - wall0)
+                       unmatched, time.monotonic() - wall0, time.process_time() - cpu0)
 
 
 # ---------------------------------------------------------------------------- figures
@@ -268,6 +269,7 @@ class Evaluation:
     trials: int
     unmatched: int
     wall_s: float
+    cpu_s: float                        # CPU time summed over the trials
     workers: str
     notes: list[str] = field(default_factory=list)
 
@@ -355,7 +357,7 @@ def evaluate(seeds: Sequence[int], config: RunConfig, train_seed: int | None = N
     where = "here, one trial at a time" if client is None else \
         f"Dask, {len(client.scheduler_info().get('workers', {}))} workers"
     return Evaluation(tuple(test), train, training, methods, drift_sweep(by_rate), len(trials), unmatched,
-                      time.monotonic() - wall0, where, notes)
+                      time.monotonic() - wall0, sum(t.cpu_s for t in trials), where, notes)
 
 
 __all__ = ["DEFAULT_DRIFT_RATES", "FPR_TARGETS", "TRAINING_MODES", "Evaluation", "TrialScores", "TrialSpec",
