@@ -6,7 +6,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -30,8 +30,8 @@ from samples.anomalies import KIND_CODES
 from samples.scenario import ANOMALY_KINDS, Scenario, ScenarioError
 from samples.simulator import simulate_trial
 
-# short trials: 800 s with t_a = 400 s keeps a scripted stale segment in training and natural anomalies after it
-SHORT = ["--duration", "800", "--set", "training_window_s=400"]
+# short trials: 700 s with t_a = 400 s keeps a scripted stale segment in training and natural anomalies after it
+SHORT = ["--duration", "700", "--set", "training_window_s=400"]
 FIGURES = {"auc", "fnr_at_fpr_1", "fnr_at_fpr_2", "fnr_at_fpr_5", "recall_by_kind", "error_p50_m", "error_p90_m"}
 
 
@@ -42,26 +42,50 @@ def _cli(argv: list[str]) -> tuple[int, str, str]:
     return code, out.getvalue(), err.getvalue()
 
 
-@pytest.fixture(scope="module")
-def evaluated() -> tuple[dict[str, Any], list[TrialSpec]]:
-    """`evaluate --json` on seeds 1-2 (train seed 0) with one sweep rate; the trials it ran."""
-    ran: list[TrialSpec] = []
-    real = ev.evaluate_trial
+@dataclass
+class Spied:
+    """What an `evaluate` run did: its JSON, the trials scored, the seeds trained on, each replay's training."""
 
-    def spy(spec: TrialSpec, config: Any) -> TrialScores:
-        ran.append(spec)
-        return real(spec, config)
+    obj: dict[str, Any]
+    scored: list[TrialSpec] = field(default_factory=list)
+    trained_on: list[int] = field(default_factory=list)
+    replays: list[tuple[int | None, str]] = field(default_factory=list)   # (rows given, training source note)
+
+
+@pytest.fixture(scope="module")
+def evaluated() -> Spied:
+    """`evaluate --json` on seeds 1-2 (train seed 0) with one sweep rate, watched at every step."""
+    spied = Spied({})
+    real_trial, real_set, real_replay = ev.evaluate_trial, ev.training_set_of, ev.replay_archive
+
+    def trial(spec: TrialSpec, config: Any, given: Any = None) -> TrialScores:
+        spied.scored.append(spec)
+        return real_trial(spec, config, given)
+
+    def training(spec: TrialSpec, config: Any) -> Any:
+        spied.trained_on.append(spec.seed)
+        return real_set(spec, config)
+
+    def replay(*args: Any, **kwargs: Any) -> Any:
+        outcome = real_replay(*args, **kwargs)
+        given = kwargs.get("training_set")
+        spied.replays.append((None if given is None else len(given),
+                              outcome.results["follower"].training_notes["source"]))
+        return outcome
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(ev, "evaluate_trial", spy)
+        mp.setattr(ev, "evaluate_trial", trial)
+        mp.setattr(ev, "training_set_of", training)
+        mp.setattr(ev, "replay_archive", replay)
         code, out, _ = _cli(["evaluate", "--seeds", "1-2", "--train-seed", "0", "--drift-rate", "0.5",
                              "--workers", "1", "--json", *SHORT])
     assert code == 0
-    return json.loads(out), ran
+    spied.obj = json.loads(out)
+    return spied
 
 
-def test_json_has_the_documented_shape(evaluated: tuple[dict[str, Any], list[TrialSpec]]) -> None:
-    obj, _ = evaluated
+def test_json_has_the_documented_shape(evaluated: Spied) -> None:
+    obj = evaluated.obj
     assert set(obj) == {"seeds", "train_seed", "methods", "drift_sweep"}
     assert obj["seeds"] == [1, 2] and obj["train_seed"] == 0
     # every method of the default configuration, in its order, with every figure
@@ -88,10 +112,16 @@ def test_json_has_the_documented_shape(evaluated: tuple[dict[str, Any], list[Tri
         assert r["epochs"] == 0 and r["recall"] is None
 
 
-def test_the_train_seed_is_never_run_or_scored(evaluated: tuple[dict[str, Any], list[TrialSpec]]) -> None:
-    obj, ran = evaluated
-    assert 0 not in obj["seeds"]
-    assert [(s.seed, s.drift_rate_mps) for s in ran] == [(1, None), (2, None), (1, 0.5), (2, 0.5)]
+def test_trained_on_the_train_seed_and_scored_on_the_others(evaluated: Spied) -> None:
+    assert 0 not in evaluated.obj["seeds"]
+    assert evaluated.trained_on == [0]
+    assert [(s.seed, s.drift_rate_mps) for s in evaluated.scored] == [(1, None), (2, None), (1, 0.5), (2, 0.5)]
+    # the train seed's run trains on its own window; every scored run on exactly the set it handed over
+    (first_given, first_note), *tests = evaluated.replays
+    assert first_given is None and first_note.startswith("own window")
+    rows = {given for given, _ in tests}
+    assert len(tests) == 4 and len(rows) == 1 and rows != {None}
+    assert all(note == f"given: {next(iter(rows))} rows" for _, note in tests)
     assert split_seeds([5, 6, 7], None) == (5, [6, 7])
     assert split_seeds([5, 6, 7], 6) == (6, [5, 7])
     with pytest.raises(UserError):
@@ -99,18 +129,20 @@ def test_the_train_seed_is_never_run_or_scored(evaluated: tuple[dict[str, Any], 
 
 
 def test_dask_gives_the_serial_figures() -> None:
-    """A two-worker LocalCluster and the in-process loop agree figure for figure; the text has the wall time."""
-    args = ["evaluate", "--seeds", "3-4", "--train-seed", "9", "--drift-rate", "none",
+    """A two-worker LocalCluster prints the figures the in-process loop gives, and its wall time."""
+    args = ["evaluate", "--seeds", "3-4", "--train-seed", "9", "--drift-rate", "none", "--training", "own",
             "--set", "methods=ackf,chi_square", *SHORT]
     code1, serial, _ = _cli([*args, "--workers", "1", "--json"])
-    code2, dask, _ = _cli([*args, "--workers", "2", "--json"])
+    code2, text, _ = _cli([*args, "--workers", "2"])
     assert code1 == code2 == 0
-    assert json.loads(serial) == json.loads(dask)
-    assert json.loads(serial)["drift_sweep"] == []
-    code, text, _ = _cli([*args, "--workers", "1"])
-    assert code == 0
-    assert "chi_square" in text and "train seed 9" in text and "test seeds 3,4" in text
-    assert " s wall (here, one trial at a time; " in text
+    obj = json.loads(serial)
+    assert obj["drift_sweep"] == [] and list(obj["methods"]) == ["ackf", "chi_square"]
+    chi = obj["methods"]["chi_square"]
+    row = next(line.split() for line in text.splitlines() if line.startswith("chi_square"))
+    assert row[1:5] == [f"{chi[k]:.3f}" for k in ("auc", "fnr_at_fpr_1", "fnr_at_fpr_2", "fnr_at_fpr_5")]
+    assert row[-2:] == [f"{chi['error_p50_m']:.3f}", f"{chi['error_p90_m']:.3f}"]
+    assert "train seed 9, never scored; test seeds 3,4" in text and "own window" in text
+    assert " s wall (Dask, 2 workers; " in text
 
 
 def test_bad_arguments_are_one_line_errors() -> None:

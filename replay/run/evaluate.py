@@ -8,9 +8,14 @@ listener keeps each epoch's decision per method after t_a; the simulator's
 own arrays give each epoch's injected anomaly kind. Only the test seeds are
 scored: the train seed never is.
 
-Training (`TRAINING_MODES`): with "own" every test trial trains its
-detectors on its own window (0 to t_a), which is what today's runner does; the
-train seed is then held out and not run at all.
+Training (`TRAINING_MODES`, the runner's `StackConfig.training_source`):
+with "given" (the default) the train seed is replayed first and every test
+trial's detectors are trained on what the train seed's were
+(`RunResults.training_set`: its window's epochs and, for the new methods, its
+hybrid database), not on the test trial's own window; "both" trains on the
+two together; "own" trains every test trial on its own window (0 to t_a), and
+the train seed is then not run at all. Either way the test trials' windows
+are never scored.
 
 Figures per method, pooled over the test seeds (one ROC over every test
 epoch, one error distribution over every GPS fix after t_a):
@@ -43,7 +48,7 @@ import math
 import tempfile
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -55,23 +60,24 @@ from recorders.record import record
 from replay.errors import UserError
 from replay.events import EpochResult, ErrorSample, Fix, Listener
 from replay.run.config import RunConfig
-from replay.run.pipeline import replay_archive
+from replay.run.pipeline import RunOutcome, replay_archive
 from replay.stack.scoring import error_stats, recall_at_fpr, roc_auc, roc_curve
+from replay.stack.training import TRAINING_SOURCES, TrainingSet
 from samples.anomalies import KIND_CODES
 from samples.scenario import ANOMALY_KINDS, Scenario, ScenarioError
 from samples.simulator import SimulatedTrial, simulate_trial
 from samples.writer import write_trial
 
 if TYPE_CHECKING:
-    from distributed import Client
+    from distributed import Client, Future
 
 NS = 1_000_000_000
 FPR_TARGETS: tuple[int, ...] = (1, 2, 5)
 """FNR is reported at these open-loop false-positive rates (%)."""
 DEFAULT_DRIFT_RATES: tuple[float, ...] = (0.1, 0.2, 0.3, 0.5, 1.0)
 """Drift rates (m/s) of the default sweep: from drifts that stay under T1 over 70 s to fast ones."""
-TRAINING_MODES: tuple[str, ...] = ("own",)
-"""How test trials get their detectors trained (see the module docstring)."""
+TRAINING_MODES: tuple[str, ...] = TRAINING_SOURCES
+"""How test trials get their detectors trained (see the module docstring); "given" by default."""
 MATCH_TOLERANCE_S = 0.5
 """A replayed epoch is the simulator's epoch of the same link within this time (pings 2.4 s apart)."""
 NO_KIND = -1
@@ -163,18 +169,41 @@ def _archive_offset_s(archive: Path, trial: SimulatedTrial) -> float:
     return 0.0 if start is None else (start - trial.start_ns) / NS
 
 
-def evaluate_trial(spec: TrialSpec, config: RunConfig) -> TrialScores:
-    """Simulate, write, record and replay one trial in a temporary directory; its scores after t_a."""
-    wall0, cpu0 = time.monotonic(), time.process_time()
+def _closed_loop(spec: TrialSpec, config: RunConfig, listeners: Sequence[Listener] = (),
+                 training_set: TrainingSet | None = None) -> tuple[SimulatedTrial, RunOutcome, float]:
+    """Simulate, write, record and replay one trial in a temporary directory: the trial, the run, the offset."""
     trial = simulate_trial(spec.scenario(), spec.seed)
-    log = _EpochLog(config.stack.training_window_s)
     with tempfile.TemporaryDirectory(prefix=f"auvreplay-evaluate-{spec.seed}-") as tmp:
         write_trial(trial, Path(tmp) / "trial")
         archive = Path(tmp) / "trial.mcap"
         # one process per trial: the harness runs trials side by side instead
         record(load_manifest(Path(tmp) / "trial" / "trial.toml"), archive, workers=1)
         offset_s = _archive_offset_s(archive, trial)
-        outcome = replay_archive(archive, config, write_output=False, listeners=[log])
+        outcome = replay_archive(archive, config, write_output=False, listeners=listeners,
+                                 training_set=training_set)
+    return trial, outcome, offset_s
+
+
+def training_set_of(spec: TrialSpec, config: RunConfig) -> TrainingSet:
+    """What the detectors of the train seed's run trained on (its own window), every follower's rows together."""
+    own = replace(config, stack=replace(config.stack, training_source="own"))
+    _, outcome, _ = _closed_loop(spec, own)
+    sets = [outcome.results[f].training_set for f in sorted(outcome.results)]
+    found = [s for s in sets if s is not None]
+    if not found:
+        raise UserError(f"train seed {spec.seed}: its run never reached the end of the training window "
+                        f"({config.stack.training_window_s:g} s), so there is nothing to train on")
+    out = found[0]
+    for s in found[1:]:
+        out = out.concat(s)
+    return out
+
+
+def evaluate_trial(spec: TrialSpec, config: RunConfig, training_set: TrainingSet | None = None) -> TrialScores:
+    """One trial through the real pipeline (trained as `config.stack.training_source` says); its scores after t_a."""
+    wall0, cpu0 = time.monotonic(), time.process_time()
+    log = _EpochLog(config.stack.training_window_s)
+    trial, outcome, offset_s = _closed_loop(spec, config, [log], training_set)
     r = trial.ranges
     methods = tuple(config.stack.methods)
     detecting = tuple(m for m in methods if any(m in res.open_loop for res in outcome.results.values()))
@@ -269,7 +298,7 @@ class Evaluation:
     trials: int
     unmatched: int
     wall_s: float
-    cpu_s: float                        # CPU time summed over the trials
+    cpu_s: float                        # CPU time summed over the scored trials
     workers: str
     notes: list[str] = field(default_factory=list)
 
@@ -306,32 +335,39 @@ def split_seeds(seeds: Sequence[int], train_seed: int | None) -> tuple[int, list
 Progress = Callable[[int, int], None]      # (done, total)
 
 
-def _run_specs(specs: Sequence[TrialSpec], config: RunConfig, client: Client | None,
+def _run_specs(specs: Sequence[TrialSpec], config: RunConfig, train: TrialSpec | None, client: Client | None,
                progress: Progress | None) -> list[TrialScores]:
-    """Every trial, in order: on the Dask client when there is one, else one after another here."""
+    """Every trial, in order (after the train seed's, when given): on the Dask client, else one by one here."""
     out: list[TrialScores | None] = [None] * len(specs)
+    total = len(specs) + (train is not None)
     if client is None:
+        given = training_set_of(train, config) if train is not None else None
+        if progress is not None and train is not None:
+            progress(1, total)
         for i, spec in enumerate(specs):
-            out[i] = evaluate_trial(spec, config)
+            out[i] = evaluate_trial(spec, config, given)
             if progress is not None:
-                progress(i + 1, len(specs))
+                progress(i + 1 + (train is not None), total)
     else:
         # dask only when a client is used (a heavy optional import)
         from distributed import as_completed
 
-        futures = [client.submit(evaluate_trial, spec, config, pure=False) for spec in specs]
+        # the test trials wait for the train seed's set on the workers (one transfer each)
+        trained: Future | None = client.submit(training_set_of, train, config, pure=False) \
+            if train is not None else None
+        futures = [client.submit(evaluate_trial, spec, config, trained, pure=False) for spec in specs]
         index = {f.key: i for i, f in enumerate(futures)}
-        for done, fut in enumerate(as_completed(futures), 1):
+        for done, fut in enumerate(as_completed(futures), 1 + (train is not None)):
             out[index[fut.key]] = fut.result()
             fut.release()
             if progress is not None:
-                progress(done, len(specs))
+                progress(done, total)
     return [t for t in out if t is not None]
 
 
 def evaluate(seeds: Sequence[int], config: RunConfig, train_seed: int | None = None,
              drift_rates: Sequence[float] = DEFAULT_DRIFT_RATES, duration_s: float | None = None,
-             training: str = "own", client: Client | None = None, progress: Progress | None = None) -> Evaluation:
+             training: str = "given", client: Client | None = None, progress: Progress | None = None) -> Evaluation:
     """Simulate and replay the test seeds (and the sweep's), score them; see the module docstring."""
     if training not in TRAINING_MODES:
         raise UserError(f"training {training!r}: expected one of {', '.join(TRAINING_MODES)}")
@@ -344,8 +380,10 @@ def evaluate(seeds: Sequence[int], config: RunConfig, train_seed: int | None = N
     rates = list(dict.fromkeys(float(r) for r in drift_rates))
     specs = [TrialSpec(s, None, duration_s) for s in test]
     specs += [TrialSpec(s, rate, duration_s) for rate in rates for s in test]
+    config = replace(config, stack=replace(config.stack, training_source=training))
+    train_spec = TrialSpec(train, None, duration_s) if training != "own" else None
     try:
-        trials = _run_specs(specs, config, client, progress)
+        trials = _run_specs(specs, config, train_spec, client, progress)
     except ScenarioError as exc:
         raise UserError(f"scenario: {exc}") from None
     main = trials[:len(test)]
@@ -356,10 +394,11 @@ def evaluate(seeds: Sequence[int], config: RunConfig, train_seed: int | None = N
         if unmatched else []
     where = "here, one trial at a time" if client is None else \
         f"Dask, {len(client.scheduler_info().get('workers', {}))} workers"
-    return Evaluation(tuple(test), train, training, methods, drift_sweep(by_rate), len(trials), unmatched,
+    return Evaluation(tuple(test), train, training, methods, drift_sweep(by_rate),
+                      len(trials) + (train_spec is not None), unmatched,
                       time.monotonic() - wall0, sum(t.cpu_s for t in trials), where, notes)
 
 
 __all__ = ["DEFAULT_DRIFT_RATES", "FPR_TARGETS", "TRAINING_MODES", "Evaluation", "TrialScores", "TrialSpec",
            "drift_sweep", "epoch_kinds", "evaluate", "evaluate_trial", "method_figures", "recall_by_kind",
-           "split_seeds"]
+           "split_seeds", "training_set_of"]
