@@ -513,7 +513,8 @@ class CooperativeRunner:
         leaders = np.array([r[1] for r in ranges], dtype=object)
         slant = np.array([r[5] for r in ranges], dtype=float)
         sub_config = replace(self.config, methods=("ackf",), training_source="own")
-        parts, counts = [], Counter()
+        parts: list[TrainingSet] = []
+        counts: Counter[str] = Counter()
         for c in range(cfg.copies):
             new_slant, replied = slant.copy(), np.ones(slant.size, dtype=bool)
             kinds = np.full(slant.size, "normal", dtype=object)
@@ -532,7 +533,8 @@ class CooperativeRunner:
                     child.position_fix(*args)
                 else:
                     if replied[k]:
-                        child.range_epoch(*args[:5], float(new_slant[k]), args[6])
+                        t_k, leader, lat, lon, depth, _, truth = args
+                        child.range_epoch(t_k, leader, lat, lon, depth, float(new_slant[k]), truth)
                     k += 1
             by_epoch = dict(zip(zip(t.tolist(), leaders.tolist()), kinds.tolist()))
             parts.append(_rows_to_set(child._train_rows, [by_epoch[(r[0], r[1])] for r in child._train_rows]))
