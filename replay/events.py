@@ -75,7 +75,8 @@ class EpochResult(NamedTuple):
     dr_residual_m: float = NAN        # range - dead-reckoned range, relative to its 60 s median
     leader_consistency_m: float = NAN  # dr_residual_m minus the other leaders' latest
     usbl_residual_m: float = NAN      # range - range from the USBL-anchored position (NaN without a fix)
-    drift_residual_m: float = NAN     # usbl_residual_m where finite, else dr_residual_m
+    lag_residual_m: float = NAN       # range - range from the ackf estimate of 60 s ago + DR since
+    drift_residual_m: float = NAN     # usbl_residual_m, else lag_residual_m, else dr_residual_m
     drift_cusum_m: float = NAN        # max(S+, S-) of the drift residual's CUSUM
 
 

@@ -46,6 +46,9 @@ class FeatureConfig:
     """The filter-independent features (replay.stack.features) and the drift CUSUM they feed."""
 
     median_window_s: float = 60.0       # the DR range residual is taken relative to its median over this window
+    lag_s: float = 60.0                 # age of the reference estimate the lagged residual starts from
+    reference_gate_m: float = 12.0      # the reference filter leaves out epochs with |lag residual| above this
+    reference_cap: int = 20             # ... for at most this many consecutive epochs per leader
     usbl_max_age_s: float = 60.0        # a USBL-anchored position older than this gives no residual (NaN)
     usbl_blend: float = 0.3             # weight of a new fix in the anchor when the previous one is fresh
     cusum_k_m: float = 4.0              # drift CUSUM allowance (m), feature and cusum_drift detector
@@ -98,4 +101,4 @@ class StackConfig:
     detection_fpr_target: float = 0.02           # the new methods' threshold: this false-alarm rate on training
     training_source: str = "own"                  # "own" window, a "given" TrainingSet, or "both"
     # anfis_hybrid's inputs, by name from replay.stack.features.FEATURE_NAMES
-    hybrid_inputs: tuple[str, ...] = ("f2", "repeat_count", "dr_residual_m", "usbl_residual_m", "drift_cusum_m")
+    hybrid_inputs: tuple[str, ...] = ("f2", "repeat_count", "lag_residual_m", "usbl_residual_m")

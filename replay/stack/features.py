@@ -17,8 +17,20 @@ filter, and are the same for every method of a run:
 - ``usbl_residual_m``: the range minus the range from the USBL-anchored
   position (the last USBL fixes of the follower, blended, carried forward by
   dead reckoning), NaN without a fix younger than ``usbl_max_age_s``;
+- ``lag_residual_m``: the range minus the range from the reference
+  filter's estimate of ``lag_s`` (60 s) ago carried forward by the
+  dead-reckoned displacement since (NaN for the first lag). The reference
+  is an ACKF run by the runner beside the methods, which leaves out epochs
+  with a repeated range, f2 above the chi-square gate or
+  |lag_residual_m| above ``reference_gate_m`` (capped at
+  ``reference_cap`` consecutive epochs per leader): it follows a slow
+  drift only until the drift passes the gate, and the estimate of a minute
+  ago has not absorbed a drift younger than that. Over a minute dead
+  reckoning drifts only metres, where its absolute error over the mission
+  reaches tens of metres and rotates with the geometry (which is what
+  makes ``dr_residual_m`` wander about ±10 m per 100 s);
 - ``drift_residual_m``: ``usbl_residual_m`` where finite, else
-  ``dr_residual_m`` (what the drift CUSUM sums);
+  ``lag_residual_m``, else ``dr_residual_m`` (what the drift CUSUM sums);
 - ``drift_cusum_m``: max(S+, S-) of a two-sided CUSUM(k, h) of the drift
   residual per leader, restarting after each of its own alarms.
 
@@ -38,8 +50,8 @@ from replay.stack.model import metric_scales_scalar
 
 PAPER_FEATURES: tuple[str, ...] = ("f1", "f2", "f3")
 EXTRA_FEATURES: tuple[str, ...] = (
-    "repeat_count", "dr_residual_m", "leader_consistency_m", "usbl_residual_m", "drift_residual_m",
-    "drift_cusum_m",
+    "repeat_count", "dr_residual_m", "leader_consistency_m", "usbl_residual_m", "lag_residual_m",
+    "drift_residual_m", "drift_cusum_m",
 )
 FEATURE_NAMES: tuple[str, ...] = PAPER_FEATURES + EXTRA_FEATURES
 """Every feature of a range epoch, in the order of a feature vector and of ``TrainingSet.features``."""
@@ -67,6 +79,7 @@ class FeatureTracker:
         self._window: dict[str, deque[tuple[float, float]]] = {ld: deque() for ld in leaders}
         self._latest: dict[str, tuple[float, float]] = {}       # leader -> (t, dr_residual)
         self._cusum = {ld: Cusum(config.cusum_k_m, config.cusum_h_m) for ld in leaders}
+        self._lagged: deque[tuple[float, float, float, float, float]] = deque()   # t, reference, dr at t
 
     def propagate(self, dt_s: float, forward_mps: float, lateral_mps: float, heading_rad: float,
                   depth_m: float) -> None:
@@ -91,9 +104,14 @@ class FeatureTracker:
         self.anchor_t = float(t_s)
 
     def epoch(self, t_s: float, leader: str, slant_m: float, z_m: float, depth_m: float,
-              geo: tuple[float, float, float]) -> tuple[float, ...]:
-        """The EXTRA_FEATURES of one range epoch (horizontal range z, leader lat, lon, depth in geo)."""
+              geo: tuple[float, float, float], reference: tuple[float, float] | None = None) -> tuple[float, ...]:
+        """The EXTRA_FEATURES of one range epoch (horizontal range z, leader lat, lon, depth in geo).
+
+        ``reference`` is the reference filter's estimate (lat, lon) before this
+        epoch's update, remembered for ``lag_residual_m`` (None: no lagged residual).
+        """
         cfg = self.config
+        lag = self._lag_residual(t_s, z_m, depth_m, geo, reference)
         self._repeats[leader] = self._repeats[leader] + 1 if self._last_slant.get(leader) == slant_m else 0
         self._last_slant[leader] = slant_m
         e = z_m - range_to(self.dr[0], self.dr[1], depth_m, *geo)
@@ -108,6 +126,20 @@ class FeatureTracker:
         usbl = NAN
         if self.anchor is not None and t_s - self.anchor_t <= cfg.usbl_max_age_s:
             usbl = z_m - range_to(self.anchor[0], self.anchor[1], depth_m, *geo)
-        drift = usbl if math.isfinite(usbl) else d
+        drift = usbl if math.isfinite(usbl) else lag if math.isfinite(lag) else d
         up, down, _ = self._cusum[leader].step(drift)
-        return (float(self._repeats[leader]), d, consistency, usbl, drift, max(up, down))
+        return (float(self._repeats[leader]), d, consistency, usbl, lag, drift, max(up, down))
+
+    def _lag_residual(self, t_s: float, z_m: float, depth_m: float, geo: tuple[float, float, float],
+                      reference: tuple[float, float] | None) -> float:
+        """z minus the range from the reference of lag_s ago plus the DR displacement since; NaN without one."""
+        lagged, cutoff = self._lagged, t_s - self.config.lag_s
+        while len(lagged) > 1 and lagged[1][0] <= cutoff:
+            lagged.popleft()
+        out = NAN
+        if lagged and lagged[0][0] <= cutoff:
+            _, ref_lat, ref_lon, dr_lat, dr_lon = lagged[0]
+            out = z_m - range_to(ref_lat + self.dr[0] - dr_lat, ref_lon + self.dr[1] - dr_lon, depth_m, *geo)
+        if reference is not None:
+            lagged.append((t_s, reference[0], reference[1], self.dr[0], self.dr[1]))
+        return out

@@ -55,7 +55,13 @@ import numpy as np
 from replay.events import NAN, EpochResult, RunResults, Track
 from replay.stack.config import PAPER_METHODS, StackConfig
 from replay.stack.detectors.base import Decision, Detector
-from replay.stack.features import FEATURE_NAMES, PAPER_FEATURES, FeatureTracker
+from replay.stack.detectors.chi_square import chi_square_threshold
+from replay.stack.features import (
+    EXTRA_FEATURES,
+    FEATURE_NAMES,
+    PAPER_FEATURES,
+    FeatureTracker,
+)
 from replay.stack.filters.ckf import (
     RangeInnovation,
     State2,
@@ -75,7 +81,8 @@ from replay.stack.model import (
 )
 from replay.stack.training import RECORDED, TRAINING_SOURCES, TrainingSet
 
-_NO_EXTRA: tuple[float, ...] = (NAN,) * (len(FEATURE_NAMES) - len(PAPER_FEATURES))
+_NO_EXTRA: tuple[float, ...] = (NAN,) * len(EXTRA_FEATURES)
+_REPEAT, _LAG = EXTRA_FEATURES.index("repeat_count"), EXTRA_FEATURES.index("lag_residual_m")
 
 @dataclass
 class _Method:
@@ -182,6 +189,13 @@ class CooperativeRunner:
         self._methods = [_Method(n, filter_kind(n), s0, filter_kind(n) == "detect" and n not in PAPER_METHODS)
                          for n in names]
         self._ackf = next((m for m in self._methods if m.kind == "ackf"), None)
+        self._needs_database = any(filter_kind(n) == "detect" and n not in PAPER_METHODS for n in names)
+        # the gated ACKF the lagged residual starts from (replay.stack.features); never reported
+        self._reference: _Method | None = None
+        if self._needs_database:
+            self._reference = _Method("reference", "reference", s0)
+            self._methods.append(self._reference)
+        self._gate_f2 = chi_square_threshold(config.chi_square_alpha)
         self._features = FeatureTracker(config.features, self.leaders, float(initial_lat_rad),
                                         float(initial_lon_rad))
         self._initial = (float(initial_lat_rad), float(initial_lon_rad), float(initial_depth_m))
@@ -189,7 +203,6 @@ class CooperativeRunner:
         self._train_rows: list[tuple] = []
         # the window's inputs in order, replayed with injected anomalies for the hybrid database
         self._window: list[tuple[str, tuple]] = []
-        self._needs_database = any(filter_kind(n) == "detect" and n not in PAPER_METHODS for n in names)
         self.training_set: TrainingSet | None = None
         self.thresholds: dict[str, dict[str, dict[str, float]]] = {}
         self.training_notes: dict[str, str] = {}
@@ -262,7 +275,9 @@ class CooperativeRunner:
                                            slant_range_m, truth_range_m)))
         truth = truth_range_m if math.isfinite(truth_range_m) else NAN
         label = label_one(z, truth, self.config.t1_m)
-        extra = self._features.epoch(t_s, leader, slant_range_m, z, self._depth, geo)
+        ref_m = self._reference
+        ref = (ref_m.state.lat, ref_m.state.lon) if ref_m is not None else None
+        extra = self._features.epoch(t_s, leader, slant_range_m, z, self._depth, geo, ref)
         out = [self._method_epoch(m, inn, t_s, leader, z, geo, truth, label, extra)
                for m, inn in zip(self._methods, innovations)]
         self._record()
@@ -390,6 +405,10 @@ class CooperativeRunner:
         if m.kind == "dr":
             f1 = f2 = f3 = NAN
             action = "none"
+        elif m.kind == "reference":
+            gate = (extra[_REPEAT] > 0 or f2 > self._gate_f2
+                    or abs(extra[_LAG]) > self.config.features.reference_gate_m)   # NaN compares False
+            action, m.streak[leader] = isolation_action(gate, m.streak[leader], self.config.features.reference_cap)
         elif m is self._ackf and t_s <= self.training_end_s and label != UNKNOWN:
             self._train_rows.append((t_s, leader, f1, f2, f3, *extra, z - truth, label))
         elif m.kind == "detect" and t_s > self.training_end_s and m.detectors.get(leader) is not None:
@@ -437,12 +456,12 @@ class CooperativeRunner:
             from concurrent.futures import ThreadPoolExecutor
 
             with ThreadPoolExecutor(min(self.training_threads, len(heavy))) as pool:
-                futures = {i: pool.submit(self._train_one, jobs[i][0].name, *jobs[i][2]) for i in heavy}
+                futures = {i: pool.submit(self._train_one, jobs[i][0], jobs[i][2]) for i in heavy}
             for i, future in futures.items():
                 outcomes[i] = future.result()
         for i, (m, _, data) in enumerate(jobs):
             if outcomes[i] is None:
-                outcomes[i] = self._train_one(m.name, *data)
+                outcomes[i] = self._train_one(m, data)
         for (m, key, _), (det, error) in zip(jobs, outcomes):
             if error:
                 self.training_errors[f"{m.name}/{key}"] = error
@@ -494,7 +513,8 @@ class CooperativeRunner:
         leaders = np.array([r[1] for r in ranges], dtype=object)
         slant = np.array([r[5] for r in ranges], dtype=float)
         sub_config = replace(self.config, methods=("ackf",), training_source="own")
-        parts, counts = [], Counter()
+        parts: list[TrainingSet] = []
+        counts: Counter[str] = Counter()
         for c in range(cfg.copies):
             new_slant, replied = slant.copy(), np.ones(slant.size, dtype=bool)
             kinds = np.full(slant.size, "normal", dtype=object)
@@ -513,7 +533,8 @@ class CooperativeRunner:
                     child.position_fix(*args)
                 else:
                     if replied[k]:
-                        child.range_epoch(*args[:5], float(new_slant[k]), args[6])
+                        t_k, leader, lat, lon, depth, _, truth = args
+                        child.range_epoch(t_k, leader, lat, lon, depth, float(new_slant[k]), truth)
                     k += 1
             by_epoch = dict(zip(zip(t.tolist(), leaders.tolist()), kinds.tolist()))
             parts.append(_rows_to_set(child._train_rows, [by_epoch[(r[0], r[1])] for r in child._train_rows]))
@@ -525,28 +546,33 @@ class CooperativeRunner:
             out = out.concat(p)
         return out
 
-    def _training_sets(self, m: _Method, ts: TrainingSet
-                       ) -> list[tuple[str, tuple[np.ndarray, np.ndarray, np.ndarray]]]:
-        """(leader or "all", (features, signed errors, labels)) to train for one method (see module doc).
+    def _training_sets(self, m: _Method, ts: TrainingSet) -> list[tuple[str, TrainingSet]]:
+        """(leader or "all", its rows) to train for one method (see module doc).
 
-        Paper A's detectors get the recorded rows' (f1, f2, f3), as published;
-        the new ones every row (hybrid database included) and every feature.
+        Paper A's detectors get the recorded rows only, as published; the new
+        ones every row, the hybrid database included.
         """
         sub = ts if m.wide else ts.recorded()
-        feats = sub.features if m.wide else sub.columns(PAPER_FEATURES)
-        err, labels, leaders = sub.range_error, sub.labels, sub.leaders
         if self.config.anfis.model == "shared":
-            return [("all", (feats, err, labels))]
-        return [(ld, (feats[leaders == ld], err[leaders == ld], labels[leaders == ld])) for ld in self.leaders]
+            return [("all", sub)]
+        return [(ld, sub.for_leader(ld)) for ld in self.leaders]
 
-    def _train_one(self, method: str, feats: np.ndarray, err: np.ndarray,
-                   labels: np.ndarray) -> tuple[Detector | None, str]:
-        """One detector trained on the given epochs, or (None, why not)."""
-        if feats.shape[0] == 0:
+    def _train_one(self, m: _Method, ts: TrainingSet) -> tuple[Detector | None, str]:
+        """One detector trained on the given rows, or (None, why not).
+
+        Paper A's detectors see (f1, f2, f3) through ``Detector.train``; a new
+        one sees every feature, and the whole set (kinds included) when it
+        has ``train_on``.
+        """
+        if len(ts) == 0:
             return None, "no labelled epochs in the training window"
-        det = self._factories[method](self.config)
+        det = self._factories[m.name](self.config)
+        train_on = getattr(det, "train_on", None) if m.wide else None
         try:
-            det.train(feats, err, labels)
+            if callable(train_on):
+                train_on(ts)
+            else:
+                det.train(ts.features if m.wide else ts.columns(PAPER_FEATURES), ts.range_error, ts.labels)
         except Exception as exc:  # noqa: BLE001 - a detector that cannot train is disabled, the run goes on
             return None, f"{type(exc).__name__}: {exc}"
         return det, ""

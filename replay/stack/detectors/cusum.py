@@ -22,8 +22,10 @@ from replay.stack.config import StackConfig
 from replay.stack.cusum import Cusum, alarm_rate, calibrate_h
 from replay.stack.detectors.base import Decision
 from replay.stack.features import FEATURE_NAMES
+from replay.stack.training import TrainingSet
 
 _RESIDUAL = FEATURE_NAMES.index("drift_residual_m")
+_MIN_RECORDED = 100
 
 
 @dataclass(frozen=True)
@@ -51,6 +53,17 @@ class CusumDriftDetector:
         self.threshold = float(config.features.cusum_h_m)
         self.thresholds: dict[str, float] = {"configured": self.threshold}
         self._cusum = Cusum(self.k, self.threshold)
+
+    def train_on(self, ts: TrainingSet) -> None:
+        """`train` on the recorded rows when they hold enough normal epochs, else on every row.
+
+        An injected copy's normal rows right after an injected anomaly still
+        carry it in their windowed residuals, and would set h for anomalies
+        rather than for the normal noise.
+        """
+        rec = ts.recorded()
+        use = rec if int(np.sum(rec.labels == 0)) >= _MIN_RECORDED else ts
+        self.train(use.features, use.range_error, use.labels)
 
     def train(self, features: np.ndarray, range_error: np.ndarray, labels: np.ndarray) -> None:
         """Set h so that the training rows labelled normal alarm at the target rate (rows in time order)."""
