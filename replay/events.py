@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     import pandas as pd
 
     from replay.stack.positioning.kmcdf import KmcdfFix, KmcdfParams
+    from replay.stack.training import TrainingSet
 
 NAN = float("nan")
 
@@ -69,6 +70,14 @@ class EpochResult(NamedTuple):
     cov_ne_m2: float
     cov_ee_m2: float
     truth_range_m: float = NAN   # horizontal range from the GPS fixes (NaN without truth)
+    # filter-independent features (replay.stack.features), the same for every method of an epoch
+    repeat_count: float = NAN         # consecutive identical slant ranges from this leader
+    dr_residual_m: float = NAN        # range - dead-reckoned range, relative to its 60 s median
+    leader_consistency_m: float = NAN  # dr_residual_m minus the other leaders' latest
+    usbl_residual_m: float = NAN      # range - range from the USBL-anchored position (NaN without a fix)
+    lag_residual_m: float = NAN       # range - range from the ackf estimate of 60 s ago + DR since
+    drift_residual_m: float = NAN     # usbl_residual_m, else lag_residual_m, else dr_residual_m
+    drift_cusum_m: float = NAN        # max(S+, S-) of the drift residual's CUSUM
 
 
 @dataclass(frozen=True)
@@ -98,6 +107,11 @@ class RunResults:
     trained: bool
     training_errors: dict[str, str]
     position_fixes: int = 0       # position fixes (USBL) applied to the filters
+    # what the detectors were trained on (replay.stack.training), for training other runs on it
+    training_set: TrainingSet | None = None
+    # method -> leader -> named thresholds ("3sigma", "fpr_target", "used", ...)
+    thresholds: dict[str, dict[str, dict[str, float]]] = field(default_factory=dict)
+    training_notes: dict[str, str] = field(default_factory=dict)   # what went into training, in words
 
     def epochs_frame(self) -> pd.DataFrame:
         """The epochs table as a pandas DataFrame (pandas imported on first use)."""

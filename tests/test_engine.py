@@ -16,6 +16,7 @@ from recorders.record import record
 from replay.cli import main
 from replay.run.pipeline import replay_archive
 from replay.run.config import load_config
+from replay.stack.config import DETECTING_METHODS
 
 SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"
 FAST = ["methods=dead_reckoning,ckf,ackf,chi_square,anfis"]
@@ -185,7 +186,7 @@ def test_export_any_topic(full_run, tmp_path, capsys, fmt):
     with ArchiveReader(full_run.output) as r:
         assert len(df) == r.summary().topics[topic]["count"]
     assert {"method", "flagged", "score", "feature_mahalanobis2", "label"} <= set(df.columns)
-    assert set(df["method"]) == {"chi_square", "dual_threshold", "anfis", "anfis_aqpso", "anfis_compensation"}
+    assert set(df["method"]) == set(DETECTING_METHODS)
     assert main(["export", str(full_run.output), "--topic", "/nope", "-o", str(out)]) == 1
     assert "no topic /nope" in capsys.readouterr().err
 

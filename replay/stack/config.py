@@ -10,11 +10,13 @@ from dataclasses import dataclass, field
 
 METHODS: tuple[str, ...] = (
     "dead_reckoning", "ckf", "ackf", "chi_square", "dual_threshold",
-    "anfis", "anfis_aqpso", "anfis_compensation",
+    "anfis", "anfis_aqpso", "anfis_compensation", "cusum_drift", "anfis_hybrid",
 )
 DETECTING_METHODS: tuple[str, ...] = (
-    "chi_square", "dual_threshold", "anfis", "anfis_aqpso", "anfis_compensation",
+    "chi_square", "dual_threshold", "anfis", "anfis_aqpso", "anfis_compensation", "cusum_drift", "anfis_hybrid",
 )
+# paper A's detectors and baselines: trained on the recorded window's (f1, f2, f3) only, as published
+PAPER_METHODS: tuple[str, ...] = ("chi_square", "dual_threshold", "anfis", "anfis_aqpso", "anfis_compensation")
 # the positioning methods run on archived LBL/USBL epochs (KMCDF, seed 003, and its delay-only baselines)
 POSITIONING_METHODS: tuple[str, ...] = ("kmcdf1", "kmcdf2", "gar", "ear", "lms", "lhc")
 
@@ -40,6 +42,44 @@ class AnfisConfig:
 
 
 @dataclass(frozen=True)
+class FeatureConfig:
+    """The filter-independent features (replay.stack.features) and the drift CUSUM they feed."""
+
+    median_window_s: float = 60.0       # the DR range residual is taken relative to its median over this window
+    lag_s: float = 60.0                 # age of the reference estimate the lagged residual starts from
+    reference_gate_m: float = 12.0      # the reference filter leaves out epochs with |lag residual| above this
+    reference_cap: int = 20             # ... for at most this many consecutive epochs per leader
+    usbl_max_age_s: float = 60.0        # a USBL-anchored position older than this gives no residual (NaN)
+    usbl_blend: float = 0.3             # weight of a new fix in the anchor when the previous one is fresh
+    cusum_k_m: float = 4.0              # drift CUSUM allowance (m), feature and cusum_drift detector
+    cusum_h_m: float = 15.0             # drift CUSUM alarm level (m) of the feature; the detector calibrates its own
+
+
+@dataclass(frozen=True)
+class InjectionConfig:
+    """The hybrid training database (replay.stack.injection): anomalies injected into copies of the window.
+
+    Shares are fractions of a copy's range epochs given each kind; sizes
+    follow the simulator's anomaly model (samples/scenario.py: outliers
+    12-40 m of either sign, stale segments 10-45 s, dropouts of one epoch)
+    with drifts of either sign at `drift_rate_mps` for `drift_s` seconds.
+    """
+
+    copies: int = 3
+    outlier_share: float = 0.04
+    stale_share: float = 0.12
+    drift_share: float = 0.12
+    dropout_share: float = 0.03
+    outlier_min_m: float = 12.0
+    outlier_max_m: float = 40.0
+    stale_min_s: float = 10.0
+    stale_max_s: float = 45.0
+    drift_rate_mps: tuple[float, float] = (0.1, 0.6)
+    drift_s: tuple[float, float] = (40.0, 90.0)
+    seed: int = 0
+
+
+@dataclass(frozen=True)
 class StackConfig:
     """Everything a run of the stack depends on; a run is a pure function of this and the data."""
 
@@ -56,3 +96,9 @@ class StackConfig:
     methods: tuple[str, ...] = METHODS
     anfis: AnfisConfig = field(default_factory=AnfisConfig)
     seed: int = 0
+    features: FeatureConfig = field(default_factory=FeatureConfig)
+    injection: InjectionConfig = field(default_factory=InjectionConfig)
+    detection_fpr_target: float = 0.02           # the new methods' threshold: this false-alarm rate on training
+    training_source: str = "own"                  # "own" window, a "given" TrainingSet, or "both"
+    # anfis_hybrid's inputs, by name from replay.stack.features.FEATURE_NAMES
+    hybrid_inputs: tuple[str, ...] = ("f2", "repeat_count", "lag_residual_m", "usbl_residual_m")

@@ -12,6 +12,7 @@ from types import MappingProxyType
 from replay.stack.config import DETECTING_METHODS, METHODS, StackConfig
 from replay.stack.detectors.base import Detector
 from replay.stack.detectors.chi_square import ChiSquareDetector
+from replay.stack.detectors.cusum import CusumDriftDetector
 from replay.stack.detectors.dual_threshold import DualThresholdDetector
 
 DetectorFactory = Callable[[StackConfig], Detector]
@@ -23,6 +24,12 @@ FILTER_KINDS: Mapping[str, str] = MappingProxyType({
     **{name: "detect" for name in DETECTING_METHODS},   # ACKF with detection and isolation
 })
 """Method name -> filter kind: 'dr', 'ckf', 'ackf' or 'detect'."""
+
+
+def _anfis_hybrid(config: StackConfig) -> Detector:
+    """A fresh HybridAnfisDetector, imported on first use like the other ANFIS detectors."""
+    from replay.stack.detectors.anfis_hybrid import HybridAnfisDetector
+    return HybridAnfisDetector(config)
 
 
 def _anfis(trainer: str, compensation: bool) -> DetectorFactory:
@@ -40,6 +47,8 @@ DETECTOR_FACTORIES: Mapping[str, DetectorFactory] = MappingProxyType({
     "anfis": _anfis("hybrid", False),
     "anfis_aqpso": _anfis("aqpso_ga", False),
     "anfis_compensation": _anfis("hybrid", True),
+    "cusum_drift": CusumDriftDetector,
+    "anfis_hybrid": _anfis_hybrid,
 })
 """Detecting method name -> factory(config) -> a fresh, untrained Detector."""
 

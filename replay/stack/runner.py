@@ -47,15 +47,21 @@ import math
 import os
 from collections import Counter
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from itertools import chain
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from replay.events import NAN, EpochResult, RunResults, Track
-from replay.stack.config import StackConfig
+from replay.stack.config import PAPER_METHODS, StackConfig
 from replay.stack.detectors.base import Decision, Detector
+from replay.stack.detectors.chi_square import chi_square_threshold
+from replay.stack.features import (
+    EXTRA_FEATURES,
+    FEATURE_NAMES,
+    PAPER_FEATURES,
+    FeatureTracker,
+)
 from replay.stack.filters.ckf import (
     RangeInnovation,
     State2,
@@ -65,14 +71,18 @@ from replay.stack.filters.ckf import (
     range_innovation,
     range_update,
 )
+from replay.stack.injection import inject_link
 from replay.stack.labels import UNKNOWN, label_one
 from replay.stack.methods import DETECTOR_FACTORIES, DetectorFactory, filter_kind
-from replay.stack.model import cov_radians_to_metres, metric_scales_scalar, slant_to_horizontal
+from replay.stack.model import (
+    cov_radians_to_metres,
+    metric_scales_scalar,
+    slant_to_horizontal,
+)
+from replay.stack.training import RECORDED, TRAINING_SOURCES, TrainingSet
 
-if TYPE_CHECKING:
-    pass
-
-
+_NO_EXTRA: tuple[float, ...] = (NAN,) * len(EXTRA_FEATURES)
+_REPEAT, _LAG = EXTRA_FEATURES.index("repeat_count"), EXTRA_FEATURES.index("lag_residual_m")
 
 @dataclass
 class _Method:
@@ -81,10 +91,10 @@ class _Method:
     name: str
     kind: str
     state: State2
+    wide: bool = False      # decides on every FEATURE_NAMES column (the new methods), not (f1, f2, f3)
     detectors: dict[str, Detector | None] = field(default_factory=dict)
     streak: Counter = field(default_factory=Counter)
     capped: int = 0
-    train_rows: list[tuple[str, float, float, float, float, int]] = field(default_factory=list)
 
 
 # trainers whose work is whole-population numpy (the GIL released): trained side by side
@@ -110,6 +120,25 @@ def _finite(*values: float) -> bool:
     return math.isfinite(sum(values))
 
 
+def _rows_to_set(rows: Sequence[tuple], kinds: str | Sequence[str]) -> TrainingSet:
+    """A TrainingSet of runner rows (t, leader, features..., Z - Z_gps, label) with their kinds."""
+    f = len(FEATURE_NAMES)
+    feats = np.array([r[2:2 + f] for r in rows], dtype=float).reshape(-1, f)
+    kind_col = np.full(len(rows), kinds, dtype=object) if isinstance(kinds, str) else np.array(kinds, dtype=object)
+    return TrainingSet(feats, np.array([r[2 + f] for r in rows], dtype=float),
+                       np.array([r[3 + f] for r in rows], dtype=np.int8),
+                       np.array([r[1] for r in rows], dtype=object), FEATURE_NAMES, kind_col)
+
+
+def _threshold_report(det: Detector | None) -> dict[str, float]:
+    """A trained detector's named thresholds (its ``thresholds`` mapping, else its ``threshold`` as "used")."""
+    named = getattr(det, "thresholds", None)
+    if isinstance(named, dict):
+        return {str(k): float(v) for k, v in named.items()}
+    thr = getattr(det, "threshold", None)
+    return {"used": float(thr)} if isinstance(thr, (int, float)) else {}
+
+
 class CooperativeRunner:
     """Runs every configured method side by side on pushed DR samples and range epochs."""
 
@@ -117,7 +146,7 @@ class CooperativeRunner:
         self, config: StackConfig, follower: str, leaders: Sequence[str], start_time_s: float,
         initial_lat_rad: float, initial_lon_rad: float, initial_depth_m: float = 0.0,
         factories: Mapping[str, DetectorFactory] = DETECTOR_FACTORIES, keep_history: bool = True,
-        training_threads: int | None = None,
+        training_threads: int | None = None, training_set: TrainingSet | None = None,
     ) -> None:
         """Start every method at the initial position with P0 = diag(p0_m)² (m², converted to rad²).
 
@@ -127,7 +156,20 @@ class CooperativeRunner:
         Only the compact open-loop features after t_a are kept for the ROC.
         ``training_threads`` (default `default_training_threads()`) trains the
         AQPSO-GA models at t_a side by side; the results are the same for any count.
+        ``training_set`` (another run's ``RunResults.training_set``) is trained on
+        instead of the own window (``config.training_source == "given"``) or
+        besides it (``"both"``); ValueError when the source needs a set and has
+        none, or the set's features are not `FEATURE_NAMES`.
         """
+        if config.training_source not in TRAINING_SOURCES:
+            raise ValueError(f"unknown training_source {config.training_source!r}; expected one of "
+                             f"{', '.join(TRAINING_SOURCES)}")
+        if config.training_source != "own" and training_set is None:
+            raise ValueError(f"training_source {config.training_source!r} needs a training_set")
+        if training_set is not None and training_set.feature_names != FEATURE_NAMES:
+            raise ValueError(f"the given training set's features {training_set.feature_names} are not "
+                             f"{FEATURE_NAMES}")
+        self._given = training_set
         self.config = config
         self.follower = follower
         self.leaders = tuple(leaders)
@@ -144,7 +186,26 @@ class CooperativeRunner:
         self._reported = tuple(names)
         if any(filter_kind(n) == "detect" for n in names) and "ackf" not in names:
             names.append("ackf")    # the open-loop feature source for ROC curves
-        self._methods = [_Method(n, filter_kind(n), s0) for n in names]
+        self._methods = [_Method(n, filter_kind(n), s0, filter_kind(n) == "detect" and n not in PAPER_METHODS)
+                         for n in names]
+        self._ackf = next((m for m in self._methods if m.kind == "ackf"), None)
+        self._needs_database = any(filter_kind(n) == "detect" and n not in PAPER_METHODS for n in names)
+        # the gated ACKF the lagged residual starts from (replay.stack.features); never reported
+        self._reference: _Method | None = None
+        if self._needs_database:
+            self._reference = _Method("reference", "reference", s0)
+            self._methods.append(self._reference)
+        self._gate_f2 = chi_square_threshold(config.chi_square_alpha)
+        self._features = FeatureTracker(config.features, self.leaders, float(initial_lat_rad),
+                                        float(initial_lon_rad))
+        self._initial = (float(initial_lat_rad), float(initial_lon_rad), float(initial_depth_m))
+        # (t, leader, features..., Z - Z_gps, label) of the ackf method inside the window, with GPS truth
+        self._train_rows: list[tuple] = []
+        # the window's inputs in order, replayed with injected anomalies for the hybrid database
+        self._window: list[tuple[str, tuple]] = []
+        self.training_set: TrainingSet | None = None
+        self.thresholds: dict[str, dict[str, dict[str, float]]] = {}
+        self.training_notes: dict[str, str] = {}
         self._t = self.start_time_s
         self._t_dr = self.start_time_s
         self._depth = float(initial_depth_m)
@@ -155,7 +216,7 @@ class CooperativeRunner:
         self.position_fixes = 0
         self.training_errors: dict[str, str] = {}
         self._epochs: list[EpochResult] = []
-        self._open_features: list[tuple[float, str, int, float, float, float]] = []  # ackf, after t_a
+        self._open_features: list[tuple] = []  # (t, leader, label, features...) of ackf after t_a
         self._track_t: list[float] = []
         self._track_depth: list[float] = []
         self._track_states: list[State2] = []        # len(methods) per record, flattened at finish
@@ -176,6 +237,8 @@ class CooperativeRunner:
             self.rejected["dr_time_step_not_positive"] += 1
             return False
         self._maybe_train(t_s)
+        if self._needs_database and t_s <= self.training_end_s:
+            self._window.append(("dr", (t_s, forward_mps, lateral_mps, heading_rad, depth_m)))
         self._last_dr = (forward_mps, lateral_mps, heading_rad)
         self._depth = depth_m
         self._t_dr = t_s
@@ -207,13 +270,19 @@ class CooperativeRunner:
             self.rejected["degenerate_geometry"] += 1
             return []
         self.clamped_ranges += clamped
+        if self._needs_database and t_s <= self.training_end_s:
+            self._window.append(("range", (t_s, leader, leader_lat_rad, leader_lon_rad, leader_depth_m,
+                                           slant_range_m, truth_range_m)))
         truth = truth_range_m if math.isfinite(truth_range_m) else NAN
         label = label_one(z, truth, self.config.t1_m)
-        out = [self._method_epoch(m, inn, t_s, leader, z, geo, truth, label)
+        ref_m = self._reference
+        ref = (ref_m.state.lat, ref_m.state.lon) if ref_m is not None else None
+        extra = self._features.epoch(t_s, leader, slant_range_m, z, self._depth, geo, ref)
+        out = [self._method_epoch(m, inn, t_s, leader, z, geo, truth, label, extra)
                for m, inn in zip(self._methods, innovations)]
         self._record()
         if t_s > self.training_end_s:
-            self._open_features.extend((r.time_s, r.leader, r.label, r.f1, r.f2, r.f3)
+            self._open_features.extend((r.time_s, r.leader, r.label, r.f1, r.f2, r.f3, *extra)
                                        for r in out if r.method == "ackf")
         reported = [r for r in out if r.method in self._reported]
         if self.keep_history:
@@ -241,8 +310,11 @@ class CooperativeRunner:
             self.rejected["fix_time_backwards"] += 1
             return False
         self._maybe_train(t_s)
+        if self._needs_database and t_s <= self.training_end_s:
+            self._window.append(("fix", (t_s, lat_rad, lon_rad, nn, ne, ee)))
         if t_s > self._t:
             self._propagate(t_s)
+        self._features.fix(t_s, lat_rad, lon_rad)
         b, a = metric_scales_scalar(lat_rad, self._depth)
         r11, r12, r22 = nn / (b * b), ne / (b * a), ee / (a * a)
         for m in self._methods:
@@ -264,6 +336,8 @@ class CooperativeRunner:
             capped={m.name: m.capped for m in self._methods if m.name in self._reported},
             clamped_ranges=self.clamped_ranges, trained=self._trained,
             training_errors=dict(self.training_errors), position_fixes=self.position_fixes,
+            training_set=self.training_set, thresholds=copy.deepcopy(self.thresholds),
+            training_notes=dict(self.training_notes),
         )
 
     @property
@@ -306,6 +380,7 @@ class CooperativeRunner:
         q = self.config.q_m_per_s
         for m in self._methods:
             m.state = dr_predict(m.state, dt, fwd, lat_v, hdg, self._depth, q)
+        self._features.propagate(dt, fwd, lat_v, hdg, self._depth)
         self._t = t_s
 
     def _record(self) -> None:
@@ -317,20 +392,28 @@ class CooperativeRunner:
         self._track_states.extend([m.state for m in self._methods])
 
     def _method_epoch(self, m: _Method, inn: RangeInnovation, t_s: float, leader: str, z: float,
-                      geo: tuple[float, float, float], truth: float, label: int) -> EpochResult:
-        """Apply one method's update rule to the epoch and describe the outcome."""
+                      geo: tuple[float, float, float], truth: float, label: int,
+                      extra: tuple[float, ...] = _NO_EXTRA) -> EpochResult:
+        """Apply one method's update rule to the epoch and describe the outcome.
+
+        Paper A's detectors decide on (f1, f2, f3); the new ones (``wide``) on
+        every feature of `FEATURE_NAMES`.
+        """
         f1, f2, f3 = inn.features
         decision = Decision(False, NAN, NAN)
         action, used_inn, compensated = "update", inn, False
         if m.kind == "dr":
             f1 = f2 = f3 = NAN
             action = "none"
-        elif m.kind == "detect" and t_s <= self.training_end_s:
-            if label != UNKNOWN:
-                m.train_rows.append((leader, f1, f2, f3, z - truth, label))
-        elif m.kind == "detect" and m.detectors.get(leader) is not None:
+        elif m.kind == "reference":
+            gate = (extra[_REPEAT] > 0 or f2 > self._gate_f2
+                    or abs(extra[_LAG]) > self.config.features.reference_gate_m)   # NaN compares False
+            action, m.streak[leader] = isolation_action(gate, m.streak[leader], self.config.features.reference_cap)
+        elif m is self._ackf and t_s <= self.training_end_s and label != UNKNOWN:
+            self._train_rows.append((t_s, leader, f1, f2, f3, *extra, z - truth, label))
+        elif m.kind == "detect" and t_s > self.training_end_s and m.detectors.get(leader) is not None:
             det = m.detectors[leader]
-            decision = det.decide(np.array([f1, f2, f3]))
+            decision = det.decide(np.array([f1, f2, f3, *extra] if m.wide else [f1, f2, f3]))
             action, used_inn, compensated = self._act(m, det, decision, inn, leader, z, geo)
         if action in ("update", "capped"):
             m.state = range_update(m.state, used_inn, self._r_var, adaptive=m.kind != "ckf")
@@ -338,7 +421,7 @@ class CooperativeRunner:
         return EpochResult(
             t_s, leader, m.name, decision.flagged, decision.score, decision.threshold, f1, f2, f3, label,
             action == "isolate", action == "capped", compensated, z - decision.correction_m * compensated,
-            inn.z_hat, m.state.lat, m.state.lon, nn, ne, ee, truth)
+            inn.z_hat, m.state.lat, m.state.lon, nn, ne, ee, truth, *extra)
 
     def _act(self, m: _Method, det: Detector, decision: Decision, inn: RangeInnovation, leader: str,
              z: float, geo: tuple[float, float, float]) -> tuple[str, RangeInnovation, bool]:
@@ -359,7 +442,10 @@ class CooperativeRunner:
         if self._trained or t_s <= self.training_end_s:
             return
         self._trained = True
-        jobs = [(m, key, data) for m in self._methods if m.kind == "detect" for key, data in self._training_sets(m)]
+        ts = self._assemble_training_set()
+        self.training_set = ts
+        jobs = [(m, key, data) for m in self._methods if m.kind == "detect"
+                for key, data in self._training_sets(m, ts)]
         # AQPSO-GA evaluates whole populations, where numpy and LAPACK release the GIL: two such
         # models train ~1.5x faster side by side. The other trainers are many small numpy calls
         # that only contend for the GIL (3x slower each on threads), so they run here, in turn.
@@ -370,12 +456,12 @@ class CooperativeRunner:
             from concurrent.futures import ThreadPoolExecutor
 
             with ThreadPoolExecutor(min(self.training_threads, len(heavy))) as pool:
-                futures = {i: pool.submit(self._train_one, jobs[i][0].name, *jobs[i][2]) for i in heavy}
+                futures = {i: pool.submit(self._train_one, jobs[i][0], jobs[i][2]) for i in heavy}
             for i, future in futures.items():
                 outcomes[i] = future.result()
         for i, (m, _, data) in enumerate(jobs):
             if outcomes[i] is None:
-                outcomes[i] = self._train_one(m.name, *data)
+                outcomes[i] = self._train_one(m, data)
         for (m, key, _), (det, error) in zip(jobs, outcomes):
             if error:
                 self.training_errors[f"{m.name}/{key}"] = error
@@ -383,26 +469,110 @@ class CooperativeRunner:
                 m.detectors = {ld: copy.deepcopy(det) if det is not None else None for ld in self.leaders}
             else:
                 m.detectors[key] = det
+        for m in self._methods:
+            if m.kind == "detect":
+                self.thresholds[m.name] = {ld: _threshold_report(det) for ld, det in m.detectors.items()
+                                           if det is not None}
+        for name, per_leader in self.thresholds.items():
+            if per_leader:
+                self.training_notes[f"{name}/thresholds"] = "; ".join(
+                    f"{ld}: " + ", ".join(f"{k} {v:.3g}" for k, v in named.items())
+                    for ld, named in per_leader.items())
 
-    def _training_sets(self, m: _Method) -> list[tuple[str, tuple[np.ndarray, np.ndarray, np.ndarray]]]:
-        """(leader or "all", (features, signed errors, labels)) to train for one method (see module doc)."""
-        rows = m.train_rows
-        leaders = np.array([r[0] for r in rows], dtype=object)
-        feats = np.array([r[1:4] for r in rows], dtype=float).reshape(-1, 3)
-        err = np.array([r[4] for r in rows], dtype=float)
-        labels = np.array([r[5] for r in rows], dtype=np.int8)
+    def _assemble_training_set(self) -> TrainingSet:
+        """The rows every detector trains on, by ``config.training_source`` (see the module doc)."""
+        source = self.config.training_source
+        if source == "given" and self._given is not None:
+            self.training_notes["source"] = f"given: {len(self._given)} rows"
+            return self._given
+        own = _rows_to_set(self._train_rows, RECORDED)
+        recorded = len(own)
+        if self._needs_database:
+            own = own.concat(self._hybrid_database())
+        note = f"own window: {recorded} rows, hybrid database: {len(own) - recorded} rows"
+        if source == "both" and self._given is not None:
+            self.training_notes["source"] = note + f", given: {len(self._given)} rows"
+            return own.concat(self._given)
+        self.training_notes["source"] = note
+        return own
+
+    def _hybrid_database(self) -> TrainingSet:
+        """Paper A's hybrid database: the window replayed open loop (ackf) with anomalies injected into copies.
+
+        Each copy injects `config.injection`'s kinds at their shares into every
+        leader's ranges (`replay.stack.injection.inject_link`), then pushes the
+        window's DR samples, fixes and ranges in their order through a fresh
+        runner holding only the ackf method; its epochs with GPS truth are the
+        rows, labelled from the truth like recorded ones (A.27).
+        """
+        cfg = self.config.injection
+        ranges = [args for kind, args in self._window if kind == "range"]
+        if not ranges or cfg.copies <= 0:
+            return TrainingSet.empty(FEATURE_NAMES)
+        t = np.array([r[0] for r in ranges], dtype=float)
+        leaders = np.array([r[1] for r in ranges], dtype=object)
+        slant = np.array([r[5] for r in ranges], dtype=float)
+        sub_config = replace(self.config, methods=("ackf",), training_source="own")
+        parts: list[TrainingSet] = []
+        counts: Counter[str] = Counter()
+        for c in range(cfg.copies):
+            new_slant, replied = slant.copy(), np.ones(slant.size, dtype=bool)
+            kinds = np.full(slant.size, "normal", dtype=object)
+            for j, ld in enumerate(self.leaders):
+                idx = np.flatnonzero(leaders == ld)
+                rng = np.random.default_rng([cfg.seed, c, j])
+                new_slant[idx], replied[idx], kinds[idx] = inject_link(t[idx], slant[idx], cfg, rng)
+            counts.update(kinds.tolist())
+            child = CooperativeRunner(sub_config, self.follower, self.leaders, self.start_time_s, *self._initial,
+                                      factories=self._factories, keep_history=False)
+            k = 0
+            for kind, args in self._window:
+                if kind == "dr":
+                    child.dead_reckon(*args)
+                elif kind == "fix":
+                    child.position_fix(*args)
+                else:
+                    if replied[k]:
+                        t_k, leader, lat, lon, depth, _, truth = args
+                        child.range_epoch(t_k, leader, lat, lon, depth, float(new_slant[k]), truth)
+                    k += 1
+            by_epoch = dict(zip(zip(t.tolist(), leaders.tolist()), kinds.tolist()))
+            parts.append(_rows_to_set(child._train_rows, [by_epoch[(r[0], r[1])] for r in child._train_rows]))
+        total = sum(counts.values())
+        self.training_notes["database"] = f"{cfg.copies} copies of {slant.size} epochs: " + ", ".join(
+            f"{kind} {n} ({n / total:.1%})" for kind, n in sorted(counts.items()))
+        out = parts[0]
+        for p in parts[1:]:
+            out = out.concat(p)
+        return out
+
+    def _training_sets(self, m: _Method, ts: TrainingSet) -> list[tuple[str, TrainingSet]]:
+        """(leader or "all", its rows) to train for one method (see module doc).
+
+        Paper A's detectors get the recorded rows only, as published; the new
+        ones every row, the hybrid database included.
+        """
+        sub = ts if m.wide else ts.recorded()
         if self.config.anfis.model == "shared":
-            return [("all", (feats, err, labels))]
-        return [(ld, (feats[leaders == ld], err[leaders == ld], labels[leaders == ld])) for ld in self.leaders]
+            return [("all", sub)]
+        return [(ld, sub.for_leader(ld)) for ld in self.leaders]
 
-    def _train_one(self, method: str, feats: np.ndarray, err: np.ndarray,
-                   labels: np.ndarray) -> tuple[Detector | None, str]:
-        """One detector trained on the given epochs, or (None, why not)."""
-        if feats.shape[0] == 0:
+    def _train_one(self, m: _Method, ts: TrainingSet) -> tuple[Detector | None, str]:
+        """One detector trained on the given rows, or (None, why not).
+
+        Paper A's detectors see (f1, f2, f3) through ``Detector.train``; a new
+        one sees every feature, and the whole set (kinds included) when it
+        has ``train_on``.
+        """
+        if len(ts) == 0:
             return None, "no labelled epochs in the training window"
-        det = self._factories[method](self.config)
+        det = self._factories[m.name](self.config)
+        train_on = getattr(det, "train_on", None) if m.wide else None
         try:
-            det.train(feats, err, labels)
+            if callable(train_on):
+                train_on(ts)
+            else:
+                det.train(ts.features if m.wide else ts.columns(PAPER_FEATURES), ts.range_error, ts.labels)
         except Exception as exc:  # noqa: BLE001 - a detector that cannot train is disabled, the run goes on
             return None, f"{type(exc).__name__}: {exc}"
         return det, ""
@@ -426,11 +596,12 @@ class CooperativeRunner:
         """Open-loop scores of each trained detector on the ackf method's features after t_a."""
         src = self._open_features
         leaders = np.array([e[1] for e in src], dtype=object)
-        feats_all = np.array([e[3:6] for e in src], dtype=float).reshape(-1, 3)
+        wide_all = np.array([e[3:] for e in src], dtype=float).reshape(-1, len(FEATURE_NAMES))
         out = {}
         for m in self._methods:
             if m.kind != "detect" or m.name not in self._reported:
                 continue
+            feats_all = wide_all if m.wide else wide_all[:, :len(PAPER_FEATURES)]
             score = np.full(len(src), np.nan)
             for leader, det in m.detectors.items():
                 idx = np.nonzero(leaders == leader)[0]

@@ -1,0 +1,145 @@
+"""Range-epoch features that do not depend on a filter following the anomaly (issue 16).
+
+Paper A's features (f1, f2, f3) come from the ACKF's innovation; for a scalar
+range they are one statistic (f3 = R·max(1, f2), f1 = sqrt(f2·P_zz)) and the
+ACKF follows a slow drift, so none of them sees it. These do not involve the
+filter, and are the same for every method of a run:
+
+- ``repeat_count``: consecutive identical slant ranges from this leader
+  (a stale modem repeats its last value);
+- ``dr_residual_m``: the range minus the range predicted from pure dead
+  reckoning, relative to its median over the leader's last
+  ``median_window_s`` (60 s) of epochs (DR error wanders slowly; the median
+  takes it out, an anomaly stands out of it);
+- ``leader_consistency_m``: this leader's ``dr_residual_m`` minus the mean
+  of the other leaders' latest ones (within the window): a fault on one
+  acoustic link shows on it alone, a DR error on every link;
+- ``usbl_residual_m``: the range minus the range from the USBL-anchored
+  position (the last USBL fixes of the follower, blended, carried forward by
+  dead reckoning), NaN without a fix younger than ``usbl_max_age_s``;
+- ``lag_residual_m``: the range minus the range from the reference
+  filter's estimate of ``lag_s`` (60 s) ago carried forward by the
+  dead-reckoned displacement since (NaN for the first lag). The reference
+  is an ACKF run by the runner beside the methods, which leaves out epochs
+  with a repeated range, f2 above the chi-square gate or
+  |lag_residual_m| above ``reference_gate_m`` (capped at
+  ``reference_cap`` consecutive epochs per leader): it follows a slow
+  drift only until the drift passes the gate, and the estimate of a minute
+  ago has not absorbed a drift younger than that. Over a minute dead
+  reckoning drifts only metres, where its absolute error over the mission
+  reaches tens of metres and rotates with the geometry (which is what
+  makes ``dr_residual_m`` wander about ±10 m per 100 s);
+- ``drift_residual_m``: ``usbl_residual_m`` where finite, else
+  ``lag_residual_m``, else ``dr_residual_m`` (what the drift CUSUM sums);
+- ``drift_cusum_m``: max(S+, S-) of a two-sided CUSUM(k, h) of the drift
+  residual per leader, restarting after each of its own alarms.
+
+`FeatureTracker` keeps O(1) state per leader: each call costs the same
+whatever the mission length.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from collections import deque
+
+from replay.stack.config import FeatureConfig
+from replay.stack.cusum import Cusum
+from replay.stack.model import metric_scales_scalar
+
+PAPER_FEATURES: tuple[str, ...] = ("f1", "f2", "f3")
+EXTRA_FEATURES: tuple[str, ...] = (
+    "repeat_count", "dr_residual_m", "leader_consistency_m", "usbl_residual_m", "lag_residual_m",
+    "drift_residual_m", "drift_cusum_m",
+)
+FEATURE_NAMES: tuple[str, ...] = PAPER_FEATURES + EXTRA_FEATURES
+"""Every feature of a range epoch, in the order of a feature vector and of ``TrainingSet.features``."""
+NAN = float("nan")
+
+
+def range_to(lat: float, lon: float, depth_m: float, leader_lat: float, leader_lon: float,
+             leader_depth_m: float) -> float:
+    """Horizontal range (m) with common radii at the mid latitude and mean depth (STACK.md section 1)."""
+    b, a = metric_scales_scalar(0.5 * (lat + leader_lat), 0.5 * (depth_m + leader_depth_m))
+    return math.hypot(b * (lat - leader_lat), a * (lon - leader_lon))
+
+
+class FeatureTracker:
+    """Pure dead reckoning, the USBL anchor and per-leader memory: the EXTRA_FEATURES of each range epoch."""
+
+    def __init__(self, config: FeatureConfig, leaders: tuple[str, ...], lat_rad: float, lon_rad: float) -> None:
+        """Start dead reckoning at the initial position; no USBL anchor yet."""
+        self.config = config
+        self.dr = [float(lat_rad), float(lon_rad)]
+        self.anchor: list[float] | None = None
+        self.anchor_t = -math.inf
+        self._last_slant: dict[str, float] = {}
+        self._repeats = dict.fromkeys(leaders, 0)
+        self._window: dict[str, deque[tuple[float, float]]] = {ld: deque() for ld in leaders}
+        self._latest: dict[str, tuple[float, float]] = {}       # leader -> (t, dr_residual)
+        self._cusum = {ld: Cusum(config.cusum_k_m, config.cusum_h_m) for ld in leaders}
+        self._lagged: deque[tuple[float, float, float, float, float]] = deque()   # t, reference, dr at t
+
+    def propagate(self, dt_s: float, forward_mps: float, lateral_mps: float, heading_rad: float,
+                  depth_m: float) -> None:
+        """Carry dead reckoning and the anchor forward by one DR step (A.1, radii at the start of the step)."""
+        c, s = math.cos(heading_rad), math.sin(heading_rad)
+        north = dt_s * (forward_mps * c - lateral_mps * s)
+        east = dt_s * (forward_mps * s + lateral_mps * c)
+        for p in (self.dr, self.anchor):
+            if p is not None:
+                b, a = metric_scales_scalar(p[0], depth_m)
+                p[0] += north / b
+                p[1] += east / a
+
+    def fix(self, t_s: float, lat_rad: float, lon_rad: float) -> None:
+        """A USBL fix of the follower: the anchor moves to it (blended with a fresh anchor, `usbl_blend`)."""
+        if self.anchor is None or t_s - self.anchor_t > self.config.usbl_max_age_s:
+            self.anchor = [float(lat_rad), float(lon_rad)]
+        else:
+            w = self.config.usbl_blend
+            self.anchor[0] += w * (lat_rad - self.anchor[0])
+            self.anchor[1] += w * (lon_rad - self.anchor[1])
+        self.anchor_t = float(t_s)
+
+    def epoch(self, t_s: float, leader: str, slant_m: float, z_m: float, depth_m: float,
+              geo: tuple[float, float, float], reference: tuple[float, float] | None = None) -> tuple[float, ...]:
+        """The EXTRA_FEATURES of one range epoch (horizontal range z, leader lat, lon, depth in geo).
+
+        ``reference`` is the reference filter's estimate (lat, lon) before this
+        epoch's update, remembered for ``lag_residual_m`` (None: no lagged residual).
+        """
+        cfg = self.config
+        lag = self._lag_residual(t_s, z_m, depth_m, geo, reference)
+        self._repeats[leader] = self._repeats[leader] + 1 if self._last_slant.get(leader) == slant_m else 0
+        self._last_slant[leader] = slant_m
+        e = z_m - range_to(self.dr[0], self.dr[1], depth_m, *geo)
+        win = self._window[leader]
+        while win and win[0][0] < t_s - cfg.median_window_s:
+            win.popleft()
+        d = e - statistics.median(v for _, v in win) if win else 0.0
+        win.append((t_s, e))
+        self._latest[leader] = (t_s, d)
+        others = [v for ld, (t, v) in self._latest.items() if ld != leader and t >= t_s - cfg.median_window_s]
+        consistency = d - sum(others) / len(others) if others else 0.0
+        usbl = NAN
+        if self.anchor is not None and t_s - self.anchor_t <= cfg.usbl_max_age_s:
+            usbl = z_m - range_to(self.anchor[0], self.anchor[1], depth_m, *geo)
+        drift = usbl if math.isfinite(usbl) else lag if math.isfinite(lag) else d
+        up, down, _ = self._cusum[leader].step(drift)
+        return (float(self._repeats[leader]), d, consistency, usbl, lag, drift, max(up, down))
+
+    def _lag_residual(self, t_s: float, z_m: float, depth_m: float, geo: tuple[float, float, float],
+                      reference: tuple[float, float] | None) -> float:
+        """z minus the range from the reference of lag_s ago plus the DR displacement since; NaN without one."""
+        lagged, cutoff = self._lagged, t_s - self.config.lag_s
+        while len(lagged) > 1 and lagged[1][0] <= cutoff:
+            lagged.popleft()
+        out = NAN
+        if lagged and lagged[0][0] <= cutoff:
+            _, ref_lat, ref_lon, dr_lat, dr_lon = lagged[0]
+            out = z_m - range_to(ref_lat + self.dr[0] - dr_lat, ref_lon + self.dr[1] - dr_lon, depth_m, *geo)
+        if reference is not None:
+            lagged.append((t_s, reference[0], reference[1], self.dr[0], self.dr[1]))
+        return out
