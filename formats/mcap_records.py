@@ -263,7 +263,10 @@ def read_record(f: BinaryIO, offset: int, length: int, size: int, op: int) -> An
     got, rlen = _HEAD.unpack_from(raw, 0)
     if got != op or rlen != length - _HEAD.size:
         raise RecordError(f"byte {offset}: no {_KIND.get(op, hex(op))} record there")
-    rec = parse(op, raw[_HEAD.size:])
+    try:
+        rec = parse(op, raw[_HEAD.size:])
+    except RecordError as exc:
+        raise RecordError(f"byte {offset}: {exc}") from exc
     if op == OP_ATTACHMENT:
         (crc,) = struct.unpack_from("<I", raw, length - 4)
         if crc and zlib.crc32(raw[_HEAD.size:-4]) != crc:

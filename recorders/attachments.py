@@ -9,19 +9,22 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import BinaryIO
 
-RAW_PREFIX = "/raw/"  # a capture's raw streams (recorders.capture.session)
-
 from formats.mcap_reader import ArchiveReader
+
+RAW_PREFIX = "/raw/"  # a capture's raw streams (recorders.capture.session)
 
 
 @dataclass
 class UnpackResult:
-    """Files written, attachment names refused (unsafe), and checksum mismatches."""
+    """Files written, names refused (unsafe), repeated names not written, checksum mismatches, and
+    the reader's one-line account of what it skipped (None when nothing)."""
 
     written: list[Path] = field(default_factory=list)
     refused: list[str] = field(default_factory=list)
     mismatched: list[str] = field(default_factory=list)
     incomplete: list[str] = field(default_factory=list)  # captured streams with bytes missing (a gap)
+    repeated: list[str] = field(default_factory=list)
+    warning: str | None = None
 
 
 def safe_target(root: Path, name: str) -> Path | None:
@@ -44,14 +47,25 @@ def safe_target(root: Path, name: str) -> Path | None:
 
 
 def unpack(archive_path: str | os.PathLike[str], target_dir: str | os.PathLike[str]) -> UnpackResult:
-    """Write every attachment under target_dir; refuse unsafe names, verify recorded sha256."""
+    """Write every attachment under target_dir; refuse unsafe names, verify recorded sha256.
+
+    A second attachment of a name already written is not written over the
+    first: it is listed in `repeated`.
+    """
     root = Path(target_dir)
     root.mkdir(parents=True, exist_ok=True)
     result = UnpackResult()
     with ArchiveReader(archive_path) as reader:
         recording = reader.metadata_json("recording") or {}
-        expected = {f["path"]: f.get("sha256", "") for f in recording.get("files", []) if isinstance(f, dict)}
+        files = recording.get("files")
+        expected = {f["path"]: f.get("sha256", "") for f in (files if isinstance(files, list) else [])
+                    if isinstance(f, dict) and isinstance(f.get("path"), str)}
+        seen: set[str] = set()
         for att in reader.attachments():
+            if att.name in seen:
+                result.repeated.append(att.name)
+                continue
+            seen.add(att.name)
             target = safe_target(root, att.name)
             if target is None:
                 result.refused.append(att.name)
@@ -67,6 +81,7 @@ def unpack(archive_path: str | os.PathLike[str], target_dir: str | os.PathLike[s
             if want and hashlib.sha256(att.data).hexdigest() != want:
                 result.mismatched.append(att.name)
         _unpack_streams(reader, root, expected, result)
+        result.warning = reader.warning()
     return result
 
 

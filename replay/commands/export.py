@@ -10,6 +10,7 @@ with UTC times and mission seconds.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 TABLE_FORMATS = ("csv", "parquet")
@@ -54,6 +55,7 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(f"{args.file}: no topic {topic}; topics: {', '.join(sorted(topics))}")
         out = claim_output(args.output, args.force)
         df = with_mission_seconds(reader.to_dataframe(topic), trial_start_ns(reader))
+        warning = reader.warning()
     for col in df.columns:  # Parquet needs one type per column; timestamps stay typed
         if df[col].dtype == object:
             df[col] = df[col].astype(str)
@@ -62,4 +64,6 @@ def run(args: argparse.Namespace) -> int:
     else:
         df.to_parquet(out)
     print(f"wrote {len(df)} rows of {topic} to {out}")
+    if warning:
+        print(f"auvreplay export: warning: {warning}", file=sys.stderr)
     return 0

@@ -37,7 +37,8 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--compare needs --rrd (the comparison is a recording)")
     config = load_config(args.config, args.set, tuple(args.window) if args.window else None, args.rate)
     claim_outputs([args.rrd], args.force)
-    outcome = replay_archive(args.archive, config, args.output, review=bool(args.rrd), force=args.force)
+    outcome = replay_archive(args.archive, config, args.output, review=bool(args.rrd), force=args.force,
+                             require_work=True)
     if args.rrd:
         from replay.views.recording import save_rrd
 
@@ -56,4 +57,6 @@ def run(args: argparse.Namespace) -> int:
               f"({outcome.metrics['anomalous']} anomalous), {outcome.messages} messages in {outcome.wall_s:.2f} s")
         print(format_table(outcome.metrics))
         print(f"results: {outcome.output}" + (f"; recording: {args.rrd}" if args.rrd else ""))
+    if outcome.warning:
+        print(f"auvreplay replay: warning: {outcome.warning}", file=sys.stderr)
     return 0

@@ -27,6 +27,11 @@ from replay.run.results_writer import ResultsWriter
 from replay.stack.training import TrainingSet
 
 SENSORS = ("gps", "ins", "dvl", "modem/range", "usbl")
+# the schema each topic the engine reads must have (an archive from elsewhere may say otherwise)
+SENSOR_SCHEMAS = {"gps": "foxglove.LocationFix", "ins": "auvreplay.InsState", "dvl": "auvreplay.DvlVelocity",
+                  "modem/range": "auvreplay.AcousticRange", "usbl": "auvreplay.UsblObservation"}
+DIAGNOSTICS_SCHEMA = "foxglove.Log"
+ROLES = ("leader", "follower", "buoy")
 NS = 1_000_000_000
 
 
@@ -43,6 +48,7 @@ class RunOutcome:
     review: Any = None
     messages: int = 0
     extra: dict[str, Any] = field(default_factory=dict)
+    warning: str | None = None  # one line: what the archive reader skipped (None: nothing)
 
 
 def file_sha256(path: str | Path) -> str:
@@ -67,15 +73,43 @@ def default_output(archive: str | Path, rid: str) -> Path:
     return Path(f"{Path(archive).stem}-replay-{rid}.mcap")
 
 
+def trial_metadata(raw: Any) -> dict[str, Any] | None:
+    """The archive's `trial` metadata with only vehicles of the recorded shape (a name, a known role)."""
+    if not isinstance(raw, dict):
+        return None
+    vehicles = raw.get("vehicles")
+    keep = [v for v in (vehicles if isinstance(vehicles, list) else [])
+            if isinstance(v, dict) and isinstance(v.get("name"), str) and v.get("role", "leader") in ROLES]
+    return {**raw, "vehicles": keep}
+
+
+def _readable_topics(summary: Any, reader: ArchiveReader) -> dict[str, int]:
+    """Topic -> count, less the sensor topics whose schema is not the one the engine reads (counted as skipped)."""
+    topics = {}
+    for t, v in summary.topics.items():
+        parts = t.strip("/").split("/", 1)
+        want = DIAGNOSTICS_SCHEMA if t == "/diagnostics" else (
+            SENSOR_SCHEMAS.get(parts[1]) if len(parts) == 2 else None)
+        if want is not None and v["schema"] != want:
+            if v["count"]:
+                reader.damage.messages[(t, f"of schema {v['schema'][:60]!r}, not {want}")] += v["count"]
+            continue
+        topics[t] = v["count"]
+    return topics
+
+
 def replay_archive(archive: str | Path, config: RunConfig | None = None, output: str | Path | None = None,
                    write_output: bool = True, review: bool = False, force: bool = False,
-                   listeners: Sequence[Listener] = (), training_set: TrainingSet | None = None) -> RunOutcome:
+                   listeners: Sequence[Listener] = (), training_set: TrainingSet | None = None,
+                   require_work: bool = False) -> RunOutcome:
     """Replay an archive with a configuration; see the module docstring for what comes out.
 
     The results archive and its metrics files are claimed (replay.run.outputs) before the run:
     an existing one is refused unless `force`. `listeners` hear the run too, after the review
     collector and the results writer; `training_set` (another run's `RunResults.training_set`) is
-    what `stack.training_source` "given" or "both" trains on.
+    what `stack.training_source` "given" or "both" trains on. With `require_work`, a replay with
+    nothing to run (no follower that can run, or no scored epoch) is a UserError naming why, and
+    writes nothing.
     """
     config = config or RunConfig()
     sha = file_sha256(archive)
@@ -88,10 +122,15 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
     with ArchiveReader(archive) as reader:
         summary = reader.summary()
         if not summary.message_count or summary.start_ns is None:
-            raise UserError(f"{archive}: the archive holds no messages")
-        layout = plan_trial(reader.metadata_json("trial"), {t: v["count"] for t, v in summary.topics.items()})
+            raise UserError(_nothing_to_run(archive, "the archive holds no messages", [], reader))
+        trial = trial_metadata(reader.metadata_json("trial"))
+        readable = _readable_topics(summary, reader)
+        layout = plan_trial(trial, readable)
+        if require_work and not any(p.runnable for p in layout.followers):
+            raise UserError(_nothing_to_run(archive, "no follower can run", layout.notes
+                                            + [n for p in layout.followers for n in p.notes], reader))
         t0_ns = summary.start_ns
-        topics = [t for t in summary.topics
+        topics = [t for t in readable
                   if t == "/diagnostics" or any(t == f"/{v}/{s}" for v in layout.roles for s in SENSORS)]
         window = config.engine.window_s
         start_ns = t0_ns + round(window[0] * NS) if window else None
@@ -99,7 +138,7 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
         heard: list[Listener] = []
         collector = None
         if review:
-            collector = ReviewCollector(rid, reader.metadata_json("trial") or {}, t0_ns, layout,
+            collector = ReviewCollector(rid, trial or {}, t0_ns, layout,
                                         to_dict(config))
             heard.append(collector)
         writer = ArchiveWriter(out_path) if out_path is not None else None
@@ -114,6 +153,9 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
             results = engine.finish()
             end_s = max(engine.last_s, 0.0)
             metrics = run_metrics(engine.scores(), results, rid, end_s)
+            if require_work and not metrics.get("epochs"):
+                raise UserError(_nothing_to_run(archive, f"0 scored epochs from {engine.messages} messages",
+                                                list(engine.notes), reader))
             wall = time.monotonic() - wall0
             metrics["wall_s"] = wall
             if writer is not None:
@@ -124,13 +166,22 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
                 writer.abort()
             raise
         problems = list(reader.problems)
+        warning = reader.warning()
     notes = list(engine.notes) + [f"archive: {p}" for p in problems]
-    outcome = RunOutcome(rid, metrics, results, out_path, notes, wall, None, engine.messages)
+    outcome = RunOutcome(rid, metrics, results, out_path, notes, wall, None, engine.messages, warning=warning)
     if collector is not None:
         outcome.review = collector.finish(metrics)
     if out_path is not None:
         save_metrics(metrics, out_path)
     return outcome
+
+
+def _nothing_to_run(archive: Any, what: str, notes: list[str], reader: ArchiveReader) -> str:
+    """One line: the archive, that nothing ran and why (the first notes, and the archive's damage)."""
+    why = "; ".join(dict.fromkeys(notes[:3]))
+    damage = reader.warning()
+    return (f"{archive}: nothing to replay: {what}" + (f" ({why})" if why else "")
+            + (f"; archive: {damage}" if damage else ""))
 
 
 def write_run_metadata(writer: ArchiveWriter, config: RunConfig, rid: str, sha: str, version: str,
