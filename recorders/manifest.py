@@ -12,6 +12,8 @@ from datetime import date
 from pathlib import Path, PurePosixPath
 from typing import Any
 
+from .manifest_checks import ValueProblem, check_log_paths, check_values
+
 ROLES = ("leader", "follower", "buoy")
 SENSORS = ("gps", "dvl", "ins", "modem", "usbl")
 _LOG_KEYS = {"sensor", "format", "path", "source", "clock_offset_s", "prefix"}
@@ -129,6 +131,10 @@ def parse_manifest(text: str, path: Path) -> Manifest:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ManifestError(f"{where}: not valid TOML ({exc})") from exc
+    try:
+        check_values(data, where)
+    except ValueProblem as exc:
+        raise ManifestError(str(exc)) from None
     trial = data.get("trial", {})
     if not isinstance(trial, dict):
         raise ManifestError(f"{where}: [trial] must be a table")
@@ -158,8 +164,12 @@ def _check_references(manifest: Manifest, names: list[str]) -> None:
                                     f"{key} = {ref!r} is not a vehicle of this trial")
 
 
-def load_manifest(path: str | Path) -> Manifest:
-    """Read and parse a manifest file; a missing file or log is a ManifestError."""
+def load_manifest(path: str | Path, allow_outside: bool = False) -> Manifest:
+    """Read and parse a manifest file; a missing file or log is a ManifestError.
+
+    A log path that resolves outside the manifest's folder is a ManifestError
+    too, unless `allow_outside`.
+    """
     path = Path(path)
     try:
         text = path.read_bytes().decode("utf-8")
@@ -168,6 +178,10 @@ def load_manifest(path: str | Path) -> Manifest:
     except UnicodeDecodeError as exc:
         raise ManifestError(f"{path}: manifest is not UTF-8 text") from exc
     manifest = parse_manifest(text, path)
+    try:
+        check_log_paths(manifest.root, [log.path for log in manifest.logs()], str(path), allow_outside)
+    except ValueProblem as exc:
+        raise ManifestError(str(exc)) from None
     for log in manifest.logs():
         full = manifest.root / log.path
         if not log.source and not full.is_file():

@@ -7,6 +7,7 @@ import mimetypes
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from functools import partial
+from pathlib import Path
 from typing import Any, Callable, Iterator, Protocol
 
 from formats import schemas as S
@@ -16,6 +17,7 @@ from formats.records import FormatError, Reject
 from .base import NS, LogContext, Output
 from .clock import date_to_ns, iso_utc
 from .manifest import LogSpec, Manifest, ManifestError
+from .output_checks import OutputProblem, check_output, remove_stale_parts
 from .record_parallel import (
     Capture,
     Captured,
@@ -74,6 +76,7 @@ class RecordingSummary:
 
     files: list[FileStats] = field(default_factory=list)
     workers: int = 1  # processes that decoded the logs (1: in-process)
+    removed_parts: list[str] = field(default_factory=list)  # stale part files of dead processes removed
 
     @property
     def skipped(self) -> int:
@@ -303,12 +306,21 @@ def _next_captured(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[C
 
 
 def record(manifest: Manifest, output_path, progress: Progress | None = None,
-           workers: int | None = None) -> RecordingSummary:
+           workers: int | None = None, replace: bool = True) -> RecordingSummary:
     """Record every log of the manifest into `output_path`; returns the per-file summary.
 
     `workers` processes decode the logs (None: automatic, see `resolve_workers`);
-    the archive is byte-for-byte the same whatever their number.
+    the archive is byte-for-byte the same whatever their number. The output is
+    never one of the inputs nor an existing file other than an MCAP archive,
+    and an existing archive only with `replace` (see recorders.output_checks);
+    the part file is removed on any failure, and stale ones of dead processes
+    before the start.
     """
+    output = Path(output_path)
+    try:
+        check_output(output, [manifest.path, *(manifest.root / log.path for log in manifest.logs())], replace)
+    except OutputProblem as exc:
+        raise ManifestError(str(exc)) from None
     table = converters()
     _check_formats(manifest, table)
     live = next((log for log in manifest.logs() if log.source), None)
@@ -316,22 +328,30 @@ def record(manifest: Manifest, output_path, progress: Progress | None = None,
         raise ManifestError(f"{manifest.path}: log {live.path} is a live source ({live.source}): "
                             "use `auvreplay capture`")
     summary = RecordingSummary(workers=resolve_workers(manifest, workers))
+    summary.removed_parts = [str(p) for p in remove_stale_parts(output)]
     fallback = date_to_ns(manifest.date) if manifest.date else 0
-    with ExitStack() as stack:
-        pool = None
-        if summary.workers > 1:
-            # forked before the writer opens its file, so no worker holds it; this process is one of the
-            # decoding processes and starts on the first log while the workers start
-            pool = stack.enter_context(WorkerPool(partial(_capture_log, manifest, table, fallback),
-                                                  len(manifest.logs()), summary.workers - 1, caller_first=True))
-        writer = stack.enter_context(ArchiveWriter(output_path))
-        # first, so that an archive cut off mid-write still says who is who
-        writer.add_metadata("trial", _trial_metadata(manifest))
-        if pool is None:
-            _record_serial(manifest, writer, table, fallback, summary, progress)
-        else:
-            _record_parallel(manifest, writer, pool, table, fallback, summary, progress)
-        writer.add_metadata("recording", {"files": [f.as_json() for f in summary.files]})
+    writer: ArchiveWriter | None = None
+    try:
+        with ExitStack() as stack:
+            pool = None
+            if summary.workers > 1:
+                # forked before the writer opens its file, so no worker holds it; this process is one of the
+                # decoding processes and starts on the first log while the workers start
+                pool = stack.enter_context(WorkerPool(partial(_capture_log, manifest, table, fallback),
+                                                      len(manifest.logs()), summary.workers - 1, caller_first=True))
+            writer = stack.enter_context(ArchiveWriter(output))
+            # first, so that an archive cut off mid-write still says who is who
+            writer.add_metadata("trial", _trial_metadata(manifest))
+            if pool is None:
+                _record_serial(manifest, writer, table, fallback, summary, progress)
+            else:
+                _record_parallel(manifest, writer, pool, table, fallback, summary, progress)
+            writer.add_metadata("recording", {"files": [f.as_json() for f in summary.files]})
+    except BaseException:
+        # the writer drops its part file on an error inside; this also covers a failed final rename
+        if writer is not None:
+            writer.temp_path.unlink(missing_ok=True)
+        raise
     return summary
 
 
