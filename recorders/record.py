@@ -12,7 +12,7 @@ from typing import Any, Callable, Iterator, Protocol
 
 from formats import schemas as S
 from formats.mcap_writer import ArchiveWriter
-from formats.records import FormatError, Reject
+from formats.records import FormatError, Reject, Where
 
 from .base import NS, LogContext, Output
 from .clock import date_to_ns, iso_utc
@@ -29,12 +29,16 @@ from .record_parallel import (
     write_captured,
 )
 from .registry import converters
+from .value_checks import MAX_RANGE_M, ValueChecks
 
 LOG_LEVEL_WARNING = 3  # foxglove.Log.Level.WARNING
 Progress = Callable[[str, int, int], None]  # (file, bytes done, bytes total)
 # automatic mode decodes in-process below this much input: forking workers and
 # shipping results back costs more than it saves on a small trial (see bench/bench_record.py)
 AUTO_PARALLEL_MIN_BYTES = 1 << 20
+# /diagnostics lines kept in full per log and kind of reject; the rest are counted in one line, so the
+# memory and the archive of a log of garbage are bounded by this, not by the log
+DIAGNOSTICS_PER_KIND = 100
 
 
 class MessageSink(Protocol):
@@ -60,6 +64,8 @@ class FileStats:
     bad_checksum: int = 0
     out_of_order: int = 0
     duplicates: int = 0
+    out_of_range: int = 0   # messages refused for a value out of its range (recorders.value_checks)
+    bad_ranges: int = 0     # of those, ranges <= 0 or beyond max_range_m
     start_ns: int | None = None
     end_ns: int | None = None
 
@@ -109,10 +115,16 @@ class _LogRecorder:
         self.last_ns: dict[str, int] = {}
         self.records: set[int] = set()
         self.fallback_ns = fallback_ns
+        self.checks = ValueChecks(float(log.options.get("max_range_m", MAX_RANGE_M)))
+        self.kinds: dict[tuple[bool, str], int] = {}  # rejects per kind, listed or not
 
     def add(self, item: Output | Reject) -> None:
         if type(item) is not Output:
             self._reject(item)
+            return
+        problem = self.checks.problem(item.message, item.log_time_ns)
+        if problem is not None:
+            self._reject(Reject(item.where if item.where is not None else Where(0), problem))
             return
         t = item.log_time_ns
         topic = item.topic
@@ -139,6 +151,12 @@ class _LogRecorder:
     def _reject(self, item: Reject) -> None:
         self.stats.skipped += 1
         self.stats.bad_checksum += item.bad_checksum
+        reason = item.reason
+        cut = reason.find(":")
+        key = (item.bad_checksum, reason[:cut] if 0 < cut < 40 else reason[:40])
+        n = self.kinds[key] = self.kinds.get(key, 0) + 1
+        if n > DIAGNOSTICS_PER_KIND:
+            return
         if self.stats.end_ns is None:
             self.pending.append(item)
         else:
@@ -150,8 +168,15 @@ class _LogRecorder:
         self.pending.clear()
 
     def finish(self) -> None:
-        self.flush(self.stats.start_ns if self.stats.start_ns is not None else self.fallback_ns)
+        t = self.stats.start_ns if self.stats.start_ns is not None else self.fallback_ns
+        for (bad_checksum, kind), n in self.kinds.items():
+            if n > DIAGNOSTICS_PER_KIND:
+                what = "bad checksums" if bad_checksum else f"rejects of kind {kind!r}"
+                self.pending.append(Reject(Where(0), f"{n - DIAGNOSTICS_PER_KIND} more {what} not listed "
+                                                     f"(the first {DIAGNOSTICS_PER_KIND} are)", bad_checksum))
+        self.flush(t)
         self.stats.parsed = len(self.records)
+        self.stats.out_of_range, self.stats.bad_ranges = self.checks.out_of_range, self.checks.bad_ranges
 
 
 def _trial_metadata(manifest: Manifest) -> dict:
