@@ -135,7 +135,7 @@ def converter_for(family: str) -> Callable[[bytes, LogContext], Iterator[Output 
                 msg = _new_message(cls, ctx)
                 for field, set_value in setters.items():
                     set_value(msg, row.values[columns[field]])
-            except (ValueError, KeyError) as exc:
+            except (ValueError, KeyError, OverflowError) as exc:
                 yield Reject(row.where, f"bad row: {exc}")
                 continue
             _complete(msg, ctx)

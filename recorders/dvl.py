@@ -28,6 +28,7 @@ import math
 from typing import Any, Iterator, Sequence
 
 import numpy as np
+from google.protobuf.timestamp_pb2 import Timestamp
 
 from formats import nortek, pd4, pd6, waterlinked
 from formats.pd0 import blocks as pd0_blocks
@@ -39,6 +40,7 @@ from formats.wire import DVL_VELOCITY
 
 from .base import NS, Converter, LogContext, Output, output
 from .clock import DayClock
+from .value_checks import TIME_RANGE_NS
 
 NAN = math.nan
 FRAMES = {"BODY_FRD": DvlVelocity.BODY_FRD, "EARTH_NED": DvlVelocity.EARTH_NED,
@@ -86,8 +88,10 @@ def message(ctx: LogContext, t_ns: int, frame: str, velocity: Sequence[float], *
     vx, vy, vz = velocity
     if valid is None:
         valid = all(math.isfinite(v) for v in velocity)
+    # a time no Timestamp holds (a 400-digit field) is left unset: the record-time checks refuse it by t_ns
+    stamp = timestamp(t_ns) if TIME_RANGE_NS[0] <= t_ns < TIME_RANGE_NS[1] else Timestamp()
     return DvlVelocity(
-        timestamp=timestamp(t_ns), frame_id=ctx.vehicle, frame=FRAMES[frame],
+        timestamp=stamp, frame_id=ctx.vehicle, frame=FRAMES[frame],
         velocity_x_mps=vx, velocity_y_mps=vy, velocity_z_mps=vz, error_velocity_mps=error,
         beam_range_m=list(ranges), altitude_m=altitude, valid=bool(valid),
         figure_of_merit=fom, sound_speed_mps=sound_speed, source_format=source,

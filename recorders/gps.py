@@ -61,8 +61,13 @@ def gnss_status(
     t_ns: int, frame_id: str, fix_quality: int, satellites: int, hdop: float, source_format: str,
     speed_mps: float, course_deg: float, heading_deg: float,
 ) -> S.GnssStatus:
-    """An auvreplay.GnssStatus stamped `t_ns` (ns, UTC)."""
-    return S.gnss_status(t_ns, frame_id, fix_quality, satellites, hdop, source_format, speed_mps, course_deg, heading_deg)
+    """An auvreplay.GnssStatus stamped `t_ns` (ns, UTC); a quality or satellite count no int32 holds is -1 (unknown)."""
+    return S.gnss_status(t_ns, frame_id, _int32(fix_quality), _int32(satellites), hdop, source_format, speed_mps,
+                         course_deg, heading_deg)
+
+
+def _int32(value: int) -> int:
+    return value if -2**31 <= value < 2**31 else -1
 
 
 # ---------------------------------------------------------------- NMEA, fast path
@@ -174,7 +179,7 @@ def _scan_outputs(
     g = epoch.get("GGA")
     if g is not None:
         _, _, _, quality, satellites, hdop, _, _, _, _ = g[2]
-    status = S.gnss_status(t, ctx.vehicle, quality, satellites, hdop, "nmea:" + ",".join(epoch), *_scan_motion(epoch))
+    status = gnss_status(t, ctx.vehicle, quality, satellites, hdop, "nmea:" + ",".join(epoch), *_scan_motion(epoch))
     status_out = Output(topics[1], status, t, publish, where)
     if pos is None:
         return (status_out,)
@@ -257,7 +262,7 @@ def _novatel_scan_outputs(epoch: dict[str, novatel_scan.Scanned], ctx: LogContex
         vel = novatel_scan.BEST_VEL._make(bv[4])
         if vel.solution_status == "SOL_COMPUTED":
             speed, course = vel.horizontal_speed_mps, vel.track_deg
-    status = S.gnss_status(t, ctx.vehicle, quality, satellites, NAN,
+    status = gnss_status(t, ctx.vehicle, quality, satellites, NAN,
                            "novatel:" + ",".join([item[1] for item in epoch.values()]), speed, course, NAN)
     out.append(Output(topics[1], status, t, novatel_publish_ns(where_item, t, ctx), novatel_scan.where_of(where_item)))
     return tuple(out)

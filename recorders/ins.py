@@ -247,7 +247,7 @@ def _nmea_ins(records: list[nmea.NmeaRecord], ctx: LogContext, clock: DayClock) 
         f["latitude"], f["longitude"] = pos.latitude, pos.longitude
         if isinstance(pos, nmea.Gga):
             f["altitude_m"] = gga_altitude(pos)
-    if not (math.isnan(speed) or math.isnan(course)):
+    if math.isfinite(speed) and math.isfinite(course):  # cos(inf) raises
         f["velocity_north_mps"] = speed * math.cos(math.radians(course))
         f["velocity_east_mps"] = speed * math.sin(math.radians(course))
     source = "nmea:" + ",".join(type(r).__name__.upper() for r in records)

@@ -101,7 +101,7 @@ def own_address(ctx: LogContext) -> int:
 def endpoint(ctx: LogContext, text: str) -> tuple[str, int]:
     """(vehicle name, address) from a regex group holding an address or a vehicle name."""
     text = text.strip()
-    if text.isdigit():
+    if text.isdigit() and len(text) <= 9:  # an address an int32 holds; longer digits are a name
         return ctx.vehicle_for_address(int(text)), int(text)
     addresses = [a for a, v in ctx.address_book.items() if v == text]
     return text, addresses[0] if len(addresses) == 1 else -1
@@ -240,6 +240,18 @@ def convert_micromodem(data: bytes, ctx: LogContext) -> Iterator[Output | Reject
 
 # ---- EvoLogics S2C
 
+MAX_PROPAGATION_US = 1e8  # 100 s one way: far past any acoustic range; more is a parse of garbage
+
+
+def evologics_problem(us: float, address: int) -> str | None:
+    """Why a propagation time or peer address cannot be a measurement (a 400-digit field), or None."""
+    if not 0.0 <= us < MAX_PROPAGATION_US:
+        return f"propagation time {us:g} us out of range"
+    if not -2**31 <= address < 2**31:
+        return f"peer address {str(address)[:20]}... out of range"
+    return None
+
+
 def _evologics_scan(data: bytes, ctx: LogContext, c: float) -> Iterator[Output | Reject]:
     """`_evologics` over `formats.evologics.scan` tuples, messages from packed wire bytes."""
     me, address, offset_ns = ctx.vehicle, own_address(ctx), ctx.clock_offset_ns
@@ -261,6 +273,10 @@ def _evologics_scan(data: bytes, ctx: LogContext, c: float) -> Iterator[Output |
             continue
         if host is None:
             yield Reject(Where(offset, line, host), "no time: EvoLogics line without host timestamp")
+            continue
+        why = evologics_problem(us, heard)
+        if why is not None:
+            yield Reject(Where(offset, line, host), why)
             continue
         publish = arrival = host + offset_ns
         if kind == "usbl":

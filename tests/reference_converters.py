@@ -32,6 +32,7 @@ from recorders.ins import ins_state
 from recorders.modem import (
     MicromodemOptions,
     acoustic_range,
+    evologics_problem,
     host_time,
     micromodem_options,
     own_address,
@@ -351,6 +352,8 @@ def _modem_evologics(data: bytes, ctx: LogContext, c: float) -> Iterator[Output 
                 yield Reject(rec.where, "propagation time before any delivery or reception names the peer")
             elif host is None:
                 yield Reject(rec.where, "no time: EvoLogics line without host timestamp")
+            elif (why := evologics_problem(rec.propagation_time_us, rec.peer)) is not None:
+                yield Reject(rec.where, why)
             else:
                 tt = rec.propagation_time_us * 1e-6
                 heard = (ctx.vehicle_for_address(rec.peer), rec.peer)
@@ -359,6 +362,10 @@ def _modem_evologics(data: bytes, ctx: LogContext, c: float) -> Iterator[Output 
             arrival = usbl_reception_ns(ctx, rec.where, rec.current_time_s, rec.measurement_time_s)
             if arrival is None:
                 yield Reject(rec.where, "no time: EvoLogics line without host timestamp")
+                continue
+            why = evologics_problem(rec.propagation_time_us, rec.address)
+            if why is not None:
+                yield Reject(rec.where, why)
                 continue
             tt = rec.propagation_time_us * 1e-6
             heard = (ctx.vehicle_for_address(rec.address), rec.address)

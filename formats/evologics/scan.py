@@ -35,7 +35,7 @@ _KEYWORDS = {ev.UsblLong: "USBLLONG", ev.UsblAngles: "USBLANGLES"}
 def _fast_usbl(keyword: str, body: str) -> list | None:
     """A USBL line's values when every field reads cleanly, else None (the decoder says why)."""
     parts = body.split(",")
-    if len(parts) != _FIELDS[keyword] or not parts[2].isdigit():
+    if len(parts) != _FIELDS[keyword] or not parts[2].isdigit() or len(parts[2]) > 9:  # an int32 address
         return None
     try:
         v = list(map(float, parts))
