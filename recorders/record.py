@@ -29,7 +29,7 @@ from .record_parallel import (
     write_captured,
 )
 from .registry import converters
-from .value_checks import MAX_RANGE_M, ValueChecks
+from .value_checks import MAX_RANGE_M, TIME_RANGE_NS, ValueChecks
 
 LOG_LEVEL_WARNING = 3  # foxglove.Log.Level.WARNING
 Progress = Callable[[str, int, int], None]  # (file, bytes done, bytes total)
@@ -124,7 +124,10 @@ class _LogRecorder:
             return
         problem = self.checks.problem(item.message, item.log_time_ns)
         if problem is not None:
-            self._reject(Reject(item.where if item.where is not None else Where(0), problem))
+            # stamped at the message's own time when it has one: a log whose every message is refused must not
+            # move its diagnostics to the fallback (the trial date's midnight) and with them the trial's start
+            t_hint = item.log_time_ns if TIME_RANGE_NS[0] <= item.log_time_ns < TIME_RANGE_NS[1] else None
+            self._reject(Reject(item.where if item.where is not None else Where(0), problem), t_hint)
             return
         t = item.log_time_ns
         topic = item.topic
@@ -148,7 +151,7 @@ class _LogRecorder:
         if self.pending:
             self.flush(t)
 
-    def _reject(self, item: Reject) -> None:
+    def _reject(self, item: Reject, t_hint: int | None = None) -> None:
         self.stats.skipped += 1
         self.stats.bad_checksum += item.bad_checksum
         reason = item.reason
@@ -157,10 +160,11 @@ class _LogRecorder:
         n = self.kinds[key] = self.kinds.get(key, 0) + 1
         if n > DIAGNOSTICS_PER_KIND:
             return
-        if self.stats.end_ns is None:
+        t = self.stats.end_ns if self.stats.end_ns is not None else t_hint
+        if t is None:
             self.pending.append(item)
         else:
-            self.writer.write("/diagnostics", _diagnostic(self.log, item, self.stats.end_ns), self.stats.end_ns)
+            self.writer.write("/diagnostics", _diagnostic(self.log, item, t), t)
 
     def flush(self, t_ns: int) -> None:
         for reject in self.pending:

@@ -58,6 +58,27 @@ _RULES: dict[str, tuple[tuple[str, float, float, bool], ...]] = {
 _RANGE_NAN_OK = {"auvreplay.AcousticRange": False, "auvreplay.UsblObservation": True}
 
 
+def _covariance(message: Any) -> str | None:
+    """A LocationFix's covariance: finite (or NaN where not given), variances not negative."""
+    if not message.position_covariance_type:
+        return None
+    cov = message.position_covariance
+    for i, v in enumerate(cov):
+        if v in (math.inf, -math.inf) or (i % 4 == 0 and v < 0.0):
+            return f"position_covariance[{i}] = {v:g} is not a variance"
+    return None
+
+
+def _position_pair(message: Any) -> str | None:
+    """An INS position is both coordinates or neither: one NaN beside a number is a field that did not parse."""
+    if (message.latitude != message.latitude) != (message.longitude != message.longitude):
+        return f"latitude {message.latitude:g} with longitude {message.longitude:g}"
+    return None
+
+
+_EXTRA = {"foxglove.LocationFix": _covariance, "auvreplay.InsState": _position_pair}
+
+
 class ValueChecks:
     """The checks of one log: its range limit, the rules by schema name, and counts of what they refused."""
 
@@ -65,15 +86,15 @@ class ValueChecks:
         self.max_range_m = max_range_m
         self.bad_ranges = 0
         self.out_of_range = 0
-        self._by_class: dict[type, tuple[tuple[str, float, float, bool], ...]] = {}
+        self._by_class: dict[type, tuple[tuple[tuple[str, float, float, bool], ...], Any]] = {}
 
-    def _rules(self, cls: type) -> tuple[tuple[str, float, float, bool], ...]:
+    def _rules(self, cls: type) -> tuple[tuple[tuple[str, float, float, bool], ...], Any]:
         name = cls.DESCRIPTOR.full_name  # type: ignore[attr-defined]
         rules = _RULES.get(name, ())
         if name in _RANGE_NAN_OK:
             rules = (("range_m", _ABOVE_ZERO, self.max_range_m, _RANGE_NAN_OK[name]), *rules)
-        self._by_class[cls] = rules
-        return rules
+        self._by_class[cls] = found = (rules, _EXTRA.get(name))
+        return found
 
     def problem(self, message: Any, log_time_ns: int) -> str | None:
         """Why a message cannot be archived (field, value, limits), or None when every value is in range."""
@@ -81,9 +102,8 @@ class ValueChecks:
             self.out_of_range += 1
             return f"time {log_time_ns} ns is outside 1970-2200"
         cls = type(message)
-        rules = self._by_class.get(cls)
-        if rules is None:
-            rules = self._rules(cls)
+        found = self._by_class.get(cls)
+        rules, extra = found if found is not None else self._rules(cls)
         for name, low, high, nan_ok in rules:
             v = getattr(message, name)
             if low <= v <= high:
@@ -98,4 +118,9 @@ class ValueChecks:
                 if math.isfinite(v):
                     return f"range {v:g} m is beyond max_range_m = {high:g}"
             return f"{name} = {v:g} is outside [{low:g}, {high:g}]" if v == v else f"{name} is NaN"
+        if extra is not None:
+            why = extra(message)
+            if why is not None:
+                self.out_of_range += 1
+                return why
         return None

@@ -166,14 +166,28 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
                 writer.abort()
             raise
         problems = list(reader.problems)
+        refused = record_time_refusals(reader.metadata_json("recording"))
         warning = reader.warning()
-    notes = list(engine.notes) + [f"archive: {p}" for p in problems]
+    notes = list(engine.notes) + ([refused] if refused else []) + [f"archive: {p}" for p in problems]
     outcome = RunOutcome(rid, metrics, results, out_path, notes, wall, None, engine.messages, warning=warning)
     if collector is not None:
         outcome.review = collector.finish(metrics)
     if out_path is not None:
         save_metrics(metrics, out_path)
     return outcome
+
+
+def record_time_refusals(recording: Any) -> str | None:
+    """One note: the ranges and other values `record` refused as out of range (recording metadata), or None."""
+    files = recording.get("files") if isinstance(recording, dict) else None
+    counts = [(f.get("bad_ranges"), f.get("out_of_range")) for f in (files if isinstance(files, list) else [])
+              if isinstance(f, dict)]
+    ranges = sum(r for r, _ in counts if isinstance(r, int))
+    values = sum(v for _, v in counts if isinstance(v, int))
+    if not values:
+        return None
+    return (f"record time: {ranges} ranges refused (not above 0 m, or beyond max_range_m) and "
+            f"{values - ranges} other values out of range; they are not in the archive")
 
 
 def _nothing_to_run(archive: Any, what: str, notes: list[str], reader: ArchiveReader) -> str:
