@@ -153,3 +153,22 @@ def test_a_log_of_bad_checksums_costs_bounded_memory_and_diagnostics(tmp_path):
         (f,) = r.metadata_json("recording")["files"]
     assert f["skipped"] == f["bad_checksum"] == n
     assert len(diags) == DIAGNOSTICS_PER_KIND + 1 and f"{n - DIAGNOSTICS_PER_KIND} more bad checksums" in diags[-1]
+
+
+@pytest.mark.parametrize("pattern, ok", [
+    (r"(?P<source>\d)?(?P<range_m>(a+)+)$", True),     # the issue's: 4.5 s per line on re, linear on regex
+    (r"(?P<source>\d)?(?P<range_m>(a|aa)+)$", False),  # backtracks on regex too: refused with the line
+])
+def test_user_patterns_cannot_hang_record(tmp_path, pattern, ok):
+    lines = b"".join(b"12:00:%02d.0 " % (k % 60) + b"a" * 30 + b"!\n" for k in range(300))
+    extra = f"pattern = '{pattern}'\ntime_format = \"tod\""
+    manifest = _trial(tmp_path, {"modem.log": ("modem", "regex", lines, extra)})
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    done = subprocess.run([sys.executable, "-m", "replay.cli", "record", str(manifest), "-o", str(tmp_path / "m.mcap"),
+                           "--quiet"], env=env, capture_output=True, text=True, timeout=120)
+    assert "Traceback" not in done.stderr
+    if ok:
+        assert done.returncode == 0, done.stderr
+    else:
+        (line,) = done.stderr.strip().splitlines()
+        assert done.returncode == 1 and "takes over 0.05 s on line 1" in line and "simplify it" in line
