@@ -126,8 +126,8 @@ class Damage:
             n = len(self.chunks)
             parts.append(f"skipped {n} chunk{'s' * (n != 1)} ({first}{', ...' if n > 1 else ''})")
         if self.records:
-            parts.append("skipped " + ", ".join(f"{n} {k} record{'s' * (n != 1)}" for k, n in sorted(self.records.items()))
-                         + f" ({self.record_texts[0]})")
+            kinds = ", ".join(f"{n} {k} record{'s' * (n != 1)}" for k, n in sorted(self.records.items()))
+            parts.append(f"skipped {kinds} ({self.record_texts[0]})")
         parts.extend(self.problems)
         return "; ".join(parts)
 

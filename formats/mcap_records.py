@@ -14,14 +14,23 @@ from __future__ import annotations
 
 import struct
 import zlib
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from io import BytesIO
-from typing import Any, BinaryIO, Callable, Iterator
+from typing import Any, BinaryIO
 
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.records import (
-    Attachment, AttachmentIndex, Channel, ChunkIndex, Footer, Metadata, MetadataIndex, Schema, Statistics,
+    Attachment,
+    AttachmentIndex,
+    Channel,
+    ChunkIndex,
+    Footer,
+    Metadata,
+    MetadataIndex,
+    Schema,
+    Statistics,
 )
 from mcap.summary import Summary
 

@@ -8,8 +8,8 @@ from __future__ import annotations
 import functools
 import random
 import struct
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import zstandard
 
@@ -63,7 +63,7 @@ def rewrite(src: Path, dst: Path, message: Callable[[str, bytes, random.Random],
                 w._zstd = _FirstChunk(first_chunk)
             for t, cls in topics.items():
                 w.channel(t, cls)
-            for schema, channel, m in r.raw_messages():
+            for _, channel, m in r.raw_messages():
                 data = m.data if message is None else message(channel.topic, m.data, rng)
                 if data is not None:
                     w.write_serialized(channel.topic, data, m.log_time, m.publish_time)

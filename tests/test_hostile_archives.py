@@ -6,7 +6,6 @@ exits 1 with one `error:` line saying why; the reader never raises on damage.
 
 from __future__ import annotations
 
-import io
 import os
 import random
 import struct
@@ -14,7 +13,9 @@ import subprocess
 import sys
 from pathlib import Path
 
+import lz4.frame
 import pytest
+import zstandard
 from mcap.writer import CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 
@@ -106,14 +107,10 @@ def test_chunk_payload_checks_what_comes_out_against_what_it_declares():
 
 
 def zstandard_frame(data: bytes) -> bytes:
-    import zstandard
-
     return zstandard.ZstdCompressor(write_content_size=False).compress(data)
 
 
 def lz4_frame(data: bytes) -> bytes:
-    import lz4.frame
-
     return lz4.frame.compress(data)
 
 
@@ -288,9 +285,8 @@ def test_replay_with_no_follower_exits_1_with_the_reason(trial, tmp_path, capsys
 
 def test_reader_never_raises_on_random_bytes_after_the_magic():
     rng = random.Random(5)
-    for k in range(200):
+    for _ in range(200):
         blob = b"\x89MCAP0\r\n" + bytes(rng.getrandbits(8) for _ in range(rng.randrange(0, 400)))
-        f = io.BytesIO(blob)
         path = Path(f"/tmp/_hostile_{os.getpid()}.mcap")
         path.write_bytes(blob)
         with ArchiveReader(path) as r:

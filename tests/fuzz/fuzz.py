@@ -18,7 +18,6 @@ raise. Cases are reproducible from (entry, seed, case number).
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import random
 import re
@@ -27,10 +26,10 @@ import sys
 import tempfile
 import time
 import traceback
+from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
 from datetime import date
 from pathlib import Path
-from typing import Iterator
 
 ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
