@@ -13,6 +13,7 @@ from pathlib import Path
 
 import zstandard
 
+from formats.mcap_chunks import ordered_messages
 from formats.mcap_reader import ArchiveReader
 from formats.mcap_records import read_summary
 from formats.mcap_writer import ArchiveWriter
@@ -63,10 +64,11 @@ def rewrite(src: Path, dst: Path, message: Callable[[str, bytes, random.Random],
                 w._zstd = _FirstChunk(first_chunk)
             for t, cls in topics.items():
                 w.channel(t, cls)
-            for _, channel, m in r.raw_messages():
-                data = m.data if message is None else message(channel.topic, m.data, rng)
+            names = {cid: ch.topic for cid, ch in summary.channels.items()}
+            for log_time, publish_time, cid, raw in ordered_messages(r._file, summary.chunk_indexes, None, True):
+                data = raw if message is None else message(names[cid], raw, rng)
                 if data is not None:
-                    w.write_serialized(channel.topic, data, m.log_time, m.publish_time)
+                    w.write_serialized(names[cid], data, log_time, publish_time)
             for name in ("trial", "recording"):
                 meta = r.metadata(name)
                 if meta is not None:
