@@ -63,6 +63,8 @@ def _covariance(message: Any) -> str | None:
     if not message.position_covariance_type:
         return None
     cov = message.position_covariance
+    if len(cov) == 9 and cov[0] >= 0.0 and cov[4] >= 0.0 and cov[8] >= 0.0 and -math.inf < sum(cov) < math.inf:
+        return None  # the usual case in one look: no infinity among them, variances not negative
     for i, v in enumerate(cov):
         if v in (math.inf, -math.inf) or (i % 4 == 0 and v < 0.0):
             return f"position_covariance[{i}] = {v:g} is not a variance"
