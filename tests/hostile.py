@@ -6,8 +6,11 @@ Shared by tests/test_hostile_archives.py and the fuzz run (tests/fuzz/fuzz_archi
 from __future__ import annotations
 
 import functools
+import os
 import random
 import struct
+import subprocess
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -20,6 +23,25 @@ from formats.mcap_writer import ArchiveWriter
 from formats.schemas import MESSAGE_CLASSES
 
 GIB = 1 << 30
+ROOT = Path(__file__).resolve().parent.parent
+# the child reports its own peak (VmHWM): ru_maxrss of a child keeps the forking parent's high-water mark
+_CHILD = """
+import runpy, sys
+try:
+    runpy.run_module("replay.cli", run_name="__main__", alter_sys=True)
+finally:
+    hwm = next(line for line in open("/proc/self/status") if line.startswith("VmHWM"))
+    sys.stderr.write("\\n#VmHWM " + hwm.split()[1] + "\\n")
+"""
+
+
+def run_child(*argv: str) -> tuple[int, str, int]:
+    """`auvreplay ARGV` in a child process: (exit code, stderr, its peak RSS in KB)."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    done = subprocess.run([sys.executable, "-c", _CHILD, *argv], env=env, stdout=subprocess.DEVNULL,
+                          stderr=subprocess.PIPE, text=True, cwd=ROOT, timeout=600)
+    err, _, peak = done.stderr.rpartition("#VmHWM ")
+    return done.returncode, err.strip() + "\n", int(peak)
 
 
 @functools.lru_cache(maxsize=4)

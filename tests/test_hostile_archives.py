@@ -9,8 +9,6 @@ from __future__ import annotations
 import os
 import random
 import struct
-import subprocess
-import sys
 from pathlib import Path
 
 import lz4.frame
@@ -26,7 +24,7 @@ from formats.mcap_writer import ArchiveWriter
 from recorders.manifest import load_manifest
 from recorders.record import record
 from replay.cli import main
-from tests.hostile import GIB, chunk_offsets, record_offsets, rewrite, set_declared_size, zstd_bomb
+from tests.hostile import GIB, chunk_offsets, record_offsets, rewrite, run_child, set_declared_size, zstd_bomb
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "samples" / "lake_trial"
@@ -47,17 +45,6 @@ def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
     rc = main(list(argv))
     out, err = capsys.readouterr()
     return rc, out, err
-
-
-def run_child(*argv: str) -> tuple[int, str, int]:
-    """`auvreplay ARGV` in a child process: (exit code, stderr, peak RSS in KB)."""
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.Popen([sys.executable, "-m", "replay.cli", *argv], env=env, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, cwd=ROOT)
-    err = proc.stderr.read().decode()
-    _, status, usage = os.wait4(proc.pid, 0)
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    return proc.returncode, err, usage.ru_maxrss
 
 
 def one_line(err: str, kind: str) -> str:

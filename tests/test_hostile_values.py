@@ -5,10 +5,7 @@ the replay says so; a log of garbage costs bounded memory and bounded diagnostic
 from __future__ import annotations
 
 import math
-import os
 import shutil
-import subprocess
-import sys
 from datetime import date
 from pathlib import Path
 
@@ -24,6 +21,7 @@ from recorders.record import DIAGNOSTICS_PER_KIND, record
 from recorders.registry import converters
 from recorders.value_checks import ValueChecks
 from replay.cli import main
+from tests.hostile import run_child
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "samples" / "lake_trial"
@@ -141,13 +139,8 @@ def test_a_log_of_bad_checksums_costs_bounded_memory_and_diagnostics(tmp_path):
     n = 12_000_000 // len(bad)
     manifest = _trial(tmp_path, {"gps.log": ("gps", "nmea", bad * n, "")})
     out = tmp_path / "g.mcap"
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.Popen([sys.executable, "-m", "replay.cli", "record", str(manifest), "-o", str(out), "--quiet",
-                             "--workers", "1"], env=env, stderr=subprocess.PIPE)
-    err = proc.stderr.read().decode()
-    _, status, usage = os.wait4(proc.pid, 0)
-    assert os.waitstatus_to_exitcode(status) == 0, err
-    assert usage.ru_maxrss < 400 * 1024, usage.ru_maxrss
+    rc, err, peak_kb = run_child("record", str(manifest), "-o", str(out), "--quiet", "--workers", "1")
+    assert rc == 0 and peak_kb < 400 * 1024, (err, peak_kb)
     with ArchiveReader(out) as r:
         diags = [m.message.message for m in r.messages(["/diagnostics"])]
         (f,) = r.metadata_json("recording")["files"]
