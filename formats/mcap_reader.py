@@ -213,7 +213,7 @@ class ArchiveReader:
             return
         schemas: dict[int, Schema] = {}
         channels: dict[int, Channel] = {}
-        found = []
+        found: list[tuple[int, int, tuple[Schema | None, Channel, Message]]] = []
         try:
             for rec in StreamReader(self._file, validate_crcs=self.validate_crcs).records:
                 if isinstance(rec, Schema):

@@ -240,7 +240,8 @@ def _scan_chunk(out: Scan, pos: int, body: bytes, validate_crc: bool, limit: int
         report(f"byte {pos}", str(exc))
         return
     channels: dict[int, int] = {}
-    lo = hi = None
+    lo: int | None = None
+    hi: int | None = None
     try:
         for op, rec in inner_records(data, pos):
             if op == OP_MESSAGE and len(rec) >= _MESSAGE_HEAD.size:
@@ -256,7 +257,7 @@ def _scan_chunk(out: Scan, pos: int, body: bytes, validate_crc: bool, limit: int
                     report(f"byte {pos}", f"in a chunk: {exc}")
     except ChunkError as exc:
         report(f"byte {pos}", f"{exc}; the rest of the chunk skipped")
-    if lo is not None:
+    if lo is not None and hi is not None:
         out.summary.chunk_indexes.append(ChunkIndex(
             message_start_time=lo, message_end_time=hi, chunk_start_offset=pos,
             chunk_length=_HEAD.size + len(body), message_index_offsets=channels, message_index_length=0,

@@ -57,7 +57,7 @@ def _alive(pid: int) -> bool:
 def remove_stale_parts(output: Path) -> list[Path]:
     """Remove the part files of `output` whose writing process is no longer alive; returns them."""
     pattern = re.compile(rf"^\.{re.escape(output.name)}\.part-(\d+)$")
-    removed = []
+    removed: list[Path] = []
     try:
         names = os.listdir(output.parent if str(output.parent) else ".")
     except OSError:
