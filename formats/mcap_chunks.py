@@ -109,7 +109,9 @@ def _decompress(compression: str, body: bytes, size: int, offset: int) -> bytes:
     except (zstandard.ZstdError, RuntimeError, ValueError) as exc:
         if isinstance(exc, ChunkError):
             raise
-        raise ChunkError(f"byte {offset}: {compression} data does not decompress ({exc})") from exc
+        # zstd says "did not decompress full frame" when the output limit stops it: a bomb or damage
+        raise ChunkError(f"byte {offset}: {compression} data does not decompress within the {mib(size)} "
+                         f"declared ({exc})") from exc
     raise ChunkError(f"byte {offset}: unsupported chunk compression {compression!r}")
 
 
