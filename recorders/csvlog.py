@@ -24,7 +24,7 @@ from formats import schemas as S
 from formats.records import FormatError, Reject
 
 from .base import NS, LogContext, Output, output
-from .clock import DayClock
+from .clock import DayClock, plausible_ns
 
 # family -> (message class, topic suffix)
 FAMILY_MESSAGES: dict[str, tuple[Any, str]] = {
@@ -132,6 +132,8 @@ def converter_for(family: str) -> Callable[[bytes, LogContext], Iterator[Output 
                 t = parse_time(row.values[columns["time"]])
                 if t is None:
                     raise ValueError("time of day without a date (set [trial] date)")
+                if not plausible_ns(t + ctx.clock_offset_ns):
+                    raise ValueError(f"time {row.values[columns['time']][:40]!r} is outside 1970-2200")
                 msg = _new_message(cls, ctx)
                 for field, set_value in setters.items():
                     set_value(msg, row.values[columns[field]])

@@ -15,6 +15,7 @@ from formats.novatel import scan as novatel_scan
 from formats.records import Reject
 
 from .base import LogContext
+from .clock import plausible_ns
 
 
 def novatel_scan_epochs(data: bytes, ctx: LogContext, kinds: frozenset[str]
@@ -42,12 +43,21 @@ def novatel_scan_epochs(data: bytes, ctx: LogContext, kinds: frozenset[str]
         yield epoch
 
 
+def implausible_week(week: int) -> str:
+    """The reason for a GPS week that is no time of a trial (a 400-digit field)."""
+    return f"GPS week {str(week)[:12]} is no time of a trial"
+
+
 def novatel_scan_time(epoch: dict[str, novatel_scan.Scanned], ctx: LogContext) -> int | Reject:
     """`novatel_time` on scanned values."""
     first = next(iter(epoch.values()))
     _, _, week, sow, _, _, _, _ = first
     if week > 0 and math.isfinite(sow):
-        return gps_to_unix_ns(week, sow) + ctx.clock_offset_ns
+        try:
+            t = gps_to_unix_ns(week, sow) + ctx.clock_offset_ns
+        except OverflowError:
+            t = -1
+        return t if plausible_ns(t) else Reject(novatel_scan.where_of(first), implausible_week(week))
     for _, _, _, _, _, _, _, host in epoch.values():
         if host is not None:
             return host + ctx.clock_offset_ns

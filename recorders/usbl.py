@@ -39,7 +39,7 @@ from formats.scanned import positions
 from formats.schemas import UsblObservation, timestamp
 
 from .base import Converter, LogContext, Output, output
-from .clock import NS
+from .clock import NS, plausible_ns
 from .modem import (
     RegexOptions,
     endpoint,
@@ -123,6 +123,14 @@ def _scan_values(parts: dict[str, list], opts: UsblOptions) -> tuple[float, ...]
     return tt, rng, bearing, elevation, px, py, east, north, up, integrity, rssi
 
 
+IMPLAUSIBLE_FIX = "travel time puts the measurement outside 1970-2200"
+
+
+def fix_time(arrival: int, travel_s: float) -> int:
+    """When the signal left: the arrival less the travel time (the arrival itself when that is not finite)."""
+    return arrival - round(travel_s * NS) if math.isfinite(travel_s) else arrival
+
+
 class _ScanEmitter:
     """`_emit` on scanned values, with what is the same for every observation of a log worked out once."""
 
@@ -138,8 +146,9 @@ class _ScanEmitter:
         publish = host + self.offset_ns
         arrival = measurement_ns(publish, v[LONG.current_time_s], v[LONG.measurement_time_s])
         values = _scan_values(parts, self.opts)
-        tt = values[0]
-        t = arrival - round(tt * NS) if tt == tt else arrival
+        t = fix_time(arrival, values[0])
+        if not plausible_ns(t):
+            return Reject(Where(offset, line, host), IMPLAUSIBLE_FIX)
         address = v[LONG.address]
         target = self.targets.get(address)
         if target is None:

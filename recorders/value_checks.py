@@ -15,9 +15,11 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from .clock import TIME_MAX_NS, TIME_MIN_NS
+
 MAX_RANGE_M = 20_000.0
 # log times: 1970-01-01 .. 2200-01-01 (ns); anything else is a parse of garbage
-TIME_RANGE_NS = (0, 7_258_118_400 * 10**9)
+TIME_RANGE_NS = (TIME_MIN_NS, TIME_MAX_NS)
 RANGE_FIELDS = frozenset({"range_m"})
 _ABOVE_ZERO = 1e-9  # ranges must be above 0: the closed interval's low end
 

@@ -23,7 +23,7 @@ from formats.novatel import logs as novatel
 from formats.pd0 import ensembles as pd0
 from formats.records import Reject
 from recorders.base import LogContext, Output, output
-from recorders.clock import NS, DayClock
+from recorders.clock import NS, DayClock, plausible_ns
 from recorders.dvl import pd0_items
 from recorders.epochs import group_epochs, host_time_ns
 from recorders.gnss_covariance import Covariance, fix_covariance, sigma_covariance
@@ -51,10 +51,13 @@ from recorders.nmea_epochs import (
     nmea_update_date,
     record_epochs,
 )
+from recorders.novatel_epochs import implausible_week
 from recorders.usbl import (
+    IMPLAUSIBLE_FIX,
     MATCH_S,
     UsblOptions,
     bearing_elevation,
+    fix_time,
     observation,
     usbl_options,
 )
@@ -120,9 +123,13 @@ def novatel_key(rec: novatel.NovatelRecord) -> tuple[str, tuple[int, int]]:
 
 def novatel_time(epoch: list[novatel.NovatelRecord], ctx: LogContext) -> int | Reject:
     """UTC ns (offset applied) of a NovAtel epoch from its GPS time, else the host time."""
-    t = novatel.record_time_ns(epoch[0])
+    try:
+        t = novatel.record_time_ns(epoch[0])
+    except OverflowError:
+        t = -1
     if t is not None:
-        return t + ctx.clock_offset_ns
+        t += ctx.clock_offset_ns
+        return t if plausible_ns(t) else Reject(epoch[0].where, implausible_week(epoch[0].header.week))
     host = host_time_ns(epoch, ctx)
     if host is None:
         return Reject(epoch[0].where, "no time: GPS week 0 or unknown time status, and no host timestamp")
@@ -418,7 +425,9 @@ def _emit(ctx: LogContext, group: _Group, opts: UsblOptions) -> Output | Reject:
     if arrival is None:
         return Reject(first.where, "no time: EvoLogics line without host timestamp")
     v = _values(group, opts)
-    t = arrival - round(v.get("travel_time_s", 0.0) * NS)
+    t = fix_time(arrival, v.get("travel_time_s", 0.0))
+    if not plausible_ns(t):
+        return Reject(first.where, IMPLAUSIBLE_FIX)
     msg = observation(t, ctx.vehicle, ctx.vehicle_for_address(first.address), "evologics", v)
     return output(ctx, USBL_SUFFIX, msg, t, first.where)
 
