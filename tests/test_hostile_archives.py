@@ -253,7 +253,7 @@ def test_truncated_archives_say_so_or_refuse_with_a_reason(trial, tmp_path, caps
     for cut in (3_000_000, len(data) // 7, len(data) - 5, len(data) - 3000):
         path = tmp_path / f"cut{cut}.mcap"
         path.write_bytes(data[:cut])
-        rc, out, err = run_cli(capsys, "replay", str(path), *REPLAY, "-o", str(tmp_path / "r.mcap"))
+        rc, out, err = run_cli(capsys, "replay", str(path), *REPLAY, "-o", str(tmp_path / f"r{cut}.mcap"))
         if rc == 0:
             assert "read sequentially" in one_line(err, "warning")
         else:

@@ -13,7 +13,7 @@ import pytest
 
 from formats.mcap_reader import ArchiveReader
 from formats.records import Reject
-from formats.sentence import nmea_checksum
+from formats.nmea.framing import nmea_checksum
 from formats.waterlinked import crc8
 from recorders.base import LogContext
 from recorders.manifest import load_manifest
