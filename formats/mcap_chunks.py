@@ -14,7 +14,8 @@ from __future__ import annotations
 import heapq
 import struct
 import zlib
-from typing import BinaryIO, Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
+from typing import BinaryIO
 
 import lz4.frame
 import zstandard
@@ -81,7 +82,7 @@ def chunk_payload(raw: bytes, offset: int, size: int, crc: int, validate_crc: bo
     body = raw[pos + 8:pos + 8 + records_len]
     if len(body) != records_len:
         raise ChunkError(f"byte {offset}: chunk data of {records_len} bytes runs past its record")
-    data = _decompress(compression, body, size, offset)
+    data = decompress(compression, body, size, offset)
     if len(data) != size:
         raise ChunkError(f"byte {offset}: chunk decompresses to {mib(len(data))}, not the {mib(size)} declared")
     if validate_crc and crc and zlib.crc32(data) != crc:
@@ -89,8 +90,8 @@ def chunk_payload(raw: bytes, offset: int, size: int, crc: int, validate_crc: bo
     return data
 
 
-def _decompress(compression: str, body: bytes, size: int, offset: int) -> bytes:
-    """At most `size` bytes out of `body` (more is a ChunkError: the caller has checked `size` is sane)."""
+def decompress(compression: str, body: bytes, size: int, offset: int) -> bytes:
+    """At most `size` bytes out of a chunk's `body` (more is a ChunkError: the caller has checked `size` is sane)."""
     try:
         if compression == "zstd":
             # python-zstandard allocates a frame's own content size, whatever max_output_size says

@@ -26,11 +26,11 @@ import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import lz4.frame
-import zstandard
 from mcap.writer import CompressionType, Writer
 
-from .records import FormatError
+from formats.mcap_chunks import ChunkError
+from formats.mcap_chunks import decompress as chunk_decompress
+from formats.records import FormatError
 
 MAGIC = b"\x89MCAP0\r\n"
 OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE = 0x01, 0x02, 0x03, 0x04, 0x05
@@ -154,22 +154,6 @@ def _message(r: _Reader, length: int) -> tuple[int, int, int, int, bytes]:
     return cid, seq, log_time, publish_time, r.take(length - _MESSAGE.size)
 
 
-def _decompress(compression: str, body: bytes, size: int) -> bytes:
-    if compression == "":
-        return body
-    if compression == "zstd":
-        try:
-            return zstandard.ZstdDecompressor().decompress(body, max_output_size=size)
-        except zstandard.ZstdError as exc:
-            raise _Bad(f"zstd: {exc}") from None
-    if compression == "lz4":
-        try:
-            return lz4.frame.decompress(body)
-        except RuntimeError as exc:
-            raise _Bad(f"lz4: {exc}") from None
-    raise _Bad(f"unknown compression {compression!r}")
-
-
 def _chunk_head(r: _Reader) -> tuple[int, int, int, int, str, int]:
     start, end, size, crc = r.unpack(_CHUNK)
     compression = r.string()
@@ -182,7 +166,10 @@ def _chunk_head(r: _Reader) -> tuple[int, int, int, int, str, int]:
 def _chunk(r: _Reader, found: _Found, offset: int) -> None:
     """A chunk whose records all parse and whose CRC holds; its records go into `found` only then."""
     start, end, size, crc, compression, n = _chunk_head(r)
-    records = _decompress(compression, r.take(n), size)
+    try:    # one bounded decompression for every reader of ours: a frame claiming 4 GiB is refused unread
+        records = chunk_decompress(compression, r.take(n), size, offset)
+    except ChunkError as exc:
+        raise _Bad(str(exc)) from None
     if len(records) != size:
         raise _Bad("uncompressed size differs from the header")
     if crc and zlib.crc32(records) != crc:

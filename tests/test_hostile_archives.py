@@ -64,6 +64,14 @@ def test_zstd_bomb_is_refused_in_bounded_memory(trial, tmp_path, capsys):
     assert rc == 0 and "skipped 1 chunk" in one_line(err, "warning")
 
 
+def test_recover_skips_a_zstd_bomb_in_bounded_memory(trial, tmp_path):
+    # recover decompresses through the same bounded path as the reader: the bomb is a damaged chunk
+    path = rewrite(trial, tmp_path / "bomb.mcap", first_chunk=zstd_bomb(content_size=True))
+    rc, err, rss = run_child("recover", str(path), "-o", str(tmp_path / "fixed.mcap"))
+    assert rc == 0 and rss < RSS_LIMIT_KB, (err, rss)
+    assert (tmp_path / "fixed.mcap").stat().st_size > 0
+
+
 def test_zstd_frame_that_says_more_than_the_chunk_is_not_allocated():
     # python-zstandard allocates what a frame header says, whatever the output limit: the header is checked first
     bomb = zstd_bomb(80 << 20, content_size=True)
