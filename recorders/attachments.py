@@ -50,7 +50,11 @@ def unpack(archive_path: str | os.PathLike[str], target_dir: str | os.PathLike[s
     result = UnpackResult()
     with ArchiveReader(archive_path) as reader:
         recording = reader.metadata_json("recording") or {}
-        expected = {f["path"]: f.get("sha256", "") for f in recording.get("files", []) if isinstance(f, dict)}
+        files = [f for f in recording.get("files", []) if isinstance(f, dict)]
+        expected = {f["path"]: f.get("sha256", "") for f in files}
+        # a split log's files are attached one by one, each with its own checksum
+        expected.update({p["path"]: p.get("sha256", "") for f in files for p in f.get("parts") or []
+                         if isinstance(p, dict)})
         for att in reader.attachments():
             target = safe_target(root, att.name)
             if target is None:

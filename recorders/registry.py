@@ -16,6 +16,12 @@ FAMILY_MODULES: dict[str, str] = {
     "modem": "recorders.modem",
     "usbl": "recorders.usbl",
 }
+# container format (one file, several sensors; manifest sensor "") -> module with a CONVERTERS mapping
+CONTAINER_MODULES: dict[str, str] = {
+    "rosbag": "recorders.rosbag",
+    "alog": "recorders.alog",
+    "mavlink": "recorders.mavlink",
+}
 
 
 def converters() -> dict[tuple[str, str], Converter]:
@@ -26,7 +32,14 @@ def converters() -> dict[tuple[str, str], Converter]:
         for fmt, fn in module.CONVERTERS.items():
             table[(family, fmt)] = fn
         table[(family, "csv")] = csvlog.converter_for(family)
+    for fmt, name in CONTAINER_MODULES.items():
+        table[("", fmt)] = importlib.import_module(name).CONVERTERS[fmt]
     return table
+
+
+def family_converter(sensor: str, fmt: str) -> Converter:
+    """The converter of one sensor family's vendor format, for containers that carry such logs inside them."""
+    return importlib.import_module(FAMILY_MODULES[sensor]).CONVERTERS[fmt]
 
 
 def describe(fn: Converter) -> str:

@@ -1,0 +1,408 @@
+"""Trials from ROS 1/ROS 2 bags, MOOS alogs and MAVLink tlogs, and rotated logs: built here, recorded, compared.
+
+Bags are written with rosbags' own writers, tlogs with pymavlink's encoder, alogs as text. "The same archive
+messages as the equivalent vendor log" compares decoded messages and log times topic by topic.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from formats.mcap_reader import ArchiveReader
+from recorders.manifest import ManifestError, load_manifest
+from recorders.record import record
+
+SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"
+T0 = 1476237600 * 10**9  # 2016-10-12 02:00:00 UTC, the sample trial's start
+NMEA_LINES = [
+    "$GPGGA,020000.00,4542.135726,N,12635.845169,E,1,08,0.9,117.87,M,-8.00,M,,*75",
+    "$GPGST,020000.00,1.800,,,,1.273,1.273,3.000*71",
+    "$GPRMC,020000.00,A,4542.135726,N,12635.845169,E,4.62,90.41,121016,,,A*62",
+    "$GPGGA,020001.00,4542.135715,N,12635.846791,E,1,08,1.0,117.99,M,-8.00,M,,*71",
+    "$GPGST,020001.00,1.800,,,,1.273,1.273,3.000*70",
+]
+
+
+def manifest(tmp: Path, logs: str, date: bool = True) -> Path:
+    text = ('[trial]\nname = "t"\n' + ('date = "2016-10-12"\n' if date else "") +
+            '[[vehicles]]\nname = "buddy"\nrole = "follower"\nmodem_address = 2\n'
+            '[[vehicles]]\nname = "auv"\nrole = "leader"\nmodem_address = 1\n' + logs)
+    (tmp / "trial.toml").write_text(text)
+    return tmp / "trial.toml"
+
+
+def log(fmt: str, path: str, sensor: str = "", extra: str = "") -> str:
+    return ('[[vehicles.logs]]\n' + (f'sensor = "{sensor}"\n' if sensor else "") +
+            f'format = "{fmt}"\npath = {path if path.startswith("[") else repr(path)}\n{extra}\n')
+
+
+def messages(tmp: Path, m: Path, name: str = "a.mcap") -> tuple[dict[str, list], dict]:
+    out = tmp / name
+    summary = record(load_manifest(m), out, workers=1)
+    by: dict[str, list] = {}
+    with ArchiveReader(out) as r:
+        for msg in r.messages():
+            by.setdefault(msg.topic, []).append((msg.log_time_ns, msg.message.SerializeToString()))
+        recording = r.metadata_json("recording")
+        attachments = sorted(a.name for a in r.attachments())
+    return by, {"summary": summary, "recording": recording, "attachments": attachments}
+
+
+# ---------------------------------------------------------------- ROS bags
+
+def _typestores():
+    from rosbags.typesys import Stores, get_typestore
+    return get_typestore(Stores.ROS1_NOETIC), get_typestore(Stores.ROS2_HUMBLE)
+
+
+DVL_MSG = """std_msgs/Header header
+float64 time
+geometry_msgs/Vector3 velocity
+float64 fom
+float64 altitude
+bool velocity_valid
+int64 status
+string form
+"""
+
+
+def _bag_messages(ts, *, stamp_offset_ns: int = 0):
+    """(topic, msgtype, bag time, message) covering every mapped type; times from T0."""
+    from rosbags.typesys import get_types_from_msg
+    ts.register(get_types_from_msg(DVL_MSG, "waterlinked_a50_ros_driver/msg/DVL"))
+    T = ts.types
+    Time = T["builtin_interfaces/msg/Time"]
+
+    def header(t_ns, frame):
+        kw = {"stamp": Time(sec=t_ns // 10**9, nanosec=t_ns % 10**9), "frame_id": frame}
+        if "seq" in T["std_msgs/msg/Header"].__dataclass_fields__:
+            kw["seq"] = 0
+        return T["std_msgs/msg/Header"](**kw)
+
+    import numpy as np
+    V3, Q = T["geometry_msgs/msg/Vector3"], T["geometry_msgs/msg/Quaternion"]
+    out = []
+    for i, line in enumerate(NMEA_LINES):
+        t = T0 + (i // 3) * 10**9 + 50_000_000
+        out.append(("/nmea", "nmea_msgs/msg/Sentence", t + 1000,
+                    None if "nmea_msgs/msg/Sentence" not in T else T["nmea_msgs/msg/Sentence"](header=header(t, "gps"), sentence=line)))
+        out.append(("/gps/raw", "std_msgs/msg/String", t + 1000, T["std_msgs/msg/String"](data=line)))
+    status = T["sensor_msgs/msg/NavSatStatus"]
+    for i, st_ in enumerate((0, -1, 2)):
+        t = T0 + i * 10**9
+        cov = np.array([1.62, 0, 0, 0, 1.62, 0, 0, 0, 9.0]) if i != 2 else np.full(9, np.nan)
+        out.append(("/gps/fix", "sensor_msgs/msg/NavSatFix", t + 10_000_000, T["sensor_msgs/msg/NavSatFix"](
+            header=header(t + stamp_offset_ns, "gps_link"), status=status(status=st_, service=1),
+            latitude=45.7022621, longitude=126.5974195, altitude=109.87, position_covariance=cov,
+            position_covariance_type=2)))
+    # a quarter turn about z in ENU: yaw 90 deg = heading 0 (north)
+    s = math.sqrt(0.5)
+    quat = Q(x=0.0, y=0.0, z=s, w=s)
+    out.append(("/imu", "sensor_msgs/msg/Imu", T0 + 2 * 10**9, T["sensor_msgs/msg/Imu"](
+        header=header(T0 + 2 * 10**9, "imu_link"), orientation=quat, orientation_covariance=np.zeros(9),
+        angular_velocity=V3(x=0.0, y=0.0, z=0.0), angular_velocity_covariance=np.zeros(9),
+        linear_acceleration=V3(x=0.0, y=0.0, z=0.0), linear_acceleration_covariance=np.zeros(9))))
+    PoseC, TwistC = T["geometry_msgs/msg/PoseWithCovariance"], T["geometry_msgs/msg/TwistWithCovariance"]
+    Pose, Twist, Point = T["geometry_msgs/msg/Pose"], T["geometry_msgs/msg/Twist"], T["geometry_msgs/msg/Point"]
+    out.append(("/odom", "nav_msgs/msg/Odometry", T0 + 3 * 10**9, T["nav_msgs/msg/Odometry"](
+        header=header(T0 + 3 * 10**9, "odom"), child_frame_id="base_link",
+        pose=PoseC(pose=Pose(position=Point(x=100.0, y=200.0, z=-5.0), orientation=quat), covariance=np.zeros(36)),
+        twist=TwistC(twist=Twist(linear=V3(x=1.5, y=0.0, z=0.0), angular=V3(x=0.0, y=0.0, z=0.0)),
+                     covariance=np.zeros(36)))))
+    out.append(("/dvl/twist", "geometry_msgs/msg/TwistWithCovarianceStamped", T0 + 4 * 10**9,
+                T["geometry_msgs/msg/TwistWithCovarianceStamped"](
+                    header=header(T0 + 4 * 10**9, "dvl_link"),
+                    twist=TwistC(twist=Twist(linear=V3(x=1.0, y=0.5, z=-0.1), angular=V3(x=0.0, y=0.0, z=0.0)),
+                                 covariance=np.zeros(36)))))
+    out.append(("/dvl/data", "waterlinked_a50_ros_driver/msg/DVL", T0 + 5 * 10**9,
+                T["waterlinked_a50_ros_driver/msg/DVL"](
+                    header=header(T0 + 5 * 10**9, "dvl"), time=1.0, velocity=V3(x=0.8, y=0.1, z=0.0), fom=0.002,
+                    altitude=12.5, velocity_valid=True, status=0, form="json_v2")))
+    out.append(("/camera/info", "std_msgs/msg/String", T0 + 6 * 10**9, T["std_msgs/msg/String"](data="hello")))
+    out.append(("/diag_count", "std_msgs/msg/Int32", T0 + 6 * 10**9, T["std_msgs/msg/Int32"](data=4)))
+    return out
+
+
+NMEA_SENTENCE_MSG = "std_msgs/Header header\nstring sentence\n"
+
+
+def write_ros1(path: Path) -> None:
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import get_types_from_msg
+    ts, _ = _typestores()
+    ts.register(get_types_from_msg(NMEA_SENTENCE_MSG, "nmea_msgs/msg/Sentence"))
+    items = _bag_messages(ts)
+    with Writer(path) as w:
+        conns = {}
+        for topic, msgtype, t, msg in sorted(items, key=lambda x: x[2]):
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, msgtype, typestore=ts)
+            w.write(conns[topic], t, ts.serialize_ros1(msg, msgtype))
+
+
+def write_ros2(folder: Path, storage: str) -> Path:
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import get_types_from_msg
+    _, ts = _typestores()
+    ts.register(get_types_from_msg(NMEA_SENTENCE_MSG, "nmea_msgs/msg/Sentence"))
+    items = _bag_messages(ts)
+    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+    with Writer(folder, version=9, storage_plugin=plugin) as w:
+        conns = {}
+        for topic, msgtype, t, msg in sorted(items, key=lambda x: x[2]):
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, msgtype, typestore=ts)
+            w.write(conns[topic], t, ts.serialize_cdr(msg, msgtype))
+    return next(folder.glob("*.mcap" if storage == "mcap" else "*.db3"))
+
+
+@pytest.fixture(scope="module")
+def bags(tmp_path_factory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("bags")
+    write_ros1(root / "trial.bag")
+    return {"ros1": root / "trial.bag", "mcap": write_ros2(root / "r2mcap", "mcap"),
+            "sqlite3": write_ros2(root / "r2db", "sqlite3"), "root": root}
+
+
+def _vendor_gps(tmp: Path) -> dict[str, list]:
+    """The NMEA lines as a vendor log with the bags' header stamps as host prefix."""
+    lines = [f"{(T0 + (i // 3) * 10**9 + 50_000_000) / 1e9:.3f} {line}" for i, line in enumerate(NMEA_LINES)]
+    (tmp / "gps.log").write_text("\n".join(lines) + "\n")
+    by, _ = messages(tmp, manifest(tmp, log("nmea", "gps.log", "gps")), "vendor.mcap")
+    return by
+
+
+@pytest.mark.parametrize("kind", ["ros1", "mcap", "sqlite3"])
+def test_bag_maps_every_type_like_the_vendor_logs(bags, tmp_path, kind):
+    rel = bags[kind].relative_to(bags["root"])
+    m = manifest(bags["root"], log("rosbag", str(rel), extra='origin = [45.7, 126.6]'))
+    by, info = messages(tmp_path, m)
+    vendor = _vendor_gps(tmp_path)
+    # the raw sentences, as nmea_msgs/Sentence and as std_msgs/String, give the vendor log's messages
+    fixes = [x for x in by["/auv/gps"]]
+    vendor_fixes = vendor["/auv/gps"]
+    assert len(vendor_fixes) == 2
+    for fix in vendor_fixes:
+        assert fixes.count(fix) == 2  # once from /nmea, once from /gps/raw
+    # NavSatFix: status 0 -> a fix with its covariance; -1 -> status only; NaN covariance -> UNKNOWN
+    from formats import schemas as S
+    navsat = [S.LocationFix.FromString(b) for t, b in fixes if (t, b) not in vendor_fixes]
+    assert len(navsat) == 2
+    assert navsat[0].position_covariance_type == 2 and navsat[0].position_covariance[0] == pytest.approx(1.62)
+    assert navsat[1].position_covariance_type == 0 and math.isnan(navsat[1].position_covariance[0])
+    assert navsat[0].latitude == pytest.approx(45.7022621) and navsat[0].altitude == pytest.approx(109.87)
+    ins = {t: S.InsState.FromString(b) for t, b in by["/auv/ins"]}
+    imu, odom = ins[T0 + 2 * 10**9], ins[T0 + 3 * 10**9]
+    assert imu.heading_deg == pytest.approx(0.0, abs=1e-9) and imu.roll_deg == pytest.approx(0.0, abs=1e-9)
+    assert math.isnan(imu.latitude)
+    # odom: x east 100 m, y north 200 m of the origin, z -5 (ENU) -> depth 5; 1.5 m/s forward heading north
+    assert odom.depth_m == pytest.approx(5.0)
+    assert odom.latitude == pytest.approx(45.7 + math.degrees(200 / 6378137.0))
+    assert odom.velocity_north_mps == pytest.approx(1.5) and odom.velocity_east_mps == pytest.approx(0.0, abs=1e-9)
+    dvl = {t: S.DvlVelocity.FromString(b) for t, b in by["/auv/dvl"]}
+    twist, a50 = dvl[T0 + 4 * 10**9], dvl[T0 + 5 * 10**9]
+    assert (twist.frame, twist.velocity_x_mps, twist.velocity_y_mps, twist.velocity_z_mps) == \
+        (S.DvlVelocity.BODY_FRD, 1.0, -0.5, pytest.approx(0.1))
+    assert a50.frame == S.DvlVelocity.INSTRUMENT and a50.altitude_m == 12.5 and a50.valid
+    stats = info["recording"]["files"][0]
+    assert stats["format"] == "rosbag" and stats["sensor"] == ""
+    # every message counted: 10 raw + 3 NavSatFix + Imu + Odometry + 2 DVL + 2 unmapped = 19
+    total = 19
+    assert stats["parsed"] + stats["skipped"] + stats["ignored"] >= total - 4  # GST lines merge into their fix
+    reasons = stats["ignored_reasons"]
+    assert reasons["topic /diag_count (std_msgs/Int32) is not mapped"] == 1
+    assert any("/camera/info" in r for r in reasons)
+    assert info["attachments"] == [str(rel)]
+    # header stamps are log time, bag time publish time
+    with ArchiveReader(tmp_path / "a.mcap") as r:
+        fix = next(x for x in r.messages(["/auv/gps"]) if x.log_time_ns == T0)
+        assert fix.publish_time_ns == T0 + 10_000_000
+
+
+def test_topic_mapping_and_vehicles(bags, tmp_path):
+    rel = bags["ros1"].relative_to(bags["root"])
+    extra = 'topics = { "/gps/fix" = { sensor = "gps", vehicle = "buddy" }, "/dvl/twist" = "dvl" }'
+    by, info = messages(tmp_path, manifest(bags["root"], log("rosbag", str(rel), extra=extra)))
+    assert set(by) == {"/buddy/gps", "/buddy/gps/status", "/auv/dvl", "/diagnostics"}
+    assert info["recording"]["files"][0]["ignored"] == 19 - 4
+
+
+def test_bag_without_date_takes_the_bags_day(bags, tmp_path):
+    rel = bags["mcap"].relative_to(bags["root"])
+    by, _ = messages(tmp_path, manifest(bags["root"], log("rosbag", str(rel), extra='topics = { "/nmea" = "gps" }'),
+                                        date=False))
+    assert [t for t, _ in by["/auv/gps"]] == [T0, T0 + 10**9]
+
+
+# ---------------------------------------------------------------- MOOS alog
+
+ALOG = f"""%% LOGFILE:   /home/moos/auv.alog
+%% LOGSTART           {T0 / 1e9:.3f}
+%%%%%%%%%%%%%%%%%%%%%%%%%%%%%%%%%%%%%%%%%%%%%
+0.050   NMEA_GPS        iGPS          {NMEA_LINES[0]}
+0.050   NMEA_GPS        iGPS          {NMEA_LINES[1]}
+0.050   NMEA_GPS        iGPS          {NMEA_LINES[2]}
+1.050   NMEA_GPS        iGPS          {NMEA_LINES[3]}
+1.050   NMEA_GPS        iGPS          {NMEA_LINES[4]}
+2.000   NAV_X           pNodeReporter 100
+2.000   NAV_Y           pNodeReporter 200
+2.000   NAV_DEPTH       pNodeReporter 5.5
+2.000   NAV_HEADING     pNodeReporter 90
+2.000   NAV_SPEED       pNodeReporter 1.2
+3.000   GPS_LAT         iGPS          45.71
+3.000   GPS_LON         iGPS          126.61
+3.000   GPS_SAT         iGPS          9
+4.000   CRS_RANGE_REPORT uFldContactRangeSensor vname=auv,range=87.2,target=buddy,time={T0 / 1e9 + 4:.3f}
+4.500   DEPLOY          pHelmIvP      true
+junk
+5.000   NAV_DEPTH       pNodeReporter not-a-number
+"""
+
+
+def test_alog_maps_variables_and_raw_nmea(tmp_path):
+    from formats import schemas as S
+    (tmp_path / "auv.alog").write_text(ALOG)
+    by, info = messages(tmp_path, manifest(tmp_path, log("alog", "auv.alog", extra='origin = [45.7, 126.6]')))
+    vendor = _vendor_gps(tmp_path)
+    assert [f for f in by["/auv/gps"] if f[0] < T0 + 2 * 10**9] == vendor["/auv/gps"]
+    nav = S.InsState.FromString(next(b for t, b in by["/auv/ins"] if t == T0 + 2 * 10**9))
+    assert nav.depth_m == 5.5 and nav.heading_deg == 90.0 and nav.velocity_east_mps == pytest.approx(1.2)
+    assert nav.latitude == pytest.approx(45.7 + math.degrees(200 / 6378137.0))
+    gps = S.LocationFix.FromString(next(b for t, b in by["/auv/gps"] if t == T0 + 3 * 10**9))
+    assert (gps.latitude, gps.longitude) == (45.71, 126.61)
+    rng = S.AcousticRange.FromString(by["/auv/modem/range"][0][1])
+    assert (rng.source, rng.destination, rng.range_m, rng.source_address) == ("buddy", "auv", 87.2, 2)
+    stats = info["recording"]["files"][0]
+    assert stats["skipped"] == 2  # the junk line and the non-number depth
+    assert stats["ignored_reasons"]["variable DEPLOY is not mapped"] == 1
+    # every posting counted
+    assert stats["parsed"] + stats["skipped"] + stats["ignored"] == 17
+
+
+# ---------------------------------------------------------------- MAVLink tlog
+
+def write_tlog(path: Path, damage: bytes = b"") -> None:
+    from pymavlink.dialects.v20 import ardupilotmega as mav
+    m = mav.MAVLink(None, srcSystem=1, srcComponent=1)
+    us = T0 // 1000
+    packets = [
+        (0, m.gps_raw_int_encode(us, 3, 457022621, 1265974195, 109870, 90, 200, 462, 9041, 8)),
+        (1, m.heartbeat_encode(12, 3, 0, 0, 4)),
+        (2, m.attitude_encode(1000, math.radians(2.0), math.radians(-3.0), math.radians(45.0), 0, 0, 0)),
+        (3, m.global_position_int_encode(2000, 457022000, 1265974000, 100000, -5500, 100, -50, 10, 4500)),
+        (4, m.gps_input_encode(us + 4_000_000, 0, 0, 0, 0, 3, 457023000, 1265975000, -5.5, 1.1, 0.9,
+                               0.5, 0.2, 0.0, 0, 0, 0, 7)),
+        (5, m.vision_speed_estimate_encode(us + 5_000_000, 0.5, 0.25, 0.05, [0.0] * 9, 0)),
+        (6, m.vision_position_delta_encode(us + 6_000_000, 200_000, [0.0, 0.0, 0.0], [0.2, 0.02, 0.0], 80.0)),
+        (7, m.distance_sensor_encode(1000, 20, 5000, 1234, 0, 1, 25, 0)),
+    ]
+    out = b""
+    for i, (s, pkt) in enumerate(packets):
+        out += struct.pack(">Q", us + s * 1_000_000) + pkt.pack(m)
+        if i == len(packets) - 1 and damage:
+            out += damage
+    path.write_bytes(out)
+
+
+def test_tlog_maps_fixes_ins_and_dvl(tmp_path):
+    from formats import schemas as S
+    write_tlog(tmp_path / "sub.tlog", damage=b"\x00garbage\x00")
+    by, info = messages(tmp_path, manifest(tmp_path, log("mavlink", "sub.tlog")))
+    fixes = {t: S.LocationFix.FromString(b) for t, b in by["/auv/gps"]}
+    assert sorted(fixes) == [T0, T0 + 4 * 10**9]  # GPS_RAW_INT and GPS_INPUT; the EKF is not a second fix source
+    assert fixes[T0].latitude == pytest.approx(45.7022621) and fixes[T0].altitude == pytest.approx(109.87)
+    ins = {t: S.InsState.FromString(b) for t, b in by["/auv/ins"]}
+    ekf = ins[T0 + 3 * 10**9]
+    assert ekf.heading_deg == pytest.approx(45.0) and ekf.roll_deg == pytest.approx(2.0)
+    assert ekf.depth_m == pytest.approx(5.5) and ekf.velocity_north_mps == pytest.approx(1.0)
+    dvl = {t: S.DvlVelocity.FromString(b) for t, b in by["/auv/dvl"]}
+    assert dvl[T0 + 5 * 10**9].frame == S.DvlVelocity.EARTH_NED and dvl[T0 + 5 * 10**9].velocity_y_mps == 0.25
+    delta = dvl[T0 + 6 * 10**9]
+    assert delta.frame == S.DvlVelocity.BODY_FRD and delta.velocity_x_mps == pytest.approx(1.0) and delta.valid
+    assert dvl[T0 + 7 * 10**9].altitude_m == pytest.approx(12.34) and not dvl[T0 + 7 * 10**9].valid
+    stats = info["recording"]["files"][0]
+    assert stats["skipped"] >= 1 and stats["ignored_reasons"]["MAVLink HEARTBEAT is not mapped"] == 1
+
+
+# ---------------------------------------------------------------- rotated logs
+
+def test_rotated_gps_log_records_like_the_whole_file(tmp_path):
+    data = (SAMPLE / "leader1" / "gps.log").read_bytes()
+    lines = data.splitlines(keepends=True)
+    a, b = len(lines) // 3, 2 * len(lines) // 3
+    pieces = [b"".join(lines[:a]), b"".join(lines[a:b]), b"".join(lines[b:])]
+    (tmp_path / "whole").mkdir()
+    (tmp_path / "whole" / "gps.log").write_bytes(data)
+    for i, piece in enumerate(pieces):
+        (tmp_path / f"gps.log.{i}").write_bytes(piece)
+    whole, w_info = messages(tmp_path, manifest(tmp_path, log("nmea", "whole/gps.log", "gps")), "w.mcap")
+    for path, extra in (('"gps.log.*"', ""), ('["gps.log.2", "gps.log.0", "gps.log.1"]', 'order = "time"')):
+        split, s_info = messages(tmp_path, manifest(tmp_path, log("nmea", path.strip('"') if "*" in path else path,
+                                                                  "gps", extra)), "s.mcap")
+        assert split == whole
+        assert s_info["attachments"] == ["gps.log.0", "gps.log.1", "gps.log.2"]
+        stats = s_info["recording"]["files"][0]
+        assert [p["path"] for p in stats["parts"]] == ["gps.log.0", "gps.log.1", "gps.log.2"]
+        assert all(0 < p["gap_s"] <= 1.0 for p in stats["parts"][1:])
+        assert stats["parsed"] == w_info["recording"]["files"][0]["parsed"]
+
+
+def test_rotated_log_gap_and_overlap_reported(tmp_path):
+    lines = (SAMPLE / "leader1" / "gps.log").read_bytes().splitlines(keepends=True)
+    (tmp_path / "g.1").write_bytes(b"".join(lines[:300]))
+    (tmp_path / "g.2").write_bytes(b"".join(lines[600:900]))       # 100 s missing: 101 s from the last fix to the next
+    (tmp_path / "g.3").write_bytes(b"".join(lines[850:1000]))      # overlaps g.2
+    by, info = messages(tmp_path, manifest(tmp_path, log("nmea", "g.*", "gps")))
+    notes = [S_text for _, S_text in by["/diagnostics"]]
+    text = b"\n".join(notes)
+    assert b"g.2: 101.000 s gap" in text and b"g.3 overlaps the file before it" in text
+
+
+def test_bad_paths_are_manifest_errors(tmp_path):
+    with pytest.raises(ManifestError, match="no file matches"):
+        load_manifest(manifest(tmp_path, log("nmea", "nothing.*", "gps")))
+    with pytest.raises(ManifestError, match="order"):
+        load_manifest(manifest(tmp_path, log("nmea", "x.log", "gps", 'order = "size"')))
+    with pytest.raises(ManifestError, match="sensor"):
+        load_manifest(manifest(tmp_path, log("nmea", "x.log")))
+
+
+# ---------------------------------------------------------------- damaged input: no traceback
+
+def _record_quietly(tmp: Path, fmt: str, name: str, data: bytes) -> None:
+    (tmp / name).write_bytes(data)
+    try:
+        record(load_manifest(manifest(tmp, log(fmt, name))), tmp / "d.mcap", workers=1)
+    except ManifestError as exc:  # a file that cannot be opened at all: one line naming it
+        assert "\n" not in str(exc) and name in str(exc)
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.data())
+def test_damaged_bags_never_crash(bags, tmp_path, data):
+    kind = data.draw(st.sampled_from(["ros1", "mcap", "sqlite3"]))
+    raw = bytearray(bags[kind].read_bytes())
+    cut = data.draw(st.integers(64, len(raw)))
+    for _ in range(data.draw(st.integers(0, 6))):
+        i = data.draw(st.integers(0, cut - 1))
+        raw[i] = data.draw(st.integers(0, 255))
+    _record_quietly(tmp_path, "rosbag", "x" + bags[kind].suffix, bytes(raw[:cut]))
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.data())
+def test_damaged_alogs_and_tlogs_never_crash(tmp_path, data):
+    write_tlog(tmp_path / "ok.tlog")
+    sources = {"alog": ALOG.encode(), "mavlink": (tmp_path / "ok.tlog").read_bytes()}
+    fmt = data.draw(st.sampled_from(sorted(sources)))
+    raw = bytearray(sources[fmt])
+    for _ in range(data.draw(st.integers(0, 10))):
+        raw[data.draw(st.integers(0, len(raw) - 1))] = data.draw(st.integers(0, 255))
+    raw = raw[:data.draw(st.integers(1, len(raw)))]
+    _record_quietly(tmp_path, fmt, "x.alog" if fmt == "alog" else "x.tlog", bytes(raw))
