@@ -14,8 +14,8 @@ not a number, are rejected.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Iterator
 
 from .lines import iter_lines
 from .records import Reject, Where

@@ -12,9 +12,10 @@ people's logs must not stop a recording with a traceback).
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 from .records import FormatError
 

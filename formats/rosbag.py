@@ -17,9 +17,11 @@ traceback.
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 from .records import FormatError
 
@@ -58,7 +60,12 @@ def storage_kind(head: bytes) -> str:
 
 def _typestore(connections: list[Any], ros1: bool) -> tuple[Any, dict[str, str]]:
     """A type store with the bag's own definitions, then rosbags' common types; unusable definitions by type."""
-    from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
+    from rosbags.typesys import (
+        Stores,
+        get_types_from_idl,
+        get_types_from_msg,
+        get_typestore,
+    )
 
     store = get_typestore(Stores.EMPTY)
     broken: dict[str, str] = {}
@@ -84,10 +91,9 @@ def _typestore(connections: list[Any], ros1: bool) -> tuple[Any, dict[str, str]]
         store.register(missing)
     except Exception:  # noqa: BLE001 - a bag type clashing with a common one: keep the bag's, add them one by one
         for name, definition in missing.items():
-            try:
+            # a common type that fails stays unknown; its messages say so
+            with contextlib.suppress(Exception):
                 store.register({name: definition})
-            except Exception:  # noqa: BLE001 - that common type stays unknown; its messages say so
-                pass
     return store, broken
 
 
@@ -121,10 +127,8 @@ def read_bag(path: Path) -> Iterator[BagMessage]:
     try:
         yield from _messages(reader, kind == "ros1")
     finally:
-        try:
+        with contextlib.suppress(Exception):  # closing a damaged bag may fail again; nothing is left to lose
             reader.close()
-        except Exception:  # noqa: BLE001 - closing a damaged bag may fail again; nothing is left to lose
-            pass
 
 
 def _messages(reader: Any, ros1: bool) -> Iterator[BagMessage]:

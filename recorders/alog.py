@@ -23,14 +23,20 @@ with their count).
 from __future__ import annotations
 
 import math
-from typing import Iterator
+from collections.abc import Iterator
 
 from formats import alog
 from formats import schemas as S
 from formats.records import Reject, Where
 
 from .base import Converter, Ignored, LogContext, Output, output
-from .containers import TextStream, convert_stream, local_to_geodetic, origin_option, sentence_format
+from .containers import (
+    TextStream,
+    convert_stream,
+    local_to_geodetic,
+    origin_option,
+    sentence_format,
+)
 from .gps import gnss_status
 from .ins import ins_state
 from .manifest import SENSORS
@@ -149,7 +155,7 @@ def convert_alog(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ign
         epochs[group] = _Epoch()
 
     for p in alog.decode(data):
-        if type(p) is Reject:
+        if isinstance(p, Reject):
             yield p
             continue
         name = str(mapping.get(p.variable, p.variable))
@@ -182,5 +188,12 @@ def convert_alog(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ign
     for variable, stream in streams.items():
         yield from convert_stream(stream, ctx, variable)
 
+
+MANIFEST_EXAMPLE = """[[vehicles.logs]]
+format = "alog"                    # MOOS-IvP pLogger .alog
+path = "auv1/LOG_AUV1_12_10_2016/LOG_AUV1_12_10_2016.alog"
+origin = [45.70, 126.60]           # MOOS LatOrigin/LongOrigin, for NAV_X/NAV_Y
+variables = { "DEPTH_SENSOR" = "NAV_DEPTH", "NMEA_FROM_GPS" = "gps:nmea", "ACOMMS_RAW" = "modem" }
+"""
 
 CONVERTERS: dict[str, Converter] = {"alog": convert_alog}

@@ -20,9 +20,9 @@ Orientation quaternions are converted to heading (true, clockwise), roll
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
-from datetime import datetime, timezone
-from typing import Iterator, Sequence
+from datetime import UTC, datetime
 
 from formats.records import Reject, Where
 
@@ -114,7 +114,7 @@ def convert_stream(stream: TextStream, ctx: LogContext, label: str) -> Iterator[
     # "sec.nanosec line": the unix host-timestamp prefix every text decoder reads, exact to the nanosecond
     blob = "".join(f"{t // NS}.{t % NS:09d} {line}\n" for t, line in zip(stream.times, stream.lines))
     # time-of-day sentences need a date: the manifest's, else the day of the stream's first message
-    day = ctx.trial_date or datetime.fromtimestamp(stream.times[0] // NS, timezone.utc).date()
+    day = ctx.trial_date or datetime.fromtimestamp(stream.times[0] // NS, UTC).date()
     sub = replace(ctx, vehicle=stream.vehicle, prefix="unix", path=f"{ctx.path} {label}", trial_date=day,
                   options={**ctx.options, **_stream_options(ctx, family)})
     used: set[Where] = set()

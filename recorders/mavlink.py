@@ -21,7 +21,7 @@ and counted; every other message is archived, merged (ATTITUDE into the next INS
 from __future__ import annotations
 
 import math
-from typing import Any, Iterator
+from collections.abc import Iterator
 
 from formats import mavlink as mv
 from formats import schemas as S
@@ -175,5 +175,10 @@ def convert_mavlink(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
         else:
             yield Ignored(where, f"MAVLink {m.type} is not mapped")
 
+
+MANIFEST_EXAMPLE = """[[vehicles.logs]]
+format = "mavlink"                 # ArduSub/ArduPilot telemetry .tlog or dataflash .BIN
+path = "bluerov/2016-10-12 02-00-00.tlog"
+"""
 
 CONVERTERS: dict[str, Converter] = {"mavlink": convert_mavlink}

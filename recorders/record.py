@@ -211,7 +211,8 @@ class _LogRecorder:
     def _report_seams(self) -> None:
         """Each file's span in the stats; an overlap, or a gap far longer than the log's mean spacing, reported."""
         st = self.stats
-        spacing = (st.end_ns - st.start_ns) / max(st.messages - 1, 1) if st.start_ns is not None else 0.0
+        first, last = st.start_ns, st.end_ns
+        spacing = (last - first) / max(st.messages - 1, 1) if first is not None and last is not None else 0.0
         previous: list[int] = []
         for part, span in zip(st.parts, self.part_spans):
             part["start_ns"], part["end_ns"] = (span[0], span[1]) if span else (None, None)

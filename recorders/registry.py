@@ -45,3 +45,8 @@ def family_converter(sensor: str, fmt: str) -> Converter:
 def describe(fn: Converter) -> str:
     """First line of a converter's docstring."""
     return (fn.__doc__ or "").strip().splitlines()[0] if fn.__doc__ else ""
+
+
+def manifest_examples() -> dict[str, str]:
+    """A manifest `[[vehicles.logs]]` example for each container format (its module's MANIFEST_EXAMPLE)."""
+    return {fmt: importlib.import_module(name).MANIFEST_EXAMPLE for fmt, name in CONTAINER_MODULES.items()}

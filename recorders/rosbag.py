@@ -25,8 +25,9 @@ or ignored with a reason (an unmapped topic is listed once, with its type and co
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import replace
-from typing import Any, Iterator
+from typing import Any
 
 from formats import rosbag as rb
 from formats import schemas as S
@@ -34,8 +35,19 @@ from formats.records import FormatError, Reject, Where
 
 from . import dvl
 from .base import Converter, Ignored, LogContext, Output, output
-from .containers import (TextStream, attitude_deg, body_to_ned, convert_stream, enu_to_ned, finite_or_nan,
-                         flu_to_frd, is_ned, is_world, local_to_geodetic, origin_option)
+from .containers import (
+    TextStream,
+    attitude_deg,
+    body_to_ned,
+    convert_stream,
+    enu_to_ned,
+    finite_or_nan,
+    flu_to_frd,
+    is_ned,
+    is_world,
+    local_to_geodetic,
+    origin_option,
+)
 from .gps import gnss_status
 from .ins import ins_state
 from .manifest import SENSORS
@@ -293,5 +305,19 @@ def convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | I
         start += size
     yield from bag.finish()
 
+
+MANIFEST_EXAMPLE = """[[vehicles.logs]]
+format = "rosbag"                  # ROS 1 .bag, ROS 2 .mcap or .db3 (the storage file inside the bag folder)
+path = "auv1/dive3/dive3_0.mcap"
+origin = [45.70, 126.60]           # datum of the bag's local (odom/map) frame, for Odometry positions
+
+[vehicles.logs.topics]             # optional: topic -> sensor (else by message type); others are not mapped
+"/gps/fix" = "gps"
+"/nmea" = "gps:nmea"               # raw sentences: family and vendor format
+"/phins/raw" = "ins:phins"
+"/odometry/filtered" = "ins"
+"/dvl/twist" = "dvl"
+"/buddy/fix" = { sensor = "gps", vehicle = "follower" }
+"""
 
 CONVERTERS: dict[str, Converter] = {"rosbag": convert_rosbag}

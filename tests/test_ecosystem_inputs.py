@@ -358,10 +358,19 @@ def test_rotated_log_gap_and_overlap_reported(tmp_path):
     (tmp_path / "g.1").write_bytes(b"".join(lines[:300]))
     (tmp_path / "g.2").write_bytes(b"".join(lines[600:900]))       # 100 s missing: 101 s from the last fix to the next
     (tmp_path / "g.3").write_bytes(b"".join(lines[850:1000]))      # overlaps g.2
-    by, info = messages(tmp_path, manifest(tmp_path, log("nmea", "g.*", "gps")))
+    by, _ = messages(tmp_path, manifest(tmp_path, log("nmea", "g.*", "gps")))
     notes = [S_text for _, S_text in by["/diagnostics"]]
     text = b"\n".join(notes)
     assert b"g.2: 101.000 s gap" in text and b"g.3 overlaps the file before it" in text
+
+
+def test_manifest_examples_parse():
+    from recorders.manifest import parse_manifest
+    from recorders.registry import manifest_examples
+    for fmt, example in manifest_examples().items():
+        text = '[[vehicles]]\nname = "auv1"\nrole = "leader"\n' + example.replace("follower", "auv1")
+        (spec,) = parse_manifest(text, Path("t.toml")).logs()
+        assert (spec.sensor, spec.format) == ("", fmt)
 
 
 def test_bad_paths_are_manifest_errors(tmp_path):
