@@ -7,11 +7,16 @@ MAVLink packet); a dataflash log describes its own messages with FMT
 records. pymavlink reads both from a path. Bytes it cannot frame come back
 as BAD_DATA runs: each run is one `MavMessage` with its `problem`. Its
 readers raise on some damaged inputs, so they are guarded broadly (other
-people's logs must not stop a recording with a traceback).
+people's logs must not stop a recording with a traceback). pymavlink prints its complaints about
+damaged records ("bad header 0x..."): they are kept off our output, since each such record is
+counted and reported here instead.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
+import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,19 +53,59 @@ def read_mavlink(path: Path) -> Iterator[MavMessage]:
     try:
         from pymavlink import mavutil
 
-        if is_dataflash(head):
-            from pymavlink import DFReader
-
-            conn: Any = DFReader.DFReader_binary(str(path), zero_time_base=False)
-        else:
-            conn = mavutil.mavlink_connection(str(path), dialect="ardupilotmega", notimestamps=False)
+        with _quiet():
+            conn = _connect(path, head, mavutil)
     except Exception as exc:  # noqa: BLE001 - pymavlink's many ways of refusing a file: one line
         raise FormatError(f"pymavlink cannot open {path.name}: {type(exc).__name__}: {exc}") from None
+    yield from _read(conn)
+
+
+class _Discard(io.TextIOBase):
+    """A text sink for pymavlink's prints."""
+
+    def write(self, text: str) -> int:
+        """Discard `text`."""
+        return len(text)
+
+
+_DISCARD = _Discard()
+
+
+@contextlib.contextmanager
+def _quiet() -> Iterator[None]:
+    """pymavlink's prints (to stdout and stderr) discarded."""
+    with contextlib.redirect_stdout(_DISCARD), contextlib.redirect_stderr(_DISCARD):
+        yield
+
+
+def _connect(path: Path, head: bytes, mavutil: Any) -> Any:
+    if is_dataflash(head):
+        from pymavlink import DFReader
+
+        # pymavlink's C indexer prints a line per damaged byte straight to the process's stderr, where no
+        # redirection of sys.stderr reaches: its Python indexer (same records) prints through sys.stderr
+        before = os.environ.get("PYMAVLINK_FAST_INDEX")
+        os.environ["PYMAVLINK_FAST_INDEX"] = "0"
+        try:
+            return DFReader.DFReader_binary(str(path), zero_time_base=False)
+        finally:
+            if before is None:
+                del os.environ["PYMAVLINK_FAST_INDEX"]
+            else:
+                os.environ["PYMAVLINK_FAST_INDEX"] = before
+    # the log reader itself, not mavlink_connection: that one picks a reader by the name ("tcp:...", "*.bin")
+    mavutil.set_dialect("ardupilotmega")
+    return mavutil.mavlogfile(str(path), notimestamps=False)
+
+
+def _read(conn: Any) -> Iterator[MavMessage]:
+    """The messages of an open pymavlink reader, BAD_DATA runs joined, self-description records left out."""
     index = 0
     bad: list[int] = []  # a run of BAD_DATA: bytes, time
     while True:
         try:
-            msg = conn.recv_match()
+            with _quiet():
+                msg = conn.recv_match()
         except Exception as exc:  # noqa: BLE001 - a damaged record stops what can be read of the file
             yield MavMessage("", 0, index, {}, f"the rest of the log cannot be read ({type(exc).__name__}: {exc})")
             return

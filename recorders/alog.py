@@ -32,6 +32,7 @@ from formats.records import Reject, Where
 from .base import Converter, Ignored, LogContext, Output, output
 from .containers import (
     TextStream,
+    checked_times,
     convert_stream,
     local_to_geodetic,
     origin_option,
@@ -136,6 +137,10 @@ def _range_report(p: alog.Posting, ctx: LogContext) -> Output | Reject:
 
 def convert_alog(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     """MOOS-IvP .alog: NAV_* -> INS state, GPS_* -> fixes, range reports, raw sentences via our decoders."""
+    return checked_times(_convert_alog(data, ctx))
+
+
+def _convert_alog(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     mapping = ctx.options.get("variables")
     mapping = mapping if isinstance(mapping, dict) else {}
     origin = origin_option(ctx)

@@ -20,7 +20,7 @@ Orientation quaternions are converted to heading (true, clockwise), roll
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 
@@ -140,6 +140,24 @@ def _stream_options(ctx: LogContext, family: str) -> dict:
     """Per-family options a container's manifest entry may give as a table (`[...options.gps]`)."""
     nested = ctx.options.get(family)
     return dict(nested) if isinstance(nested, dict) else {}
+
+
+# a container's times come from other people's clocks (header stamps, boot counters): outside these years a
+# time is a wrong clock, not a measurement, and the archive cannot hold it (unsigned 64-bit nanoseconds)
+EARLIEST_NS = 315_964_800 * NS     # 1980-01-06, the GPS epoch
+LATEST_NS = 4_102_444_800 * NS     # 2100-01-01
+
+
+def checked_times(items: Iterable[Output | Reject | Ignored]) -> Iterator[Output | Reject | Ignored]:
+    """The items, with each Output whose log or publish time lies outside 1980-2100 turned into a Reject."""
+    for item in items:
+        if type(item) is Output and not (EARLIEST_NS <= item.log_time_ns <= LATEST_NS
+                                         and EARLIEST_NS <= item.publish_time_ns <= LATEST_NS):
+            where = item.where if item.where is not None else Where(0)
+            yield Reject(where, f"{item.topic}: time {item.log_time_ns / NS:.3f} s (publish "
+                                f"{item.publish_time_ns / NS:.3f} s) is not between 1980 and 2100")
+        else:
+            yield item
 
 
 # ---------------------------------------------------------------- frames and attitude

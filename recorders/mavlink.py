@@ -14,7 +14,10 @@ MAVLink (tlog) messages:
 Dataflash records are mapped the same way by name: ``GPS`` -> fixes, ``ATT`` with ``POS`` -> INS state,
 ``VISV`` -> EARTH_NED velocity, ``VISO`` -> BODY_FRD velocity, ``RFND`` -> altitude.
 
-Times are the log's own (tlog receive time, dataflash time) plus the clock offset. BAD_DATA runs are rejected
+Times are the log's own plus the clock offset: a tlog's receive time; for dataflash, each record's
+microseconds since boot (TimeUS) put on UTC by the first GPS record with a GPS week (`formats.gpstime`'s
+leap-second table: pymavlink's own dataflash clock assumes today's 18 s); a dataflash log without one
+has no UTC time, and its records are rejected saying so. BAD_DATA runs are rejected
 and counted; every other message is archived, merged (ATTITUDE into the next INS state) or ignored by type.
 """
 
@@ -23,12 +26,14 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 
+from formats import gpstime
 from formats import mavlink as mv
 from formats import schemas as S
 from formats.records import FormatError, Reject, Where
 
 from . import dvl
 from .base import Converter, Ignored, LogContext, Output, output
+from .containers import checked_times
 from .gps import gnss_status
 from .ins import ins_state
 
@@ -132,11 +137,33 @@ def _velocity(ctx: LogContext, m: mv.MavMessage, t: int, where: Where) -> Output
                                          source=source), t, where)
 
 
+def _dataflash_boot_ns(messages: list[tuple[mv.MavMessage, Where]]) -> int | None:
+    """UTC (ns) of a dataflash log's boot, from its first GPS record with a week; None for a tlog."""
+    if not any("TimeUS" in m.fields for m, _ in messages[:50]):
+        return None
+    for m, _ in messages:
+        f = m.fields
+        if m.type == "GPS" and int(f.get("GWk", 0) or 0) > 0 and "TimeUS" in f:
+            return gpstime.gps_to_unix_ns(int(f["GWk"]), float(f.get("GMS", 0)) / 1000.0) - int(f["TimeUS"]) * 1000
+    return 0  # dataflash without GPS time: every record is rejected as untimed
+
+
+def _on_utc(m: mv.MavMessage, boot_ns: int) -> mv.MavMessage:
+    us = m.fields.get("TimeUS")
+    if not boot_ns or not isinstance(us, int):
+        return mv.MavMessage(m.type, 0, m.index, m.fields, m.problem)
+    return mv.MavMessage(m.type, boot_ns + us * 1000, m.index, m.fields, m.problem)
+
+
 VELOCITY_TYPES = ("VISION_SPEED_ESTIMATE", "VISION_POSITION_DELTA", "DISTANCE_SENSOR", "VISV", "VISO", "RFND")
 
 
 def convert_mavlink(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     """ArduSub/ArduPilot .tlog and dataflash .BIN (pymavlink): GPS, EKF position + attitude, vision/DVL, range."""
+    return checked_times(_convert_mavlink(data, ctx))
+
+
+def _convert_mavlink(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     if not ctx.files:
         raise FormatError("a MAVLink log is read from its file: no file given")
     messages: list[tuple[mv.MavMessage, Where]] = []
@@ -147,6 +174,9 @@ def convert_mavlink(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
             number += 1
             messages.append((m, Where(start + min(m.index, max(size - 1, 0)), None, m.time_ns or None, number)))
         start += size
+    boot_ns = _dataflash_boot_ns(messages)
+    if boot_ns is not None:
+        messages = [(_on_utc(m, boot_ns), w) for m, w in messages]
     types = {m.type for m, _ in messages}
     ekf_as_fix = not types & {"GPS_RAW_INT", "GPS_INPUT", "GPS"}
     ekf_types = {"GLOBAL_POSITION_INT", "POS"}
@@ -157,7 +187,8 @@ def convert_mavlink(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
         if m.problem:
             yield Reject(where, m.problem)
         elif m.time_ns <= 0:
-            yield Reject(where, f"{m.type} without a time")
+            yield Reject(where, f"{m.type} without a time" if boot_ns is None else
+                         f"{m.type}: no UTC time (the dataflash log has no GPS record with a GPS week)")
         elif m.type in FIX_TYPES:
             yield from _fix(ctx, m, t, where)
         elif m.type in ekf_types:

@@ -39,6 +39,7 @@ from .containers import (
     TextStream,
     attitude_deg,
     body_to_ned,
+    checked_times,
     convert_stream,
     enu_to_ned,
     finite_or_nan,
@@ -284,6 +285,10 @@ def _velocity(ctx: LogContext, msgtype: str, msg: Any, t: int, publish: int,
 
 def convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     """ROS 1 .bag, ROS 2 .mcap/.db3 (rosbags): NavSatFix, NMEA/text sentences, Imu, Odometry, Twist, DVL."""
+    return checked_times(_convert_rosbag(data, ctx))
+
+
+def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     if not ctx.files:
         raise FormatError("a bag is read from its file: no file given")
     bag = _Bag(ctx)

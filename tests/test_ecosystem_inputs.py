@@ -330,6 +330,68 @@ def test_tlog_maps_fixes_ins_and_dvl(tmp_path):
     assert stats["skipped"] >= 1 and stats["ignored_reasons"]["MAVLink HEARTBEAT is not mapped"] == 1
 
 
+# dataflash: records described by FMT records (ArduPilot's layout), written by hand: pymavlink has no writer
+_DF_CHARS = {"B": "B", "Q": "Q", "I": "I", "H": "H", "f": "f", "n": "4s", "N": "16s", "Z": "64s", "c": "h",
+             "e": "i", "L": "i"}
+DF_TYPES = {  # name: (id, format, columns)
+    "GPS": (130, "QBIHBcLLeff", "TimeUS,Status,GMS,GWk,NSats,HDop,Lat,Lng,Alt,Spd,GCrs"),
+    "ATT": (131, "Qccf", "TimeUS,Roll,Pitch,Yaw"),
+    "POS": (132, "QLLff", "TimeUS,Lat,Lng,Alt,RelHomeAlt"),
+    "VISV": (133, "Qfff", "TimeUS,VX,VY,VZ"),
+    "VISO": (134, "Qfffff", "TimeUS,dt,PosDX,PosDY,PosDZ,conf"),
+    "RFND": (135, "QBfBB", "TimeUS,Instance,Dist,Stat,Orient"),
+    "MSG": (136, "QZ", "TimeUS,Message"),
+}
+
+
+def _df(tid: int, fmt: str, *values) -> bytes:
+    return b"\xa3\x95" + bytes([tid]) + struct.pack("<" + "".join(_DF_CHARS[c] for c in fmt), *values)
+
+
+def write_dataflash(path: Path, with_gps: bool = True) -> None:
+    out = _df(128, "BBnNZ", 128, 89, b"FMT", b"BBnNZ", b"Type,Length,Name,Format,Columns")
+    for name, (tid, fmt, cols) in DF_TYPES.items():
+        size = 3 + struct.calcsize("<" + "".join(_DF_CHARS[c] for c in fmt))
+        out += _df(128, "BBnNZ", tid, size, name.encode(), fmt.encode(), cols.encode())
+    # 2016-10-12 02:00:00 UTC is GPS week 1918, 266417 s (17 leap seconds then)
+    boot = 1_000_000  # TimeUS of the first GPS record, at T0
+    if with_gps:
+        out += _df(130, DF_TYPES["GPS"][1], boot, 3, 266_417_000, 1918, 9, 90, 457022621, 1265974195, 10987, 2.3, 90.4)
+    out += _df(131, "Qccf", boot + 500_000, 200, -300, 45.0)
+    out += _df(132, "QLLff", boot + 1_000_000, 457022000, 1265974000, 100.0, -5.5)
+    out += _df(133, "Qfff", boot + 2_000_000, 0.5, 0.25, 0.0)
+    out += _df(134, "Qfffff", boot + 3_000_000, 0.2, 0.2, 0.02, 0.0, 80.0)
+    out += _df(135, "QBfBB", boot + 4_000_000, 0, 12.5, 4, 25)
+    out += _df(136, "QZ", boot + 4_000_000, b"ArduSub V4.1.0")
+    path.write_bytes(out)
+
+
+def test_dataflash_maps_gps_att_pos_and_dvl(tmp_path):
+    from formats import schemas as S
+    write_dataflash(tmp_path / "00000012.BIN")
+    by, info = messages(tmp_path, manifest(tmp_path, log("mavlink", "00000012.BIN")))
+    (fix_t, fix), = by["/auv/gps"]
+    assert fix_t == T0 and S.LocationFix.FromString(fix).latitude == pytest.approx(45.7022621)
+    (ins_t, ins), = by["/auv/ins"]
+    state = S.InsState.FromString(ins)
+    assert ins_t == T0 + 10**9 and state.depth_m == pytest.approx(5.5) and state.heading_deg == pytest.approx(45.0)
+    assert state.roll_deg == pytest.approx(2.0) and state.pitch_deg == pytest.approx(-3.0)
+    dvl = {t: S.DvlVelocity.FromString(b) for t, b in by["/auv/dvl"]}
+    assert dvl[T0 + 2 * 10**9].frame == S.DvlVelocity.EARTH_NED and dvl[T0 + 2 * 10**9].velocity_x_mps == 0.5
+    assert dvl[T0 + 3 * 10**9].velocity_x_mps == pytest.approx(1.0) and dvl[T0 + 3 * 10**9].valid
+    assert dvl[T0 + 4 * 10**9].altitude_m == 12.5
+    stats = info["recording"]["files"][0]
+    assert stats["ignored_reasons"] == {"ATT merged into the next INS state": 1, "MAVLink MSG is not mapped": 1}
+    assert stats["skipped"] == 0
+
+
+def test_dataflash_without_gps_time_is_rejected_not_guessed(tmp_path):
+    write_dataflash(tmp_path / "nogps.BIN", with_gps=False)
+    by, info = messages(tmp_path, manifest(tmp_path, log("mavlink", "nogps.BIN")))
+    assert set(by) == {"/diagnostics"}
+    assert info["recording"]["files"][0]["skipped"] == 6
+
+
 # ---------------------------------------------------------------- rotated logs
 
 def test_rotated_gps_log_records_like_the_whole_file(tmp_path):
@@ -408,10 +470,13 @@ def test_damaged_bags_never_crash(bags, tmp_path, data):
 @given(st.data())
 def test_damaged_alogs_and_tlogs_never_crash(tmp_path, data):
     write_tlog(tmp_path / "ok.tlog")
-    sources = {"alog": ALOG.encode(), "mavlink": (tmp_path / "ok.tlog").read_bytes()}
+    write_dataflash(tmp_path / "ok.BIN")
+    sources = {"alog": ALOG.encode(), "mavlink": (tmp_path / "ok.tlog").read_bytes(),
+               "dataflash": (tmp_path / "ok.BIN").read_bytes()}
     fmt = data.draw(st.sampled_from(sorted(sources)))
     raw = bytearray(sources[fmt])
     for _ in range(data.draw(st.integers(0, 10))):
         raw[data.draw(st.integers(0, len(raw) - 1))] = data.draw(st.integers(0, 255))
     raw = raw[:data.draw(st.integers(1, len(raw)))]
-    _record_quietly(tmp_path, fmt, "x.alog" if fmt == "alog" else "x.tlog", bytes(raw))
+    name = {"alog": "x.alog", "mavlink": "x.tlog", "dataflash": "x.BIN"}[fmt]
+    _record_quietly(tmp_path, "mavlink" if fmt == "dataflash" else fmt, name, bytes(raw))
