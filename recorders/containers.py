@@ -149,11 +149,18 @@ LATEST_NS = 4_102_444_800 * NS     # 2100-01-01
 
 
 def checked_times(items: Iterable[Output | Reject | Ignored]) -> Iterator[Output | Reject | Ignored]:
-    """The items, with each Output whose log or publish time lies outside 1980-2100 turned into a Reject."""
+    """The items, with each Output whose log or publish time lies outside 1980-2100 turned into a Reject.
+
+    A record's other outputs at such a time (a fix and its status) give no second Reject: one record, one count.
+    """
+    rejected: Where | None = None
     for item in items:
         if type(item) is Output and not (EARLIEST_NS <= item.log_time_ns <= LATEST_NS
                                          and EARLIEST_NS <= item.publish_time_ns <= LATEST_NS):
             where = item.where if item.where is not None else Where(0)
+            if where == rejected:
+                continue
+            rejected = where
             yield Reject(where, f"{item.topic}: time {item.log_time_ns / NS:.3f} s (publish "
                                 f"{item.publish_time_ns / NS:.3f} s) is not between 1980 and 2100")
         else:

@@ -61,6 +61,8 @@ DEFAULT_FAMILY = {"sensor_msgs/NavSatFix": "gps", **{t: "" for t in RAW_TYPES},
                   **{t: "ins" for t in INS_TYPES}, **{t: "dvl" for t in TWIST_TYPES}}
 # NavSatStatus.status -> GGA-style quality: -1 no fix, 0 fix, 1 SBAS, 2 GBAS (ground-based: DGPS/RTK)
 NAVSAT_QUALITY = {-1: 0, 0: 1, 1: 2, 2: 2}
+# ds_sensor_msgs/Dvl (and marine_acoustic_msgs/Dvl) coordinate_mode: 0 beam, 1 instrument, 2 ship, 3 earth
+DVL_COORDINATE_MODES = {1: "INSTRUMENT", 2: "BODY_FRD", 3: "EARTH_NED"}
 
 
 def _is_dvl_type(msgtype: str) -> bool:
@@ -278,9 +280,17 @@ def _velocity(ctx: LogContext, msgtype: str, msg: Any, t: int, publish: int,
             valid = bool(flag) and all(map(math.isfinite, v))
     altitude = finite_or_nan(getattr(msg, "altitude", NAN))
     fom = finite_or_nan(getattr(msg, "fom", getattr(msg, "figure_of_merit", NAN)))
-    frame = dvl.frame_option(ctx, "INSTRUMENT")
-    yield _out(ctx, "dvl", dvl.message(ctx, t, frame, v, altitude=altitude, valid=valid, fom=fom, source=source),
-               t, publish, where)
+    frame = "INSTRUMENT"
+    mode = getattr(msg, "coordinate_mode", None)  # ds_sensor_msgs / marine_acoustic_msgs: the frame it is in
+    if isinstance(mode, int):
+        if mode not in DVL_COORDINATE_MODES:
+            yield Reject(where, f"{msgtype}: velocity in beam coordinates (coordinate_mode {mode}): not archived")
+            return
+        frame = DVL_COORDINATE_MODES[mode]
+    frame = dvl.frame_option(ctx, frame)
+    sound = finite_or_nan(getattr(msg, "sound_speed", NAN))
+    yield _out(ctx, "dvl", dvl.message(ctx, t, frame, v, altitude=altitude, valid=valid, fom=fom, sound_speed=sound,
+                                       source=source), t, publish, where)
 
 
 def convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
