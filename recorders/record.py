@@ -125,10 +125,12 @@ def _order_parts(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]
     return [p for _, _, p in sorted(zip(firsts, range(len(parts)), parts))]
 
 
-def _diagnostic(log: LogSpec, reject: Reject, t_ns: int) -> S.Log:
+def _diagnostic(log: LogSpec, reject: Reject | None, t_ns: int, text: str = "") -> S.Log:
+    """A /diagnostics warning about a log: a rejected record, or (`reject` None) `text` about the whole log."""
+    line = reject.where.line or 0 if reject is not None else 0
+    message = f"{log.path} {reject.where.describe()}: {reject.reason}" if reject is not None else text
     return S.Log(timestamp=S.timestamp(t_ns), level=LOG_LEVEL_WARNING, name=log.vehicle, file=log.path,
-                 line=reject.where.line or 0,
-                 message=f"{log.path} {reject.where.describe()}: {reject.reason}")
+                 line=line, message=message)
 
 
 class _LogRecorder:
@@ -205,8 +207,7 @@ class _LogRecorder:
         self._report_seams()
 
     def _note(self, text: str, t_ns: int) -> None:
-        self.writer.write("/diagnostics", S.Log(timestamp=S.timestamp(t_ns), level=LOG_LEVEL_WARNING,
-                                                name=self.log.vehicle, file=self.log.path, message=text), t_ns)
+        self.writer.write("/diagnostics", _diagnostic(self.log, None, t_ns, text), t_ns)
 
     def _report_seams(self) -> None:
         """Each file's span in the stats; an overlap, or a gap far longer than the log's mean spacing, reported."""

@@ -92,7 +92,7 @@ def _bag_messages(ts, *, stamp_offset_ns: int = 0):
     for i, line in enumerate(NMEA_LINES):
         t = T0 + (i // 3) * 10**9 + 50_000_000
         out.append(("/nmea", "nmea_msgs/msg/Sentence", t + 1000,
-                    None if "nmea_msgs/msg/Sentence" not in T else T["nmea_msgs/msg/Sentence"](header=header(t, "gps"), sentence=line)))
+                    T["nmea_msgs/msg/Sentence"](header=header(t, "gps"), sentence=line)))
         out.append(("/gps/raw", "std_msgs/msg/String", t + 1000, T["std_msgs/msg/String"](data=line)))
     status = T["sensor_msgs/msg/NavSatStatus"]
     for i, st_ in enumerate((0, -1, 2)):
