@@ -8,7 +8,8 @@ renames a variable to one of these, sends it to a raw-text stream of a sensor fa
   twice). Position: NAV_LAT/LONG, else NAV_X/Y (east/north of the manifest's ``origin = [lat, lon]``); depth:
   NAV_DEPTH, else -NAV_Z; velocity north/east from NAV_SPEED along NAV_HEADING (MOOS has no sideslip).
 - ``GPS_LAT``, ``GPS_LON``/``GPS_LONG``, ``GPS_X``, ``GPS_Y``, ``GPS_SPEED``, ``GPS_HEADING``, ``GPS_QUALITY``,
-  ``GPS_SAT``, ``GPS_HDOP`` -> ``/<v>/gps`` and ``/<v>/gps/status``, grouped the same way.
+  ``GPS_SAT``, ``GPS_HDOP`` -> ``/<v>/gps``, ``/<v>/gps/status`` and (with GPS_SPEED; GPS_HEADING is the
+  course) ``/<v>/gps/velocity``, grouped the same way.
 - range reports (any variable with ``RANGE_REPORT`` in its name, e.g. uFldContactRangeSensor's
   ``CRS_RANGE_REPORT = "vname=alpha,range=87.2,target=bravo,time=..."``) -> ``/<v>/modem/range``, kind
   "range_report": ``target`` is the vehicle heard, ``vname`` the one that measured (default: the log's).
@@ -38,6 +39,8 @@ from .containers import (
     origin_option,
     sentence_format,
 )
+from .gnss_velocity import SUFFIX as VELOCITY
+from .gnss_velocity import gnss_velocity
 from .gps import gnss_status
 from .ins import ins_state
 from .manifest import SENSORS
@@ -96,9 +99,13 @@ def _gps_outputs(ep: _Epoch, ctx: LogContext, origin: tuple[float, float] | None
     if math.isfinite(lat) and math.isfinite(lon) and quality_i != 0:
         yield output(ctx, "gps", S.location_fix(t, ctx.vehicle, lat, lon), t, where)
     sats = v("GPS_SAT", NAN)
+    source = "alog:" + ",".join(ep.values)
+    speed, course = v("GPS_SPEED", NAN), v("GPS_HEADING", NAN)
     yield output(ctx, "gps/status", gnss_status(
-        t, ctx.vehicle, quality_i, int(sats) if math.isfinite(sats) else -1, v("GPS_HDOP", NAN),
-        "alog:" + ",".join(ep.values), v("GPS_SPEED", NAN), v("GPS_HEADING", NAN), NAN), t, where)
+        t, ctx.vehicle, quality_i, int(sats) if math.isfinite(sats) else -1, v("GPS_HDOP", NAN), source,
+        speed, course, NAN), t, where)
+    if math.isfinite(speed) and quality_i != 0:
+        yield output(ctx, VELOCITY, gnss_velocity(ctx, t, source, speed=speed, course=course), t, where)
 
 
 def _pairs(text: str) -> dict[str, str]:

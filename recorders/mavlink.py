@@ -2,8 +2,8 @@
 
 MAVLink (tlog) messages:
 
-- ``GPS_RAW_INT``, ``GPS_INPUT`` (a Water Linked UGPS or other external fix) -> ``/<v>/gps`` and
-  ``/<v>/gps/status`` (fix type 0/1 -> status only); ``GLOBAL_POSITION_INT`` (the EKF's fused position) also
+- ``GPS_RAW_INT``, ``GPS_INPUT`` (a Water Linked UGPS or other external fix) -> ``/<v>/gps``,
+  ``/<v>/gps/status`` (fix type 0/1 -> status only) and ``/<v>/gps/velocity``; ``GLOBAL_POSITION_INT`` (the EKF's fused position) also
   when the log has neither, so that the vehicle has one fix source, never two interleaved.
 - ``GLOBAL_POSITION_INT`` with the latest ``ATTITUDE`` -> ``/<v>/ins`` (depth = -relative altitude, velocity
   NED); a log without GLOBAL_POSITION_INT gives attitude-only states from ATTITUDE.
@@ -34,6 +34,8 @@ from formats.records import FormatError, Reject, Where
 from . import dvl
 from .base import Converter, Ignored, LogContext, Output, output
 from .containers import checked_times
+from .gnss_velocity import SUFFIX as VELOCITY
+from .gnss_velocity import gnss_velocity, has_velocity
 from .gps import gnss_status
 from .ins import ins_state
 
@@ -55,6 +57,7 @@ def _f(fields: dict, key: str, scale: float = 1.0) -> float:
 
 def _fix(ctx: LogContext, m: mv.MavMessage, t: int, where: Where) -> Iterator[Output]:
     f = m.fields
+    north = east = up = NAN
     if m.type == "GPS_RAW_INT":
         lat, lon, alt = _f(f, "lat", 1e-7), _f(f, "lon", 1e-7), _f(f, "alt", 1e-3)
         hdop = _f(f, "eph", 0.01) if f.get("eph") != 65535 else NAN
@@ -64,23 +67,28 @@ def _fix(ctx: LogContext, m: mv.MavMessage, t: int, where: Where) -> Iterator[Ou
     elif m.type == "GPS_INPUT":
         lat, lon, alt = _f(f, "lat", 1e-7), _f(f, "lon", 1e-7), _f(f, "alt")
         hdop, fix_type, sats = _f(f, "hdop"), int(f.get("fix_type", 0) or 0), int(f.get("satellites_visible", 255))
-        vn, ve = _f(f, "vn"), _f(f, "ve")
-        speed, course = math.hypot(vn, ve), math.degrees(math.atan2(ve, vn)) % 360.0
+        north, east, up = _f(f, "vn"), _f(f, "ve"), -_f(f, "vd")
+        speed = course = NAN
     elif m.type == "GPS":  # dataflash
         lat, lon, alt = _f(f, "Lat"), _f(f, "Lng"), _f(f, "Alt")
         hdop, fix_type, sats = _f(f, "HDop"), int(f.get("Status", 0) or 0), int(f.get("NSats", 255) or 0)
-        speed, course = _f(f, "Spd"), _f(f, "GCrs")
+        speed, course, up = _f(f, "Spd"), _f(f, "GCrs"), -_f(f, "VZ")  # VZ: down positive (NED)
     else:  # GLOBAL_POSITION_INT: the EKF's position
         lat, lon, alt = _f(f, "lat", 1e-7), _f(f, "lon", 1e-7), _f(f, "alt", 1e-3)
         hdop, fix_type, sats = NAN, 3, -1
-        vn, ve = _f(f, "vx", 0.01), _f(f, "vy", 0.01)
-        speed, course = math.hypot(vn, ve), math.degrees(math.atan2(ve, vn)) % 360.0
+        north, east, up = _f(f, "vx", 0.01), _f(f, "vy", 0.01), -_f(f, "vz", 0.01)
+        speed = course = NAN
+    if math.isnan(speed) and math.isfinite(north) and math.isfinite(east):
+        speed, course = math.hypot(north, east), math.degrees(math.atan2(east, north)) % 360.0
     quality = FIX_QUALITY.get(fix_type, 1)
     if quality > 0 and math.isfinite(lat) and math.isfinite(lon) and (lat, lon) != (0.0, 0.0):
         yield output(ctx, "gps", S.location_fix(t, ctx.vehicle, lat, lon, alt), t, where)
     sats = sats if 0 <= sats < 255 else -1
     yield output(ctx, "gps/status", gnss_status(t, ctx.vehicle, quality, sats, hdop, "mavlink:" + m.type,
                                                 speed, course, NAN), t, where)
+    if quality > 0 and has_velocity(speed, north):
+        yield output(ctx, VELOCITY, gnss_velocity(ctx, t, "mavlink:" + m.type, north=north, east=east, up=up,
+                                                  speed=speed, course=course), t, where)
 
 
 def _attitude(m: mv.MavMessage) -> tuple[float, float, float]:

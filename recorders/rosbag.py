@@ -11,7 +11,9 @@ a topic it does not list is not mapped), else by message type:
 - ``sensor_msgs/Imu`` -> ``/<v>/ins`` attitude (heading, roll, pitch and their sigmas); ``nav_msgs/Odometry``
   -> ``/<v>/ins`` with position (latitude/longitude from the manifest's ``origin = [lat, lon]``, depth = -z in
   an ENU frame), attitude and velocity rotated into NED.
-- ``geometry_msgs/TwistWithCovarianceStamped`` / ``TwistStamped`` -> ``/<v>/dvl`` (BODY_FRD from a ROS body frame,
+- ``geometry_msgs/TwistWithCovarianceStamped`` / ``TwistStamped`` on a GNSS topic (named gps, gnss, navsat,
+  fix_velocity; or mapped to "gps") -> ``/<v>/gps/velocity`` (its world frame, ENU unless ``_ned``); any other
+  -> ``/<v>/dvl`` (BODY_FRD from a ROS body frame,
   EARTH_NED from a world frame), and DVL messages whose definitions the bag carries (any type named ``*Dvl*`` /
   ``*DVL*`` with a ``velocity`` vector: Water Linked, ds_sensor_msgs, cola2, marine_acoustic_msgs, UUV
   simulator) -> ``/<v>/dvl`` in the instrument frame (``dvl_frame`` overrides), with altitude, validity and
@@ -49,6 +51,8 @@ from .containers import (
     local_to_geodetic,
     origin_option,
 )
+from .gnss_velocity import SUFFIX as VELOCITY
+from .gnss_velocity import gnss_velocity
 from .gps import gnss_status
 from .ins import ins_state
 from .manifest import SENSORS
@@ -61,6 +65,7 @@ DEFAULT_FAMILY = {"sensor_msgs/NavSatFix": "gps", **{t: "" for t in RAW_TYPES},
                   **{t: "ins" for t in INS_TYPES}, **{t: "dvl" for t in TWIST_TYPES}}
 # NavSatStatus.status -> GGA-style quality: -1 no fix, 0 fix, 1 SBAS, 2 GBAS (ground-based: DGPS/RTK)
 NAVSAT_QUALITY = {-1: 0, 0: 1, 1: 2, 2: 2}
+GNSS_WORDS = ("gps", "gnss", "fix_velocity", "navsat")
 # ds_sensor_msgs/Dvl (and marine_acoustic_msgs/Dvl) coordinate_mode: 0 beam, 1 instrument, 2 ship, 3 earth
 DVL_COORDINATE_MODES = {1: "INSTRUMENT", 2: "BODY_FRD", 3: "EARTH_NED"}
 
@@ -84,6 +89,8 @@ def _target(topic: str, msgtype: str, ctx: LogContext) -> tuple[str, str, str] |
             wanted = str(entry)
             family, vehicle = wanted.partition(":")[0], ctx.vehicle
         return (None if family == "ignore" else (family, vehicle, wanted))
+    if msgtype in TWIST_TYPES and any(w in topic.lower() for w in GNSS_WORDS):
+        return "gps", ctx.vehicle, "gps"  # a GNSS receiver's velocity (ublox fix_velocity, /gps/vel...)
     if msgtype in DEFAULT_FAMILY:
         return DEFAULT_FAMILY[msgtype], ctx.vehicle, DEFAULT_FAMILY[msgtype]
     if _is_dvl_type(msgtype):
@@ -167,6 +174,8 @@ class _Bag:
             yield from _imu(ctx, msg, t, publish, where)
         elif m.msgtype == "nav_msgs/Odometry":
             yield from _odometry(ctx, msg, t, publish, where, self.origin)
+        elif m.msgtype in TWIST_TYPES and family == "gps":
+            yield _gnss_twist(ctx, m.msgtype, msg, t, publish, where)
         elif m.msgtype in TWIST_TYPES or _is_dvl_type(m.msgtype):
             yield from _velocity(ctx, m.msgtype, msg, t, publish, where)
         else:
@@ -250,6 +259,19 @@ def _odometry(ctx: LogContext, msg: Any, t: int, publish: int, where: Where,
                       position_std_east_m=math.sqrt(se) if se >= 0 else NAN,
                       heading_std_deg=_sigma_deg(pcov[35]))
     yield _out(ctx, "ins", state, t, publish, where)
+
+
+def _gnss_twist(ctx: LogContext, msgtype: str, msg: Any, t: int, publish: int, where: Where) -> Output:
+    """A GNSS receiver's Twist: linear velocity in its world frame (ENU unless the frame is _ned)."""
+    twist = getattr(msg, "twist", None)
+    twist = getattr(twist, "twist", twist)
+    v = _vec(getattr(twist, "linear", None))
+    north, east, down = v if is_ned(_frame(msg)) else enu_to_ned(v)
+    cov = _cov(getattr(getattr(msg, "twist", None), "covariance", ()), 36)
+    horizontal = cov[0] + cov[7]
+    velocity = gnss_velocity(ctx, t, "rosbag:" + msgtype, north=north, east=east, up=-down,
+                             speed_std=math.sqrt(horizontal) if horizontal >= 0 else NAN)
+    return _out(ctx, VELOCITY, velocity, t, publish, where)
 
 
 def _velocity(ctx: LogContext, msgtype: str, msg: Any, t: int, publish: int,

@@ -121,6 +121,11 @@ def _bag_messages(ts, *, stamp_offset_ns: int = 0):
                     header=header(T0 + 4 * 10**9, "dvl_link"),
                     twist=TwistC(twist=Twist(linear=V3(x=1.0, y=0.5, z=-0.1), angular=V3(x=0.0, y=0.0, z=0.0)),
                                  covariance=np.zeros(36)))))
+    out.append(("/ublox/fix_velocity", "geometry_msgs/msg/TwistWithCovarianceStamped", T0 + 4 * 10**9,
+                T["geometry_msgs/msg/TwistWithCovarianceStamped"](
+                    header=header(T0 + 4 * 10**9, "gps"),
+                    twist=TwistC(twist=Twist(linear=V3(x=0.3, y=1.2, z=0.1), angular=V3(x=0.0, y=0.0, z=0.0)),
+                                 covariance=np.eye(6).flatten() * 0.01))))
     out.append(("/dvl/data", "waterlinked_a50_ros_driver/msg/DVL", T0 + 5 * 10**9,
                 T["waterlinked_a50_ros_driver/msg/DVL"](
                     header=header(T0 + 5 * 10**9, "dvl"), time=1.0, velocity=V3(x=0.8, y=0.1, z=0.0), fom=0.002,
@@ -211,10 +216,14 @@ def test_bag_maps_every_type_like_the_vendor_logs(bags, tmp_path, kind):
     assert (twist.frame, twist.velocity_x_mps, twist.velocity_y_mps, twist.velocity_z_mps) == \
         (S.DvlVelocity.BODY_FRD, 1.0, -0.5, pytest.approx(0.1))
     assert a50.frame == S.DvlVelocity.INSTRUMENT and a50.altitude_m == 12.5 and a50.valid
+    (gnss_t, gnss), = by["/auv/gps/velocity"]  # the receiver's ENU twist, north/east/up
+    gnss = S.GnssVelocity.FromString(gnss)
+    assert (gnss.velocity_north_mps, gnss.velocity_east_mps, gnss.velocity_up_mps) == (1.2, 0.3, pytest.approx(0.1))
+    assert gnss.speed_std_mps == pytest.approx(math.sqrt(0.02))
     stats = info["recording"]["files"][0]
     assert stats["format"] == "rosbag" and stats["sensor"] == ""
-    # every message counted: 10 raw + 3 NavSatFix + Imu + Odometry + 2 DVL + 2 unmapped = 19
-    total = 19
+    # every message counted: 10 raw + 3 NavSatFix + Imu + Odometry + GNSS twist + 2 DVL + 2 unmapped = 20
+    total = 20
     assert stats["parsed"] + stats["skipped"] + stats["ignored"] >= total - 4  # GST lines merge into their fix
     reasons = stats["ignored_reasons"]
     assert reasons["topic /diag_count (std_msgs/Int32) is not mapped"] == 1
@@ -231,7 +240,7 @@ def test_topic_mapping_and_vehicles(bags, tmp_path):
     extra = 'topics = { "/gps/fix" = { sensor = "gps", vehicle = "buddy" }, "/dvl/twist" = "dvl" }'
     by, info = messages(tmp_path, manifest(bags["root"], log("rosbag", str(rel), extra=extra)))
     assert set(by) == {"/buddy/gps", "/buddy/gps/status", "/auv/dvl", "/diagnostics"}
-    assert info["recording"]["files"][0]["ignored"] == 19 - 4
+    assert info["recording"]["files"][0]["ignored"] == 20 - 4
 
 
 def test_bag_without_date_takes_the_bags_day(bags, tmp_path):
@@ -341,6 +350,8 @@ ALOG = f"""%% LOGFILE:   /home/moos/auv.alog
 3.000   GPS_LAT         iGPS          45.71
 3.000   GPS_LON         iGPS          126.61
 3.000   GPS_SAT         iGPS          9
+3.000   GPS_SPEED       iGPS          1.5
+3.000   GPS_HEADING     iGPS          180
 4.000   CRS_RANGE_REPORT uFldContactRangeSensor vname=auv,range=87.2,target=buddy,time={T0 / 1e9 + 4:.3f}
 4.500   DEPLOY          pHelmIvP      true
 junk
@@ -359,13 +370,16 @@ def test_alog_maps_variables_and_raw_nmea(tmp_path):
     assert nav.latitude == pytest.approx(45.7 + math.degrees(200 / 6378137.0))
     gps = S.LocationFix.FromString(next(b for t, b in by["/auv/gps"] if t == T0 + 3 * 10**9))
     assert (gps.latitude, gps.longitude) == (45.71, 126.61)
+    (vel_t, vel), = by["/auv/gps/velocity"]
+    vel = S.GnssVelocity.FromString(vel)
+    assert vel_t == T0 + 3 * 10**9 and vel.velocity_north_mps == pytest.approx(-1.5)
     rng = S.AcousticRange.FromString(by["/auv/modem/range"][0][1])
     assert (rng.source, rng.destination, rng.range_m, rng.source_address) == ("buddy", "auv", 87.2, 2)
     stats = info["recording"]["files"][0]
     assert stats["skipped"] == 2  # the junk line and the non-number depth
     assert stats["ignored_reasons"]["variable DEPLOY is not mapped"] == 1
     # every posting counted
-    assert stats["parsed"] + stats["skipped"] + stats["ignored"] == 17
+    assert stats["parsed"] + stats["skipped"] + stats["ignored"] == 19
 
 
 # ---------------------------------------------------------------- MAVLink tlog
@@ -380,7 +394,7 @@ def write_tlog(path: Path, damage: bytes = b"") -> None:
         (2, m.attitude_encode(1000, math.radians(2.0), math.radians(-3.0), math.radians(45.0), 0, 0, 0)),
         (3, m.global_position_int_encode(2000, 457022000, 1265974000, 100000, -5500, 100, -50, 10, 4500)),
         (4, m.gps_input_encode(us + 4_000_000, 0, 0, 0, 0, 3, 457023000, 1265975000, -5.5, 1.1, 0.9,
-                               0.5, 0.2, 0.0, 0, 0, 0, 7)),
+                               0.5, 0.2, 0.25, 0, 0, 0, 7)),  # hdop 1.1, vdop 0.9, vn, ve, vd
         (5, m.vision_speed_estimate_encode(us + 5_000_000, 0.5, 0.25, 0.05, [0.0] * 9, 0)),
         (6, m.vision_position_delta_encode(us + 6_000_000, 200_000, [0.0, 0.0, 0.0], [0.2, 0.02, 0.0], 80.0)),
         (7, m.distance_sensor_encode(1000, 20, 5000, 1234, 0, 1, 25, 0)),
@@ -409,6 +423,14 @@ def test_tlog_maps_fixes_ins_and_dvl(tmp_path):
     delta = dvl[T0 + 6 * 10**9]
     assert delta.frame == S.DvlVelocity.BODY_FRD and delta.velocity_x_mps == pytest.approx(1.0) and delta.valid
     assert dvl[T0 + 7 * 10**9].altitude_m == pytest.approx(12.34) and not dvl[T0 + 7 * 10**9].valid
+    vel = {t: S.GnssVelocity.FromString(b) for t, b in by["/auv/gps/velocity"]}
+    assert sorted(vel) == [T0, T0 + 4 * 10**9]
+    raw, ugps = vel[T0], vel[T0 + 4 * 10**9]
+    assert (raw.speed_over_ground_mps, raw.course_over_ground_deg) == (pytest.approx(4.62), pytest.approx(90.41))
+    assert raw.velocity_east_mps == pytest.approx(4.62 * math.sin(math.radians(90.41)))
+    assert (ugps.velocity_north_mps, ugps.velocity_east_mps, ugps.velocity_up_mps) == \
+        (pytest.approx(0.5), pytest.approx(0.2), pytest.approx(-0.25))
+    assert ugps.speed_over_ground_mps == pytest.approx(math.hypot(0.5, 0.2))
     stats = info["recording"]["files"][0]
     assert stats["skipped"] >= 1 and stats["ignored_reasons"]["MAVLink HEARTBEAT is not mapped"] == 1
 
