@@ -4,7 +4,8 @@ MAVLink (tlog) messages:
 
 - ``GPS_RAW_INT``, ``GPS_INPUT`` (a Water Linked UGPS or other external fix) -> ``/<v>/gps``,
   ``/<v>/gps/status`` (fix type 0/1 -> status only) and ``/<v>/gps/velocity``; ``GLOBAL_POSITION_INT``
-  (the EKF's fused position) also when the log has neither, so that the vehicle has one fix source, never two interleaved.
+  (the EKF's fused position) also when the log has neither, so that the vehicle has one fix source, never
+  two interleaved.
 - ``GLOBAL_POSITION_INT`` with the latest ``ATTITUDE`` -> ``/<v>/ins`` (depth = -relative altitude, velocity
   NED); a log without GLOBAL_POSITION_INT gives attitude-only states from ATTITUDE.
 - ``VISION_SPEED_ESTIMATE`` -> ``/<v>/dvl`` EARTH_NED; ``VISION_POSITION_DELTA`` (the DVL's path into ArduSub)
