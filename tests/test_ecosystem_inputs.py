@@ -332,6 +332,66 @@ def test_any_message_content_is_counted_never_a_traceback(tmp_path, data):
     assert stats["parsed"] + stats["skipped"] + stats["ignored"] == len(chosen)
 
 
+SAMPLE_LOGS = [  # vehicle, sensor, format, sample log, bag topic
+    ("leader1", "gps", "nmea", "leader1/gps.log", "/leader1/nmea"),
+    ("leader1", "ins", "phins", "leader1/ins.log", "/leader1/phins"),
+    ("follower", "modem", "micromodem", "follower/modem.log", "/follower/modem/raw"),
+    ("buoy1", "usbl", "evologics", "buoy1/usbl.log", "/buoy1/usbl/raw"),
+]
+SAMPLE_VEHICLES = ('[[vehicles]]\nname = "leader1"\nrole = "leader"\nmodem_address = 1\n'
+                   '[[vehicles]]\nname = "follower"\nrole = "follower"\nmodem_address = 3\n'
+                   '[[vehicles]]\nname = "buoy1"\nrole = "buoy"\nmodem_address = 11\n')
+
+
+def _sample_manifest(header: str, logs_of: dict[str, str]) -> str:
+    text = header
+    for vehicle, role, address in (("leader1", "leader", 1), ("follower", "follower", 3), ("buoy1", "buoy", 11)):
+        text += f'[[vehicles]]\nname = "{vehicle}"\nrole = "{role}"\nmodem_address = {address}\n'
+        text += logs_of.get(vehicle, "")
+    return text
+
+
+def test_sentences_in_a_bag_give_the_vendor_logs_messages(tmp_path):
+    """NMEA, PHINS, Micro-Modem and EvoLogics lines of the sample trial as std_msgs/String topics of one bag
+    (bag time = the line's host time, else a second apart) record as their vendor logs do."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    from formats.lines import strip_prefix
+    _, ts = _typestores()
+    String = ts.types["std_msgs/msg/String"]
+    header = '[trial]\nname = "t"\ndate = "2016-10-12"\nsound_speed_mps = 1450.0\n'
+    vendor_logs: dict[str, str] = {}
+    items = []
+    with Writer(tmp_path / "bag", version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        for vehicle, sensor, fmt, name, topic in SAMPLE_LOGS:
+            lines = (SAMPLE / name).read_text().splitlines()[:240]
+            flat = name.replace("/", "_")
+            (tmp_path / flat).write_text("\n".join(lines) + "\n")
+            extra = 'carrier_hz = 75000.0\n' if fmt == "evologics" else ""
+            vendor_logs[vehicle] = vendor_logs.get(vehicle, "") + (
+                f'[[vehicles.logs]]\nsensor = "{sensor}"\nformat = "{fmt}"\npath = "{flat}"\n{extra}')
+            conn = w.add_connection(topic, "std_msgs/msg/String", typestore=ts)
+            for i, line in enumerate(lines):
+                text, host = strip_prefix(line, "auto")
+                items.append((host if host is not None else T0 + i * 10**9, conn, text))
+        for t, conn, text in sorted(items, key=lambda x: x[0]):
+            w.write(conn, t, ts.serialize_cdr(String(data=text), "std_msgs/msg/String"))
+    (tmp_path / "vendor.toml").write_text(_sample_manifest(header, vendor_logs))
+    vendor, _ = messages(tmp_path, tmp_path / "vendor.toml", "vendor.mcap")
+    topics = "".join(f'"{topic}" = {{ sensor = "{sensor}", vehicle = "{v}", format = "{fmt}" }}\n'
+                     for v, sensor, fmt, _, topic in SAMPLE_LOGS)
+    bag_file = next((tmp_path / "bag").glob("*.mcap")).relative_to(tmp_path)
+    bag_log = (f'[[vehicles.logs]]\nformat = "rosbag"\npath = "{bag_file}"\n[vehicles.logs.topics]\n{topics}'
+               '[vehicles.logs.usbl]\ncarrier_hz = 75000.0\n')
+    (tmp_path / "bag.toml").write_text(_sample_manifest(header, {"buoy1": bag_log}))
+    bag, info = messages(tmp_path, tmp_path / "bag.toml", "bag.mcap")
+    families = {"/leader1/gps", "/leader1/gps/status", "/leader1/ins", "/follower/modem/range", "/buoy1/usbl"}
+    assert families <= set(vendor)
+    for topic in families:
+        assert sorted(bag[topic]) == sorted(vendor[topic]), topic
+    assert info["recording"]["files"][0]["skipped"] == 0
+
+
 # ---------------------------------------------------------------- MOOS alog
 
 ALOG = f"""%% LOGFILE:   /home/moos/auv.alog
