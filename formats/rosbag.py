@@ -105,18 +105,27 @@ def _open(path: Path, kind: str) -> Any:
 
     if kind == "ros1":
         return Reader1(path)
+    if kind == "folder":
+        return Reader2(path.parent)
     if path.suffix != {"mcap": ".mcap", "sqlite3": ".db3"}[kind]:
         raise FormatError(f"a ROS 2 {kind} bag must be named *.{'mcap' if kind == 'mcap' else 'db3'} to be read")
     return Reader2(path)
 
 
 def read_bag(path: Path) -> Iterator[BagMessage]:
-    """Every message of one bag file, in bag time order; FormatError when rosbags cannot open it."""
-    try:
-        with path.open("rb") as fh:
-            kind = storage_kind(fh.read(16))
-    except OSError as exc:
-        raise FormatError(f"cannot read {path.name} ({exc.strerror or exc})") from exc
+    """Every message of one bag file, in bag time order; FormatError when rosbags cannot open it.
+
+    `path` may be a ROS 2 bag's ``metadata.yaml``: the whole bag folder is read then (its storage files,
+    split or compressed, as the metadata lists them).
+    """
+    if path.name == "metadata.yaml":
+        kind = "folder"
+    else:
+        try:
+            with path.open("rb") as fh:
+                kind = storage_kind(fh.read(16))
+        except OSError as exc:
+            raise FormatError(f"cannot read {path.name} ({exc.strerror or exc})") from exc
     if not kind:
         raise FormatError(f"{path.name} is not a ROS 1 bag, nor a ROS 2 bag in MCAP or sqlite3 storage")
     try:

@@ -19,6 +19,10 @@ a topic it does not list is not mapped), else by message type:
   simulator) -> ``/<v>/dvl`` in the instrument frame (``dvl_frame`` overrides), with altitude, validity and
   figure of merit where they have them.
 
+The bag: a ROS 1 ``.bag`` (a list or glob of them for a split recording), a ROS 2 storage file (``.mcap``,
+``.db3``), or a whole ROS 2 bag folder (``path = "dive3/*"``: its ``metadata.yaml`` with the split or
+compressed storage files it lists). Every file given is attached.
+
 Times: the header stamp is the measurement time (log time), the bag time the publish time; a message without a
 header or with a zero stamp takes its bag time. Every bag message is counted: archived, rejected with a reason,
 or ignored with a reason (an unmapped topic is listed once, with its type and count).
@@ -325,7 +329,10 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
         raise FormatError("a bag is read from its file: no file given")
     bag = _Bag(ctx)
     start, number = 0, 0
-    for path in ctx.files:
+    folders = {p.parent for p in ctx.files if p.name == "metadata.yaml"}
+    # a ROS 2 bag folder given whole (path = "dive3/*"): its metadata.yaml reads every storage file of it
+    files = [p for p in ctx.files if p.name == "metadata.yaml" or p.parent not in folders]
+    for path in files:
         try:
             size = path.stat().st_size
         except OSError as exc:

@@ -243,6 +243,14 @@ def test_topic_mapping_and_vehicles(bags, tmp_path):
     assert info["recording"]["files"][0]["ignored"] == 20 - 4
 
 
+def test_whole_ros2_bag_folder(bags, tmp_path):
+    by, info = messages(tmp_path, manifest(bags["root"], log("rosbag", "r2db/*")))
+    single, _ = messages(tmp_path, manifest(bags["root"], log("rosbag", "r2db/r2db.db3")), "single.mcap")
+    assert info["attachments"] == ["r2db/metadata.yaml", "r2db/r2db.db3"]
+    assert {k: v for k, v in by.items() if k != "/diagnostics"} == \
+        {k: v for k, v in single.items() if k != "/diagnostics"}
+
+
 def test_bag_without_date_takes_the_bags_day(bags, tmp_path):
     rel = bags["mcap"].relative_to(bags["root"])
     by, _ = messages(tmp_path, manifest(bags["root"], log("rosbag", str(rel), extra='topics = { "/nmea" = "gps" }'),
