@@ -138,12 +138,14 @@ def _bag_messages(ts, *, stamp_offset_ns: int = 0):
 NMEA_SENTENCE_MSG = "std_msgs/Header header\nstring sentence\n"
 
 
-def write_ros1(path: Path) -> None:
+def write_ros1(path: Path, part: tuple[int, int] = (0, 2**63)) -> None:
+    """A ROS 1 bag of `_bag_messages` (those with bag times in [part[0], part[1]) ns)."""
     from rosbags.rosbag1 import Writer
     from rosbags.typesys import get_types_from_msg
     ts, _ = _typestores()
-    ts.register(get_types_from_msg(NMEA_SENTENCE_MSG, "nmea_msgs/msg/Sentence"))
-    items = _bag_messages(ts)
+    if "nmea_msgs/msg/Sentence" not in ts.types:
+        ts.register(get_types_from_msg(NMEA_SENTENCE_MSG, "nmea_msgs/msg/Sentence"))
+    items = [x for x in _bag_messages(ts) if part[0] <= x[2] < part[1]]
     with Writer(path) as w:
         conns = {}
         for topic, msgtype, t, msg in sorted(items, key=lambda x: x[2]):
@@ -241,6 +243,31 @@ def test_topic_mapping_and_vehicles(bags, tmp_path):
     by, info = messages(tmp_path, manifest(bags["root"], log("rosbag", str(rel), extra=extra)))
     assert set(by) == {"/buddy/gps", "/buddy/gps/status", "/auv/dvl", "/diagnostics"}
     assert info["recording"]["files"][0]["ignored"] == 20 - 4
+
+
+def test_split_ros1_bags_are_one_log(bags, tmp_path):
+    write_ros1(tmp_path / "dive_1.bag", (0, T0 + 3 * 10**9))
+    write_ros1(tmp_path / "dive_0.bag", (T0 + 3 * 10**9, 2**63))  # later messages, earlier name
+    (tmp_path / "trial.bag").write_bytes(bags["ros1"].read_bytes())
+    whole, _ = messages(tmp_path, manifest(tmp_path, log("rosbag", "trial.bag")), "whole.mcap")
+    split, info = messages(tmp_path, manifest(tmp_path, log("rosbag", "dive_*.bag", extra='order = "time"')))
+    assert {k: sorted(v) for k, v in split.items() if k != "/diagnostics"} == \
+        {k: sorted(v) for k, v in whole.items() if k != "/diagnostics"}
+    parts = info["recording"]["files"][0]["parts"]
+    assert [p["path"] for p in parts] == ["dive_1.bag", "dive_0.bag"] and parts[1]["gap_s"] > 0
+
+
+def test_rotated_alogs_each_with_its_logstart(tmp_path):
+    lines = ALOG.splitlines(keepends=True)
+    first, second = lines[:11], lines[11:]
+    later = [f"{float(x.split()[0]) - 2.0:.3f}{x[len(x.split()[0]):]}" if x[0].isdigit() else x for x in second]
+    (tmp_path / "auv.alog").write_text(ALOG)
+    (tmp_path / "r_0.alog").write_text("".join(first))
+    (tmp_path / "r_1.alog").write_text(f"%% LOGSTART           {T0 / 1e9 + 2:.3f}\n" + "".join(later))
+    whole, _ = messages(tmp_path, manifest(tmp_path, log("alog", "auv.alog")), "whole.mcap")
+    split, _ = messages(tmp_path, manifest(tmp_path, log("alog", "r_*.alog")))
+    assert {k: v for k, v in split.items() if k != "/diagnostics"} == \
+        {k: v for k, v in whole.items() if k != "/diagnostics"}
 
 
 def test_whole_ros2_bag_folder(bags, tmp_path):
