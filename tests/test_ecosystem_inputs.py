@@ -635,6 +635,18 @@ def test_manifest_examples_parse():
         assert (spec.sensor, spec.format) == ("", fmt)
 
 
+def test_formats_command_lists_containers_with_examples(capsys):
+    import json
+
+    from replay.cli import main
+    assert main(["formats"]) == 0
+    text = capsys.readouterr().out
+    for fmt in ("rosbag", "alog", "mavlink"):
+        assert f"any     {fmt}" in text and f'format = "{fmt}"' in text
+    assert main(["formats", "--json"]) == 0
+    assert set(json.loads(capsys.readouterr().out)["any"]) == {"rosbag", "alog", "mavlink"}
+
+
 def test_bad_paths_are_manifest_errors(tmp_path):
     with pytest.raises(ManifestError, match="no file matches"):
         load_manifest(manifest(tmp_path, log("nmea", "nothing.*", "gps")))
