@@ -48,6 +48,8 @@ def sentence_format(text: str) -> tuple[str, str]:
         return "modem", "micromodem"
     if any(w in s for w in _EVOLOGICS_WORDS):
         return ("usbl" if "USBL" in s else "modem"), "evologics"
+    if s.startswith(("#INS", "%INS")) and ";" in s:
+        return "ins", "novatel"  # SPAN INSPVA(S/X)
     if s.startswith(("#", "%")) and ";" in s:
         return "gps", "novatel"
     if s.startswith(("$HEHDT", "$HETHS", "$IN")):

@@ -109,7 +109,10 @@ def _parse_log(raw: Any, vehicle: str, index: int, where: str) -> LogSpec:
         parts = tuple(str(PurePosixPath(p.replace("\\", "/"))) for p in paths)
     else:
         parts = ()
-    container = raw.get("format") in CONTAINER_FORMATS and "sensor" not in raw
+    container = raw.get("format") in CONTAINER_FORMATS
+    if container and "sensor" in raw:
+        raise ManifestError(f"{label} ({raw.get('path')}): a {raw['format']} log holds several sensors; "
+                            "give it no 'sensor' (each message goes to its sensor's topic)")
     for key in ("format", "path") if container else ("sensor", "format", "path"):
         if not isinstance(raw.get(key), str) or not raw[key]:
             what = "a path, a glob or a list of paths" if key == "path" else f"'{key}'"

@@ -613,6 +613,10 @@ def test_rotated_gps_log_records_like_the_whole_file(tmp_path):
         assert [p["path"] for p in stats["parts"]] == ["gps.log.0", "gps.log.1", "gps.log.2"]
         assert all(0 < p["gap_s"] <= 1.0 for p in stats["parts"][1:])
         assert stats["parsed"] == w_info["recording"]["files"][0]["parsed"]
+    from recorders.attachments import unpack
+    result = unpack(tmp_path / "s.mcap", tmp_path / "out")
+    assert not result.mismatched and not result.refused
+    assert [(tmp_path / "out" / f"gps.log.{i}").read_bytes() for i in range(3)] == pieces
 
 
 def test_rotated_log_gap_and_overlap_reported(tmp_path):
@@ -654,6 +658,8 @@ def test_bad_paths_are_manifest_errors(tmp_path):
         load_manifest(manifest(tmp_path, log("nmea", "x.log", "gps", 'order = "size"')))
     with pytest.raises(ManifestError, match="sensor"):
         load_manifest(manifest(tmp_path, log("nmea", "x.log")))
+    with pytest.raises(ManifestError, match="several sensors"):
+        load_manifest(manifest(tmp_path, log("rosbag", "x.bag", "gps")))
 
 
 # ---------------------------------------------------------------- damaged input: no traceback
