@@ -38,7 +38,8 @@ def describe(path: str) -> dict[str, Any]:
         "vehicles": trial.get("vehicles", []),
         "diagnostics": {
             f["path"]: {k: f.get(k) for k in ("vehicle", "sensor", "format", "parsed", "skipped", "bad_checksum",
-                                               "out_of_order", "duplicates", "start", "end")}
+                                               "out_of_order", "duplicates", "start", "end", "ignored",
+                                               "ignored_reasons", "parts")}
             for f in files
         },
         "metadata": summary.metadata_names,
@@ -65,9 +66,9 @@ def _print_text(info: dict[str, Any]) -> None:
         for a in info["attachments"]:
             print(f"  {a['name']}  ({a['size']} bytes)")
     if info["diagnostics"]:
-        print("logs:                                parsed  skipped  bad checksum")
+        print("logs:                                parsed  skipped  bad checksum  ignored")
         for path, d in info["diagnostics"].items():
-            print(f"  {path:<34} {d['parsed']:>7}  {d['skipped']:>7}  {d['bad_checksum']:>12}")
+            print(f"  {path:<34} {d['parsed']:>7}  {d['skipped']:>7}  {d['bad_checksum']:>12}  {d['ignored'] or 0:>7}")
     for p in info["problems"]:
         print(f"auvreplay info: warning: {p}", file=sys.stderr)
 
