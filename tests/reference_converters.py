@@ -27,7 +27,7 @@ from recorders.clock import NS, DayClock
 from recorders.dvl import pd0_items
 from recorders.epochs import group_epochs, host_time_ns
 from recorders.gnss_covariance import Covariance, fix_covariance, sigma_covariance
-from recorders.gps import NOVATEL_QUALITY, gnss_status
+from recorders.gps import NOVATEL_QUALITY, gnss_status, novatel_velocity
 from recorders.ins import ins_state
 from recorders.modem import (
     MicromodemOptions,
@@ -149,14 +149,17 @@ def _novatel_outputs(epoch: list[novatel.NovatelRecord], ctx: LogContext) -> Ite
         yield output(ctx, "gps", fix, t, bp.where)
         where = bp.where
     speed = course = NAN
+    source = "novatel:" + ",".join(_source(r) for r in epoch)
     if bv is not None and bv.solution_status == "SOL_COMPUTED":
         speed, course = bv.horizontal_speed_mps, bv.track_deg
     status = gnss_status(
         t, ctx.vehicle, NOVATEL_QUALITY.get(bp.position_type, -1) if bp is not None else -1,
-        bp.satellites_used if bp is not None else -1, NAN, "novatel:" + ",".join(_source(r) for r in epoch),
-        speed, course, NAN,
+        bp.satellites_used if bp is not None else -1, NAN, source, speed, course, NAN,
     )
     yield output(ctx, "gps/status", status, t, where)
+    if bv is not None and bv.solution_status == "SOL_COMPUTED":
+        velocity = novatel_velocity(ctx, t, source, speed, course, bv.vertical_speed_mps)
+        yield output(ctx, "gps/velocity", velocity, t, bv.where)
 
 
 def convert_novatel_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
