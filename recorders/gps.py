@@ -41,9 +41,9 @@ from formats.records import Reject, Where
 from . import gps_columns
 from .base import Converter, LogContext, Output
 from .clock import DayClock
+from .gnss_covariance import Covariance, fix_covariance, sigma_covariance
 from .gnss_velocity import SUFFIX as VELOCITY
 from .gnss_velocity import gnss_velocity
-from .gnss_covariance import Covariance, fix_covariance, sigma_covariance
 from .nmea_epochs import NO_DATE, NO_TIME
 from .novatel_epochs import novatel_publish_ns, novatel_scan_epochs, novatel_scan_time
 

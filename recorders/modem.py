@@ -48,6 +48,7 @@ from .base import Converter, LogContext, Output, output
 from .clock import DAY_NS, NS, DayClock
 
 SUFFIX = "modem/range"
+NO_USBL_TIME = "no time: EvoLogics line without host timestamp, and its own time is not Unix time"
 LONG = positions(ev.UsblLong)  # where each field sits in a scanned USBLLONG's values
 
 
@@ -114,10 +115,23 @@ def measurement_ns(host_ns: int, current_s: float, measured_s: float) -> int:
     return host_ns - round(lag * NS) if 0.0 <= lag < 60.0 else host_ns
 
 
+# current EvoLogics firmware writes USBL times as Unix seconds (1464207778.381274), older as seconds since
+# power-on (603.24): only a time in these years is a clock to measure by
+_MODEM_EPOCH_S = (946_684_800.0, 4_102_444_800.0)  # 2000-01-01, 2100-01-01
+
+
+def usbl_own_time_ns(ctx: LogContext, measured_s: float) -> int | None:
+    """An EvoLogics USBL line's own measurement time (offset applied) when the modem writes Unix time, else None."""
+    if _MODEM_EPOCH_S[0] <= measured_s < _MODEM_EPOCH_S[1]:
+        return round(measured_s * 1e6) * 1000 + ctx.clock_offset_ns
+    return None
+
+
 def usbl_reception_ns(ctx: LogContext, where: Where, current_s: float, measured_s: float) -> int | None:
-    """Host time of an EvoLogics USBL line moved back to the modem's measurement time (`measurement_ns`)."""
+    """Host time of an EvoLogics USBL line moved back to the modem's measurement time (`measurement_ns`);
+    without a host timestamp, the modem's own time when it is Unix time (`usbl_own_time_ns`)."""
     host = host_time(ctx, where)
-    return None if host is None else measurement_ns(host, current_s, measured_s)
+    return usbl_own_time_ns(ctx, measured_s) if host is None else measurement_ns(host, current_s, measured_s)
 
 
 def acoustic_range(
@@ -259,14 +273,20 @@ def _evologics_scan(data: bytes, ctx: LogContext, c: float) -> Iterator[Output |
             us, heard, kind = v[LONG.propagation_time_us], v[LONG.address], "usbl"
         else:
             continue
-        if host is None:
-            yield Reject(Where(offset, line, host), "no time: EvoLogics line without host timestamp")
+        own = usbl_own_time_ns(ctx, v[LONG.measurement_time_s]) if kind == "usbl" and host is None else None
+        if host is None and own is None:
+            yield Reject(Where(offset, line, host), NO_USBL_TIME if kind == "usbl" else
+                         "no time: EvoLogics line without host timestamp")
             continue
-        publish = arrival = host + offset_ns
-        if kind == "usbl":
-            arrival = measurement_ns(publish, v[LONG.current_time_s], v[LONG.measurement_time_s])
         tt = us * 1e-6
-        t = arrival - round(tt * NS)
+        if own is not None:  # no host time: the modem's own, as `output` publishes at the measurement time
+            t = own - round(tt * NS)
+            publish = t
+        else:
+            publish = arrival = host + offset_ns
+            if kind == "usbl":
+                arrival = measurement_ns(publish, v[LONG.current_time_s], v[LONG.measurement_time_s])
+            t = arrival - round(tt * NS)
         name = names.get(heard)
         if name is None:
             name = names[heard] = ctx.vehicle_for_address(heard)

@@ -30,6 +30,7 @@ from recorders.gnss_covariance import Covariance, fix_covariance, sigma_covarian
 from recorders.gps import NOVATEL_QUALITY, gnss_status, novatel_velocity
 from recorders.ins import ins_state
 from recorders.modem import (
+    NO_USBL_TIME,
     MicromodemOptions,
     acoustic_range,
     host_time,
@@ -361,7 +362,7 @@ def _modem_evologics(data: bytes, ctx: LogContext, c: float) -> Iterator[Output 
         elif isinstance(rec, ev.UsblLong):
             arrival = usbl_reception_ns(ctx, rec.where, rec.current_time_s, rec.measurement_time_s)
             if arrival is None:
-                yield Reject(rec.where, "no time: EvoLogics line without host timestamp")
+                yield Reject(rec.where, NO_USBL_TIME)
                 continue
             tt = rec.propagation_time_us * 1e-6
             heard = (ctx.vehicle_for_address(rec.address), rec.address)
@@ -412,7 +413,7 @@ def _emit(ctx: LogContext, group: _Group, opts: UsblOptions) -> Output | Reject:
     first = group.first
     arrival = usbl_reception_ns(ctx, first.where, first.current_time_s, first.measurement_time_s)
     if arrival is None:
-        return Reject(first.where, "no time: EvoLogics line without host timestamp")
+        return Reject(first.where, NO_USBL_TIME)
     v = _values(group, opts)
     t = arrival - round(v.get("travel_time_s", 0.0) * NS)
     msg = observation(t, ctx.vehicle, ctx.vehicle_for_address(first.address), "evologics", v)
