@@ -34,3 +34,25 @@ def test_evologics_own_unix_time_is_used_without_a_host_prefix(fast, slow):
     assert [(o.topic, o.log_time_ns, o.publish_time_ns, o.message) for o in outs] == \
         [(o.topic, o.log_time_ns, o.publish_time_ns, o.message) for o in ref_outs]
     assert [r.reason for r in rejects] == [r.reason for r in ref_rejects]
+
+
+def test_every_micromodem_line_of_the_sample_trial_is_counted(tmp_path):
+    """The leaders' logs are all $CAMPA (pings heard): each is now an event on /<v>/modem/events, and every
+    line of every modem log is archived, rejected or ignored with a reason."""
+    from pathlib import Path
+
+    from formats.mcap_reader import ArchiveReader
+    from recorders.manifest import load_manifest
+    from recorders.record import record
+
+    sample = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"
+    summary = record(load_manifest(sample / "trial.toml"), tmp_path / "t.mcap", workers=1)
+    modems = [f for f in summary.files if f.format == "micromodem"]
+    for f in modems:
+        lines = sum(1 for x in (sample / f.path).read_bytes().splitlines() if x.strip())
+        assert f.parsed + f.skipped + f.ignored == lines, f.path
+    with ArchiveReader(tmp_path / "t.mcap") as r:
+        events = [m for m in r.messages(["/leader1/modem/events"])]
+    leader1 = next(f for f in modems if f.vehicle == "leader1")
+    assert len(events) == leader1.parsed == 350
+    assert events[0].message.message == "ping 3 -> 1 heard" and events[0].log_time_ns == 1476237601 * 10**9
