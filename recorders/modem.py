@@ -51,7 +51,6 @@ from .clock import DAY_NS, NS, DayClock
 
 SUFFIX = "modem/range"
 EVENTS = "modem/events"
-LOG_INFO = 2  # foxglove.Log.Level.INFO
 NO_USBL_TIME = "no time: EvoLogics line without host timestamp, and its own time is not Unix time"
 LONG = positions(ev.UsblLong)  # where each field sits in a scanned USBLLONG's values
 
@@ -188,7 +187,7 @@ def modem_event(ctx: LogContext, where: Where, text: str, utc_ns: int | None = N
     t = utc_ns + ctx.clock_offset_ns if utc_ns is not None else host
     if t is None:
         return Ignored(where, "modem event without a time (no host timestamp)")
-    msg = Log(timestamp=timestamp(t), level=LOG_INFO, name=ctx.vehicle, file=ctx.path, line=where.line or 0,
+    msg = Log(timestamp=timestamp(t), level=Log.INFO, name=ctx.vehicle, file=ctx.path, line=where.line or 0,
               message=text)
     return Output(f"/{ctx.vehicle}/{EVENTS}", msg, t, t if host is None else host, where)
 
@@ -319,20 +318,19 @@ def _evologics_scan(data: bytes, ctx: LogContext, c: float) -> Iterator[Output |
             us, heard, kind = v[LONG.propagation_time_us], v[LONG.address], "usbl"
         else:
             continue
-        own = usbl_own_time_ns(ctx, v[LONG.measurement_time_s]) if kind == "usbl" and host is None else None
-        if host is None and own is None:
-            yield Reject(Where(offset, line, host), NO_USBL_TIME if kind == "usbl" else
-                         "no time: EvoLogics line without host timestamp")
-            continue
         tt = us * 1e-6
-        if own is not None:  # no host time: the modem's own, as `output` publishes at the measurement time
-            t = own - round(tt * NS)
-            publish = t
-        else:
+        if host is not None:
             publish = arrival = host + offset_ns
             if kind == "usbl":
                 arrival = measurement_ns(publish, v[LONG.current_time_s], v[LONG.measurement_time_s])
             t = arrival - round(tt * NS)
+        else:
+            own = usbl_own_time_ns(ctx, v[LONG.measurement_time_s]) if kind == "usbl" else None
+            if own is None:
+                yield Reject(Where(offset, line, host), NO_USBL_TIME if kind == "usbl" else
+                             "no time: EvoLogics line without host timestamp")
+                continue
+            t = publish = own - round(tt * NS)  # the modem's own time; published then, as `output` would
         name = names.get(heard)
         if name is None:
             name = names[heard] = ctx.vehicle_for_address(heard)
