@@ -70,6 +70,8 @@ class FileStats:
     ignored_reasons: dict[str, int] = field(default_factory=dict)
     # a rotated or split log's files in log order: path, size, sha256, start_ns, end_ns, gap_s (to the previous)
     parts: list[dict] = field(default_factory=list)
+    # about the log as a whole (a gap or overlap between a split log's files); /diagnostics holds rejected records
+    notes: list[str] = field(default_factory=list)
 
     def as_json(self) -> dict:
         """The entry stored in the archive's `recording` metadata."""
@@ -125,12 +127,10 @@ def _order_parts(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]
     return [p for _, _, p in sorted(zip(firsts, range(len(parts)), parts))]
 
 
-def _diagnostic(log: LogSpec, reject: Reject | None, t_ns: int, text: str = "") -> S.Log:
-    """A /diagnostics warning about a log: a rejected record, or (`reject` None) `text` about the whole log."""
-    line = reject.where.line or 0 if reject is not None else 0
-    message = f"{log.path} {reject.where.describe()}: {reject.reason}" if reject is not None else text
+def _diagnostic(log: LogSpec, reject: Reject, t_ns: int) -> S.Log:
     return S.Log(timestamp=S.timestamp(t_ns), level=LOG_LEVEL_WARNING, name=log.vehicle, file=log.path,
-                 line=line, message=message)
+                 line=reject.where.line or 0,
+                 message=f"{log.path} {reject.where.describe()}: {reject.reason}")
 
 
 class _LogRecorder:
@@ -201,13 +201,7 @@ class _LogRecorder:
         st.parsed = len(self.records)
         st.ignored = sum(self.ignored.values())
         st.ignored_reasons = dict(self.ignored)
-        t = st.start_ns if st.start_ns is not None else self.fallback_ns
-        for reason, count in self.ignored.items():
-            self._note(f"{self.log.path}: {count} record(s) not archived: {reason}", t)
         self._report_seams()
-
-    def _note(self, text: str, t_ns: int) -> None:
-        self.writer.write("/diagnostics", _diagnostic(self.log, None, t_ns, text), t_ns)
 
     def _report_seams(self) -> None:
         """Each file's span in the stats; an overlap, or a gap far longer than the log's mean spacing, reported."""
@@ -222,9 +216,9 @@ class _LogRecorder:
             if span and previous:
                 gap = span[0] - previous[1]
                 if gap < 0:
-                    self._note(f"{part['path']} overlaps the file before it by {-gap / NS:.3f} s", span[0])
+                    st.notes.append(f"{part['path']} overlaps the file before it by {-gap / NS:.3f} s")
                 elif gap > SEAM_GAP_SPACINGS * spacing + SEAM_GAP_MIN_NS:
-                    self._note(f"{part['path']}: {gap / NS:.3f} s gap after the file before it", span[0])
+                    st.notes.append(f"{part['path']}: {gap / NS:.3f} s gap after the file before it")
             if span:
                 previous = span
 

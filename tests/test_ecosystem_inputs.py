@@ -624,10 +624,10 @@ def test_rotated_log_gap_and_overlap_reported(tmp_path):
     (tmp_path / "g.1").write_bytes(b"".join(lines[:300]))
     (tmp_path / "g.2").write_bytes(b"".join(lines[600:900]))       # 100 s missing: 101 s from the last fix to the next
     (tmp_path / "g.3").write_bytes(b"".join(lines[850:1000]))      # overlaps g.2
-    by, _ = messages(tmp_path, manifest(tmp_path, log("nmea", "g.*", "gps")))
-    notes = [S_text for _, S_text in by["/diagnostics"]]
-    text = b"\n".join(notes)
-    assert b"g.2: 101.000 s gap" in text and b"g.3 overlaps the file before it" in text
+    by, info = messages(tmp_path, manifest(tmp_path, log("nmea", "g.*", "gps")))
+    notes = info["recording"]["files"][0]["notes"]
+    assert notes == ["g.2: 101.000 s gap after the file before it", "g.3 overlaps the file before it by 16.000 s"]
+    assert "/diagnostics" not in by  # rejected records only: none here
 
 
 def test_manifest_examples_parse():

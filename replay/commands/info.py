@@ -39,7 +39,7 @@ def describe(path: str) -> dict[str, Any]:
         "diagnostics": {
             f["path"]: {k: f.get(k) for k in ("vehicle", "sensor", "format", "parsed", "skipped", "bad_checksum",
                                                "out_of_order", "duplicates", "start", "end", "ignored",
-                                               "ignored_reasons", "parts")}
+                                               "ignored_reasons", "parts", "notes")}
             for f in files
         },
         "metadata": summary.metadata_names,

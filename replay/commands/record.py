@@ -67,6 +67,8 @@ def print_summary(summary, out=None) -> None:
         if f.parts:
             print(f"note: {f.path}: one log of {len(f.parts)} files: {', '.join(p['path'] for p in f.parts)}",
                   file=out)
+        for note in f.notes:
+            print(f"note: {note}", file=out)
         if f.out_of_order or f.duplicates:
             print(f"note: {f.path}: {f.out_of_order} out-of-order and {f.duplicates} duplicated times kept as logged",
                   file=out)
