@@ -187,8 +187,8 @@ def modem_event(ctx: LogContext, where: Where, text: str, utc_ns: int | None = N
     t = utc_ns + ctx.clock_offset_ns if utc_ns is not None else host
     if t is None:
         return Ignored(where, "modem event without a time (no host timestamp)")
-    msg = Log(timestamp=timestamp(t), level=Log.INFO, name=ctx.vehicle, file=ctx.path, line=where.line or 0,
-              message=text)
+    # no line number in the message: a live capture decodes a log in windows, and the same event must come out
+    msg = Log(timestamp=timestamp(t), level=Log.INFO, name=ctx.vehicle, file=ctx.path, message=text)
     return Output(f"/{ctx.vehicle}/{EVENTS}", msg, t, t if host is None else host, where)
 
 
