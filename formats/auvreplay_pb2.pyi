@@ -259,3 +259,25 @@ class RawBytes(_message.Message):
     data: bytes
     connection: int
     def __init__(self, timestamp: _Optional[_Union[datetime.datetime, _timestamp_pb2.Timestamp, _Mapping]] = ..., stream: _Optional[str] = ..., offset: _Optional[int] = ..., data: _Optional[bytes] = ..., connection: _Optional[int] = ...) -> None: ...
+
+class GnssVelocity(_message.Message):
+    __slots__ = ("timestamp", "frame_id", "velocity_north_mps", "velocity_east_mps", "velocity_up_mps", "speed_over_ground_mps", "course_over_ground_deg", "speed_std_mps", "source_format")
+    TIMESTAMP_FIELD_NUMBER: _ClassVar[int]
+    FRAME_ID_FIELD_NUMBER: _ClassVar[int]
+    VELOCITY_NORTH_MPS_FIELD_NUMBER: _ClassVar[int]
+    VELOCITY_EAST_MPS_FIELD_NUMBER: _ClassVar[int]
+    VELOCITY_UP_MPS_FIELD_NUMBER: _ClassVar[int]
+    SPEED_OVER_GROUND_MPS_FIELD_NUMBER: _ClassVar[int]
+    COURSE_OVER_GROUND_DEG_FIELD_NUMBER: _ClassVar[int]
+    SPEED_STD_MPS_FIELD_NUMBER: _ClassVar[int]
+    SOURCE_FORMAT_FIELD_NUMBER: _ClassVar[int]
+    timestamp: _timestamp_pb2.Timestamp
+    frame_id: str
+    velocity_north_mps: float
+    velocity_east_mps: float
+    velocity_up_mps: float
+    speed_over_ground_mps: float
+    course_over_ground_deg: float
+    speed_std_mps: float
+    source_format: str
+    def __init__(self, timestamp: _Optional[_Union[datetime.datetime, _timestamp_pb2.Timestamp, _Mapping]] = ..., frame_id: _Optional[str] = ..., velocity_north_mps: _Optional[float] = ..., velocity_east_mps: _Optional[float] = ..., velocity_up_mps: _Optional[float] = ..., speed_over_ground_mps: _Optional[float] = ..., course_over_ground_deg: _Optional[float] = ..., speed_std_mps: _Optional[float] = ..., source_format: _Optional[str] = ...) -> None: ...

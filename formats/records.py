@@ -11,14 +11,20 @@ class FormatError(ValueError):
 
 @dataclass(frozen=True, slots=True)
 class Where:
-    """Where a record came from: byte offset, 1-based line (text formats) and host time."""
+    """Where a record came from: byte offset, 1-based line (text formats), host time, 1-based message number.
+
+    `message` is set by container formats (bags, tlogs) whose records are messages rather than bytes or lines.
+    """
 
     offset: int
     line: int | None = None
     host_time_ns: int | None = None
+    message: int | None = None
 
     def describe(self) -> str:
-        """Human-readable position, e.g. 'line 12' or 'byte 4096'."""
+        """Human-readable position, e.g. 'line 12', 'byte 4096' or 'message 7'."""
+        if self.message is not None:
+            return f"message {self.message}"
         return f"line {self.line}" if self.line is not None else f"byte {self.offset}"
 
 

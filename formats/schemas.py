@@ -22,12 +22,13 @@ Detection = pb.Detection
 BellMembership = pb.BellMembership
 AnfisSnapshot = pb.AnfisSnapshot
 RawBytes = pb.RawBytes
+GnssVelocity = pb.GnssVelocity
 
 MESSAGE_CLASSES: dict[str, Any] = {
     cls.DESCRIPTOR.full_name: cls
     for cls in (
         LocationFix, Log, GnssStatus, InsState, DvlVelocity, AcousticRange,
-        UsblObservation, Detection, AnfisSnapshot, RawBytes,
+        UsblObservation, Detection, AnfisSnapshot, RawBytes, GnssVelocity,
     )
 }
 

@@ -58,8 +58,12 @@ def unpack(archive_path: str | os.PathLike[str], target_dir: str | os.PathLike[s
     with ArchiveReader(archive_path) as reader:
         recording = reader.metadata_json("recording") or {}
         files = recording.get("files")
-        expected = {f["path"]: f.get("sha256", "") for f in (files if isinstance(files, list) else [])
-                    if isinstance(f, dict) and isinstance(f.get("path"), str)}
+        files = [f for f in (files if isinstance(files, list) else [])
+                 if isinstance(f, dict) and isinstance(f.get("path"), str)]
+        expected = {f["path"]: f.get("sha256", "") for f in files}
+        # a split log's files are attached one by one, each with its own checksum
+        expected.update({p["path"]: p.get("sha256", "") for f in files for p in f.get("parts") or []
+                         if isinstance(p, dict) and isinstance(p.get("path"), str)})
         seen: set[str] = set()
         for att in reader.attachments():
             if att.name in seen:

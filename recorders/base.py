@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from datetime import date
+from pathlib import Path
 from typing import Any, Callable, Iterator, Mapping
 
 from formats.records import Reject, Where
@@ -33,6 +34,8 @@ class LogContext:
     # modem address -> vehicle name, for every vehicle in the trial
     address_book: Mapping[int, str] = field(default_factory=dict)
     sound_speed_mps: float = 1500.0
+    # the log's files on disk, in log order: for containers (ROS bags) that their library must open by path
+    files: tuple[Path, ...] = ()
 
     def vehicle_for_address(self, address: int | None) -> str:
         """The vehicle name for a modem address, or 'addr<N>' when the manifest has none."""
@@ -52,7 +55,18 @@ class Output:
     where: Where | None = None
 
 
-Converter = Callable[[bytes, LogContext], Iterator["Output | Reject"]]
+@dataclass(frozen=True, slots=True)
+class Ignored:
+    """A record read whole and deliberately not archived (a topic nobody mapped, say): counted by reason.
+
+    The recording lists each reason once with its count instead of one diagnostic per record.
+    """
+
+    where: Where
+    reason: str
+
+
+Converter = Callable[[bytes, LogContext], Iterator["Output | Reject | Ignored"]]
 
 
 def output(ctx: LogContext, suffix: str, message: Any, t_ns: int, where: Where | None) -> Output:

@@ -42,6 +42,8 @@ from . import gps_columns
 from .base import Converter, LogContext, Output
 from .clock import DayClock
 from .gnss_covariance import Covariance, fix_covariance, sigma_covariance
+from .gnss_velocity import SUFFIX as VELOCITY
+from .gnss_velocity import gnss_velocity
 from .nmea_epochs import NO_DATE, NO_TIME
 from .novatel_epochs import novatel_publish_ns, novatel_scan_epochs, novatel_scan_time
 
@@ -237,7 +239,7 @@ def _convert_nmea_lines(data: bytes, ctx: LogContext) -> Iterator[Output | Rejec
 # tuples grouped by `novatel_epochs`: one dict per epoch, no records.
 
 
-def _novatel_scan_outputs(epoch: dict[str, novatel_scan.Scanned], ctx: LogContext, topics: tuple[str, str]
+def _novatel_scan_outputs(epoch: dict[str, novatel_scan.Scanned], ctx: LogContext, topics: tuple[str, str, str]
                           ) -> tuple[Output | Reject, ...]:
     """`_novatel_outputs` on scanned values, as a tuple."""
     t = novatel_scan_time(epoch, ctx)
@@ -258,14 +260,25 @@ def _novatel_scan_outputs(epoch: dict[str, novatel_scan.Scanned], ctx: LogContex
             out.append(Output(topics[0], fix, t, novatel_publish_ns(bp, t, ctx), novatel_scan.where_of(bp)))
             where_item = bp
     speed = course = NAN
+    source = "novatel:" + ",".join([item[1] for item in epoch.values()])
+    velocity = None
     if bv is not None:
         vel = novatel_scan.BEST_VEL._make(bv[4])
         if vel.solution_status == "SOL_COMPUTED":
             speed, course = vel.horizontal_speed_mps, vel.track_deg
-    status = gnss_status(t, ctx.vehicle, quality, satellites, NAN,
-                           "novatel:" + ",".join([item[1] for item in epoch.values()]), speed, course, NAN)
+            velocity = Output(topics[2], novatel_velocity(ctx, t, source, speed, course, vel.vertical_speed_mps),
+                              t, novatel_publish_ns(bv, t, ctx), novatel_scan.where_of(bv))
+    status = gnss_status(t, ctx.vehicle, quality, satellites, NAN, source, speed, course, NAN)
     out.append(Output(topics[1], status, t, novatel_publish_ns(where_item, t, ctx), novatel_scan.where_of(where_item)))
+    if velocity is not None:
+        out.append(velocity)
     return tuple(out)
+
+
+def novatel_velocity(ctx: LogContext, t_ns: int, source: str, speed: float, track_deg: float,
+                     vertical_mps: float) -> S.GnssVelocity:
+    """A BESTVEL's velocity over ground (horizontal speed along the track, vertical speed up)."""
+    return gnss_velocity(ctx, t_ns, source, speed=speed, course=track_deg, up=vertical_mps)
 
 
 _GNSS_KINDS = frozenset(("BestPos", "BestVel"))
@@ -273,7 +286,7 @@ _GNSS_KINDS = frozenset(("BestPos", "BestVel"))
 
 def convert_novatel(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """NovAtel BESTPOS/BESTVEL logs, ASCII (long or short header) or binary."""
-    topics = (f"/{ctx.vehicle}/gps", f"/{ctx.vehicle}/gps/status")
+    topics = (f"/{ctx.vehicle}/gps", f"/{ctx.vehicle}/gps/status", f"/{ctx.vehicle}/{VELOCITY}")
     for epoch in novatel_scan_epochs(data, ctx, _GNSS_KINDS):
         if isinstance(epoch, Reject):
             yield epoch

@@ -7,7 +7,7 @@ See DESIGN.md "The trial manifest". Every problem is reported as one
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import date
 from pathlib import Path, PurePosixPath
 from typing import Any
@@ -16,7 +16,11 @@ from .manifest_checks import ValueProblem, check_log_paths, check_values
 
 ROLES = ("leader", "follower", "buoy")
 SENSORS = ("gps", "dvl", "ins", "modem", "usbl")
-_LOG_KEYS = {"sensor", "format", "path", "source", "clock_offset_s", "prefix"}
+# formats whose one file holds several sensors: their log entry needs no `sensor`
+CONTAINER_FORMATS = ("rosbag", "alog", "mavlink")
+ORDERS = ("name", "time")
+_LOG_KEYS = {"sensor", "format", "path", "source", "clock_offset_s", "prefix", "order"}
+_GLOB_CHARS = frozenset("*?[")
 
 
 class ManifestError(ValueError):
@@ -36,6 +40,14 @@ class LogSpec:
     options: dict[str, Any] = field(default_factory=dict)
     # a live source (`auvreplay capture`) instead of a file: serial://, udp://, tcp://, tcp-listen://, tail:
     source: str = ""
+    # the files of a rotated or split log, relative like `path`; one log in this order (`order`:
+    # "name" as listed or globbed, "time" sorted by content time when recording); () means just `path`
+    parts: tuple[str, ...] = ()
+    order: str = "name"
+
+    def files(self) -> tuple[str, ...]:
+        """The log's files in manifest order: its parts, or its one path."""
+        return self.parts or (self.path,)
 
 
 @dataclass(frozen=True)
@@ -93,19 +105,34 @@ def _parse_log(raw: Any, vehicle: str, index: int, where: str) -> LogSpec:
         raise ManifestError(f"{label}: 'source' must be text such as udp://127.0.0.1:5000")
     if source and not raw.get("path"):  # a live log's name (in the archive, for unpack) when it gives none
         raw = {**raw, "path": f"{vehicle}/{raw.get('sensor')}.{raw.get('format')}"}
-    for key in ("sensor", "format", "path"):
+    paths = raw.get("path")
+    if isinstance(paths, list) and paths and all(isinstance(p, str) and p for p in paths):
+        raw = {**raw, "path": paths[0]}
+        parts = tuple(str(PurePosixPath(p.replace("\\", "/"))) for p in paths)
+    else:
+        parts = ()
+    container = raw.get("format") in CONTAINER_FORMATS
+    if container and "sensor" in raw:
+        raise ManifestError(f"{label} ({raw.get('path')}): a {raw['format']} log holds several sensors; "
+                            "give it no 'sensor' (each message goes to its sensor's topic)")
+    for key in ("format", "path") if container else ("sensor", "format", "path"):
         if not isinstance(raw.get(key), str) or not raw[key]:
-            raise ManifestError(f"{label}: missing or empty '{key}'")
-    if raw["sensor"] not in SENSORS:
-        raise ManifestError(f"{label} ({raw['path']}): unknown sensor {raw['sensor']!r}; use one of {', '.join(SENSORS)}")
+            what = "a path, a glob or a list of paths" if key == "path" else f"'{key}'"
+            raise ManifestError(f"{label}: missing or empty {what}")
+    sensor = "" if container else raw["sensor"]
+    if not container and sensor not in SENSORS:
+        raise ManifestError(f"{label} ({raw['path']}): unknown sensor {sensor!r}; use one of {', '.join(SENSORS)}")
+    order = raw.get("order", "name")
+    if order not in ORDERS:
+        raise ManifestError(f"{label} ({raw['path']}): order = {order!r}; use one of {', '.join(ORDERS)}")
     path = PurePosixPath(raw["path"].replace("\\", "/"))
     try:
         offset = float(raw.get("clock_offset_s", 0.0))
     except (TypeError, ValueError) as exc:
         raise ManifestError(f"{label} ({raw['path']}): clock_offset_s must be a number") from exc
     options = {k: v for k, v in raw.items() if k not in _LOG_KEYS}
-    return LogSpec(vehicle, raw["sensor"], raw["format"], str(path), offset, str(raw.get("prefix", "auto")), options,
-                   source)
+    return LogSpec(vehicle, sensor, raw["format"], str(path), offset, str(raw.get("prefix", "auto")), options,
+                   source, parts=parts, order=order)
 
 
 def _parse_vehicle(raw: Any, index: int, where: str) -> Vehicle:
@@ -178,12 +205,33 @@ def load_manifest(path: str | Path, allow_outside: bool = False) -> Manifest:
     except UnicodeDecodeError as exc:
         raise ManifestError(f"{path}: manifest is not UTF-8 text") from exc
     manifest = parse_manifest(text, path)
-    try:
-        check_log_paths(manifest.root, [log.path for log in manifest.logs()], str(path), allow_outside)
+    manifest = _expand_globs(manifest)
+    try:   # every file a log names, a glob's matches included, must be inside the manifest's folder
+        check_log_paths(manifest.root, [name for log in manifest.logs() for name in log.files()], str(path),
+                        allow_outside)
     except ValueProblem as exc:
         raise ManifestError(str(exc)) from None
     for log in manifest.logs():
-        full = manifest.root / log.path
-        if not log.source and not full.is_file():
-            raise ManifestError(f"{path}: vehicle {log.vehicle!r}: log file {log.path} not found (looked in {full})")
+        for name in log.files():
+            full = manifest.root / name
+            if not log.source and not full.is_file():
+                raise ManifestError(f"{path}: vehicle {log.vehicle!r}: log file {name} not found (looked in {full})")
     return manifest
+
+
+def _expand_globs(manifest: Manifest) -> Manifest:
+    """Every log whose path is a glob gets its matching files as parts, in name order."""
+    vehicles = []
+    for v in manifest.vehicles:
+        logs = []
+        for log in v.logs:
+            if not log.source and not log.parts and _GLOB_CHARS & set(log.path):
+                found = sorted(p.relative_to(manifest.root).as_posix() for p in manifest.root.glob(log.path)
+                               if p.is_file())
+                if not found:
+                    raise ManifestError(f"{manifest.path}: vehicle {v.name!r}: no file matches {log.path} "
+                                        f"(looked in {manifest.root})")
+                log = replace(log, parts=tuple(found))
+            logs.append(log)
+        vehicles.append(replace(v, logs=tuple(logs)))
+    return replace(manifest, vehicles=tuple(vehicles))

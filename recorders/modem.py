@@ -15,7 +15,9 @@ wall clock. Records are kept in log order, duplicates and all.
 
 What each record produces (everything else is parsed, validated and counted):
 
-- micromodem: $CAMPR and $CACMR,PNR -> kind "ping". $CACST and $CATOA -> kind
+- micromodem: $CAMPR and $CACMR,PNR -> kind "ping". Pings commanded ($CCMPC), echoed ($CAMPC) and heard
+  ($CAMPA, $CACMA,PNG), data cycles and frames -> ``/<vehicle>/modem/events`` (foxglove.Log, INFO); every
+  other record is counted as ignored with its reason. $CACST and $CATOA -> kind
   "toa" only with manifest option ``owtt_period_s`` (synchronous one-way
   ranging: transmissions on multiples of that period plus ``owtt_offset_s``;
   travel time = time of arrival modulo the period; source = the packet's source,
@@ -42,12 +44,14 @@ from formats.micromodem import scan as mms
 from formats.micromodem import sentences as mm
 from formats.records import FormatError, Reject, Where
 from formats.scanned import positions
-from formats.schemas import AcousticRange, timestamp
+from formats.schemas import AcousticRange, Log, timestamp
 
-from .base import Converter, LogContext, Output, output
+from .base import Converter, Ignored, LogContext, Output, output
 from .clock import DAY_NS, NS, DayClock
 
 SUFFIX = "modem/range"
+EVENTS = "modem/events"
+NO_USBL_TIME = "no time: EvoLogics line without host timestamp, and its own time is not Unix time"
 LONG = positions(ev.UsblLong)  # where each field sits in a scanned USBLLONG's values
 
 
@@ -114,10 +118,23 @@ def measurement_ns(host_ns: int, current_s: float, measured_s: float) -> int:
     return host_ns - round(lag * NS) if 0.0 <= lag < 60.0 else host_ns
 
 
+# current EvoLogics firmware writes USBL times as Unix seconds (1464207778.381274), older as seconds since
+# power-on (603.24): only a time in these years is a clock to measure by
+_MODEM_EPOCH_S = (946_684_800.0, 4_102_444_800.0)  # 2000-01-01, 2100-01-01
+
+
+def usbl_own_time_ns(ctx: LogContext, measured_s: float) -> int | None:
+    """An EvoLogics USBL line's own measurement time (offset applied) when the modem writes Unix time, else None."""
+    if _MODEM_EPOCH_S[0] <= measured_s < _MODEM_EPOCH_S[1]:
+        return round(measured_s * 1e6) * 1000 + ctx.clock_offset_ns
+    return None
+
+
 def usbl_reception_ns(ctx: LogContext, where: Where, current_s: float, measured_s: float) -> int | None:
-    """Host time of an EvoLogics USBL line moved back to the modem's measurement time (`measurement_ns`)."""
+    """Host time of an EvoLogics USBL line moved back to the modem's measurement time (`measurement_ns`);
+    without a host timestamp, the modem's own time when it is Unix time (`usbl_own_time_ns`)."""
     host = host_time(ctx, where)
-    return None if host is None else measurement_ns(host, current_s, measured_s)
+    return usbl_own_time_ns(ctx, measured_s) if host is None else measurement_ns(host, current_s, measured_s)
 
 
 def acoustic_range(
@@ -162,6 +179,35 @@ def toa_range(ctx: LogContext, where: Where, arrival: int | None, src: int | Non
     return acoustic_range(ctx, t, where, heard, (ctx.vehicle, own_address(ctx)), travel, "toa", "micromodem", opts.c)
 
 
+def modem_event(ctx: LogContext, where: Where, text: str, utc_ns: int | None = None) -> Output | Ignored:
+    """An event of a modem log (a ping sent or heard, a data cycle) on ``/<vehicle>/modem/events``, a
+    foxglove.Log at the modem's own time when it gives one, else the line's host time; Ignored, saying so,
+    when the line has neither (an event is worth its time)."""
+    host = host_time(ctx, where)
+    t = utc_ns + ctx.clock_offset_ns if utc_ns is not None else host
+    if t is None:
+        return Ignored(where, "modem event without a time (no host timestamp)")
+    # no line number in the message: a live capture decodes a log in windows, and the same event must come out
+    msg = Log(timestamp=timestamp(t), level=Log.INFO, name=ctx.vehicle, file=ctx.path, message=text)
+    return Output(f"/{ctx.vehicle}/{EVENTS}", msg, t, t if host is None else host, where)
+
+
+def micromodem_event_text(kind: str, src: int, dest: int, detail: object) -> str:
+    """The words of a Micro-Modem event: kind "sent" (detail: the modem's echo or not) or "heard" (detail: what)."""
+    if kind == "sent":
+        return f"ping {src} -> {dest} " + ("echoed by the modem" if detail else "commanded by the host")
+    what = {"ping": "ping", "cycle": "data cycle", "data": "data frame"}.get(str(detail), str(detail))
+    return f"{what} {src} -> {dest} heard"
+
+
+MICROMODEM_UNUSED = {  # records that time others or carry nothing archived: counted with these reasons
+    "date": "$CAXST: sets the modem's date",
+    "clock": "$CACLK: sets the modem's date",
+    "rxstats": "$CACST without owtt_period_s: no one-way range",
+    "toa": "$CATOA without owtt_period_s: no one-way range",
+}
+
+
 def set_modem_date(clock: DayClock, rec: mm.TransmitStats | mm.Clock) -> None:
     if isinstance(rec, mm.TransmitStats):
         clock.set_date(rec.date, rec.tod_s)
@@ -200,7 +246,7 @@ class _ScanPings:
         return Output(self.topic, msg, t, t if publish is None else publish, Where(offset, line, host))
 
 
-def _micromodem_scan(data: bytes, ctx: LogContext, opts: MicromodemOptions) -> Iterator[Output | Reject]:
+def _micromodem_scan(data: bytes, ctx: LogContext, opts: MicromodemOptions) -> Iterator[Output | Reject | Ignored]:
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     ping = _ScanPings(ctx, opts.c)
     own = ping.own
@@ -213,27 +259,40 @@ def _micromodem_scan(data: bytes, ctx: LogContext, opts: MicromodemOptions) -> I
         if kind == "reply":
             yield ping(v, offset, line, host)
         elif kind == "heard":
-            (src,) = v
+            src, dest, what, heard_utc = v
             if src not in own:
                 last_src = src
+            yield modem_event(ctx, Where(offset, line, host), micromodem_event_text(kind, src, dest, what), heard_utc)
+        elif kind == "sent":
+            src, dest, echo = v
+            yield modem_event(ctx, Where(offset, line, host), micromodem_event_text(kind, src, dest, echo))
+        elif kind == "other":
+            yield Ignored(Where(offset, line, host), f"${v[0]}: nothing archived")
         elif kind == "date":
             day, tod_s = v
             clock.set_date(day, tod_s)
+            yield Ignored(Where(offset, line, host), MICROMODEM_UNUSED[kind])
         elif kind == "clock":
             (utc_ns,) = v
             set_modem_date(clock, mm.Clock(Where(offset, line, host), utc_ns))
+            yield Ignored(Where(offset, line, host), MICROMODEM_UNUSED[kind])
         elif kind == "rxstats":
             src, tod_s = v
             last_src = src
             if opts.period_s is not None:
                 yield toa_range(ctx, Where(offset, line, host), clock.resolve(tod_s), src, opts)
-        elif kind == "toa" and opts.period_s is not None:
+            else:
+                yield Ignored(Where(offset, line, host), MICROMODEM_UNUSED[kind])
+        elif kind == "toa":
             tod_s, utc_ns = v
-            arrival = clock.resolve(tod_s) if tod_s is not None else utc_ns + ctx.clock_offset_ns
-            yield toa_range(ctx, Where(offset, line, host), arrival, last_src, opts)
+            if opts.period_s is not None:
+                arrival = clock.resolve(tod_s) if tod_s is not None else utc_ns + ctx.clock_offset_ns
+                yield toa_range(ctx, Where(offset, line, host), arrival, last_src, opts)
+            else:
+                yield Ignored(Where(offset, line, host), MICROMODEM_UNUSED[kind])
 
 
-def convert_micromodem(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_micromodem(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     """WHOI Micro-Modem log -> ranges (options are checked before the first record)."""
     return _micromodem_scan(data, ctx, micromodem_options(ctx))
 
@@ -271,18 +330,23 @@ def _evologics_scan(data: bytes, ctx: LogContext, c: float) -> Iterator[Output |
             us, heard, kind = v[LONG.propagation_time_us], v[LONG.address], "usbl"
         else:
             continue
-        if host is None:
-            yield Reject(Where(offset, line, host), "no time: EvoLogics line without host timestamp")
-            continue
         why = evologics_problem(us, heard)
         if why is not None:
             yield Reject(Where(offset, line, host), why)
             continue
-        publish = arrival = host + offset_ns
-        if kind == "usbl":
-            arrival = measurement_ns(publish, v[LONG.current_time_s], v[LONG.measurement_time_s])
         tt = us * 1e-6
-        t = arrival - round(tt * NS)
+        if host is not None:
+            publish = arrival = host + offset_ns
+            if kind == "usbl":
+                arrival = measurement_ns(publish, v[LONG.current_time_s], v[LONG.measurement_time_s])
+            t = arrival - round(tt * NS)
+        else:
+            own = usbl_own_time_ns(ctx, v[LONG.measurement_time_s]) if kind == "usbl" else None
+            if own is None:
+                yield Reject(Where(offset, line, host), NO_USBL_TIME if kind == "usbl" else
+                             "no time: EvoLogics line without host timestamp")
+                continue
+            t = publish = own - round(tt * NS)  # the modem's own time; published then, as `output` would
         name = names.get(heard)
         if name is None:
             name = names[heard] = ctx.vehicle_for_address(heard)

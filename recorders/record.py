@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import bisect
 import hashlib
 import mimetypes
+from collections import Counter
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from functools import partial
@@ -14,7 +16,7 @@ from formats import schemas as S
 from formats.mcap_writer import ArchiveWriter
 from formats.records import FormatError, Reject, Where
 
-from .base import NS, LogContext, Output
+from .base import NS, Ignored, LogContext, Output
 from .clock import date_to_ns, iso_utc
 from .manifest import LogSpec, Manifest, ManifestError
 from .output_checks import OutputProblem, check_output, remove_stale_parts
@@ -39,6 +41,10 @@ AUTO_PARALLEL_MIN_BYTES = 1 << 20
 # /diagnostics lines kept in full per log and kind of reject; the rest are counted in one line, so the
 # memory and the archive of a log of garbage are bounded by this, not by the log
 DIAGNOSTICS_PER_KIND = 100
+# between the files of a split log, a gap longer than this many mean message spacings (plus a second, for
+# logs that write in bursts) is reported: a file is probably missing
+SEAM_GAP_SPACINGS = 10
+SEAM_GAP_MIN_NS = NS
 
 
 class MessageSink(Protocol):
@@ -68,6 +74,12 @@ class FileStats:
     bad_ranges: int = 0     # of those, ranges <= 0 or beyond max_range_m
     start_ns: int | None = None
     end_ns: int | None = None
+    ignored: int = 0  # records read whole and deliberately not archived (see `ignored_reasons`)
+    ignored_reasons: dict[str, int] = field(default_factory=dict)
+    # a rotated or split log's files in log order: path, size, sha256, start_ns, end_ns, gap_s (to the previous)
+    parts: list[dict] = field(default_factory=list)
+    # about the log as a whole (a gap or overlap between a split log's files); /diagnostics holds rejected records
+    notes: list[str] = field(default_factory=list)
 
     def as_json(self) -> dict:
         """The entry stored in the archive's `recording` metadata."""
@@ -90,14 +102,38 @@ class RecordingSummary:
         return sum(f.skipped for f in self.files)
 
 
-def _context(manifest: Manifest, log: LogSpec) -> LogContext:
+def _context(manifest: Manifest, log: LogSpec, files: tuple[str, ...] | None = None) -> LogContext:
     options = dict(log.options)
     return LogContext(
         vehicle=log.vehicle, role=manifest.role_of(log.vehicle), path=log.path, trial_date=manifest.date,
         clock_offset_ns=round(log.clock_offset_s * NS), prefix=log.prefix, options=options,
         address_book=manifest.address_book(),
         sound_speed_mps=float(options.get("sound_speed_mps", manifest.sound_speed_mps)),
+        files=tuple(manifest.root / name for name in (log.files() if files is None else files)),
     )
+
+
+def read_parts(manifest: Manifest, log: LogSpec) -> list[tuple[str, bytes]]:
+    """A log's files and their bytes, in manifest order (one file, or the parts of a rotated log)."""
+    return [(name, (manifest.root / name).read_bytes()) for name in log.files()]
+
+
+def _first_time(convert, data: bytes, ctx: LogContext) -> float:
+    """The earliest message time of one file decoded alone (inf without any), for `order = "time"`."""
+    try:
+        times = [item.log_time_ns for item in convert(data, ctx) if type(item) is Output]
+    except FormatError:
+        return float("inf")
+    return min(times) if times else float("inf")
+
+
+def _order_parts(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]],
+                 convert) -> list[tuple[str, bytes]]:
+    """The parts in log order: as given, or (order = "time") by the first message time of each decoded alone."""
+    if log.order != "time" or len(parts) < 2:
+        return parts
+    firsts = [_first_time(convert, data, _context(manifest, log, (name,))) for name, data in parts]
+    return [p for _, _, p in sorted(zip(firsts, range(len(parts)), parts))]
 
 
 def _diagnostic(log: LogSpec, reject: Reject, t_ns: int) -> S.Log:
@@ -109,7 +145,8 @@ def _diagnostic(log: LogSpec, reject: Reject, t_ns: int) -> S.Log:
 class _LogRecorder:
     """Writes one log's outputs and diagnostics, keeping its statistics."""
 
-    def __init__(self, writer: MessageSink, log: LogSpec, stats: FileStats, fallback_ns: int):
+    def __init__(self, writer: MessageSink, log: LogSpec, stats: FileStats, fallback_ns: int,
+                 part_starts: list[int] | None = None):
         self.writer, self.log, self.stats = writer, log, stats
         self.pending: list[Reject] = []  # rejects seen before any time is known
         self.last_ns: dict[str, int] = {}
@@ -117,10 +154,17 @@ class _LogRecorder:
         self.fallback_ns = fallback_ns
         self.checks = ValueChecks(float(log.options.get("max_range_m", MAX_RANGE_M)))
         self.kinds: dict[tuple[bool, str], int] = {}  # rejects per kind, listed or not
+        self.ignored: Counter[str] = Counter()
+        # a split log: the byte offset where each file starts, and each file's message time span
+        self.part_starts = part_starts or []
+        self.part_spans: list[list[int]] = [[] for _ in self.part_starts]
 
-    def add(self, item: Output | Reject) -> None:
+    def add(self, item: Output | Reject | Ignored) -> None:
         if type(item) is not Output:
-            self._reject(item)
+            if type(item) is Ignored:
+                self.ignored[item.reason] += 1
+            else:
+                self._reject(item)  # type: ignore[arg-type]
             return
         problem = self.checks.problem(item.message, item.log_time_ns)
         if problem is not None:
@@ -148,6 +192,11 @@ class _LogRecorder:
             st.start_ns = t
         if st.end_ns is None or t > st.end_ns:
             st.end_ns = t
+        if self.part_starts and where is not None:
+            span = self.part_spans[bisect.bisect_right(self.part_starts, where.offset) - 1]
+            if not span:
+                span += [t, t]
+            span[0], span[1] = min(span[0], t), max(span[1], t)
         if self.pending:
             self.flush(t)
 
@@ -179,8 +228,31 @@ class _LogRecorder:
                 self.pending.append(Reject(Where(0), f"{n - DIAGNOSTICS_PER_KIND} more {what} not listed "
                                                      f"(the first {DIAGNOSTICS_PER_KIND} are)", bad_checksum))
         self.flush(t)
-        self.stats.parsed = len(self.records)
-        self.stats.out_of_range, self.stats.bad_ranges = self.checks.out_of_range, self.checks.bad_ranges
+        st = self.stats
+        st.parsed = len(self.records)
+        st.out_of_range, st.bad_ranges = self.checks.out_of_range, self.checks.bad_ranges
+        st.ignored = sum(self.ignored.values())
+        st.ignored_reasons = dict(self.ignored)
+        self._report_seams()
+
+    def _report_seams(self) -> None:
+        """Each file's span in the stats; an overlap, or a gap far longer than the log's mean spacing, reported."""
+        st = self.stats
+        first, last = st.start_ns, st.end_ns
+        spacing = (last - first) / max(st.messages - 1, 1) if first is not None and last is not None else 0.0
+        previous: list[int] = []
+        for part, span in zip(st.parts, self.part_spans):
+            part["start_ns"], part["end_ns"] = (span[0], span[1]) if span else (None, None)
+            part["start"], part["end"] = iso_utc(part["start_ns"]), iso_utc(part["end_ns"])
+            part["gap_s"] = (span[0] - previous[1]) / NS if span and previous else None
+            if span and previous:
+                gap = span[0] - previous[1]
+                if gap < 0:
+                    st.notes.append(f"{part['path']} overlaps the file before it by {-gap / NS:.3f} s")
+                elif gap > SEAM_GAP_SPACINGS * spacing + SEAM_GAP_MIN_NS:
+                    st.notes.append(f"{part['path']}: {gap / NS:.3f} s gap after the file before it")
+            if span:
+                previous = span
 
 
 def _trial_metadata(manifest: Manifest) -> dict:
@@ -213,7 +285,7 @@ def _input_bytes(manifest: Manifest) -> int:
     total = 0
     for log in manifest.logs():
         try:
-            total += (manifest.root / log.path).stat().st_size
+            total += sum((manifest.root / name).stat().st_size for name in log.files())
         except OSError:  # reading it will give the error, in order, as the serial path does
             pass
     return total
@@ -238,26 +310,35 @@ def resolve_workers(manifest: Manifest, workers: int | None = None) -> int:
     return max(1, min(workers, logs)) if can_fork() else 1
 
 
-def _decode_log(manifest: Manifest, log: LogSpec, data: bytes, convert, fallback: int, sink: MessageSink,
-                progress: Progress | None) -> FileStats:
-    """Convert one log's bytes into `sink`; returns its statistics."""
+def _decode_log(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]], convert, fallback: int,
+                sink: MessageSink, progress: Progress | None) -> tuple[FileStats, bytes]:
+    """Convert one log's files (already in log order, see `_order_parts`) into `sink`; its statistics and bytes."""
+    data = parts[0][1] if len(parts) == 1 else b"".join(d for _, d in parts)
     stats = FileStats(log.path, log.vehicle, log.sensor, log.format, len(data), hashlib.sha256(data).hexdigest())
-    rec = _LogRecorder(sink, log, stats, fallback)
+    starts: list[int] = []
+    if log.parts:
+        offset = 0
+        for name, part in parts:
+            stats.parts.append({"path": name, "size": len(part), "sha256": hashlib.sha256(part).hexdigest()})
+            starts.append(offset)
+            offset += len(part)
+    rec = _LogRecorder(sink, log, stats, fallback, starts)
     step = max(len(data) // 50, 1 << 16)
     next_report = step
-    for item in _iter_outputs(convert, data, _context(manifest, log), log):
+    for item in _iter_outputs(convert, data, _context(manifest, log, tuple(n for n, _ in parts)), log):
         rec.add(item)
         if progress is not None and item.where is not None and item.where.offset >= next_report:
             progress(log.path, item.where.offset, len(data))
             next_report = item.where.offset + step
     rec.finish()
-    return stats
+    return stats, data
 
 
-def _capture(manifest: Manifest, log: LogSpec, data: bytes, table: dict, fallback: int) -> Captured:
+def _capture(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]], table: dict,
+             fallback: int) -> Captured:
     """One log decoded and converted, its messages serialized for writing later."""
     sink = Capture()
-    stats = _decode_log(manifest, log, data, table[(log.sensor, log.format)], fallback, sink, None)
+    stats, data = _decode_log(manifest, log, parts, table[(log.sensor, log.format)], fallback, sink, None)
     captured = sink.finish(stats)
     captured.data = data
     return captured
@@ -268,21 +349,37 @@ def _capture_log(manifest: Manifest, table: dict, fallback: int, index: int) -> 
     log = manifest.logs()[index]
     # the log's bytes go back with its messages: the attachment is then the very bytes decoded, and the
     # main process neither reads the file again nor hashes it to make sure (one copy each side is cheaper)
-    return _capture(manifest, log, (manifest.root / log.path).read_bytes(), table, fallback)
+    convert = table[(log.sensor, log.format)]
+    return _capture(manifest, log, _order_parts(manifest, log, read_parts(manifest, log), convert), table, fallback)
 
 
-def _attach(writer: ArchiveWriter, log: LogSpec, data: bytes, fallback: int) -> None:
-    media = mimetypes.guess_type(log.path)[0] or "application/octet-stream"
-    writer.add_attachment(log.path, data, media, fallback, fallback)
+def _attach(writer: ArchiveWriter, parts: list[tuple[str, bytes]], fallback: int) -> None:
+    """The log attached byte for byte: each file of a split log on its own, in log order."""
+    for name, data in parts:
+        media = mimetypes.guess_type(name)[0] or "application/octet-stream"
+        writer.add_attachment(name, data, media, fallback, fallback)
+
+
+def _captured_parts(log: LogSpec, captured: Captured) -> list[tuple[str, bytes]]:
+    """A worker's log bytes cut back into its files, by the sizes its statistics give."""
+    stats, data = captured.stats, captured.data
+    if not stats.parts:
+        return [(log.path, data)]
+    out, start = [], 0
+    for part in stats.parts:
+        out.append((part["path"], data[start:start + part["size"]]))
+        start += part["size"]
+    return out
 
 
 def _record_serial(manifest: Manifest, writer: ArchiveWriter, table: dict, fallback: int,
                    summary: RecordingSummary, progress: Progress | None) -> None:
     for log in manifest.logs():
-        data = (manifest.root / log.path).read_bytes()
-        _attach(writer, log, data, fallback)
-        summary.files.append(_decode_log(manifest, log, data, table[(log.sensor, log.format)], fallback,
-                                         writer, progress))
+        convert = table[(log.sensor, log.format)]
+        parts = _order_parts(manifest, log, read_parts(manifest, log), convert)
+        _attach(writer, parts, fallback)
+        stats, data = _decode_log(manifest, log, parts, convert, fallback, writer, progress)
+        summary.files.append(stats)
         if progress is not None:
             progress(log.path, len(data), len(data))
 
@@ -304,7 +401,7 @@ def _record_parallel(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool
                     else "a worker process decoding the logs"
                 raise ManifestError(f"{what} {exc.how}") from None
         if captured is not None:
-            _attach(writer, log, captured.data, fallback)
+            _attach(writer, _captured_parts(log, captured), fallback)
             write_captured(writer, captured)
             summary.files.append(captured.stats)
         if progress is not None:
@@ -321,14 +418,14 @@ def _next_captured(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[C
         if task is None:  # every log is taken: log i is a worker's, wait for it
             break
         log = manifest.logs()[task]
-        data = (manifest.root / log.path).read_bytes()
+        convert = table[(log.sensor, log.format)]
+        parts = _order_parts(manifest, log, read_parts(manifest, log), convert)
         if task == i:  # nobody had it: decode it here as the serial path does, no copy, no replay
-            _attach(writer, log, data, fallback)
-            summary.files.append(_decode_log(manifest, log, data, table[(log.sensor, log.format)], fallback,
-                                             writer, progress))
+            _attach(writer, parts, fallback)
+            summary.files.append(_decode_log(manifest, log, parts, convert, fallback, writer, progress)[0])
             return None
         try:  # a later log, while a worker holds log i
-            own[task] = _capture(manifest, log, data, table, fallback)
+            own[task] = _capture(manifest, log, parts, table, fallback)
         except Exception as exc:  # noqa: BLE001 - raised at its turn
             own[task] = exc
     return pool.result(i)

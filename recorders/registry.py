@@ -16,6 +16,12 @@ FAMILY_MODULES: dict[str, str] = {
     "modem": "recorders.modem",
     "usbl": "recorders.usbl",
 }
+# container format (one file, several sensors; manifest sensor "") -> module with a CONVERTERS mapping
+CONTAINER_MODULES: dict[str, str] = {
+    "rosbag": "recorders.rosbag",
+    "alog": "recorders.alog",
+    "mavlink": "recorders.mavlink",
+}
 
 
 def converters() -> dict[tuple[str, str], Converter]:
@@ -26,9 +32,21 @@ def converters() -> dict[tuple[str, str], Converter]:
         for fmt, fn in module.CONVERTERS.items():
             table[(family, fmt)] = fn
         table[(family, "csv")] = csvlog.converter_for(family)
+    for fmt, name in CONTAINER_MODULES.items():
+        table[("", fmt)] = importlib.import_module(name).CONVERTERS[fmt]
     return table
+
+
+def family_converter(sensor: str, fmt: str) -> Converter:
+    """The converter of one sensor family's vendor format, for containers that carry such logs inside them."""
+    return importlib.import_module(FAMILY_MODULES[sensor]).CONVERTERS[fmt]
 
 
 def describe(fn: Converter) -> str:
     """First line of a converter's docstring."""
     return (fn.__doc__ or "").strip().splitlines()[0] if fn.__doc__ else ""
+
+
+def manifest_examples() -> dict[str, str]:
+    """A manifest `[[vehicles.logs]]` example for each container format (its module's MANIFEST_EXAMPLE)."""
+    return {fmt: importlib.import_module(name).MANIFEST_EXAMPLE for fmt, name in CONTAINER_MODULES.items()}

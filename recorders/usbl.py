@@ -41,6 +41,7 @@ from formats.schemas import UsblObservation, timestamp
 from .base import Converter, LogContext, Output, output
 from .clock import NS, plausible_ns
 from .modem import (
+    NO_USBL_TIME,
     RegexOptions,
     endpoint,
     measurement_ns,
@@ -50,6 +51,7 @@ from .modem import (
     regex_outputs,
     sound_speed,
     travel_and_range,
+    usbl_own_time_ns,
 )
 
 SUFFIX = "usbl"
@@ -142,13 +144,19 @@ class _ScanEmitter:
     def __call__(self, first: evs.Scanned, parts: dict[str, list]) -> Output | Reject:
         _, v, offset, line, host = first
         if host is None:
-            return Reject(Where(offset, line, host), "no time: EvoLogics line without host timestamp")
-        publish = host + self.offset_ns
-        arrival = measurement_ns(publish, v[LONG.current_time_s], v[LONG.measurement_time_s])
+            own = usbl_own_time_ns(self.ctx, v[LONG.measurement_time_s])
+            if own is None:
+                return Reject(Where(offset, line, host), NO_USBL_TIME)
+            arrival = own
+        else:
+            publish = host + self.offset_ns
+            arrival = measurement_ns(publish, v[LONG.current_time_s], v[LONG.measurement_time_s])
         values = _scan_values(parts, self.opts)
         t = fix_time(arrival, values[0])
         if not plausible_ns(t):
             return Reject(Where(offset, line, host), IMPLAUSIBLE_FIX)
+        if host is None:
+            publish = t  # as `output` publishes a record without host time
         address = v[LONG.address]
         target = self.targets.get(address)
         if target is None:

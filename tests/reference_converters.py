@@ -22,19 +22,23 @@ from formats.nmea import sentences as nmea
 from formats.novatel import logs as novatel
 from formats.pd0 import ensembles as pd0
 from formats.records import Reject
-from recorders.base import LogContext, Output, output
+from recorders.base import Ignored, LogContext, Output, output
 from recorders.clock import NS, DayClock, plausible_ns
 from recorders.dvl import pd0_items
 from recorders.epochs import group_epochs, host_time_ns
 from recorders.gnss_covariance import Covariance, fix_covariance, sigma_covariance
-from recorders.gps import NOVATEL_QUALITY, gnss_status
+from recorders.gps import NOVATEL_QUALITY, gnss_status, novatel_velocity
 from recorders.ins import ins_state
 from recorders.modem import (
+    MICROMODEM_UNUSED,
+    NO_USBL_TIME,
     MicromodemOptions,
     acoustic_range,
     evologics_problem,
     host_time,
+    micromodem_event_text,
     micromodem_options,
+    modem_event,
     own_address,
     own_addresses,
     set_modem_date,
@@ -157,14 +161,17 @@ def _novatel_outputs(epoch: list[novatel.NovatelRecord], ctx: LogContext) -> Ite
         yield output(ctx, "gps", fix, t, bp.where)
         where = bp.where
     speed = course = NAN
+    source = "novatel:" + ",".join(_source(r) for r in epoch)
     if bv is not None and bv.solution_status == "SOL_COMPUTED":
         speed, course = bv.horizontal_speed_mps, bv.track_deg
     status = gnss_status(
         t, ctx.vehicle, NOVATEL_QUALITY.get(bp.position_type, -1) if bp is not None else -1,
-        bp.satellites_used if bp is not None else -1, NAN, "novatel:" + ",".join(_source(r) for r in epoch),
-        speed, course, NAN,
+        bp.satellites_used if bp is not None else -1, NAN, source, speed, course, NAN,
     )
     yield output(ctx, "gps/status", status, t, where)
+    if bv is not None and bv.solution_status == "SOL_COMPUTED":
+        velocity = novatel_velocity(ctx, t, source, speed, course, bv.vertical_speed_mps)
+        yield output(ctx, "gps/velocity", velocity, t, bv.where)
 
 
 def convert_novatel_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
@@ -321,29 +328,47 @@ def _utc(rec: mm.TimeOfArrival) -> int:
     return rec.utc_ns
 
 
-def _micromodem(data: bytes, ctx: LogContext, opts: MicromodemOptions) -> Iterator[Output | Reject]:
+def _micromodem(data: bytes, ctx: LogContext, opts: MicromodemOptions) -> Iterator[Output | Reject | Ignored]:
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     own = own_addresses(ctx)
     last_src: int | None = None
+    heard = {mm.PingHeard: "ping", mm.CycleInit: "cycle", mm.ReceivedData: "data"}
     for rec in mm.decode(data, ctx.prefix, opts.round_trip):
         if isinstance(rec, Reject):
             yield rec
         elif isinstance(rec, mm.PingReply):
             yield _ping(ctx, rec, own, opts.c)
-        elif isinstance(rec, (mm.TransmitStats, mm.Clock)):
+        elif isinstance(rec, mm.TransmitStats):
             set_modem_date(clock, rec)
-        elif isinstance(rec, (mm.CycleInit, mm.ReceivedData, mm.PingHeard)) and rec.src not in own:
-            last_src = rec.src
+            yield Ignored(rec.where, MICROMODEM_UNUSED["date"])
+        elif isinstance(rec, mm.Clock):
+            set_modem_date(clock, rec)
+            yield Ignored(rec.where, MICROMODEM_UNUSED["clock"])
+        elif isinstance(rec, (mm.CycleInit, mm.ReceivedData, mm.PingHeard)):
+            if rec.src not in own:
+                last_src = rec.src
+            utc = rec.utc_ns if isinstance(rec, mm.PingHeard) else None
+            text = micromodem_event_text("heard", rec.src, rec.dest, heard[type(rec)])
+            yield modem_event(ctx, rec.where, text, utc)
+        elif isinstance(rec, mm.PingCommand):
+            yield modem_event(ctx, rec.where, micromodem_event_text("sent", rec.src, rec.dest, rec.echo))
+        elif isinstance(rec, mm.OtherSentence):
+            yield Ignored(rec.where, f"${rec.address}: nothing archived")
         elif isinstance(rec, mm.ReceiveStats):
             last_src = rec.src
             if opts.period_s is not None:
                 yield toa_range(ctx, rec.where, clock.resolve(rec.tod_s), rec.src, opts)
-        elif isinstance(rec, mm.TimeOfArrival) and opts.period_s is not None:
-            arrival = clock.resolve(rec.tod_s) if rec.tod_s is not None else _utc(rec) + ctx.clock_offset_ns
-            yield toa_range(ctx, rec.where, arrival, last_src, opts)
+            else:
+                yield Ignored(rec.where, MICROMODEM_UNUSED["rxstats"])
+        elif isinstance(rec, mm.TimeOfArrival):
+            if opts.period_s is not None:
+                arrival = clock.resolve(rec.tod_s) if rec.tod_s is not None else _utc(rec) + ctx.clock_offset_ns
+                yield toa_range(ctx, rec.where, arrival, last_src, opts)
+            else:
+                yield Ignored(rec.where, MICROMODEM_UNUSED["toa"])
 
 
-def convert_micromodem_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_micromodem_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     """`recorders.modem.convert_micromodem` the obvious way, over `micromodem.decode` records."""
     return _micromodem(data, ctx, micromodem_options(ctx))
 
@@ -368,7 +393,7 @@ def _modem_evologics(data: bytes, ctx: LogContext, c: float) -> Iterator[Output 
         elif isinstance(rec, ev.UsblLong):
             arrival = usbl_reception_ns(ctx, rec.where, rec.current_time_s, rec.measurement_time_s)
             if arrival is None:
-                yield Reject(rec.where, "no time: EvoLogics line without host timestamp")
+                yield Reject(rec.where, NO_USBL_TIME)
                 continue
             why = evologics_problem(rec.propagation_time_us, rec.address)
             if why is not None:
@@ -423,7 +448,7 @@ def _emit(ctx: LogContext, group: _Group, opts: UsblOptions) -> Output | Reject:
     first = group.first
     arrival = usbl_reception_ns(ctx, first.where, first.current_time_s, first.measurement_time_s)
     if arrival is None:
-        return Reject(first.where, "no time: EvoLogics line without host timestamp")
+        return Reject(first.where, NO_USBL_TIME)
     v = _values(group, opts)
     t = fix_time(arrival, v.get("travel_time_s", 0.0))
     if not plausible_ns(t):

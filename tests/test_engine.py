@@ -241,7 +241,9 @@ def test_an_archive_cut_off_mid_write_still_knows_its_vehicles(archive, tmp_path
     """The trial record comes first: a cut-off archive replays with its roles, not a guess."""
     data = archive.read_bytes()
     cut = tmp_path / "cut.mcap"
-    cut.write_bytes(data[: int(len(data) * 0.95)])
+    # the summary and part of the last chunk cut (the follower's ranges sit in the last chunks, and with the modem
+    # logs' events those now begin after 95 % of the file)
+    cut.write_bytes(data[: int(len(data) * 0.98)])
     run = replay_archive(cut, load_config(None, FAST), write_output=False)
     assert not any("roles guessed" in n for n in run.notes)
     assert any("truncated or damaged" in n for n in run.notes)

@@ -115,9 +115,15 @@ def test_bad_checksums_and_garbage_become_rejects_not_outputs() -> None:
 def test_novatel_bestpos_and_bestvel_share_an_epoch() -> None:
     data = (novatel.encode_bestposa(T0, 45.7, 126.6, 100.0, lat_std_m=0.5, lon_std_m=0.75, height_std_m=1.25,
                                     undulation_m=-8.0, position_type="NARROW_INT", satellites_used=12)
-            + novatel.encode_bestvela(T0, 2.5, 135.0)).encode()
+            + novatel.encode_bestvela(T0, 2.5, 135.0, -0.25)).encode()
     outs, rejects = run(gps.convert_novatel, data)
-    assert not rejects and [o.topic for o in outs] == ["/boat/gps", "/boat/gps/status"]
+    assert not rejects and [o.topic for o in outs] == ["/boat/gps", "/boat/gps/status", "/boat/gps/velocity"]
+    velocity = outs[2].message  # BESTVEL's velocity on a topic of its own: components, speed and course
+    assert outs[2].log_time_ns == T0 and velocity.source_format == "novatel:BESTPOSA,BESTVELA"
+    assert (velocity.speed_over_ground_mps, velocity.course_over_ground_deg, velocity.velocity_up_mps) == \
+        (2.5, 135.0, -0.25)
+    assert velocity.velocity_north_mps == pytest.approx(-2.5 * math.sqrt(0.5))
+    assert velocity.velocity_east_mps == pytest.approx(2.5 * math.sqrt(0.5))
     fix, status = outs[0].message, outs[1].message
     assert outs[0].log_time_ns == T0  # GPS week/seconds back to UTC through the leap seconds (18 s)
     assert (fix.latitude, fix.longitude, fix.altitude) == (45.7, 126.6, 92.0)

@@ -44,6 +44,9 @@ def test_design_table_fields_exist():
         "Detection": "timestamp leader method flagged score threshold feature_innovation_m "
                      "feature_mahalanobis2 feature_r_adapted_m2 label",
         "AnfisSnapshot": "time epoch membership consequents input_min input_max training_rmse",
+        # proposed row (issue 18): /<v>/gps/velocity
+        "GnssVelocity": "timestamp frame_id velocity_north_mps velocity_east_mps velocity_up_mps "
+                        "speed_over_ground_mps course_over_ground_deg speed_std_mps source_format",
     }
     for message, fields in wanted.items():
         names = set(getattr(auvreplay_pb2, message).DESCRIPTOR.fields_by_name)

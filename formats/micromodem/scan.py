@@ -1,8 +1,7 @@
 """`formats.micromodem.sentences.decode` as plain tuples: the recording hot path for Micro-Modem logs.
 
-`scan` yields what the range converter uses as ``(kind, values, offset,
-line, host ns)`` tuples, and every Reject; ping commands and other sentences
-are validated (a bad one is a Reject) but not yielded. The common sentences
+`scan` yields every record as ``(kind, values, offset, line, host ns)``
+tuples, and every Reject, so that the converter counts each line. The common sentences
 of a ping exchange ($CCMPC, $CAMPC, $CAMPA, $CAMPR), starting the text and
 checksummed, are read here, the checksum from a prefix XOR of the whole log;
 every other line, and any of those the fast reading doubts, goes through
@@ -12,7 +11,10 @@ every other line, and any of those the fast reading doubts, goes through
 Kinds and values:
 
 - "reply": (src, dest, one-way travel time s, reception UTC ns or None): $CAMPR, $CACMR,PNR;
-- "heard": (src,): $CAMPA, $CACMA,PNG, $CACYC, $CARXD, $CAMUA;
+- "sent": (src, dest, echo): $CCMPC (the host's command), $CAMPC (the modem's echo), $CCCMD/$CACMD,PNG;
+- "heard": (src, dest, what, UTC ns or None): $CAMPA and $CACMA,PNG ("ping"), $CACYC ("cycle"),
+  $CARXD and $CAMUA ("data");
+- "other": (address,): a well-framed sentence nothing is read from ($CAREV, $CATXF...);
 - "date": (date, time of day s): $CAXST; "clock": (UTC ns,): $CACLK;
 - "rxstats": (src, time of day s): $CACST; "toa": (time of day s or None, UTC ns or None): $CATOA.
 """
@@ -40,8 +42,14 @@ def _scanned(rec: mm.Record | Reject) -> Scanned | Reject | None:
     where = w.offset, w.line, w.host_time_ns
     if isinstance(rec, mm.PingReply):
         return "reply", (rec.src, rec.dest, rec.one_way_travel_time_s, rec.utc_ns), *where
-    if isinstance(rec, (mm.PingHeard, mm.CycleInit, mm.ReceivedData)):
-        return "heard", (rec.src,), *where
+    if isinstance(rec, mm.PingHeard):
+        return "heard", (rec.src, rec.dest, "ping", rec.utc_ns), *where
+    if isinstance(rec, mm.CycleInit):
+        return "heard", (rec.src, rec.dest, "cycle", None), *where
+    if isinstance(rec, mm.ReceivedData):
+        return "heard", (rec.src, rec.dest, "data", None), *where
+    if isinstance(rec, mm.PingCommand):
+        return "sent", (rec.src, rec.dest, rec.echo), *where
     if isinstance(rec, mm.TransmitStats):
         return "date", (rec.date, rec.tod_s), *where
     if isinstance(rec, mm.Clock):
@@ -50,6 +58,8 @@ def _scanned(rec: mm.Record | Reject) -> Scanned | Reject | None:
         return "rxstats", (rec.src, rec.tod_s), *where
     if isinstance(rec, mm.TimeOfArrival):
         return "toa", (rec.tod_s, rec.utc_ns), *where
+    if isinstance(rec, mm.OtherSentence):
+        return "other", (rec.address,), *where
     return None
 
 
@@ -64,9 +74,9 @@ def _fast(fields: list[str], round_trip: bool) -> tuple[str, tuple] | None | Lit
     if len(fields) < 3 or not (_ascii_int(fields[1]) and _ascii_int(fields[2])):
         return False
     if address in _PING_COMMANDS:
-        return None
+        return "sent", (int(fields[1]), int(fields[2]), address == "CAMPC")
     if address == "CAMPA":
-        return "heard", (int(fields[1]),)
+        return "heard", (int(fields[1]), int(fields[2]), "ping", None)
     if address != "CAMPR" or len(fields) < 4:
         return False
     try:

@@ -14,16 +14,21 @@ def run(args: argparse.Namespace) -> int:
     """Print the (sensor, format) table with a line of description each."""
     import json
 
-    from recorders.registry import converters, describe
+    from recorders.registry import converters, describe, manifest_examples
 
     table = converters()
     if args.json:
         out: dict[str, dict[str, str]] = {}
         for (sensor, fmt), fn in sorted(table.items()):
-            out.setdefault(sensor, {})[fmt] = describe(fn)
+            out.setdefault(sensor or "any", {})[fmt] = describe(fn)  # containers: no sensor key, "any"
         print(json.dumps(out, indent=2))
         return 0
     print(f"{'sensor':<7} {'format':<12} description")
     for (sensor, fmt), fn in sorted(table.items()):
-        print(f"{sensor:<7} {fmt:<12} {describe(fn)}")
+        print(f"{sensor or 'any':<7} {fmt:<12} {describe(fn)}")
+    print("\nContainers ('any': several sensors in one file, no `sensor` key); a manifest entry each:")
+    for fmt, example in manifest_examples().items():
+        print(f"\n# {fmt}\n{example.strip()}")
+    print("\nAny log may be rotated or split: path = \"gps.log.*\" (a glob, name order) or a list of paths;"
+          " order = \"time\" sorts the files by their first record time.")
     return 0

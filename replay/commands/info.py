@@ -46,7 +46,8 @@ def describe(path: str) -> dict[str, Any]:
         "vehicles": vehicles,
         "diagnostics": {
             f["path"]: {k: f.get(k) for k in ("vehicle", "sensor", "format", "parsed", "skipped", "bad_checksum",
-                                               "out_of_order", "duplicates", "start", "end")}
+                                               "out_of_order", "duplicates", "start", "end", "ignored",
+                                               "ignored_reasons", "parts", "notes")}
             for f in files
         },
         "metadata": summary.metadata_names,
@@ -93,9 +94,10 @@ def _print_text(info: dict[str, Any]) -> None:
         for a in info["attachments"]:
             print(f"  {a['name']}  ({a['size']} bytes)")
     if info["diagnostics"]:
-        print("logs:                                parsed  skipped  bad checksum")
+        print("logs:                                parsed  skipped  bad checksum  ignored")
         for path, d in info["diagnostics"].items():
-            print(f"  {path:<34} {_count(d['parsed']):>7}  {_count(d['skipped']):>7}  {_count(d['bad_checksum']):>12}")
+            print(f"  {path:<34} {_count(d['parsed']):>7}  {_count(d['skipped']):>7}  {_count(d['bad_checksum']):>12}"
+                  f"  {_count(d['ignored'] or 0):>7}")
     if info["warning"]:
         print(f"auvreplay info: warning: {info['warning']}", file=sys.stderr)
 

@@ -55,16 +55,23 @@ def print_summary(summary, out=None) -> None:
     from recorders.clock import iso_utc
 
     out = out or sys.stdout
-    rows = [("file", "vehicle", "sensor/format", "parsed", "skipped", "bad crc", "start", "end")]
+    rows = [("file", "vehicle", "sensor/format", "parsed", "skipped", "bad crc", "ignored", "start", "end")]
     for f in summary.files:
-        rows.append((f.path, f.vehicle, f"{f.sensor}/{f.format}", str(f.parsed), str(f.skipped),
-                     str(f.bad_checksum), iso_utc(f.start_ns) or "-", iso_utc(f.end_ns) or "-"))
+        rows.append((f.path, f.vehicle, f"{f.sensor or 'any'}/{f.format}", str(f.parsed), str(f.skipped),
+                     str(f.bad_checksum), str(f.ignored), iso_utc(f.start_ns) or "-", iso_utc(f.end_ns) or "-"))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     for k, r in enumerate(rows):
-        print("  ".join(c.rjust(w) if 3 <= i <= 5 else c.ljust(w) for i, (c, w) in enumerate(zip(r, widths))), file=out)
+        print("  ".join(c.rjust(w) if 3 <= i <= 6 else c.ljust(w) for i, (c, w) in enumerate(zip(r, widths))), file=out)
         if k == 0:
             print("  ".join("-" * w for w in widths), file=out)
     for f in summary.files:
+        for reason, count in sorted(f.ignored_reasons.items()):
+            print(f"note: {f.path}: {count} not archived: {reason}", file=out)
+        if f.parts:
+            print(f"note: {f.path}: one log of {len(f.parts)} files: {', '.join(p['path'] for p in f.parts)}",
+                  file=out)
+        for note in f.notes:
+            print(f"note: {note}", file=out)
         if f.out_of_order or f.duplicates:
             print(f"note: {f.path}: {f.out_of_order} out-of-order and {f.duplicates} duplicated times kept as logged",
                   file=out)

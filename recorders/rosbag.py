@@ -1,0 +1,367 @@
+"""ROS 1 / ROS 2 bags (`format = "rosbag"`) into the archive's sensor topics.
+
+Which topic is which sensor: the manifest's ``topics`` table
+(``topics = { "/gps/fix" = "gps", "/nmea" = "gps:nmea", "/auv2/odom" = { sensor = "ins", vehicle = "leader2" } }``;
+a topic it does not list is not mapped), else by message type:
+
+- ``sensor_msgs/NavSatFix`` -> ``/<v>/gps`` (LocationFix; its covariance and covariance type are the same ENU m²
+  convention) and ``/<v>/gps/status``. Status -1 (no fix) or a NaN position gives the status only.
+- ``nmea_msgs/Sentence`` and ``std_msgs/String`` whose text is a vendor sentence -> through our NMEA, PHINS,
+  Micro-Modem, EvoLogics or NovAtel converters (`recorders.containers`), one text stream per topic.
+- ``sensor_msgs/Imu`` -> ``/<v>/ins`` attitude (heading, roll, pitch and their sigmas); ``nav_msgs/Odometry``
+  -> ``/<v>/ins`` with position (latitude/longitude from the manifest's ``origin = [lat, lon]``, depth = -z in
+  an ENU frame), attitude and velocity rotated into NED.
+- ``geometry_msgs/TwistWithCovarianceStamped`` / ``TwistStamped`` on a GNSS topic (named gps, gnss, navsat,
+  fix_velocity; or mapped to "gps") -> ``/<v>/gps/velocity`` (its world frame, ENU unless ``_ned``); any other
+  -> ``/<v>/dvl`` (BODY_FRD from a ROS body frame,
+  EARTH_NED from a world frame), and DVL messages whose definitions the bag carries (any type named ``*Dvl*`` /
+  ``*DVL*`` with a ``velocity`` vector: Water Linked, ds_sensor_msgs, cola2, marine_acoustic_msgs, UUV
+  simulator) -> ``/<v>/dvl`` in the instrument frame (``dvl_frame`` overrides), with altitude, validity and
+  figure of merit where they have them.
+
+The bag: a ROS 1 ``.bag`` (a list or glob of them for a split recording), a ROS 2 storage file (``.mcap``,
+``.db3``), or a whole ROS 2 bag folder (``path = "dive3/*"``: its ``metadata.yaml`` with the split or
+compressed storage files it lists). Every file given is attached.
+
+Times: the header stamp is the measurement time (log time), the bag time the publish time; a message without a
+header or with a zero stamp takes its bag time. Every bag message is counted: archived, rejected with a reason,
+or ignored with a reason (an unmapped topic is listed once, with its type and count).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import replace
+from typing import Any
+
+from formats import rosbag as rb
+from formats import schemas as S
+from formats.records import FormatError, Reject, Where
+
+from . import dvl
+from .base import Converter, Ignored, LogContext, Output, output
+from .containers import (
+    TextStream,
+    attitude_deg,
+    body_to_ned,
+    checked_times,
+    convert_stream,
+    enu_to_ned,
+    finite_or_nan,
+    flu_to_frd,
+    is_ned,
+    is_world,
+    local_to_geodetic,
+    origin_option,
+)
+from .gnss_velocity import SUFFIX as VELOCITY
+from .gnss_velocity import gnss_velocity
+from .gps import gnss_status
+from .ins import ins_state
+from .manifest import SENSORS
+
+NAN = math.nan
+RAW_TYPES = ("nmea_msgs/Sentence", "std_msgs/String")
+INS_TYPES = ("sensor_msgs/Imu", "nav_msgs/Odometry")
+TWIST_TYPES = ("geometry_msgs/TwistWithCovarianceStamped", "geometry_msgs/TwistStamped")
+DEFAULT_FAMILY = {"sensor_msgs/NavSatFix": "gps", **{t: "" for t in RAW_TYPES},
+                  **{t: "ins" for t in INS_TYPES}, **{t: "dvl" for t in TWIST_TYPES}}
+# NavSatStatus.status -> GGA-style quality: -1 no fix, 0 fix, 1 SBAS, 2 GBAS (ground-based: DGPS/RTK)
+NAVSAT_QUALITY = {-1: 0, 0: 1, 1: 2, 2: 2}
+GNSS_WORDS = ("gps", "gnss", "fix_velocity", "navsat")
+# ds_sensor_msgs/Dvl (and marine_acoustic_msgs/Dvl) coordinate_mode: 0 beam, 1 instrument, 2 ship, 3 earth
+DVL_COORDINATE_MODES = {1: "INSTRUMENT", 2: "BODY_FRD", 3: "EARTH_NED"}
+
+
+def _is_dvl_type(msgtype: str) -> bool:
+    return "dvl" in msgtype.rsplit("/", 1)[-1].lower()
+
+
+def _target(topic: str, msgtype: str, ctx: LogContext) -> tuple[str, str, str] | None:
+    """(family, vehicle, "family[:format]" for raw text) of a topic, or None when it is not mapped."""
+    mapping = ctx.options.get("topics")
+    if isinstance(mapping, dict):
+        entry = mapping.get(topic)
+        if entry is None:
+            return None
+        if isinstance(entry, dict):
+            family = str(entry.get("sensor", ""))
+            vehicle = str(entry.get("vehicle", ctx.vehicle))
+            wanted = family + (":" + str(entry["format"]) if "format" in entry else "")
+        else:
+            wanted = str(entry)
+            family, vehicle = wanted.partition(":")[0], ctx.vehicle
+        return (None if family == "ignore" else (family, vehicle, wanted))
+    if msgtype in TWIST_TYPES and any(w in topic.lower() for w in GNSS_WORDS):
+        return "gps", ctx.vehicle, "gps"  # a GNSS receiver's velocity (ublox fix_velocity, /gps/vel...)
+    if msgtype in DEFAULT_FAMILY:
+        return DEFAULT_FAMILY[msgtype], ctx.vehicle, DEFAULT_FAMILY[msgtype]
+    if _is_dvl_type(msgtype):
+        return "dvl", ctx.vehicle, "dvl"
+    return None
+
+
+def _stamp_ns(msg: Any, bag_ns: int) -> int:
+    """The header stamp (ns), else the bag time for a message without header or with a zero stamp."""
+    stamp = getattr(getattr(msg, "header", None), "stamp", None)
+    if stamp is None:
+        return bag_ns
+    sec = getattr(stamp, "sec", getattr(stamp, "secs", 0))
+    nsec = getattr(stamp, "nanosec", getattr(stamp, "nsecs", 0))
+    try:
+        t = int(sec) * 1_000_000_000 + int(nsec)
+    except (TypeError, ValueError):
+        return bag_ns
+    return t if t > 0 else bag_ns
+
+
+def _frame(msg: Any) -> str:
+    return str(getattr(getattr(msg, "header", None), "frame_id", "") or "")
+
+
+def _vec(v: Any) -> tuple[float, float, float]:
+    return finite_or_nan(getattr(v, "x", NAN)), finite_or_nan(getattr(v, "y", NAN)), finite_or_nan(getattr(v, "z", NAN))
+
+
+def _quat(q: Any) -> tuple[float, float, float, float]:
+    return (*_vec(q), finite_or_nan(getattr(q, "w", NAN)))
+
+
+def _cov(values: Any, n: int) -> list[float]:
+    out = [finite_or_nan(v) for v in list(values if values is not None else ())[:n]]
+    return out + [NAN] * (n - len(out))
+
+
+def _sigma_deg(variance_rad2: float) -> float:
+    return math.degrees(math.sqrt(variance_rad2)) if variance_rad2 >= 0 else NAN
+
+
+class _Bag:
+    """One recording of a bag's messages: converts each, keeps raw text streams to convert at the end."""
+
+    def __init__(self, ctx: LogContext):
+        self.ctx = ctx
+        self.origin = origin_option(ctx)
+        self.streams: dict[str, TextStream] = {}
+
+    def item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored]:
+        label = f"{m.topic} ({m.msgtype})"
+        target = _target(m.topic, m.msgtype, self.ctx)
+        if target is None:
+            yield Ignored(where, f"topic {label} is not mapped")
+            return
+        family, vehicle, wanted = target
+        if m.problem:
+            yield Reject(where, f"{label}: {m.problem}")
+            return
+        if family and family not in SENSORS:
+            yield Reject(where, f"{label}: the manifest maps it to {family!r}, not one of {', '.join(SENSORS)}")
+            return
+        ctx = self.ctx if vehicle == self.ctx.vehicle else _with_vehicle(self.ctx, vehicle)
+        t = _stamp_ns(m.message, m.bag_time_ns) + ctx.clock_offset_ns
+        publish = m.bag_time_ns + ctx.clock_offset_ns
+        msg = m.message
+        if m.msgtype in RAW_TYPES:
+            text = getattr(msg, "sentence", None) if m.msgtype == "nmea_msgs/Sentence" else getattr(msg, "data", None)
+            if not isinstance(text, str):
+                yield Reject(where, f"{label}: no text")
+                return
+            stream = self.streams.get(m.topic)
+            if stream is None:
+                stream = self.streams[m.topic] = TextStream(vehicle, wanted)
+            stream.add(text, where, t - ctx.clock_offset_ns, publish)
+            return
+        if m.msgtype == "sensor_msgs/NavSatFix":
+            yield from _navsatfix(ctx, msg, t, publish, where)
+        elif m.msgtype == "sensor_msgs/Imu":
+            yield from _imu(ctx, msg, t, publish, where)
+        elif m.msgtype == "nav_msgs/Odometry":
+            yield from _odometry(ctx, msg, t, publish, where, self.origin)
+        elif m.msgtype in TWIST_TYPES and family == "gps":
+            yield _gnss_twist(ctx, m.msgtype, msg, t, publish, where)
+        elif m.msgtype in TWIST_TYPES or _is_dvl_type(m.msgtype):
+            yield from _velocity(ctx, m.msgtype, msg, t, publish, where)
+        else:
+            yield Reject(where, f"{label}: mapped to {family}, but we convert no {m.msgtype} message")
+
+    def finish(self) -> Iterator[Output | Reject | Ignored]:
+        for topic, stream in self.streams.items():
+            yield from convert_stream(stream, self.ctx, topic)
+
+
+def _with_vehicle(ctx: LogContext, vehicle: str) -> LogContext:
+    return replace(ctx, vehicle=vehicle)
+
+
+def _out(ctx: LogContext, suffix: str, message: Any, t: int, publish: int, where: Where) -> Output:
+    item = output(ctx, suffix, message, t, where)
+    item.publish_time_ns = publish
+    return item
+
+
+def _navsatfix(ctx: LogContext, msg: Any, t: int, publish: int, where: Where) -> Iterator[Output | Reject]:
+    status = getattr(getattr(msg, "status", None), "status", -1)
+    try:
+        quality = NAVSAT_QUALITY.get(int(status), 0)
+    except (TypeError, ValueError):
+        quality = 0
+    lat, lon = finite_or_nan(getattr(msg, "latitude", NAN)), finite_or_nan(getattr(msg, "longitude", NAN))
+    alt = finite_or_nan(getattr(msg, "altitude", NAN))
+    if quality > 0 and math.isfinite(lat) and math.isfinite(lon) and -90 <= lat <= 90:
+        cov = _cov(getattr(msg, "position_covariance", ()), 9)
+        kind = getattr(msg, "position_covariance_type", 0)
+        kind = int(kind) if isinstance(kind, int) and 0 <= kind <= 3 and all(map(math.isfinite, cov)) else 0
+        fix = S.location_fix(t, ctx.vehicle, lat, (lon + 180.0) % 360.0 - 180.0, alt,
+                             tuple(cov) if kind else None, kind)
+        yield _out(ctx, "gps", fix, t, publish, where)
+    source = "rosbag:sensor_msgs/NavSatFix"
+    yield _out(ctx, "gps/status", gnss_status(t, ctx.vehicle, quality, -1, NAN, source, NAN, NAN, NAN),
+               t, publish, where)
+
+
+def _imu(ctx: LogContext, msg: Any, t: int, publish: int, where: Where) -> Iterator[Output | Reject]:
+    cov = _cov(getattr(msg, "orientation_covariance", ()), 9)
+    if cov[0] == -1:  # REP-145: -1 in the first element means the IMU gives no orientation
+        yield Reject(where, "sensor_msgs/Imu without orientation (orientation_covariance[0] = -1)")
+        return
+    roll, pitch, heading = attitude_deg(_quat(getattr(msg, "orientation", None)), is_ned(_frame(msg)))
+    if not math.isfinite(heading):
+        yield Reject(where, "sensor_msgs/Imu orientation is not a rotation (zero or NaN quaternion)")
+        return
+    state = ins_state(t, ctx, "rosbag:sensor_msgs/Imu", roll_deg=roll, pitch_deg=pitch, heading_deg=heading,
+                      roll_std_deg=_sigma_deg(cov[0]), pitch_std_deg=_sigma_deg(cov[4]),
+                      heading_std_deg=_sigma_deg(cov[8]))
+    yield _out(ctx, "ins", state, t, publish, where)
+
+
+def _odometry(ctx: LogContext, msg: Any, t: int, publish: int, where: Where,
+              origin: tuple[float, float] | None) -> Iterator[Output | Reject]:
+    pose = getattr(getattr(msg, "pose", None), "pose", None)
+    ned = is_ned(_frame(msg))
+    position = _vec(getattr(pose, "position", None))
+    north, east, down = position if ned else enu_to_ned(position)
+    roll, pitch, heading = attitude_deg(_quat(getattr(pose, "orientation", None)), ned)
+    lat, lon = local_to_geodetic(north, east, origin)
+    linear = _vec(getattr(getattr(getattr(msg, "twist", None), "twist", None), "linear", None))
+    child = str(getattr(msg, "child_frame_id", "") or "")
+    if is_world(child):  # a twist given in a world frame, against REP-103's child frame
+        vn, ve, vd = linear if is_ned(child) else enu_to_ned(linear)
+    elif math.isfinite(heading):
+        vn, ve, vd = body_to_ned(linear if is_ned(child) else flu_to_frd(linear), roll, pitch, heading)
+    else:
+        vn = ve = vd = NAN
+    pcov = _cov(getattr(getattr(msg, "pose", None), "covariance", ()), 36)
+    sn, se = (pcov[0], pcov[7]) if ned else (pcov[7], pcov[0])
+    if not any(map(math.isfinite, (north, east, down, heading, vn))):
+        yield Reject(where, "nav_msgs/Odometry with neither position, orientation nor velocity")
+        return
+    state = ins_state(t, ctx, "rosbag:nav_msgs/Odometry", latitude=lat, longitude=lon, depth_m=down,
+                      roll_deg=roll, pitch_deg=pitch, heading_deg=heading, velocity_north_mps=vn,
+                      velocity_east_mps=ve, velocity_down_mps=vd,
+                      position_std_north_m=math.sqrt(sn) if sn >= 0 else NAN,
+                      position_std_east_m=math.sqrt(se) if se >= 0 else NAN,
+                      heading_std_deg=_sigma_deg(pcov[35]))
+    yield _out(ctx, "ins", state, t, publish, where)
+
+
+def _gnss_twist(ctx: LogContext, msgtype: str, msg: Any, t: int, publish: int, where: Where) -> Output:
+    """A GNSS receiver's Twist: linear velocity in its world frame (ENU unless the frame is _ned)."""
+    twist = getattr(msg, "twist", None)
+    twist = getattr(twist, "twist", twist)
+    v = _vec(getattr(twist, "linear", None))
+    north, east, down = v if is_ned(_frame(msg)) else enu_to_ned(v)
+    cov = _cov(getattr(getattr(msg, "twist", None), "covariance", ()), 36)
+    horizontal = cov[0] + cov[7]
+    velocity = gnss_velocity(ctx, t, "rosbag:" + msgtype, north=north, east=east, up=-down,
+                             speed_std=math.sqrt(horizontal) if horizontal >= 0 else NAN)
+    return _out(ctx, VELOCITY, velocity, t, publish, where)
+
+
+def _velocity(ctx: LogContext, msgtype: str, msg: Any, t: int, publish: int,
+              where: Where) -> Iterator[Output | Reject]:
+    source = "rosbag:" + msgtype
+    if msgtype in TWIST_TYPES:
+        twist = getattr(msg, "twist", None)
+        twist = getattr(twist, "twist", twist)  # WithCovariance nests one more level
+        v = _vec(getattr(twist, "linear", None))
+        frame_id = _frame(msg)
+        if is_world(frame_id):
+            frame, v = "EARTH_NED", (v if is_ned(frame_id) else enu_to_ned(v))
+        else:
+            frame, v = "BODY_FRD", (v if is_ned(frame_id) else flu_to_frd(v))
+        if "dvl_frame" in ctx.options:
+            frame = dvl.frame_option(ctx, frame)
+        yield _out(ctx, "dvl", dvl.message(ctx, t, frame, v, source=source), t, publish, where)
+        return
+    velocity = getattr(msg, "velocity", None)
+    if velocity is None or not hasattr(velocity, "x"):
+        yield Reject(where, f"{msgtype} has no velocity vector")
+        return
+    v = _vec(velocity)
+    valid = None
+    for name in ("velocity_valid", "valid"):
+        flag = getattr(msg, name, None)
+        if isinstance(flag, (bool, int)):
+            valid = bool(flag) and all(map(math.isfinite, v))
+    altitude = finite_or_nan(getattr(msg, "altitude", NAN))
+    fom = finite_or_nan(getattr(msg, "fom", getattr(msg, "figure_of_merit", NAN)))
+    frame = "INSTRUMENT"
+    mode = getattr(msg, "coordinate_mode", None)  # ds_sensor_msgs / marine_acoustic_msgs: the frame it is in
+    if isinstance(mode, int):
+        if mode not in DVL_COORDINATE_MODES:
+            yield Reject(where, f"{msgtype}: velocity in beam coordinates (coordinate_mode {mode}): not archived")
+            return
+        frame = DVL_COORDINATE_MODES[mode]
+    frame = dvl.frame_option(ctx, frame)
+    sound = finite_or_nan(getattr(msg, "sound_speed", NAN))
+    yield _out(ctx, "dvl", dvl.message(ctx, t, frame, v, altitude=altitude, valid=valid, fom=fom, sound_speed=sound,
+                                       source=source), t, publish, where)
+
+
+def convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+    """ROS 1 .bag, ROS 2 .mcap/.db3 (rosbags): NavSatFix, NMEA/text sentences, Imu, Odometry, Twist, DVL."""
+    return checked_times(_convert_rosbag(data, ctx))
+
+
+def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+    if not ctx.files:
+        raise FormatError("a bag is read from its file: no file given")
+    bag = _Bag(ctx)
+    start, number = 0, 0
+    folders = {p.parent for p in ctx.files if p.name == "metadata.yaml"}
+    # a ROS 2 bag folder given whole (path = "dive3/*"): its metadata.yaml reads every storage file of it
+    files = [p for p in ctx.files if p.name == "metadata.yaml" or p.parent not in folders]
+    for path in files:
+        try:
+            size = path.stat().st_size
+        except OSError as exc:
+            raise FormatError(f"cannot read {path.name} ({exc.strerror or exc})") from exc
+        # offset: the file's first byte in the log plus the message's index in it, so that the recorder maps
+        # each message to its file (a message takes more than one byte) for a split bag's gap report
+        for m in rb.read_bag(path):
+            number += 1
+            where = Where(start + min(m.index, max(size - 1, 0)), None, m.bag_time_ns, number)
+            if not m.topic:
+                yield Reject(where, m.problem)
+                continue
+            yield from bag.item(m, where)
+        start += size
+    yield from bag.finish()
+
+
+MANIFEST_EXAMPLE = """[[vehicles.logs]]
+format = "rosbag"                  # ROS 1 .bag, ROS 2 .mcap or .db3 (the storage file inside the bag folder)
+path = "auv1/dive3/dive3_0.mcap"
+origin = [45.70, 126.60]           # datum of the bag's local (odom/map) frame, for Odometry positions
+
+[vehicles.logs.topics]             # optional: topic -> sensor (else by message type); others are not mapped
+"/gps/fix" = "gps"
+"/nmea" = "gps:nmea"               # raw sentences: family and vendor format
+"/phins/raw" = "ins:phins"
+"/odometry/filtered" = "ins"
+"/dvl/twist" = "dvl"
+"/buddy/fix" = { sensor = "gps", vehicle = "follower" }
+"""
+
+CONVERTERS: dict[str, Converter] = {"rosbag": convert_rosbag}
