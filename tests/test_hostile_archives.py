@@ -84,9 +84,12 @@ def test_zstd_frame_that_says_more_than_the_chunk_is_not_allocated():
 def test_declared_16_gib_chunk_is_refused(trial, tmp_path):
     path = tmp_path / "declared.mcap"
     path.write_bytes(trial.read_bytes())
-    set_declared_size(path, chunk_offsets(path)[1], 16 * GIB)
+    with ArchiveReader(path) as r:   # the chunk that holds the follower's ranges: without them nothing scores
+        ranges = next(c.id for c in r._index.channels.values() if c.topic == "/follower/modem/range")
+        scored = next(ci.chunk_start_offset for ci in r._index.chunk_indexes if ranges in ci.message_index_offsets)
+    set_declared_size(path, scored, 16 * GIB)
     rc, err, rss = run_child("replay", str(path), *REPLAY, "-o", str(tmp_path / "r.mcap"))
-    # the chunk held the window's follower data: nothing left to score is said as such
+    # the chunk held the window's scored follower data: nothing left to score is said as such
     assert rc == 1 and "16.0 GiB uncompressed, over the 64 MiB limit" in one_line(err, "error"), err
     assert rss < RSS_LIMIT_KB
 
@@ -147,7 +150,9 @@ def test_one_in_97_messages_garbage(trial, tmp_path, capsys):
     with ArchiveReader(path) as r:
         n = sum(1 for _ in r.messages())
         skipped = sum(r.damage.messages.values())
-    assert skipped > 0 and n + skipped <= 23501
+    with ArchiveReader(trial) as r:
+        total = sum(1 for _ in r.messages())
+    assert skipped > 0 and n + skipped <= total
 
 
 def _library_archive(path: Path, compression: CompressionType, encoding: str = "protobuf",

@@ -46,6 +46,7 @@ from formats.waterlinked import crc8  # noqa: E402
 from recorders.base import LogContext  # noqa: E402
 from recorders.manifest import load_manifest  # noqa: E402
 from recorders.registry import converters  # noqa: E402
+from tests.test_ecosystem_inputs import ALOG, write_ros1, write_tlog  # noqa: E402
 
 SAMPLE = ROOT / "samples" / "lake_trial"
 BOOK = {1: "leader1", 2: "leader2", 3: "follower", 11: "buoy1", 12: "buoy2", 13: "buoy3", 14: "buoy4"}
@@ -121,6 +122,13 @@ def seeds() -> dict[str, tuple[bytes, dict]]:
     out.setdefault("modem/evologics", out["usbl/evologics"])
     out.setdefault("gps/novatel", out.get("ins/novatel", (gps, {})))
     out.setdefault("ins/novatel", out["gps/novatel"])
+    # the container formats (no sensor key), built as the ecosystem tests build them
+    with tempfile.TemporaryDirectory(prefix="fuzz-seeds-") as tmp:
+        write_ros1(Path(tmp) / "trial.bag")
+        write_tlog(Path(tmp) / "trial.tlog")
+        out.setdefault("/rosbag", ((Path(tmp) / "trial.bag").read_bytes(), {}))
+        out.setdefault("/mavlink", ((Path(tmp) / "trial.tlog").read_bytes(), {}))
+    out.setdefault("/alog", (ALOG.encode(), {"origin": [45.7, 126.6]}))
     return out
 
 
