@@ -25,6 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import median_time, print_table  # noqa: E402
+
 from replay.stack.detectors import anfis as A
 from replay.stack.detectors.aqpso import AqpsoSettings, train_aqpso_ga  # noqa: E402
 
@@ -81,10 +82,10 @@ def sample_trial_cases() -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, 
     unisolated there), target |Z - Z_gps|; test: the open-loop ACKF epochs
     after t_a, normalized with the training window's bounds, as the detector does.
     """
-    from tests.sim_arrays import run_on_arrays
     from replay.stack.config import StackConfig
     from samples.scenario import Scenario
     from samples.simulator import simulate_trial
+    from tests.sim_arrays import run_on_arrays
 
     config = StackConfig(methods=("ackf", "anfis"))
     results, _ = run_on_arrays(simulate_trial(Scenario(), 0), config)

@@ -25,10 +25,9 @@ from collections.abc import Callable
 import numpy as np
 
 from replay.stack import model
-
+from replay.stack.config import METHODS, StackConfig
 from replay.stack.filters import ckf
 from replay.stack.filters.ckf import State2
-from replay.stack.config import METHODS, StackConfig
 from replay.stack.runner import CooperativeRunner, RunResults
 
 LAT, LON = math.radians(45.7), math.radians(126.6)

@@ -40,8 +40,9 @@ import sys
 import tempfile
 import time
 from collections import defaultdict
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -51,11 +52,11 @@ from common import interleaved, print_table  # noqa: E402
 from mcap.reader import SeekingReader  # noqa: E402
 from mcap.writer import CompressionType, Writer  # noqa: E402
 
+import recorders.record as recording  # noqa: E402
+import recorders.record_parallel as parallel_recording  # noqa: E402
 from formats.mcap_writer import ArchiveWriter  # noqa: E402
 from formats.schemas import MESSAGE_CLASSES  # noqa: E402
 from recorders.manifest import load_manifest  # noqa: E402
-import recorders.record as recording  # noqa: E402
-import recorders.record_parallel as parallel_recording  # noqa: E402
 from recorders.record import record, resolve_workers  # noqa: E402
 from recorders.record_parallel import available_cores  # noqa: E402
 

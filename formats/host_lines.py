@@ -11,8 +11,8 @@ offset, Unix seconds, a second 60, no prefix) goes through
 from __future__ import annotations
 
 import re
-from datetime import datetime, timezone
-from typing import Iterator
+from collections.abc import Iterator
+from datetime import UTC, datetime
 
 from .lines import PREFIX_STYLES, strip_prefix
 
@@ -26,7 +26,7 @@ _FAST_ISO = re.compile(r"(\d{4}-\d\d-\d\dT\d\d:\d\d:)(\d\d)\.(\d+)Z\]?[ \t,;|]*"
 def _minute_ns(key: str) -> int | None:
     """Unix ns of 'YYYY-MM-DDTHH:MM:' at second 0, None when datetime refuses it."""
     try:
-        return int(datetime.fromisoformat(key + "00").replace(tzinfo=timezone.utc).timestamp()) * NS
+        return int(datetime.fromisoformat(key + "00").replace(tzinfo=UTC).timestamp()) * NS
     except ValueError:
         return None
 

@@ -9,9 +9,9 @@ brackets) or Unix seconds (``1476259201.250``).
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass
-from datetime import datetime, timezone
-from typing import Iterator
+from datetime import UTC, datetime
 
 from .records import Where
 
@@ -38,7 +38,7 @@ def _iso_to_ns(stamp: str, zone: str | None) -> int:
     if zone and zone != "Z":
         dt = dt.replace(tzinfo=datetime.fromisoformat("2000-01-01T00:00:00" + zone).tzinfo)
     else:
-        dt = dt.replace(tzinfo=timezone.utc)
+        dt = dt.replace(tzinfo=UTC)
     frac_ns = int((frac + "000000000")[:9]) if frac else 0
     return int(dt.timestamp()) * 1_000_000_000 + frac_ns
 

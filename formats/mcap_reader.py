@@ -19,9 +19,10 @@ import json
 import os
 import struct
 from collections import Counter
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any
 
 from google.protobuf.message import DecodeError
 from mcap.exceptions import McapError
@@ -332,7 +333,7 @@ class ArchiveReader:
             except RecordError as exc:
                 self.damage.bad_record("attachment", str(exc))
 
-    def to_dataframe(self, topic: str, start_ns: int | None = None, end_ns: int | None = None) -> "Any":
+    def to_dataframe(self, topic: str, start_ns: int | None = None, end_ns: int | None = None) -> Any:
         """A pandas DataFrame of one topic: UTC DatetimeIndex (log time), one column per field."""
         from .dataframe import messages_to_dataframe
 
@@ -342,7 +343,7 @@ class ArchiveReader:
         """Close the file."""
         self._file.close()
 
-    def __enter__(self) -> "ArchiveReader":
+    def __enter__(self) -> ArchiveReader:
         return self
 
     def __exit__(self, *exc: Any) -> None:

@@ -34,9 +34,10 @@ import json
 import os
 import struct
 import zlib
+from collections.abc import Mapping
 from itertools import chain
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import zstandard
 from mcap_protobuf.schema import build_file_descriptor_set
@@ -338,7 +339,7 @@ class ArchiveWriter:
         self._topics = {}
         self._by_id = {}
 
-    def __enter__(self) -> "ArchiveWriter":
+    def __enter__(self) -> ArchiveWriter:
         return self
 
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:

@@ -23,9 +23,9 @@ The NMEA XOR checksum is verified when present.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from datetime import datetime, timezone
-from typing import Iterator, Sequence
+from datetime import UTC, datetime
 
 from .lines import iter_lines
 from .nmea.framing import build, frame
@@ -126,7 +126,7 @@ def _date_time_ns(date: str, tod: str) -> int | None:
         return None
     try:
         dt = datetime(2000 + int(date[4:6]), int(date[0:2]), int(date[2:4]), int(whole[0:2]),
-                      int(whole[2:4]), int(whole[4:6]), tzinfo=timezone.utc)
+                      int(whole[2:4]), int(whole[4:6]), tzinfo=UTC)
     except ValueError:
         return None
     return int(dt.timestamp()) * _NS + int((frac + "000000000")[:9])

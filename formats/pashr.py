@@ -15,8 +15,8 @@ bad checksums are Rejects.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Iterator
 
 from .nmea.fields import NAN, parse_tod
 from .nmea.framing import build

@@ -25,8 +25,8 @@ from __future__ import annotations
 
 import math
 import struct
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from typing import Iterator, Sequence
 
 from .pd0.frames import beam_to_instrument
 from .records import Reject, Where

@@ -22,9 +22,9 @@ are ignored. An ensemble runs from :SA or :TS to the next :SA or :TS.
 from __future__ import annotations
 
 import math
-from datetime import datetime, timezone
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Iterator, Sequence
+from datetime import UTC, datetime
 
 from .lines import iter_lines
 from .records import Reject, Where
@@ -127,7 +127,7 @@ def _ts_time(stamp: str) -> int | None:
         return None
     try:
         dt = datetime(2000 + int(s[0:2]), int(s[2:4]), int(s[4:6]), int(s[6:8]), int(s[8:10]),
-                      int(s[10:12]), tzinfo=timezone.utc)
+                      int(s[10:12]), tzinfo=UTC)
     except ValueError:
         return None
     return int(dt.timestamp()) * _NS + int(s[12:14]) * 10_000_000
@@ -267,7 +267,7 @@ def encode_ts(time_ns: int, *, salinity_ppt: float = 0.0, temperature_c: float =
               depth_m: float = 0.0, sound_speed_mps: float = 1500.0, bit: int = 0) -> str:
     """:TS line with CRLF (time truncated to 0.01 s; years 2000-2099)."""
     sec, rem = divmod(int(time_ns), _NS)
-    dt = datetime.fromtimestamp(sec, tz=timezone.utc)
+    dt = datetime.fromtimestamp(sec, tz=UTC)
     stamp = dt.strftime("%y%m%d%H%M%S") + f"{rem // 10_000_000:02d}"
     return (f":TS,{stamp},{salinity_ppt:04.1f},{temperature_c:+05.1f},{depth_m:06.1f},"
             f"{sound_speed_mps:06.1f},{bit:03d}\r\n")

@@ -28,8 +28,9 @@ sentence and bad checksums are Rejects.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Callable, Iterator, Union
+from typing import Union
 
 from .lines import PREFIX_STYLES
 from .nmea.fields import NAN, parse_tod
@@ -287,7 +288,7 @@ def decode(data: bytes, prefix: str = "auto") -> Iterator[PhinsRecord | Reject]:
 
 
 # (epoch key, values in record field order after `where`, byte offset, line, host time ns or None)
-Scanned = tuple[str, tuple, int, int, Union[int, None]]
+Scanned = tuple[str, tuple, int, int, int | None]
 
 
 def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:

@@ -38,9 +38,10 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from datetime import date, datetime, timezone
-from typing import Any, Iterator, Mapping
+from datetime import UTC, date, datetime
+from typing import Any
 
 # user patterns run on the `regex` engine for its per-match time limit: a pattern from a shared manifest
 # that backtracks without end ((a|aa)+$) is refused with a message instead of hanging `record`
@@ -120,7 +121,7 @@ def parse_iso8601_ns(text: str) -> int:
         raise ValueError(f"not an ISO 8601 time: {text!r}")
     dt = datetime.fromisoformat(f"{m.group(1)}T{m.group(2)}")
     zone = m.group(4)
-    tz = timezone.utc if zone in (None, "Z") else datetime.fromisoformat("2000-01-01T00:00:00" + zone).tzinfo
+    tz = UTC if zone in (None, "Z") else datetime.fromisoformat("2000-01-01T00:00:00" + zone).tzinfo
     frac = m.group(3) or ""
     return int(dt.replace(tzinfo=tz).timestamp()) * NS + int((frac + "0" * 9)[:9])
 

@@ -26,8 +26,9 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any, Iterator, Sequence
+from typing import Any
 
 from .lines import iter_lines
 from .records import Reject, Where
@@ -69,7 +70,7 @@ class VelocityReport:
     time_of_transmission_us: int | None
     since_last_ms: float
     status: int
-    transducers: tuple["TransducerReport", ...] = ()
+    transducers: tuple[TransducerReport, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)

@@ -19,8 +19,9 @@ interleaved; `pack` does the interleaving for anyone else.
 from __future__ import annotations
 
 import struct
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence, cast
+from typing import Any, cast
 
 from foxglove_schemas_protobuf.LocationFix_pb2 import LocationFix
 from google.protobuf.descriptor import FieldDescriptor

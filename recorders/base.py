@@ -9,10 +9,11 @@ bad records: they yield a `formats.records.Reject` and go on.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from datetime import date
 from pathlib import Path
-from typing import Any, Callable, Iterator, Mapping
+from typing import Any
 
 from formats.records import Reject, Where
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import calendar
 import math
-from datetime import date
+from datetime import UTC, date
 from functools import lru_cache
 
 from formats.gpstime import gps_to_unix_ns
@@ -69,8 +69,8 @@ def iso_utc(ns: int | None) -> str | None:
     """ISO 8601 UTC text ('...Z') for ns since the Unix epoch; None stays None."""
     if ns is None:
         return None
-    from datetime import datetime, timezone
+    from datetime import datetime
 
     sec, frac = divmod(int(ns), NS)
-    text = datetime.fromtimestamp(sec, tz=timezone.utc).strftime("%Y-%m-%dT%H:%M:%S")
+    text = datetime.fromtimestamp(sec, tz=UTC).strftime("%Y-%m-%dT%H:%M:%S")
     return f"{text}Z" if frac == 0 else f"{text}.{frac:09d}".rstrip("0") + "Z"

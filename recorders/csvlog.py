@@ -14,8 +14,9 @@ Fields are those of the family's message (`auvreplay formats` lists them);
 from __future__ import annotations
 
 import math
-from datetime import datetime, timezone
-from typing import Any, Callable, Iterator
+from collections.abc import Callable, Iterator
+from datetime import UTC, datetime
+from typing import Any
 
 from google.protobuf.descriptor import FieldDescriptor
 
@@ -44,7 +45,7 @@ def _time_parser(kind: str, ctx: LogContext) -> Callable[[str], int | None]:
     if kind == "iso8601":
         def iso(s: str) -> int:
             dt = datetime.fromisoformat(s.replace("Z", "+00:00"))
-            dt = dt if dt.tzinfo else dt.replace(tzinfo=timezone.utc)
+            dt = dt if dt.tzinfo else dt.replace(tzinfo=UTC)
             return round(dt.timestamp() * NS)
         return iso
     if kind == "tod":

@@ -25,7 +25,8 @@ order or repeated times are kept as they come.
 from __future__ import annotations
 
 import math
-from typing import Any, Iterator, Sequence
+from collections.abc import Iterator, Sequence
+from typing import Any
 
 import numpy as np
 from google.protobuf.timestamp_pb2 import Timestamp

@@ -9,7 +9,8 @@ apply the same rule inline on scanned tuples.
 
 from __future__ import annotations
 
-from typing import Callable, Hashable, Iterable, Iterator, Protocol, TypeVar
+from collections.abc import Callable, Hashable, Iterable, Iterator
+from typing import Protocol, TypeVar
 
 from formats.records import Reject, Where
 

@@ -12,7 +12,8 @@ APPROXIMATED; else None and UNKNOWN. UERE depends on the fix quality
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 from formats import schemas as S
 

@@ -27,8 +27,8 @@ added to all of them. A time of day without any date is rejected.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from math import isnan
-from typing import Iterator
 
 from formats import schemas as S
 from formats.lines import PREFIX_STYLES

@@ -11,8 +11,8 @@ time at all, get None, and the per-line path.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from itertools import repeat
-from typing import Iterator
 
 import numpy as np
 

@@ -26,7 +26,7 @@ Epochs (see `recorders.epochs.group_epochs`):
 from __future__ import annotations
 
 import math
-from typing import Iterator
+from collections.abc import Iterator
 
 from formats import pashr, phins
 from formats import schemas as S

@@ -31,10 +31,11 @@ What each record produces (everything else is parsed, validated and counted):
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from functools import partial
-from typing import Any, Callable, Iterator, Mapping
+from typing import Any
 
 from formats import acoustic_messages as AM
 from formats import regex_lines as rx
@@ -212,7 +213,7 @@ def set_modem_date(clock: DayClock, rec: mm.TransmitStats | mm.Clock) -> None:
     if isinstance(rec, mm.TransmitStats):
         clock.set_date(rec.date, rec.tod_s)
         return
-    dt = datetime.fromtimestamp(rec.utc_ns // NS, tz=timezone.utc)
+    dt = datetime.fromtimestamp(rec.utc_ns // NS, tz=UTC)
     clock.set_date(dt.date(), (rec.utc_ns % DAY_NS) / NS)
 
 

@@ -9,8 +9,8 @@ paths apply the same rules to scanned values and columns.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Iterator
 
 from formats.nmea.sentences import (
     KNOT_MPS,

@@ -8,7 +8,7 @@ arrival order; values sit at the positions of the record fields.
 from __future__ import annotations
 
 import math
-from typing import Iterator
+from collections.abc import Iterator
 
 from formats.gpstime import gps_to_unix_ns
 from formats.novatel import scan as novatel_scan

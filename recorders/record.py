@@ -6,11 +6,12 @@ import bisect
 import hashlib
 import mimetypes
 from collections import Counter
+from collections.abc import Callable, Iterator
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from functools import partial
 from pathlib import Path
-from typing import Any, Callable, Iterator, Protocol
+from typing import Any, Protocol
 
 from formats import schemas as S
 from formats.mcap_writer import ArchiveWriter

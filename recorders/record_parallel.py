@@ -35,10 +35,11 @@ import tempfile
 import threading
 import traceback
 from array import array
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection, wait
 from multiprocessing.reduction import recv_handle, send_handle
-from typing import Any, Callable, Generic, TypeVar
+from typing import Any, Generic, TypeVar
 
 from formats.mcap_writer import ArchiveWriter
 from formats.schemas import MESSAGE_CLASSES
@@ -350,7 +351,7 @@ class WorkerPool(Generic[T]):
             os.close(fd)
         self._all, self._live, self._results = [], {}, {}
 
-    def __enter__(self) -> "WorkerPool[T]":
+    def __enter__(self) -> WorkerPool[T]:
         return self
 
     def __exit__(self, *exc: Any) -> None:

@@ -26,9 +26,9 @@ when the line has a position but no angles.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from functools import partial
-from typing import Iterator, Mapping
 
 from formats import acoustic_messages as AM
 from formats import regex_lines as rx

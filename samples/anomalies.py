@@ -9,8 +9,8 @@ the vehicles' GPS fixes, Z the measured range made horizontal.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 

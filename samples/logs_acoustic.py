@@ -7,7 +7,7 @@ timestamp a data logger adds (`formats.lines` strips it on decoding).
 from __future__ import annotations
 
 import math
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import numpy as np
 
@@ -27,7 +27,7 @@ ECHO_DELAY_NS = 5_000_000
 def iso(t_ns: int) -> str:
     """ISO 8601 UTC with microseconds and a Z, as the host prefixes and CSVs write it."""
     sec, rem = divmod(int(t_ns), NS)
-    stamp = datetime.fromtimestamp(sec, tz=timezone.utc).strftime("%Y-%m-%dT%H:%M:%S")
+    stamp = datetime.fromtimestamp(sec, tz=UTC).strftime("%Y-%m-%dT%H:%M:%S")
     return f"{stamp}.{rem // 1000:06d}Z"
 
 

@@ -17,8 +17,7 @@ import numpy as np
 from . import acoustics as ac
 from .anomalies import Interval
 from .scenario import Scenario, validate
-from .sensors import (DvlSeries, GpsSeries, InsSeries, heading_error, simulate_dvl, simulate_gps,
-                      simulate_ins)
+from .sensors import DvlSeries, GpsSeries, InsSeries, heading_error, simulate_dvl, simulate_gps, simulate_ins
 from .trajectories import LocalFrame, Track, default_plans, make_track
 
 NS = 1_000_000_000

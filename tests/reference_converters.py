@@ -11,8 +11,8 @@ bench/bench_nmea.py and bench/bench_pd0.py time them beside the fast paths.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Iterator
 
 from formats import phins
 from formats import schemas as S

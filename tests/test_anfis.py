@@ -8,6 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from replay.stack.detectors import anfis as A
+
+
 def jang(x: np.ndarray) -> np.ndarray:
     """Jang's 3-input benchmark (1 + x^0.5 + y^-1 + z^-1.5)^2 on [1, 6]^3."""
     return (1.0 + x[:, 0] ** 0.5 + x[:, 1] ** -1.0 + x[:, 2] ** -1.5) ** 2

@@ -7,9 +7,9 @@ import dataclasses
 import numpy as np
 import pytest
 
+from replay.stack.config import AnfisConfig, StackConfig
 from replay.stack.detectors import anfis as A
 from replay.stack.detectors.anfis_detector import AnfisDetector, detectors_for, threshold_from_rule
-from replay.stack.config import AnfisConfig, StackConfig
 from replay.stack.detectors.base import Detector
 
 

@@ -9,6 +9,8 @@ from hypothesis import strategies as st
 
 from replay.stack.detectors import anfis as A
 from replay.stack.detectors import aqpso as Q
+
+
 def data(seed: int, n: int = 120) -> tuple[np.ndarray, np.ndarray]:
     """A smooth nonlinear target on [0, 1]^3 with a little noise."""
     rng = np.random.default_rng(seed)

@@ -19,13 +19,23 @@ from hypothesis import strategies as st
 from recorders.manifest import load_manifest
 from recorders.record import record
 from replay import cli
-from replay.reproduce import kmcdf as rk
-from replay.run.batch import (Configuration, batch, dask_client, parse_seeds, parse_sweeps, plan_batch, split_values,
-                          summary_table, sweep_configurations, trial_names)
 from replay.errors import UserError
+from replay.reproduce import kmcdf as rk
+from replay.run.batch import (
+    Configuration,
+    batch,
+    dask_client,
+    parse_seeds,
+    parse_sweeps,
+    plan_batch,
+    split_values,
+    summary_table,
+    sweep_configurations,
+    trial_names,
+)
+from replay.run.config import load_config
 from replay.run.metrics import metrics_table
 from replay.run.pipeline import replay_archive
-from replay.run.config import load_config
 from samples.scenario import Scenario
 from samples.simulator import simulate_trial
 from samples.writer import render, write_trial

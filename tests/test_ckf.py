@@ -10,10 +10,7 @@ from hypothesis import strategies as st
 from scipy.stats import chi2
 
 from replay.stack import model
-
-from replay.stack.filters import ckf
-
-from replay.stack.filters import cubature
+from replay.stack.filters import ckf, cubature
 from replay.stack.filters.ckf import State2
 
 LAT = math.radians(45.7)

@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from replay.stack import labels
-from replay.stack.detectors.chi_square import ChiSquareDetector, chi_square_threshold
 from replay.stack.config import DETECTING_METHODS, METHODS, StackConfig
+from replay.stack.detectors.chi_square import ChiSquareDetector, chi_square_threshold
 from replay.stack.detectors.dual_threshold import DualThresholdDetector, cusum, train_bp
 from replay.stack.methods import DETECTOR_FACTORIES, FILTER_KINDS, filter_kind
 

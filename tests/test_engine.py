@@ -14,8 +14,8 @@ from formats.mcap_writer import ArchiveWriter
 from recorders.manifest import load_manifest
 from recorders.record import record
 from replay.cli import main
-from replay.run.pipeline import replay_archive
 from replay.run.config import load_config
+from replay.run.pipeline import replay_archive
 from replay.stack.config import DETECTING_METHODS
 
 SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"

@@ -24,7 +24,7 @@ from formats.mcap_writer import ArchiveWriter
 from recorders.manifest import load_manifest
 from recorders.record import record
 from replay.cli import main
-from tests.hostile import GIB, chunk_offsets, record_offsets, rewrite, run_child, set_declared_size, zstd_bomb
+from tests.hostile import GIB, record_offsets, rewrite, run_child, set_declared_size, zstd_bomb
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "samples" / "lake_trial"

@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 
 from formats.mcap_reader import ArchiveReader
-from formats.records import Reject
 from formats.nmea.framing import nmea_checksum
+from formats.records import Reject
 from formats.waterlinked import crc8
 from recorders.base import LogContext
 from recorders.manifest import load_manifest

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from replay.stack.positioning import kmcdf as km
 from replay.stack.positioning import kmcdf_montecarlo as mc
+
 PARAMS = km.KmcdfParams()
 KD0 = PARAMS.kappa_d0
 

@@ -16,8 +16,17 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from mcap.reader import NonSeekingReader, SeekingReader
 from mcap.records import (
-    Attachment, Channel, Chunk, DataEnd, Footer, Message, MessageIndex,
-    Metadata, Schema, Statistics, SummaryOffset,
+    Attachment,
+    Channel,
+    Chunk,
+    DataEnd,
+    Footer,
+    Message,
+    MessageIndex,
+    Metadata,
+    Schema,
+    Statistics,
+    SummaryOffset,
 )
 from mcap.stream_reader import StreamReader
 from mcap.writer import Writer

@@ -14,11 +14,11 @@ import pytest
 
 from recorders.manifest import load_manifest
 from recorders.record import record
-from replay.run.pipeline import replay_archive
 from replay.run.config import load_config
-from tests.sim_arrays import run_on_arrays
+from replay.run.pipeline import replay_archive
 from samples.scenario import Scenario
 from samples.simulator import simulate_trial
+from tests.sim_arrays import run_on_arrays
 
 SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"
 # |archive - arrays| allowed per confusion count; the compensating detector feeds its own

@@ -8,9 +8,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from replay.engine.tracks import Fix, Track
 from replay.errors import UserError
 from replay.run.config import load_config, run_id
-from replay.engine.tracks import Fix, Track
 
 
 def test_defaults_are_stack_md():

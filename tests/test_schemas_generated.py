@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-
 from formats import auvreplay_pb2
 
 ROOT = Path(__file__).resolve().parent.parent

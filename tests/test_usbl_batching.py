@@ -6,15 +6,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import replay.engine.usbl.positioning as up
 from recorders.manifest import load_manifest
 from recorders.record import record
+from replay.engine.usbl.epochs import UsblEpoch
 from replay.run.pipeline import replay_archive
 from replay.stack.positioning.kmcdf import KmcdfFix, KmcdfParams, kmcdf_epoch, kmcdf_epochs
 from replay.stack.positioning.kmcdf_montecarlo import delay_baseline
-from replay.engine.usbl.epochs import UsblEpoch
 
 SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"
 PARAMS = KmcdfParams(sound_speed_mps=1450.0)

@@ -9,6 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from replay.stack.positioning import usbl_geometry as ug
+
 KD0 = 2 * math.pi * 75e3 * 0.18 / 1500.0
 NODES6 = 800.0 * np.stack([np.cos(2 * np.pi * np.arange(6) / 6), np.sin(2 * np.pi * np.arange(6) / 6)], -1)
 coord = st.floats(-1500.0, 1500.0, allow_nan=False)

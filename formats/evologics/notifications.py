@@ -41,8 +41,8 @@ from __future__ import annotations
 import math
 import re
 from collections import deque
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Callable, Iterator, Sequence
 
 from ..lines import Line, iter_lines
 from ..records import Reject, Where

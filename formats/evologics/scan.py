@@ -19,7 +19,7 @@ Values, by keyword (the record's fields after `where`, in order):
 from __future__ import annotations
 
 import math
-from typing import Iterator
+from collections.abc import Iterator
 
 from ..host_lines import scan_lines
 from ..records import Reject, Where

@@ -22,7 +22,8 @@ Kinds and values:
 from __future__ import annotations
 
 import math
-from typing import Iterator, Literal
+from collections.abc import Iterator
+from typing import Literal
 
 from ..host_lines import scan_lines
 from ..nmea.framing import HEX, prefix_xor

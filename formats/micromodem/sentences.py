@@ -32,9 +32,9 @@ from __future__ import annotations
 
 import calendar
 import math
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from datetime import date, datetime, timezone
-from typing import Callable, Iterator, Sequence
+from datetime import UTC, date, datetime
 
 from ..lines import iter_lines
 from ..nmea.framing import build, frame
@@ -309,7 +309,7 @@ def _clk(w: Where, f: Sequence[str]) -> Record:
     y, mo, d, h, mi = (_int(f[i], "clock field") for i in range(5))
     s = _float(f[5], "seconds")
     whole = int(s)
-    dt = datetime(y, mo, d, h, mi, whole, tzinfo=timezone.utc)
+    dt = datetime(y, mo, d, h, mi, whole, tzinfo=UTC)
     return Clock(w, calendar.timegm(dt.timetuple()) * NS + round((s - whole) * NS))
 
 
@@ -363,7 +363,7 @@ def decode(data: bytes, prefix: str = "auto", campr_round_trip: bool = False) ->
 
 def _fmt_iso(t_ns: int) -> str:
     sec, ns = divmod(int(t_ns), NS)
-    stamp = datetime.fromtimestamp(sec, tz=timezone.utc).strftime("%Y-%m-%dT%H:%M:%S")
+    stamp = datetime.fromtimestamp(sec, tz=UTC).strftime("%Y-%m-%dT%H:%M:%S")
     return f"{stamp}.{ns // 1000:06d}"
 
 
@@ -427,7 +427,7 @@ def encode_carxd(src: int, dest: int, payload: bytes, frame_no: int = 1, ack: bo
 
 def encode_caclk(t_ns: int) -> str:
     """$CACLK: the modem clock (whole seconds)."""
-    d = datetime.fromtimestamp(int(t_ns) // NS, tz=timezone.utc)
+    d = datetime.fromtimestamp(int(t_ns) // NS, tz=UTC)
     return build("CACLK", [f"{d.year}", f"{d.month:02d}", f"{d.day:02d}", f"{d.hour:02d}", f"{d.minute:02d}", f"{d.second:02d}"])
 
 

@@ -15,9 +15,9 @@ where the per-line path must decide (it may reject, or accept something odd).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from operator import itemgetter
-from typing import Sequence
 
 import numpy as np
 

@@ -13,9 +13,9 @@ tests/test_nmea_columns.py checks both forms agree on any log.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from datetime import date
 from functools import lru_cache
-from typing import Callable
 
 import numpy as np
 

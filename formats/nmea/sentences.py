@@ -28,9 +28,10 @@ written for NaN values.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from datetime import date, datetime, timezone
-from typing import Callable, Iterator, Union
+from datetime import UTC, date, datetime
+from typing import Union
 
 from ..lines import PREFIX_STYLES, strip_prefix
 from ..records import Reject, Where
@@ -377,7 +378,7 @@ def parse_frame(frame: Frame) -> NmeaRecord | Reject | None:
 
 
 # (sentence type, talker, values in record field order, byte offset, line, host time ns or None)
-Scanned = tuple[str, str, tuple, int, Union[int, None], Union[int, None]]
+Scanned = tuple[str, str, tuple, int, int | None, int | None]
 
 
 def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
@@ -465,7 +466,7 @@ def _hhmmss(utc_ns: int) -> str:
 
 def _utc_date(utc_ns: int) -> date:
     cs = (utc_ns + 5_000_000) // 10_000_000
-    return datetime.fromtimestamp(cs // 100, tz=timezone.utc).date()
+    return datetime.fromtimestamp(cs // 100, tz=UTC).date()
 
 
 def _ddmm(value: float, deg_digits: int, hemis: str, decimals: int) -> tuple[str, str]:

@@ -26,8 +26,9 @@ from __future__ import annotations
 import math
 import struct
 import zlib
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
-from typing import Iterator, Union
+from typing import Union
 
 from ..gpstime import gps_to_unix_ns, unix_ns_to_gps
 from ..lines import PREFIX_STYLES, strip_prefix

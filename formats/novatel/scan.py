@@ -11,8 +11,9 @@ header, a prefix, a bad CRC, a field that does not convert) goes through
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from dataclasses import fields
-from typing import Callable, Iterator, Literal, Union
+from typing import Literal
 
 from ..lines import PREFIX_STYLES, strip_prefix
 from ..records import Reject, Where
@@ -24,7 +25,7 @@ NAN = float("nan")
 # (log name, source as 'BESTPOSA' / 'INSPVAB', GPS week, seconds of week, values in record field order
 # after `header`, byte offset, line or None, host time ns or None); week and seconds are the record's
 # time (INSPVA: its own, else the header's: `novatel.record_time_ns`)
-Scanned = tuple[str, str, int, float, tuple, int, Union[int, None], Union[int, None]]
+Scanned = tuple[str, str, int, float, tuple, int, int | None, int | None]
 
 
 # `BEST_POS._make(item[4])` names a scanned BESTPOS's values as the record does

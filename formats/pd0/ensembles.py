@@ -27,10 +27,10 @@ from __future__ import annotations
 
 import math
 import struct
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from functools import lru_cache
-from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -141,7 +141,7 @@ def rtc_to_ns(year: int, month: int, day: int, hour: int, minute: int, second: i
               hundredths: int) -> int | None:
     """UTC ns for an RTC reading, or None when a field is out of range."""
     try:
-        dt = datetime(year, month, day, hour, minute, second, tzinfo=timezone.utc)
+        dt = datetime(year, month, day, hour, minute, second, tzinfo=UTC)
     except ValueError:
         return None
     if not 0 <= hundredths <= 99:
@@ -358,7 +358,7 @@ def encode_variable(time_ns: int, ensemble_number: int, *, sound_speed_mps: floa
                     pressure_dbar: float = 0.0, y2k: bool = True) -> bytes:
     """A variable leader with both RTCs (65 bytes), or the 58-byte pre-Y2K form; time to 0.01 s."""
     sec, rem = divmod(int(time_ns), _NS)
-    dt = datetime.fromtimestamp(sec, tz=timezone.utc)
+    dt = datetime.fromtimestamp(sec, tz=UTC)
     hund = rem // 10_000_000
     n = int(ensemble_number)
     head = _VAR.pack(

@@ -10,7 +10,8 @@ bits. PD4/PD5 (`formats.pd4`) use `beam_to_instrument` too.
 from __future__ import annotations
 
 import math
-from typing import Sequence, TypeVar
+from collections.abc import Sequence
+from typing import TypeVar
 
 import numpy as np
 

@@ -14,7 +14,7 @@ trials of a batch independently, so a batch gives what each epoch alone gives.
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
