@@ -28,6 +28,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("replay.commands.demo", "the whole job on the sample trial"),
     "simulate": ("replay.commands.simulate", "write a synthetic lake trial: vendor logs, manifest, truth"),
     "reproduce": ("replay.commands.reproduce", "the papers' tables and figures (anfis, kmcdf)"),
+    "evaluate": ("replay.commands.evaluate", "compare detectors: simulated trials, train on one, test on the others"),
 }
 
 

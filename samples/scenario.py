@@ -122,8 +122,10 @@ class AnomalyEvent:
     """One injected ranging anomaly on a follower-leader pair over [start, end] seconds.
 
     stale: the modem repeats its last range; drift: the error ramps linearly
-    from 0 to `magnitude_m`; outlier: every epoch inside gets `magnitude_m`;
-    dropout: no reply at all.
+    from 0 to `magnitude_m`, so its rate is `drift_rate_mps` (the default
+    leader 1 drift: 25 m over 70 s, 0.36 m/s; `Scenario.with_drift_rate`
+    sets it); outlier: every epoch inside gets `magnitude_m`; dropout: no
+    reply at all.
     """
 
     leader: str
@@ -132,6 +134,12 @@ class AnomalyEvent:
     end_s: float
     magnitude_m: float = 0.0
     follower: str = "follower"
+
+    @property
+    def drift_rate_mps(self) -> float:
+        """How fast a drift's error grows (m/s, signed): magnitude over duration; 0 for other kinds."""
+        span = self.end_s - self.start_s
+        return self.magnitude_m / span if self.kind == "drift" and span > 0 else 0.0
 
 
 @dataclass(frozen=True)
@@ -199,6 +207,23 @@ class Scenario:
         if followers is not None:
             trial = replace(trial, followers=int(followers))
         return replace(self, trial=trial)
+
+    def with_drift_rate(self, rate_mps: float) -> Scenario:
+        """A copy whose scripted drifts grow at `rate_mps` (m/s) over their own spans, each keeping its sign.
+
+        The drift rate is the simulator's drift parameter (`auvreplay evaluate
+        --drift-rate` sweeps it); the default scenario is left as it is.
+        ScenarioError for a negative or non-finite rate.
+        """
+        if not (math.isfinite(rate_mps) and rate_mps >= 0):
+            raise ScenarioError(f"drift rate must be a finite number >= 0 m/s, not {rate_mps!r}")
+
+        def rescaled(ev: AnomalyEvent) -> AnomalyEvent:
+            if ev.kind != "drift":
+                return ev
+            sign = -1.0 if ev.magnitude_m < 0 else 1.0
+            return replace(ev, magnitude_m=sign * float(rate_mps) * (ev.end_s - ev.start_s))
+        return replace(self, anomalies=tuple(rescaled(ev) for ev in self.anomalies))
 
 
 _LISTS: dict[str, type] = {"anomalies": AnomalyEvent, "natural": NaturalAnomalies, "node_faults": NodeFault}

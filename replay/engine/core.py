@@ -25,6 +25,7 @@ from replay.run.config import RunConfig
 from replay.stack.config import POSITIONING_METHODS
 from replay.stack.model import horizontal_offset_m, offset_to_latlon
 from replay.stack.positioning.kmcdf import KmcdfParams
+from replay.stack.training import TrainingSet
 
 DEG = math.pi / 180.0
 NS = 1_000_000_000
@@ -33,7 +34,9 @@ NS = 1_000_000_000
 class Engine:
     """Streams one trial's messages through the stack (push one message at a time, in time order)."""
 
-    def __init__(self, layout: TrialLayout, config: RunConfig, t0_ns: int, listeners: list[Listener] = ()):
+    def __init__(self, layout: TrialLayout, config: RunConfig, t0_ns: int, listeners: list[Listener] = (),
+                 training_set: TrainingSet | None = None):
+        """The engine of one trial; `training_set` (another run's) goes to every follower's runner."""
         self.layout, self.config, self.t0_ns = layout, config, t0_ns
         self.listeners = list(listeners)
         self.notes: list[str] = list(layout.notes)
@@ -46,7 +49,7 @@ class Engine:
             self.notes.extend(plan.notes)
             if plan.runnable:
                 self.followers[plan.name] = FollowerPipeline(plan, config, self.tracks, self._on_epoch,
-                                                             self._on_estimates, self._on_errors)
+                                                             self._on_estimates, self._on_errors, training_set)
                 self._scores[plan.name] = FollowerScores()
         self._trained: set[str] = set()
         self._usbl: UsblEpochBuilder | None = None

@@ -20,6 +20,7 @@ from replay.events import EpochResult, ErrorSample, Fix
 from replay.run.config import RunConfig
 from replay.stack.model import horizontal_distance_scalar
 from replay.stack.runner import CooperativeRunner
+from replay.stack.training import TrainingSet
 
 DEG = math.pi / 180.0
 BODY_FRD, EARTH_NED = 1, 2  # auvreplay.DvlVelocity.Frame
@@ -43,8 +44,10 @@ class FollowerPipeline:
     def __init__(self, plan: FollowerPlan, config: RunConfig, tracks: dict[str, VehicleTracks],
                  on_epoch: Callable[[str, list[EpochResult]], None],
                  on_estimates: Callable[[str, float, dict[str, tuple[float, ...]]], None],
-                 on_error: Callable[[str, list[ErrorSample]], None]):
+                 on_error: Callable[[str, list[ErrorSample]], None], training_set: TrainingSet | None = None):
+        """One follower's queue; `training_set` is handed to its runner (StackConfig.training_source)."""
         self.plan, self.config, self.tracks = plan, config, tracks
+        self.training_set = training_set
         self.on_epoch, self.on_estimates, self.on_error = on_epoch, on_estimates, on_error
         self.runner: CooperativeRunner | None = None
         self.counts: Counter = Counter()
@@ -140,7 +143,7 @@ class FollowerPipeline:
         self.runner = CooperativeRunner(
             self.config.stack, self.plan.name, self.plan.leaders, start_time_s=0.0,
             initial_lat_rad=fix.lat_rad, initial_lon_rad=fix.lon_rad, initial_depth_m=self._depth,
-            keep_history=False)
+            keep_history=False, training_set=self.training_set)
         self._prev = (0.0, self.runner.positions())
         return True
 

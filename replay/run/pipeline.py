@@ -6,6 +6,7 @@ import csv
 import hashlib
 import json
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -22,6 +23,7 @@ from replay.review.collector import ReviewCollector
 from replay.run.config import RunConfig, canonical_json, run_id, to_dict
 from replay.run.metrics import format_table, metrics_table, run_metrics
 from replay.run.results_writer import ResultsWriter
+from replay.stack.training import TrainingSet
 
 SENSORS = ("gps", "ins", "dvl", "modem/range", "usbl")
 NS = 1_000_000_000
@@ -65,8 +67,14 @@ def default_output(archive: str | Path, rid: str) -> Path:
 
 
 def replay_archive(archive: str | Path, config: RunConfig | None = None, output: str | Path | None = None,
-                   write_output: bool = True, review: bool = False) -> RunOutcome:
-    """Replay an archive with a configuration; see the module docstring for what comes out."""
+                   write_output: bool = True, review: bool = False, listeners: Sequence[Listener] = (),
+                   training_set: TrainingSet | None = None) -> RunOutcome:
+    """Replay an archive with a configuration; see the module docstring for what comes out.
+
+    `listeners` hear the run too, after the review collector and the results writer;
+    `training_set` (another run's `RunResults.training_set`) is what `stack.training_source`
+    "given" or "both" trains on.
+    """
     config = config or RunConfig()
     sha = file_sha256(archive)
     version = package_version()
@@ -84,16 +92,16 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
         window = config.engine.window_s
         start_ns = t0_ns + round(window[0] * NS) if window else None
         end_ns = t0_ns + round(window[1] * NS) + 1 if window else None
-        listeners: list[Listener] = []
+        heard: list[Listener] = []
         collector = None
         if review:
             collector = ReviewCollector(rid, reader.metadata_json("trial") or {}, t0_ns, layout)
-            listeners.append(collector)
+            heard.append(collector)
         writer = ArchiveWriter(out_path) if out_path is not None else None
         try:
             if writer is not None:
-                listeners.append(ResultsWriter(writer, rid, t0_ns))
-            engine = Engine(layout, config, t0_ns, listeners)
+                heard.append(ResultsWriter(writer, rid, t0_ns))
+            engine = Engine(layout, config, t0_ns, [*heard, *listeners], training_set)
             for m in reader.messages(topics, start_ns, end_ns):
                 engine.push(m.topic, m.log_time_ns, m.message)
                 if config.engine.rate > 0:

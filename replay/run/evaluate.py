@@ -1,0 +1,404 @@
+"""The evaluation harness: simulated trials through the real pipeline, trained on one, scored on the others.
+
+Every trial is simulated (`samples.simulator`), written as vendor logs,
+recorded into an archive and replayed (`replay_archive`), exactly as
+`auvreplay simulate`, `record` and `replay` do, in a temporary directory of
+the process that runs it (a Dask worker needs no shared file system). A
+listener keeps each epoch's decision per method after t_a; the simulator's
+own arrays give each epoch's injected anomaly kind. Only the test seeds are
+scored: the train seed never is.
+
+Training (`TRAINING_MODES`, the runner's `StackConfig.training_source`):
+with "given" (the default) the train seed is replayed first and every test
+trial's detectors are trained on what the train seed's were
+(`RunResults.training_set`: its window's epochs and, for the new methods, its
+hybrid database), not on the test trial's own window; "both" trains on the
+two together; "own" trains every test trial on its own window (0 to t_a), and
+the train seed is then not run at all. Either way the test trials' windows
+are never scored.
+
+Figures per method, pooled over the test seeds (one ROC over every test
+epoch, one error distribution over every GPS fix after t_a):
+
+* `auc`, `fnr_at_fpr_1|2|5`: open loop, from `Detector.scores` on the
+  features of the unisolated ACKF (`replay.stack.scoring`); FNR = 1 - the
+  best recall at FPR <= target.
+* `recall_by_kind`: closed loop, the method's own decisions: among epochs
+  labelled anomalous (|Z_gps - Z| > T1) whose range carried an injected
+  anomaly of that kind, the share flagged. An epoch of a kind whose error
+  stays under T1 (the start of a drift) is a normal epoch, as the labels say.
+  `dropout` is always None: a dropout is a ping with no reply, so there is no
+  epoch to flag or miss (the next reply is an ordinary range). A kind with no
+  anomalous epoch gets None too.
+* `error_p50_m`, `error_p90_m`: horizontal error against the follower's GPS.
+
+Detecting methods are the ones whose run has open-loop scores; the others
+(dead reckoning, CKF, ACKF) get errors only. Method names come from the run
+configuration, so new methods appear here by themselves.
+
+The drift sweep re-simulates the test seeds with every scripted drift set to
+each rate (`Scenario.with_drift_rate`) and gives each detecting method's
+closed-loop drift recall per rate, with the count of anomalous drift epochs
+behind it.
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from formats.mcap_reader import ArchiveReader
+from recorders.manifest import load_manifest
+from recorders.record import record
+from replay.errors import UserError
+from replay.events import EpochResult, ErrorSample, Fix, Listener
+from replay.run.config import RunConfig
+from replay.run.pipeline import RunOutcome, replay_archive
+from replay.stack.scoring import error_stats, recall_at_fpr, roc_auc, roc_curve
+from replay.stack.training import TRAINING_SOURCES, TrainingSet
+from samples.anomalies import KIND_CODES
+from samples.scenario import ANOMALY_KINDS, Scenario, ScenarioError
+from samples.simulator import SimulatedTrial, simulate_trial
+from samples.writer import write_trial
+
+if TYPE_CHECKING:
+    from distributed import Client, Future
+
+NS = 1_000_000_000
+FPR_TARGETS: tuple[int, ...] = (1, 2, 5)
+"""FNR is reported at these open-loop false-positive rates (%)."""
+DEFAULT_DRIFT_RATES: tuple[float, ...] = (0.1, 0.2, 0.3, 0.5, 1.0)
+"""Drift rates (m/s) of the default sweep: from drifts that stay under T1 over 70 s to fast ones."""
+TRAINING_MODES: tuple[str, ...] = TRAINING_SOURCES
+"""How test trials get their detectors trained (see the module docstring); "given" by default."""
+MATCH_TOLERANCE_S = 0.5
+"""A replayed epoch is the simulator's epoch of the same link within this time (pings 2.4 s apart)."""
+NO_KIND = -1
+"""Kind code of a replayed epoch the simulator has no epoch for (never counted in a kind)."""
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """One trial to simulate and replay: the seed, its drift rate (None: the scenario's) and its length."""
+
+    seed: int
+    drift_rate_mps: float | None = None
+    duration_s: float | None = None
+
+    def scenario(self) -> Scenario:
+        """The scenario of this trial: the default one with the length and drift rate applied."""
+        s = Scenario().with_options(self.duration_s, None)
+        return s if self.drift_rate_mps is None else s.with_drift_rate(self.drift_rate_mps)
+
+
+@dataclass
+class TrialScores:
+    """What one replayed trial contributes to the figures: compact arrays, picklable for Dask."""
+
+    spec: TrialSpec
+    methods: tuple[str, ...]
+    detecting: tuple[str, ...]
+    flagged: dict[str, np.ndarray]      # method -> closed-loop decision per scored epoch
+    labels: dict[str, np.ndarray]       # method -> label per scored epoch (1, 0; unknown dropped)
+    kinds: dict[str, np.ndarray]        # method -> injected kind code per scored epoch (KIND_CODES, NO_KIND)
+    open_labels: dict[str, np.ndarray]  # method -> open-loop labels
+    open_scores: dict[str, np.ndarray]  # method -> open-loop scores
+    errors: dict[str, np.ndarray]       # method -> horizontal errors (m) at GPS fixes after t_a
+    unmatched: int = 0                  # scored epochs the simulator had no epoch for
+    wall_s: float = 0.0
+    cpu_s: float = 0.0                  # this process's CPU time for the trial (not slowed by other load)
+
+
+class _EpochLog(Listener):
+    """Keeps, after t_a, each epoch's (follower, leader, time, flagged, label) per method and the errors."""
+
+    def __init__(self, training_end_s: float) -> None:
+        self.training_end_s = training_end_s
+        self.rows: dict[str, list[tuple[str, str, float, bool, int]]] = {}
+        self.error_m: dict[str, list[float]] = {}
+
+    def epoch(self, follower: str, results: list[EpochResult], leader_fix: Fix | None) -> None:
+        """Remember one scored epoch's decision of every method (the engine's window: after t_a, label known)."""
+        for r in results:
+            if r.time_s > self.training_end_s and r.label >= 0:
+                self.rows.setdefault(r.method, []).append((follower, r.leader, r.time_s, bool(r.flagged),
+                                                           int(r.label)))
+
+    def errors(self, follower: str, samples: list[ErrorSample]) -> None:
+        """Remember the horizontal errors after t_a (the engine's scoring window)."""
+        for s in samples:
+            if s.t_s >= self.training_end_s:
+                self.error_m.setdefault(s.method, []).append(s.error_m)
+
+
+def epoch_kinds(sim_follower: np.ndarray, sim_leader: np.ndarray, sim_t: np.ndarray, sim_kind: np.ndarray,
+                follower: np.ndarray, leader: np.ndarray, t: np.ndarray,
+                tolerance_s: float = MATCH_TOLERANCE_S) -> np.ndarray:
+    """The simulator's kind code of each replayed epoch: the nearest epoch of the same link within tolerance.
+
+    NO_KIND where the link has no simulated epoch that close.
+    """
+    out = np.full(len(t), NO_KIND, dtype=np.int16)
+    t = np.asarray(t, float)
+    for f, ld in {(str(a), str(b)) for a, b in zip(follower, leader)}:
+        mine = np.flatnonzero((follower == f) & (leader == ld))
+        theirs = np.flatnonzero((sim_follower == f) & (sim_leader == ld))
+        if theirs.size == 0:
+            continue
+        order = theirs[np.argsort(sim_t[theirs], kind="stable")]
+        st = np.asarray(sim_t, float)[order]
+        hi = np.clip(np.searchsorted(st, t[mine]), 0, st.size - 1)
+        lo = np.clip(hi - 1, 0, st.size - 1)
+        nearest = np.where(np.abs(st[lo] - t[mine]) <= np.abs(st[hi] - t[mine]), lo, hi)
+        close = np.abs(st[nearest] - t[mine]) <= tolerance_s
+        out[mine[close]] = np.asarray(sim_kind)[order[nearest[close]]]
+    return out
+
+
+def _archive_offset_s(archive: Path, trial: SimulatedTrial) -> float:
+    """Seconds from the simulated trial's start to the archive's first message (replay times count from it)."""
+    with ArchiveReader(archive) as reader:
+        start = reader.summary().start_ns
+    return 0.0 if start is None else (start - trial.start_ns) / NS
+
+
+def _closed_loop(spec: TrialSpec, config: RunConfig, listeners: Sequence[Listener] = (),
+                 training_set: TrainingSet | None = None) -> tuple[SimulatedTrial, RunOutcome, float]:
+    """Simulate, write, record and replay one trial in a temporary directory: the trial, the run, the offset."""
+    trial = simulate_trial(spec.scenario(), spec.seed)
+    with tempfile.TemporaryDirectory(prefix=f"auvreplay-evaluate-{spec.seed}-") as tmp:
+        write_trial(trial, Path(tmp) / "trial")
+        archive = Path(tmp) / "trial.mcap"
+        # one process per trial: the harness runs trials side by side instead
+        record(load_manifest(Path(tmp) / "trial" / "trial.toml"), archive, workers=1)
+        offset_s = _archive_offset_s(archive, trial)
+        outcome = replay_archive(archive, config, write_output=False, listeners=listeners,
+                                 training_set=training_set)
+    return trial, outcome, offset_s
+
+
+def training_set_of(spec: TrialSpec, config: RunConfig) -> TrainingSet:
+    """What the detectors of the train seed's run trained on (its own window), every follower's rows together."""
+    own = replace(config, stack=replace(config.stack, training_source="own"))
+    _, outcome, _ = _closed_loop(spec, own)
+    sets = [outcome.results[f].training_set for f in sorted(outcome.results)]
+    found = [s for s in sets if s is not None]
+    if not found:
+        raise UserError(f"train seed {spec.seed}: its run never reached the end of the training window "
+                        f"({config.stack.training_window_s:g} s), so there is nothing to train on")
+    out = found[0]
+    for s in found[1:]:
+        out = out.concat(s)
+    return out
+
+
+def evaluate_trial(spec: TrialSpec, config: RunConfig, training_set: TrainingSet | None = None) -> TrialScores:
+    """One trial through the real pipeline (trained as `config.stack.training_source` says); its scores after t_a."""
+    wall0, cpu0 = time.monotonic(), time.process_time()
+    log = _EpochLog(config.stack.training_window_s)
+    trial, outcome, offset_s = _closed_loop(spec, config, [log], training_set)
+    r = trial.ranges
+    methods = tuple(config.stack.methods)
+    detecting = tuple(m for m in methods if any(m in res.open_loop for res in outcome.results.values()))
+    flagged, labels, kinds = {}, {}, {}
+    unmatched = 0
+    for m in methods:
+        rows = log.rows.get(m, [])
+        fol = np.array([x[0] for x in rows], dtype=object)
+        led = np.array([x[1] for x in rows], dtype=object)
+        t = np.array([x[2] for x in rows], dtype=float) + offset_s
+        flagged[m] = np.array([x[3] for x in rows], dtype=bool)
+        labels[m] = np.array([x[4] for x in rows], dtype=np.int8)
+        kinds[m] = epoch_kinds(r.follower, r.leader, r.t_s, r.injected, fol, led, t)
+        unmatched = max(unmatched, int(np.sum(kinds[m] == NO_KIND)))
+    open_labels, open_scores = {}, {}
+    for m in detecting:
+        ol = [res.open_loop[m] for res in outcome.results.values() if m in res.open_loop]
+        open_labels[m] = np.concatenate([o["label"].astype(np.int8) for o in ol])
+        open_scores[m] = np.concatenate([o["score"].astype(float) for o in ol])
+    errors = {m: np.asarray(log.error_m.get(m, []), dtype=float) for m in methods}
+    return TrialScores(spec, methods, detecting, flagged, labels, kinds, open_labels, open_scores, errors,
+                       unmatched, time.monotonic() - wall0, time.process_time() - cpu0)
+
+
+# ---------------------------------------------------------------------------- figures
+
+def _pool(parts: Sequence[np.ndarray], dtype: Any) -> np.ndarray:
+    return np.concatenate([np.asarray(p, dtype=dtype) for p in parts]) if parts else np.empty(0, dtype=dtype)
+
+
+def recall_by_kind(flagged: np.ndarray, labels: np.ndarray, kinds: np.ndarray) -> dict[str, float | None]:
+    """Per anomaly kind, the share flagged of the anomalous epochs of that kind; None when there are none.
+
+    `dropout` is None always: a dropout leaves no epoch (see the module docstring).
+    """
+    flagged, labels, kinds = np.asarray(flagged, bool), np.asarray(labels), np.asarray(kinds)
+    out: dict[str, float | None] = {}
+    for kind in ANOMALY_KINDS:
+        code = KIND_CODES.get(kind)
+        sel = (labels == 1) & (kinds == code) if code is not None else np.zeros(len(labels), bool)
+        out[kind] = float(flagged[sel].mean()) if sel.any() else None
+    return out
+
+
+def method_figures(trials: Sequence[TrialScores], method: str) -> dict[str, Any]:
+    """One method's figures pooled over trials: AUC, FNR at FPR targets, recall by kind, error p50/p90."""
+    detecting = any(method in t.detecting for t in trials)
+    row: dict[str, Any] = {"auc": None, **{f"fnr_at_fpr_{p}": None for p in FPR_TARGETS}}
+    if detecting:
+        fpr, tpr, _ = roc_curve(_pool([t.open_labels[method] for t in trials if method in t.open_labels], np.int8),
+                                _pool([t.open_scores[method] for t in trials if method in t.open_scores], float))
+        row["auc"] = roc_auc(fpr, tpr)
+        for p in FPR_TARGETS:
+            rec = recall_at_fpr(fpr, tpr, p / 100.0)
+            row[f"fnr_at_fpr_{p}"] = None if rec is None else 1.0 - rec
+        row["recall_by_kind"] = recall_by_kind(_pool([t.flagged[method] for t in trials], bool),
+                                               _pool([t.labels[method] for t in trials], np.int8),
+                                               _pool([t.kinds[method] for t in trials], np.int16))
+    else:
+        row["recall_by_kind"] = {kind: None for kind in ANOMALY_KINDS}
+    stats = error_stats(_pool([t.errors.get(method, np.empty(0)) for t in trials], float))
+    row["error_p50_m"], row["error_p90_m"] = stats["error_p50_m"], stats["error_p90_m"]
+    return row
+
+
+def drift_sweep(trials_by_rate: Mapping[float, Sequence[TrialScores]]) -> list[dict[str, Any]]:
+    """Per drift rate and detecting method: closed-loop drift recall and the anomalous drift epochs behind it."""
+    out: list[dict[str, Any]] = []
+    code = KIND_CODES["drift"]
+    for rate, trials in trials_by_rate.items():
+        methods = list(dict.fromkeys(m for t in trials for m in t.detecting))
+        for m in methods:
+            flagged = _pool([t.flagged[m] for t in trials], bool)
+            sel = (_pool([t.labels[m] for t in trials], np.int8) == 1) & \
+                (_pool([t.kinds[m] for t in trials], np.int16) == code)
+            out.append({"rate_mps": float(rate), "method": m,
+                        "recall": float(flagged[sel].mean()) if sel.any() else None, "epochs": int(sel.sum())})
+    return out
+
+
+# ---------------------------------------------------------------------------- the plan and its run
+
+@dataclass(frozen=True)
+class Evaluation:
+    """What `evaluate` found: the JSON object's content, and how long it took."""
+
+    seeds: tuple[int, ...]
+    train_seed: int
+    training: str
+    methods: dict[str, dict[str, Any]]
+    sweep: list[dict[str, Any]]
+    trials: int
+    unmatched: int
+    wall_s: float
+    cpu_s: float                        # CPU time summed over the scored trials
+    workers: str
+    notes: list[str] = field(default_factory=list)
+
+    def to_json(self) -> dict[str, Any]:
+        """The `evaluate --json` object (module docstring; None for what is undefined)."""
+        return _clean({"seeds": list(self.seeds), "train_seed": self.train_seed, "methods": self.methods,
+                       "drift_sweep": self.sweep})
+
+
+def _clean(obj: Any) -> Any:
+    """JSON-safe: numpy scalars to Python, NaN to None."""
+    if isinstance(obj, dict):
+        return {k: _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(float(obj)) else None
+    return obj
+
+
+def split_seeds(seeds: Sequence[int], train_seed: int | None) -> tuple[int, list[int]]:
+    """(train seed, test seeds): the train seed defaults to the first and is never a test seed."""
+    if not seeds:
+        raise UserError("--seeds: no seeds given")
+    train = seeds[0] if train_seed is None else train_seed
+    test = [s for s in seeds if s != train]
+    if not test:
+        raise UserError(f"--seeds: nothing left to test once train seed {train} is held out")
+    return train, test
+
+
+Progress = Callable[[int, int], None]      # (done, total)
+
+
+def _run_specs(specs: Sequence[TrialSpec], config: RunConfig, train: TrialSpec | None, client: Client | None,
+               progress: Progress | None) -> list[TrialScores]:
+    """Every trial, in order (after the train seed's, when given): on the Dask client, else one by one here."""
+    out: list[TrialScores | None] = [None] * len(specs)
+    total = len(specs) + (train is not None)
+    if client is None:
+        given = training_set_of(train, config) if train is not None else None
+        if progress is not None and train is not None:
+            progress(1, total)
+        for i, spec in enumerate(specs):
+            out[i] = evaluate_trial(spec, config, given)
+            if progress is not None:
+                progress(i + 1 + (train is not None), total)
+    else:
+        # dask only when a client is used (a heavy optional import)
+        from distributed import as_completed
+
+        # the test trials wait for the train seed's set on the workers (one transfer each)
+        trained: Future | None = client.submit(training_set_of, train, config, pure=False) \
+            if train is not None else None
+        futures = [client.submit(evaluate_trial, spec, config, trained, pure=False) for spec in specs]
+        index = {f.key: i for i, f in enumerate(futures)}
+        for done, fut in enumerate(as_completed(futures), 1 + (train is not None)):
+            out[index[fut.key]] = fut.result()
+            fut.release()
+            if progress is not None:
+                progress(done, total)
+    return [t for t in out if t is not None]
+
+
+def evaluate(seeds: Sequence[int], config: RunConfig, train_seed: int | None = None,
+             drift_rates: Sequence[float] = DEFAULT_DRIFT_RATES, duration_s: float | None = None,
+             training: str = "given", client: Client | None = None, progress: Progress | None = None) -> Evaluation:
+    """Simulate and replay the test seeds (and the sweep's), score them; see the module docstring."""
+    if training not in TRAINING_MODES:
+        raise UserError(f"training {training!r}: expected one of {', '.join(TRAINING_MODES)}")
+    if duration_s is not None and not duration_s > 0:
+        raise UserError("--duration must be > 0")
+    if any(not (math.isfinite(r) and r >= 0) for r in drift_rates):
+        raise UserError("--drift-rate: rates must be finite numbers >= 0 (m/s)")
+    train, test = split_seeds(list(seeds), train_seed)
+    wall0 = time.monotonic()
+    rates = list(dict.fromkeys(float(r) for r in drift_rates))
+    specs = [TrialSpec(s, None, duration_s) for s in test]
+    specs += [TrialSpec(s, rate, duration_s) for rate in rates for s in test]
+    config = replace(config, stack=replace(config.stack, training_source=training))
+    train_spec = TrialSpec(train, None, duration_s) if training != "own" else None
+    try:
+        trials = _run_specs(specs, config, train_spec, client, progress)
+    except ScenarioError as exc:
+        raise UserError(f"scenario: {exc}") from None
+    main = trials[:len(test)]
+    by_rate = {rate: trials[len(test) * (1 + k): len(test) * (2 + k)] for k, rate in enumerate(rates)}
+    methods = {m: method_figures(main, m) for m in config.stack.methods}
+    unmatched = sum(t.unmatched for t in trials)
+    notes = [f"{unmatched} scored epochs had no simulated epoch within {MATCH_TOLERANCE_S} s (no kind)"] \
+        if unmatched else []
+    where = "here, one trial at a time" if client is None else \
+        f"Dask, {len(client.scheduler_info().get('workers', {}))} workers"
+    return Evaluation(tuple(test), train, training, methods, drift_sweep(by_rate),
+                      len(trials) + (train_spec is not None), unmatched,
+                      time.monotonic() - wall0, sum(t.cpu_s for t in trials), where, notes)
+
+
+__all__ = ["DEFAULT_DRIFT_RATES", "FPR_TARGETS", "TRAINING_MODES", "Evaluation", "TrialScores", "TrialSpec",
+           "drift_sweep", "epoch_kinds", "evaluate", "evaluate_trial", "method_figures", "recall_by_kind",
+           "split_seeds", "training_set_of"]
