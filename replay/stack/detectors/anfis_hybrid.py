@@ -24,6 +24,7 @@ and reported, not used.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -81,6 +82,7 @@ class HybridAnfisDetector:
         self._cols = [FEATURE_NAMES.index(n) for n in self.inputs]
         self._abs = np.array([n in SIGNED_INPUTS for n in self.inputs])
         self._sqrt = np.array([n == "f2" for n in self.inputs])
+        self._abs_list, self._sqrt_list = self._abs.tolist(), self._sqrt.tolist()   # the per-epoch path
         self.anfis = AnfisDetector(config)
         self.anfis.name = self.name
         self.threshold = float("nan")
@@ -105,6 +107,7 @@ class HybridAnfisDetector:
             self._cols = [self._cols[i] for i in keep]
             self._abs = self._abs[keep]
             self._sqrt = self._sqrt[keep]
+            self._abs_list, self._sqrt_list = self._abs.tolist(), self._sqrt.tolist()
         x = self._x(raw)
         err = np.asarray(range_error, dtype=float).ravel()
         self.anfis.train(x, err, labels)
@@ -130,7 +133,12 @@ class HybridAnfisDetector:
 
     def decide(self, features: np.ndarray) -> Decision:
         """One epoch (F,): flagged when the predicted |error| exceeds the FPR-target threshold."""
-        return self.anfis.decide(self._x(features)[0])
+        row = []
+        for c, mag, root in zip(self._cols, self._abs_list, self._sqrt_list):   # `_x` of one row, in floats
+            v = float(features[c])
+            v = math.sqrt(abs(v)) if root else abs(v) if mag else v
+            row.append(v if math.isfinite(v) else 0.0)
+        return self.anfis.decide(row)
 
     def scores(self, features: np.ndarray) -> np.ndarray:
         """Open-loop scores (n, F) -> (n,): the predicted |error|."""
