@@ -6,6 +6,7 @@ local radii (STACK.md section 1).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 METHODS: tuple[str, ...] = (
@@ -52,6 +53,9 @@ class FeatureConfig:
     usbl_max_age_s: float = 60.0        # a USBL-anchored position older than this gives no residual (NaN)
     usbl_blend: float = 0.3             # weight of a new fix in the anchor when the previous one is fresh
     cusum_k_m: float = 4.0              # drift CUSUM allowance (m), feature and cusum_drift detector
+    drift_source: str = "lag"           # without USBL the drift residual is lag_residual_m or exclusion_residual_m
+    exclusion_gate_m: float = math.inf  # ... and a link's range whose own exclusion residual exceeds this (12 and 25 m: worse on seeds 1-4)
+    exclusion_cap: int = 20             # an exclusion filter leaves out at most this many gated ranges in a row
     cusum_h_m: float = 15.0             # drift CUSUM alarm level (m) of the feature; the detector calibrates its own
 
 
@@ -101,4 +105,4 @@ class StackConfig:
     detection_fpr_target: float = 0.02           # the new methods' threshold: this false-alarm rate on training
     training_source: str = "own"                  # "own" window, a "given" TrainingSet, or "both"
     # anfis_hybrid's inputs, by name from replay.stack.features.FEATURE_NAMES
-    hybrid_inputs: tuple[str, ...] = ("f2", "repeat_count", "lag_residual_m", "usbl_residual_m")
+    hybrid_inputs: tuple[str, ...] = ("f2", "repeat_count", "exclusion_residual_m", "usbl_residual_m")

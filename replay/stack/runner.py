@@ -56,6 +56,7 @@ from replay.events import NAN, EpochResult, RunResults, Track
 from replay.stack.config import PAPER_METHODS, StackConfig
 from replay.stack.detectors.base import Decision, Detector
 from replay.stack.detectors.chi_square import chi_square_threshold
+from replay.stack.exclusion import LeaderExclusion
 from replay.stack.features import (
     EXTRA_FEATURES,
     FEATURE_NAMES,
@@ -196,9 +197,9 @@ class CooperativeRunner:
             self._reference = _Method("reference", "reference", s0)
             self._methods.append(self._reference)
         self._gate_f2 = chi_square_threshold(config.chi_square_alpha)
-        self._features = FeatureTracker(config.features, self.leaders, float(initial_lat_rad),
-                                        float(initial_lon_rad))
         self._initial = (float(initial_lat_rad), float(initial_lon_rad), float(initial_depth_m))
+        self._features = FeatureTracker(config.features, self.leaders, float(initial_lat_rad),
+                                        float(initial_lon_rad), self._exclusion())
         # (t, leader, features..., Z - Z_gps, label) of the ackf method inside the window, with GPS truth
         self._train_rows: list[tuple] = []
         # the window's inputs in order, replayed with injected anomalies for the hybrid database
@@ -321,9 +322,9 @@ class CooperativeRunner:
             self._window.append(("fix", (t_s, lat_rad, lon_rad, nn, ne, ee)))
         if t_s > self._t:
             self._propagate(t_s)
-        self._features.fix(t_s, lat_rad, lon_rad)
         b, a = metric_scales_scalar(lat_rad, self._depth)
         r11, r12, r22 = nn / (b * b), ne / (b * a), ee / (a * a)
+        self._features.fix(t_s, lat_rad, lon_rad, (r11, r12, r22))
         for m in self._methods:
             if m.kind != "dr":
                 m.state = position_update(m.state, lat_rad, lon_rad, r11, r12, r22) or m.state
@@ -550,6 +551,14 @@ class CooperativeRunner:
             out = out.concat(p)
         return out
 
+    def _exclusion(self) -> LeaderExclusion | None:
+        """Fresh leader-exclusion filters at the initial position when a new method runs (their only user)."""
+        if not self._needs_database:
+            return None
+        c = self.config
+        return LeaderExclusion(self.leaders, *self._initial, c.p0_m, c.q_m_per_s, c.r_m, self._gate_f2,
+                               c.features.exclusion_cap, c.features.exclusion_gate_m)
+
     def _open_loop_copy(self, slant_m: np.ndarray, replied: np.ndarray) -> list[tuple]:
         """The window's inputs replayed through one ACKF without isolation, with the given ranges: its rows.
 
@@ -563,7 +572,7 @@ class CooperativeRunner:
         lat0, lon0, depth = self._initial
         b, a = metric_scales_scalar(lat0, depth)
         state = State2(lat0, lon0, (cfg.p0_m[0] / b) ** 2, 0.0, (cfg.p0_m[1] / a) ** 2)
-        tracker = FeatureTracker(cfg.features, self.leaders, lat0, lon0)
+        tracker = FeatureTracker(cfg.features, self.leaders, lat0, lon0, self._exclusion())
         t_now, fwd, lat_v, hdg = self.start_time_s, 0.0, 0.0, 0.0
         q, r_var, t1 = cfg.q_m_per_s, self._r_var, cfg.t1_m
         rows: list[tuple] = []
@@ -584,9 +593,10 @@ class CooperativeRunner:
                 t_now = t_s
             if kind == "fix":
                 _, lat, lon, nn, ne, ee = args
-                tracker.fix(t_s, lat, lon)
                 b, a = metric_scales_scalar(lat, depth)
-                state = position_update(state, lat, lon, nn / (b * b), ne / (b * a), ee / (a * a)) or state
+                cov = (nn / (b * b), ne / (b * a), ee / (a * a))
+                tracker.fix(t_s, lat, lon, cov)
+                state = position_update(state, lat, lon, *cov) or state
             elif kind == "range":
                 _, leader, llat, llon, ldepth, _, truth = args
                 slant = float(slant_m[k - 1])
