@@ -52,6 +52,12 @@ class FeatureConfig:
     reference_cap: int = 20             # ... for at most this many consecutive epochs per leader
     usbl_max_age_s: float = 60.0        # a USBL-anchored position older than this gives no residual (NaN)
     usbl_blend: float = 0.3             # weight of a new fix in the anchor when the previous one is fresh
+    scale_window_s: float = 300.0       # drift_z: median and MAD of the drift residuals of this window ...
+    scale_min_samples: int = 8          # ... older than lag_s, at least this many
+    scale_floor_m: float = 1.0          # ... the MAD-scale never below this (m)
+    cusum_input: str = "drift_z"        # cusum_drift sums drift_z (sigmas) or drift_residual_m (metres, k/h in m)
+    cusum_k_sigma: float = 0.5          # cusum_drift's allowance on drift_z (detects shifts of 1 sigma and up)
+    cusum_h_sigma: float = 5.0          # cusum_drift's alarm level before calibration; its floor is half of it
     cusum_k_m: float = 4.0              # drift CUSUM allowance (m), feature and cusum_drift detector
     drift_source: str = "lag"           # without USBL the drift residual is lag_residual_m or exclusion_residual_m
     exclusion_gate_m: float = math.inf  # ... and a link's range whose own exclusion residual exceeds this (12 and 25 m: worse on seeds 1-4)

@@ -35,6 +35,16 @@ filter, and are the same for every method of a run:
 - ``drift_residual_m``: ``usbl_residual_m`` where finite, else
   ``exclusion_residual_m`` or ``lag_residual_m`` (``FeatureConfig.drift_source``),
   else ``dr_residual_m`` (what the drift CUSUM sums);
+- ``drift_z``: the drift residual standardized by its own recent past:
+  (x - median) / (1.4826 MAD) over the leader's drift residuals of the
+  last ``scale_window_s`` (300 s) that are older than ``lag_s`` (60 s), NaN
+  with fewer than ``scale_min_samples`` of them. The residual's spread and
+  offset change along a mission (geometry, DR error): a scale taken from
+  the mission's own recent past, old enough not to hold a young drift,
+  keeps a CUSUM's false-alarm rate where its calibration put it;
+- ``exclusion_z``: ``exclusion_residual_m`` standardized the same way (its
+  offset is the follower's DR error across the other links' lines of
+  sight, which changes slowly along the mission);
 - ``drift_cusum_m``: max(S+, S-) of a two-sided CUSUM(k, h) of the drift
   residual per leader, restarting after each of its own alarms.
 
@@ -56,7 +66,7 @@ from replay.stack.model import metric_scales_scalar
 PAPER_FEATURES: tuple[str, ...] = ("f1", "f2", "f3")
 EXTRA_FEATURES: tuple[str, ...] = (
     "repeat_count", "dr_residual_m", "leader_consistency_m", "usbl_residual_m", "lag_residual_m",
-    "drift_residual_m", "drift_cusum_m", "exclusion_residual_m",
+    "drift_residual_m", "drift_cusum_m", "exclusion_residual_m", "drift_z", "exclusion_z",
 )
 FEATURE_NAMES: tuple[str, ...] = PAPER_FEATURES + EXTRA_FEATURES
 """Every feature of a range epoch, in the order of a feature vector and of ``TrainingSet.features``."""
@@ -86,6 +96,7 @@ class FeatureTracker:
         self._window: dict[str, deque[tuple[float, float]]] = {ld: deque() for ld in leaders}
         self._latest: dict[str, tuple[float, float]] = {}       # leader -> (t, dr_residual)
         self._cusum = {ld: Cusum(config.cusum_k_m, config.cusum_h_m) for ld in leaders}
+        self._history: dict[tuple[str, str], deque[tuple[float, float]]] = {}   # (series, leader) -> (t, x)
         self._lagged: deque[tuple[float, float, float, float, float]] = deque()   # t, reference, dr at t
 
     def propagate(self, dt_s: float, forward_mps: float, lateral_mps: float, heading_rad: float,
@@ -147,7 +158,24 @@ class FeatureTracker:
         second = excl if cfg.drift_source == "exclusion" else lag
         drift = usbl if math.isfinite(usbl) else second if math.isfinite(second) else d
         up, down, _ = self._cusum[leader].step(drift)
-        return (float(self._repeats[leader]), d, consistency, usbl, lag, drift, max(up, down), excl)
+        return (float(self._repeats[leader]), d, consistency, usbl, lag, drift, max(up, down), excl,
+                self._standardized(t_s, ("drift", leader), drift), self._standardized(t_s, ("excl", leader), excl))
+
+    def _standardized(self, t_s: float, key: tuple[str, str], x: float) -> float:
+        """x against the median and MAD of its series' (key) values aged lag_s to scale_window_s; NaN if few."""
+        cfg = self.config
+        hist = self._history.setdefault(key, deque())
+        while hist and hist[0][0] < t_s - cfg.scale_window_s:
+            hist.popleft()
+        cutoff = t_s - cfg.lag_s
+        old = [v for t, v in hist if t <= cutoff]
+        if math.isfinite(x):
+            hist.append((t_s, x))
+        if len(old) < cfg.scale_min_samples or not math.isfinite(x):
+            return NAN
+        med = statistics.median(old)
+        mad = statistics.median(abs(v - med) for v in old)
+        return (x - med) / max(1.4826 * mad, cfg.scale_floor_m)
 
     def _lag_residual(self, t_s: float, z_m: float, depth_m: float, geo: tuple[float, float, float],
                       reference: tuple[float, float] | None) -> float:

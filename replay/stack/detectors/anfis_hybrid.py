@@ -39,7 +39,8 @@ from replay.stack.detectors.base import Decision
 from replay.stack.features import FEATURE_NAMES
 
 SIGNED_INPUTS: frozenset[str] = frozenset({"dr_residual_m", "leader_consistency_m", "usbl_residual_m",
-                                           "lag_residual_m", "drift_residual_m"})
+                                           "lag_residual_m", "drift_residual_m", "exclusion_residual_m",
+                                           "drift_z", "exclusion_z"})
 
 
 def fpr_threshold(normal_scores: np.ndarray, target: float) -> float:
