@@ -110,3 +110,28 @@ def test_lean_open_loop_copy_equals_an_ackf_only_runner() -> None:
     assert [r[:2] for r in lean] == [r[:2] for r in child._train_rows]
     assert np.isfinite(np.array([r[2 + 3 + EXTRA_FEATURES.index("exclusion_residual_m")] for r in lean])).mean() > 0.9
     assert RECORDED == ""
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.floats(0.5, 20.0), st.floats(-50.0, 50.0) | st.just(math.nan)), min_size=1,
+                max_size=150))
+def test_standardized_residual_matches_its_definition(steps: list[tuple[float, float]]) -> None:
+    """drift_z: (x - median) / max(1.4826 MAD, floor) of the finite values aged lag_s..scale_window_s; NaN if few."""
+    from replay.stack.config import FeatureConfig
+    from replay.stack.features import FeatureTracker
+
+    cfg = FeatureConfig()
+    tracker = FeatureTracker(cfg, ("leader1",), LAT, LON)
+    t, seen = 0.0, []
+    for dt, x in steps:
+        t += dt
+        got = tracker._standardized(t, ("drift", "leader1"), x)
+        old = [v for s, v in seen if t - cfg.scale_window_s <= s <= t - cfg.lag_s]
+        if len(old) < cfg.scale_min_samples or not math.isfinite(x):
+            assert math.isnan(got)
+        else:
+            med = float(np.median(old))
+            scale = max(1.4826 * float(np.median(np.abs(np.array(old) - med))), cfg.scale_floor_m)
+            assert math.isclose(got, (x - med) / scale, rel_tol=1e-9, abs_tol=1e-9)
+        if math.isfinite(x):
+            seen.append((t, x))

@@ -112,3 +112,5 @@ class StackConfig:
     training_source: str = "own"                  # "own" window, a "given" TrainingSet, or "both"
     # anfis_hybrid's inputs, by name from replay.stack.features.FEATURE_NAMES
     hybrid_inputs: tuple[str, ...] = ("f2", "repeat_count", "exclusion_residual_m", "usbl_residual_m")
+    # ... of which these enter signed (the others that are signed residuals enter as magnitudes)
+    hybrid_signed_inputs: tuple[str, ...] = ()

@@ -81,7 +81,7 @@ class HybridAnfisDetector:
         self.config = config
         self.inputs: tuple[str, ...] = tuple(config.hybrid_inputs)
         self._cols = [FEATURE_NAMES.index(n) for n in self.inputs]
-        self._abs = np.array([n in SIGNED_INPUTS for n in self.inputs])
+        self._abs = np.array([n in SIGNED_INPUTS and n not in config.hybrid_signed_inputs for n in self.inputs])
         self._sqrt = np.array([n == "f2" for n in self.inputs])
         self._abs_list, self._sqrt_list = self._abs.tolist(), self._sqrt.tolist()   # the per-epoch path
         self.anfis = AnfisDetector(config)
