@@ -193,7 +193,8 @@ class CooperativeRunner:
         self._needs_database = any(filter_kind(n) == "detect" and n not in PAPER_METHODS for n in names)
         # the gated ACKF the lagged residual starts from (replay.stack.features); never reported
         self._reference: _Method | None = None
-        if self._needs_database:
+        if self._needs_database and (config.features.drift_source == "lag"
+                                     or "lag_residual_m" in config.hybrid_inputs):
             self._reference = _Method("reference", "reference", s0)
             self._methods.append(self._reference)
         self._gate_f2 = chi_square_threshold(config.chi_square_alpha)
