@@ -7,7 +7,15 @@ from typing import Any
 
 from formats import schemas as S
 from formats.mcap_writer import ArchiveWriter
-from replay.events import EpochResult, ErrorSample, Fix, Listener, RunResults, TrainedDetectors, UsblEpoch
+from replay.events import (
+    EpochResult,
+    ErrorSample,
+    Fix,
+    Listener,
+    RunResults,
+    TrainedDetectors,
+    UsblEpoch,
+)
 from replay.stack.config import DETECTING_METHODS
 from replay.stack.features import EXTRA_FEATURES
 from replay.stack.model import offset_to_latlon

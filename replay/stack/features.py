@@ -19,7 +19,8 @@ filter, and are the same for every method of a run:
   dead reckoning), NaN without a fix younger than ``usbl_max_age_s``;
 - ``lag_residual_m``: the range minus the range from the reference
   filter's estimate of ``lag_s`` (60 s) ago carried forward by the
-  dead-reckoned displacement since (NaN for the first lag). The reference
+  dead-reckoned displacement since (NaN for the first lag, and always NaN
+  unless ``drift_source`` is "lag" or anfis_hybrid takes it). The reference
   is an ACKF run by the runner beside the methods, which leaves out epochs
   with a repeated range, f2 above the chi-square gate or
   |lag_residual_m| above ``reference_gate_m`` (capped at

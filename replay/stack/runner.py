@@ -275,7 +275,8 @@ class CooperativeRunner:
                 seen[m.state] = range_innovation(m.state, z, geo, self._depth, self._r_var)
             innovations.append(seen[m.state])
         self._updated.clear()
-        if any(inn is None for inn in innovations):
+        usable = [inn for inn in innovations if inn is not None]
+        if len(usable) < len(innovations):
             self.rejected["degenerate_geometry"] += 1
             return []
         self.clamped_ranges += clamped
@@ -288,7 +289,7 @@ class CooperativeRunner:
         ref = (ref_m.state.lat, ref_m.state.lon) if ref_m is not None else None
         extra = self._features.epoch(t_s, leader, slant_range_m, z, self._depth, geo, ref)
         out = [self._method_epoch(m, inn, t_s, leader, z, geo, truth, label, extra)
-               for m, inn in zip(self._methods, innovations)]
+               for m, inn in zip(self._methods, usable)]
         self._record()
         if t_s > self.training_end_s:
             self._open_features.extend((r.time_s, r.leader, r.label, r.f1, r.f2, r.f3, *extra)
