@@ -17,6 +17,7 @@ from replay.stack.training import RECORDED
 from tests.test_runner import A0, B0, LAT, LON, make_trial, run_trial
 
 LEADERS = ("leader1", "leader2", "leader3")
+EXCLUSION = replace(StackConfig().features, drift_source="exclusion")   # the filters run only when used
 
 
 def _exclusion() -> LeaderExclusion:
@@ -59,7 +60,7 @@ def test_exclusion_residual_follows_a_drift_the_other_link_corrects_dead_reckoni
     trial = make_trial(3, stale=())
     drift = [(t, ld, la, lo, d, math.hypot(math.sqrt(max(s * s - 16.0, 0.0)) + 0.3 * max(0.0, t - 400.0), 4.0)
               if ld == "leader1" and t >= 400.0 else s, tr) for t, ld, la, lo, d, s, tr in trial.epochs]
-    cfg = StackConfig(methods=("ackf", "cusum_drift"), training_window_s=300.0)
+    cfg = StackConfig(methods=("ackf", "cusum_drift"), training_window_s=300.0, features=EXCLUSION)
 
     def residuals(epochs: list) -> dict[str, np.ndarray]:
         _, out = run_trial(replace(trial, epochs=epochs), cfg)
@@ -84,7 +85,7 @@ def test_one_leader_has_no_exclusion_residual() -> None:
 
 def test_lean_open_loop_copy_equals_an_ackf_only_runner() -> None:
     """The hybrid database's pass gives the rows a runner holding only ``ackf`` would (the slow reference)."""
-    cfg = StackConfig(methods=("ackf", "cusum_drift"), training_window_s=300.0)
+    cfg = StackConfig(methods=("ackf", "cusum_drift"), training_window_s=300.0, features=EXCLUSION)
     runner, _ = run_trial(make_trial(4), cfg)
     window = runner._window
     n = sum(kind == "range" for kind, _ in window)
@@ -135,3 +136,17 @@ def test_standardized_residual_matches_its_definition(steps: list[tuple[float, f
             assert math.isclose(got, (x - med) / scale, rel_tol=1e-9, abs_tol=1e-9)
         if math.isfinite(x):
             seen.append((t, x))
+
+
+def test_exclusion_filters_run_only_when_a_method_uses_them() -> None:
+    """Default (lag residual, lag input): no exclusion filters and NaN features; either switch turns them on."""
+    base = StackConfig(methods=("ackf", "cusum_drift"), training_window_s=300.0)
+    on = [replace(base, features=EXCLUSION), replace(base, hybrid_inputs=("f2", "exclusion_z"))]
+    off_runner = CooperativeRunner(base, "f", ["leader1", "leader2"], 0.0, LAT, LON)
+    assert off_runner._features.exclusion is None and off_runner._exclusion() is None
+    assert all(CooperativeRunner(c, "f", ["leader1", "leader2"], 0.0, LAT, LON)._features.exclusion is not None
+               for c in on)
+    _, out = run_trial(make_trial(6), base)
+    rows = [r[0] for r in out if r]
+    assert all(math.isnan(r.exclusion_residual_m) and math.isnan(r.exclusion_z) for r in rows)
+    assert np.isfinite([r.lag_residual_m for r in rows if r.time_s > 100.0]).mean() > 0.9

@@ -59,7 +59,7 @@ class FeatureConfig:
     cusum_k_sigma: float = 0.5          # cusum_drift's allowance on drift_z (detects shifts of 1 sigma and up)
     cusum_h_sigma: float = 5.0          # cusum_drift's alarm level before calibration; its floor is half of it
     cusum_k_m: float = 4.0              # drift CUSUM allowance (m), feature and cusum_drift detector
-    drift_source: str = "exclusion"     # without USBL the drift residual is exclusion_residual_m or lag_residual_m
+    drift_source: str = "lag"           # without USBL the drift residual is lag_residual_m or exclusion_residual_m
     exclusion_gate_m: float = math.inf  # ... and a link's range whose own exclusion residual exceeds this (12 and 25 m: worse on seeds 1-4)
     exclusion_cap: int = 20             # an exclusion filter leaves out at most this many gated ranges in a row
     cusum_h_m: float = 15.0             # drift CUSUM alarm level (m) of the feature; the detector calibrates its own
@@ -111,6 +111,6 @@ class StackConfig:
     detection_fpr_target: float = 0.02           # the new methods' threshold: this false-alarm rate on training
     training_source: str = "own"                  # "own" window, a "given" TrainingSet, or "both"
     # anfis_hybrid's inputs, by name from replay.stack.features.FEATURE_NAMES
-    hybrid_inputs: tuple[str, ...] = ("f2", "repeat_count", "exclusion_z", "usbl_residual_m")
+    hybrid_inputs: tuple[str, ...] = ("f2", "repeat_count", "lag_residual_m", "usbl_residual_m")
     # ... of which these enter signed (the others that are signed residuals enter as magnitudes)
-    hybrid_signed_inputs: tuple[str, ...] = ("exclusion_z",)
+    hybrid_signed_inputs: tuple[str, ...] = ()

@@ -32,7 +32,9 @@ filter, and are the same for every method of a run:
   makes ``dr_residual_m`` wander about ±10 m per 100 s);
 - ``exclusion_residual_m``: the range minus the range predicted by the
   ACKF that uses dead reckoning and only the OTHER leaders' ranges
-  (replay.stack.exclusion; NaN with one leader or without the filters);
+  (replay.stack.exclusion; NaN with one leader or without the filters,
+  which run only when ``drift_source`` is "exclusion" or anfis_hybrid takes
+  an exclusion input: on held-out seeds they did not beat the lag residual);
 - ``drift_residual_m``: ``usbl_residual_m`` where finite, else
   ``exclusion_residual_m`` or ``lag_residual_m`` (``FeatureConfig.drift_source``),
   else ``dr_residual_m`` (what the drift CUSUM sums);
@@ -160,7 +162,8 @@ class FeatureTracker:
         drift = usbl if math.isfinite(usbl) else second if math.isfinite(second) else d
         up, down, _ = self._cusum[leader].step(drift)
         return (float(self._repeats[leader]), d, consistency, usbl, lag, drift, max(up, down), excl,
-                self._standardized(t_s, ("drift", leader), drift), self._standardized(t_s, ("excl", leader), excl))
+                self._standardized(t_s, ("drift", leader), drift),
+                self._standardized(t_s, ("excl", leader), excl) if self.exclusion is not None else NAN)
 
     def _standardized(self, t_s: float, key: tuple[str, str], x: float) -> float:
         """x against the median and MAD of its series' (key) values aged lag_s to scale_window_s; NaN if few."""

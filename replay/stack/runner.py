@@ -554,10 +554,17 @@ class CooperativeRunner:
         return out
 
     def _exclusion(self) -> LeaderExclusion | None:
-        """Fresh leader-exclusion filters at the initial position when a new method runs (their only user)."""
-        if not self._needs_database:
-            return None
+        """Fresh leader-exclusion filters at the initial position when a new method uses them, else None.
+
+        Used when the drift residual is the exclusion residual or anfis_hybrid
+        takes it; otherwise the features stay NaN and the two extra filters
+        cost nothing (held out, seeds 100-109 trained on 0, they did not help).
+        """
         c = self.config
+        wanted = c.features.drift_source == "exclusion" or bool(
+            {"exclusion_residual_m", "exclusion_z"} & set(c.hybrid_inputs))
+        if not (self._needs_database and wanted):
+            return None
         return LeaderExclusion(self.leaders, *self._initial, c.p0_m, c.q_m_per_s, c.r_m, self._gate_f2,
                                c.features.exclusion_cap, c.features.exclusion_gate_m)
 

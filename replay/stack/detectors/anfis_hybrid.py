@@ -2,18 +2,16 @@
 
 Inputs (``StackConfig.hybrid_inputs``, by name from `FEATURE_NAMES`): by
 default f2 (the innovation's Mahalanobis distance: the outliers),
-repeat_count (stale ranges), exclusion_z (the range against the ACKF that
-uses only the other leaders' ranges, standardized by its own median and MAD
-of 60-300 s before: drift and stale on this link) and |usbl_residual_m| (a
-range off the USBL-anchored position). On seeds 1-4 trained on seed 0 (no
-USBL) that set's open-loop AUC was 0.935 (FNR 0.225 at 2 % FPR) against
-0.907 with |exclusion_z|, 0.893-0.964 with the raw exclusion residual (the
-signed raw one flagged 14 % of normal epochs closed loop: its offset, the
-DR error across the other links' lines of sight, differs between trials)
-and 0.852-0.901 with the lag residual, which is NaN on the hybrid
-database's rows (its reference filter does not run there). Residuals enter
-as magnitudes unless named in ``StackConfig.hybrid_signed_inputs``
-(default: exclusion_z): the model learns |Z - Z_gps|;
+repeat_count (stale ranges), |lag_residual_m| (a range off the lagged,
+dead-reckoned reference: drift and stale) and |usbl_residual_m| (a range
+off the USBL-anchored position). The leader-exclusion input exclusion_z
+(signed, ``hybrid_signed_inputs``) did better on development seeds 1-4
+trained on 0 (AUC 0.935 against 0.907, FNR 0.225 against 0.335 at 2 % FPR)
+but not held out (seeds 100-109 trained on 0: AUC 0.936 against 0.937, FNR
+0.302 against 0.304), so it is an option, not the default. The lag residual
+is NaN on the hybrid database's rows (its reference filter does not run
+there). Residuals enter as magnitudes unless named in
+``StackConfig.hybrid_signed_inputs``: the model learns |Z - Z_gps|;
 f2 enters as sqrt(f2), the innovation in sigmas, because min-max
 normalization of a squared distance (up to thousands) leaves every normal
 epoch within the lowest hundredth of [0, 1]. An input with no finite
