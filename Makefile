@@ -5,7 +5,10 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 BENCH_STAMP := $(VENV)/.installed-bench
 
-.PHONY: demo test bench clean
+# the headless viewer test renders with software Vulkan: Debian's packages, installed by `make test` when root
+SYSTEM_PACKAGES := mesa-vulkan-drivers libvulkan1
+
+.PHONY: demo test fuzz system-packages bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -14,10 +17,23 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/auvreplay demo
+	$(BIN)/auvreplay demo --force
 
-test: $(STAMP)
-	$(BIN)/python -m pytest -q
+system-packages:
+	@if command -v dpkg >/dev/null && ! dpkg -s $(SYSTEM_PACKAGES) >/dev/null 2>&1; then \
+		if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+			apt-get update -q && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends $(SYSTEM_PACKAGES); \
+		else \
+			echo "make test: the viewer test needs Debian's $(SYSTEM_PACKAGES) (as root: apt-get install $(SYSTEM_PACKAGES))"; \
+		fi; \
+	fi
+
+test: $(STAMP) system-packages
+	WGPU_BACKEND=vulkan $(BIN)/python -m pytest -q
+
+# every decoder entry point and archive-damage kind, 100,000 cases each (a share runs in make test)
+fuzz: $(STAMP)
+	$(BIN)/python tests/fuzz/fuzz.py --cases 100000
 
 $(BENCH_STAMP): $(STAMP)
 	$(BIN)/python -m pip install --quiet -e '.[test,bench]'

@@ -34,16 +34,19 @@ from typing import Callable
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
 
 import pynmea2  # noqa: E402
+from common import interleaved  # noqa: E402
 
-from formats import nmea  # noqa: E402
 from formats import schemas as S  # noqa: E402
 from formats.mcap_writer import ArchiveWriter  # noqa: E402
+from formats.nmea import sentences as nmea  # noqa: E402
+from formats.nmea.framing import build  # noqa: E402
 from formats.records import Where  # noqa: E402
-from formats.sentence import build  # noqa: E402
 from recorders.base import LogContext, Output  # noqa: E402
-from recorders.gps import convert_nmea, convert_nmea_reference, gnss_status  # noqa: E402
+from recorders.gps import convert_nmea, gnss_status  # noqa: E402
+from tests.reference_converters import convert_nmea_reference  # noqa: E402
 
 T0 = 1476259200 * 10**9  # 2016-10-12T08:00:00Z
 REPEATS = 7
@@ -75,15 +78,6 @@ def gga_only(epochs: int) -> bytes:
     return "".join(nmea.encode_gga(T0 + k * 10**9, 45.7 + k * 1e-6, 126.6, hdop=0.9) for k in range(epochs)).encode()
 
 
-def interleaved(fns: dict[str, Callable[[], object]], repeats: int = REPEATS) -> dict[str, float]:
-    """Median wall time (s) of each function over `repeats` rounds, one call of each per round."""
-    times: dict[str, list[float]] = {name: [] for name in fns}
-    for _ in range(repeats):
-        for name, fn in fns.items():
-            start = time.perf_counter()
-            fn()
-            times[name].append(time.perf_counter() - start)
-    return {name: statistics.median(ts) for name, ts in times.items()}
 
 
 def pynmea2_parse(data: bytes) -> int:
@@ -107,7 +101,7 @@ def ours_mcap(data: bytes, path: Path) -> int:
 def row(name: str, data: bytes, tmp: Path) -> list[object]:
     """Timings (us per sentence) of every pipeline on one log, and the ratios."""
     lines = data.count(b"\n")
-    t = interleaved({
+    t = interleaved(repeats=REPEATS, fns={
         "pynmea2": lambda: pynmea2_parse(data),
         "decode": lambda: sum(1 for _ in nmea.decode(data)),
         "reference": lambda: sum(1 for _ in convert_nmea_reference(data, CTX)),
@@ -186,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
     for name, lines, py, dec, ref, conv, mcap, ratio, ratio_dec in rows:
         print(f"{name:<14}{lines:>8}{py:>15.2f}{dec:>13.2f}{ref:>14.2f}{conv:>14.2f}{mcap:>14.2f}"
               f"{ratio:>11.2f}x{ratio_dec:>13.2f}x")
-    print("  (ref. convert: recorders.gps.convert_nmea_reference, the record-based path the fast one is tested against)")
+    print("  (ref. convert: tests.reference_converters.convert_nmea_reference, the record-based path the fast one is tested against)")
     print("\nOne GGA-only epoch by stage, median microseconds (per GGA line of the log, or per call)")
     for name, us in stages:
         print(f"  {name:<38}{us:>8.2f}")

@@ -29,9 +29,11 @@ sys.path.insert(0, str(HERE))
 
 from common import median_time, print_table  # noqa: E402
 
-from formats import pd0, pd0_blocks  # noqa: E402
+from formats.pd0 import blocks as pd0_blocks  # noqa: E402
+from formats.pd0 import ensembles as pd0  # noqa: E402
 from recorders.base import LogContext  # noqa: E402
-from recorders.dvl import convert_pd0, convert_pd0_reference  # noqa: E402
+from recorders.dvl import convert_pd0  # noqa: E402
+from tests.reference_converters import convert_pd0_reference  # noqa: E402
 
 T0 = 1_476_259_200_000_000_000
 DOLFYN_PY = HERE / ".venv-dolfyn" / "bin" / "python"
@@ -110,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
                      ("formats.pd0 (+ water profile)", lambda: ours(data, True)),
                      ("formats.pd0_blocks.scan", lambda: ours_blocks(data)),
                      ("recorders.dvl convert_pd0", lambda: ours_recorder(data)),
-                     ("recorders.dvl convert_pd0_reference", lambda: ours_recorder(data, convert_pd0_reference))):
+                     ("tests.reference_converters convert_pd0_reference", lambda: ours_recorder(data, convert_pd0_reference))):
         assert fn() == args.n
         rows.append([name, args.n / median_time(fn, args.repeats)])
     with tempfile.TemporaryDirectory() as tmp:

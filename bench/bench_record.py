@@ -36,7 +36,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
-import statistics
 import sys
 import tempfile
 import time
@@ -48,7 +47,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
-from common import print_table  # noqa: E402
+from common import interleaved, print_table  # noqa: E402
 from mcap.reader import SeekingReader  # noqa: E402
 from mcap.writer import CompressionType, Writer  # noqa: E402
 
@@ -110,15 +109,6 @@ def write_ours_bytes(path: Path, content: Recorded, classes: dict[str, type]) ->
             w.add_metadata(name, values)
 
 
-def interleaved(fns: dict[str, Callable[[], object]], repeats: int) -> dict[str, float]:
-    """Median seconds of each function over `repeats` rounds, one call of each per round."""
-    times: dict[str, list[float]] = {name: [] for name in fns}
-    for _ in range(repeats):
-        for name, fn in fns.items():
-            start = time.perf_counter()
-            fn()
-            times[name].append(time.perf_counter() - start)
-    return {name: statistics.median(ts) for name, ts in times.items()}
 
 
 # (module, attribute, label, index of the argument naming the span or None): the traced steps

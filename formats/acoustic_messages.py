@@ -1,7 +1,7 @@
 """auvreplay.AcousticRange and auvreplay.UsblObservation built from packed wire bytes.
 
 The recording hot path's builders, as `formats.schemas.ins_state` does it:
-one FromString of the doubles packed behind the string and integer fields,
+one FromString of the doubles packed (`formats.wire`) behind the string and integer fields,
 which are the same for every message of a log and its peer, so their wire
 bytes are made once (by the keyword constructor itself) and cached. A
 UsblObservation costs about half the keyword constructor's, an AcousticRange
@@ -11,19 +11,15 @@ tests/test_micromodem_scan.py check the bytes are the constructor's.
 
 from __future__ import annotations
 
-import struct
 from functools import lru_cache
 
 from .schemas import AcousticRange, UsblObservation
+from .wire import ACOUSTIC_RANGE, USBL_OBSERVATION
 
 NS = 1_000_000_000
-
-# travel_time_s (6), range_m (7), sound_speed_mps (8): tags (field << 3 | wire type 1) included
-_RANGE_DOUBLES = struct.Struct("<BdBdBd")
-# travel_time_s .. relative_up_m (fields 4..12), integrity (14), rssi_db (15)
-_USBL_DOUBLES = struct.Struct("<" + "Bd" * 11)
-_USBL_TAGS = tuple((n << 3) | 1 for n in (4, 5, 6, 7, 8, 9, 10, 11, 12, 14, 15))
-
+# bound once: the builders below run per message
+_RANGE_KEYS, _RANGE_PACK = ACOUSTIC_RANGE.keys, ACOUSTIC_RANGE.struct.pack
+_USBL_KEYS, _USBL_PACK = USBL_OBSERVATION.keys, USBL_OBSERVATION.struct.pack
 
 @lru_cache(maxsize=1024)
 def _range_head(source: str, destination: str, source_address: int, destination_address: int,
@@ -46,8 +42,8 @@ def acoustic_range(
 ) -> AcousticRange:
     """An auvreplay.AcousticRange from every field, built from packed wire bytes."""
     head = _range_head(source, destination, source_address, destination_address, kind, source_format)
-    msg = AcousticRange.FromString(head + _RANGE_DOUBLES.pack(
-        0x31, travel_time_s, 0x39, range_m, 0x41, sound_speed_mps))
+    k0, k1, k2 = _RANGE_KEYS
+    msg = AcousticRange.FromString(head + _RANGE_PACK(k0, travel_time_s, k1, range_m, k2, sound_speed_mps))
     ts = msg.timestamp
     ts.seconds, ts.nanos = divmod(int(t_ns), NS)
     return msg
@@ -59,8 +55,8 @@ def usbl_observation(
     east_m: float, north_m: float, up_m: float, integrity: float, rssi_db: float,
 ) -> UsblObservation:
     """An auvreplay.UsblObservation from every field (NaN where absent), built from packed wire bytes."""
-    t = _USBL_TAGS
-    msg = UsblObservation.FromString(_usbl_head(node, target, source_format) + _USBL_DOUBLES.pack(
+    t = _USBL_KEYS
+    msg = UsblObservation.FromString(_usbl_head(node, target, source_format) + _USBL_PACK(
         t[0], travel_time_s, t[1], range_m, t[2], bearing_deg, t[3], elevation_deg, t[4], phase_x_rad,
         t[5], phase_y_rad, t[6], east_m, t[7], north_m, t[8], up_m, t[9], integrity, t[10], rssi_db))
     ts = msg.timestamp

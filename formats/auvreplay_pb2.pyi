@@ -265,3 +265,17 @@ class AnfisSnapshot(_message.Message):
     threshold: float
     trainer: str
     def __init__(self, time: _Optional[_Union[datetime.datetime, _timestamp_pb2.Timestamp, _Mapping]] = ..., leader: _Optional[str] = ..., epoch: _Optional[int] = ..., membership: _Optional[_Iterable[_Union[BellMembership, _Mapping]]] = ..., consequents: _Optional[_Iterable[float]] = ..., input_min: _Optional[_Iterable[float]] = ..., input_max: _Optional[_Iterable[float]] = ..., training_rmse: _Optional[float] = ..., inputs: _Optional[int] = ..., mfs_per_input: _Optional[int] = ..., rule_structure: _Optional[str] = ..., threshold: _Optional[float] = ..., trainer: _Optional[str] = ...) -> None: ...
+
+class RawBytes(_message.Message):
+    __slots__ = ("timestamp", "stream", "offset", "data", "connection")
+    TIMESTAMP_FIELD_NUMBER: _ClassVar[int]
+    STREAM_FIELD_NUMBER: _ClassVar[int]
+    OFFSET_FIELD_NUMBER: _ClassVar[int]
+    DATA_FIELD_NUMBER: _ClassVar[int]
+    CONNECTION_FIELD_NUMBER: _ClassVar[int]
+    timestamp: _timestamp_pb2.Timestamp
+    stream: str
+    offset: int
+    data: bytes
+    connection: int
+    def __init__(self, timestamp: _Optional[_Union[datetime.datetime, _timestamp_pb2.Timestamp, _Mapping]] = ..., stream: _Optional[str] = ..., offset: _Optional[int] = ..., data: _Optional[bytes] = ..., connection: _Optional[int] = ...) -> None: ...

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -38,7 +39,8 @@ def flatten(message: Any) -> dict[str, Any]:
             for i, v in enumerate(value):
                 row[f"{field.name}_{i}"] = v
         elif field.type == FieldDescriptor.TYPE_ENUM:
-            row[field.name] = field.enum_type.values_by_number[value].name if value in field.enum_type.values_by_number else value
+            names = field.enum_type.values_by_number
+            row[field.name] = names[value].name if value in names else value
         else:
             row[field.name] = value
     return row
@@ -54,3 +56,11 @@ def messages_to_dataframe(messages: Iterable[Any]) -> pd.DataFrame:
         times.append(item.log_time_ns)
     index = pd.DatetimeIndex(pd.to_datetime(np.asarray(times, dtype="int64"), unit="ns", utc=True), name="log_time")
     return pd.DataFrame(rows, index=index)
+
+
+def with_mission_seconds(df: pd.DataFrame, start_ns: int) -> pd.DataFrame:
+    """A copy of a log-time-indexed frame with a first column `mission_s`: seconds from `start_ns`."""
+    out = df.copy()
+    ns = out.index.asi8 if isinstance(out.index, pd.DatetimeIndex) else np.asarray(out.index, dtype="int64")
+    out.insert(0, "mission_s", (ns - np.int64(start_ns)) / 1e9)
+    return out

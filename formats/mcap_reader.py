@@ -1,9 +1,15 @@
-"""Reading archives: time-ordered streaming, decoded messages, DataFrames, damage recovery.
+"""Reading archives: time-ordered streaming, decoded messages, DataFrames, damage as data.
 
-A complete file is read through its index (chunks merged in log-time order,
-CRCs validated). A file without a valid summary (a write that was cut off)
-is read sequentially: every complete chunk is recovered, the damage is
-reported in `ArchiveReader.problems`, and nothing raises.
+A complete file is read through its summary (chunks merged in log-time order,
+CRCs validated). A file without a valid summary (a write that was cut off, a
+damaged footer) is indexed by a sequential scan and then read the same way:
+every complete chunk is recovered. Archives come from other people's
+machines, so nothing in them raises past this reader and memory stays
+bounded: a chunk over the size cap or that inflates past what it declares, a
+chunk that fails its CRC, a message that does not decode, a channel of an
+unknown encoding or schema, an unreadable metadata or attachment record are
+all skipped and counted in `ArchiveReader.damage`, whose `line()` says in one
+line what was skipped.
 """
 
 from __future__ import annotations
@@ -12,22 +18,27 @@ import heapq
 import json
 import os
 import struct
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator
 
+from google.protobuf.message import DecodeError
 from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
 from mcap.records import Attachment, Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
+from mcap.summary import Summary
 from mcap_protobuf.decoder import DecoderFactory
-import zstandard
 
-from .mcap_chunks import ordered_messages
+from .mcap_chunks import MAX_CHUNK_BYTES, RawMessage, ordered_messages
+from .mcap_records import MAGIC, OP_ATTACHMENT, OP_METADATA, RecordError, read_record, read_summary, scan
 from .records import FormatError
 from .schemas import MESSAGE_CLASSES
 
-MAGIC = b"\x89MCAP0\r\n"
+# what a protobuf decoder raises on bytes that are not its message
+_DECODE_ERRORS = (DecodeError, ValueError, TypeError, KeyError, IndexError, struct.error, EOFError, McapError)
+_KEEP = 20  # damage texts kept in full; the rest are counted
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,7 +73,66 @@ class ArchiveSummary:
     message_count: int = 0
 
 
-def _check_magic(path: Path) -> None:
+@dataclass
+class Damage:
+    """What reading an archive skipped: messages per (topic, reason), bad chunks, bad records, problems.
+
+    `problems` are what was wrong with the file as a whole (no summary, cut
+    off at byte N); the first few texts of each kind are kept, the rest counted.
+    """
+
+    messages: Counter[tuple[str, str]] = field(default_factory=Counter)
+    chunks: dict[int, str] = field(default_factory=dict)         # chunk offset -> reason
+    records: Counter[str] = field(default_factory=Counter)       # record kind -> count
+    record_texts: list[str] = field(default_factory=list)
+    problems: list[str] = field(default_factory=list)
+
+    def skip_message(self, topic: str, reason: str) -> None:
+        """Count one message skipped."""
+        self.messages[(topic, reason)] += 1
+
+    def bad_chunk(self, offset: int, reason: str) -> None:
+        """Note a chunk skipped (once per chunk, however often it is read)."""
+        self.chunks.setdefault(offset, reason)
+
+    def bad_record(self, kind: str, text: str) -> None:
+        """Count a record (metadata, attachment, schema, ...) skipped."""
+        self.records[kind] += 1
+        if len(self.record_texts) < _KEEP and text not in self.record_texts:
+            self.record_texts.append(text)
+
+    def problem(self, text: str) -> None:
+        """Note damage to the file as a whole."""
+        if text not in self.problems and len(self.problems) < _KEEP:
+            self.problems.append(text)
+
+    def __bool__(self) -> bool:
+        return bool(self.messages or self.chunks or self.records or self.problems)
+
+    def line(self) -> str | None:
+        """One line saying everything that was skipped, or None when nothing was."""
+        if not self:
+            return None
+        parts = []
+        if self.messages:
+            by_topic: dict[str, list[str]] = {}
+            for (topic, reason), n in sorted(self.messages.items()):
+                by_topic.setdefault(topic, []).append(f"{n} {reason}")
+            total = sum(self.messages.values())
+            parts.append(f"skipped {total} message{'s' * (total != 1)} ("
+                         + "; ".join(f"{t}: {', '.join(r)}" for t, r in by_topic.items()) + ")")
+        if self.chunks:
+            first = next(iter(self.chunks.values()))
+            n = len(self.chunks)
+            parts.append(f"skipped {n} chunk{'s' * (n != 1)} ({first}{', ...' if n > 1 else ''})")
+        if self.records:
+            kinds = ", ".join(f"{n} {k} record{'s' * (n != 1)}" for k, n in sorted(self.records.items()))
+            parts.append(f"skipped {kinds} ({self.record_texts[0]})")
+        parts.extend(self.problems)
+        return "; ".join(parts)
+
+
+def _check_magic(path: Path) -> int:
     try:
         size = path.stat().st_size
     except OSError as exc:
@@ -75,181 +145,169 @@ def _check_magic(path: Path) -> None:
         head = f.read(len(MAGIC))
     if head != MAGIC:
         raise FormatError(f"{path}: not an MCAP file (no MCAP magic at the start)")
-
-
-class _Decoders:
-    """Per-schema decoders: our generated classes first, mcap-protobuf's dynamic ones otherwise."""
-
-    def __init__(self) -> None:
-        self._cache: dict[int, Callable[[bytes], Any]] = {}
-        self._factory = DecoderFactory()
-
-    def __call__(self, schema: Schema | None, channel: Channel, data: bytes) -> Any:
-        fn = self._cache.get(channel.id)
-        if fn is None:
-            fn = self._make(schema, channel)
-            self._cache[channel.id] = fn
-        return fn(data)
-
-    def _make(self, schema: Schema | None, channel: Channel) -> Callable[[bytes], Any]:
-        if schema is not None and channel.message_encoding == "protobuf":
-            cls = MESSAGE_CLASSES.get(schema.name)
-            if cls is not None:
-                return cls.FromString
-            fn = self._factory.decoder_for(channel.message_encoding, schema)
-            if fn is not None:
-                return fn
-        return bytes
+    return size
 
 
 class ArchiveReader:
-    """Reads an MCAP archive (context manager). Raises FormatError if it is not MCAP at all."""
+    """Reads an MCAP archive (context manager). Raises FormatError only if it is not MCAP at all."""
 
-    def __init__(self, path: str | os.PathLike[str], validate_crcs: bool = True):
+    def __init__(self, path: str | os.PathLike[str], validate_crcs: bool = True,
+                 max_chunk_bytes: int = MAX_CHUNK_BYTES):
         self.path = Path(path)
-        _check_magic(self.path)
+        self._size = _check_magic(self.path)
         self._file = open(self.path, "rb")
-        self._reader = SeekingReader(self._file, validate_crcs=validate_crcs)
         self.validate_crcs = validate_crcs
-        self.problems: list[str] = []
-        self._decode = _Decoders()
-        try:
-            self._summary = self._reader.get_summary()
-        except Exception as exc:  # noqa: BLE001 - a damaged footer/summary raises many kinds
-            self._summary = None
-            self.problems.append(f"no valid summary ({type(exc).__name__}: {exc}); recovering complete chunks")
-        if self._summary is None and not self.problems:
-            self.problems.append("no summary section; reading sequentially")
+        self.max_chunk_bytes = max_chunk_bytes
+        self.damage = Damage()
+        self._factory = DecoderFactory()
+        self._loose: list[RawMessage] = []
+        summary, why = read_summary(self._file, self._size, validate_crcs)
+        self._recovered = summary is None
+        if summary is None or summary.statistics is None:
+            found = scan(self._file, self._size, validate_crcs, max_chunk_bytes, self._scan_report)
+            if summary is None:
+                self.damage.problem(f"{why}: read sequentially as far as its records are whole")
+                summary, self._loose = found.summary, found.loose
+            else:
+                summary.statistics = found.summary.statistics
+        self._index: Summary = summary
+
+    def _scan_report(self, where: str, what: str) -> None:
+        if what.startswith("truncated"):
+            self.damage.problem(f"{what} ({where})")
+        elif "chunk" in what:
+            self.damage.bad_chunk(int(where.split()[-1]), what)
+        else:
+            self.damage.bad_record(what.split(" record")[0].replace("unreadable ", ""), f"{where}: {what}")
 
     @property
     def recovered(self) -> bool:
-        """True when the file had no valid summary and was read sequentially."""
-        return self._summary is None
+        """True when the file had no valid summary and was indexed by a sequential scan."""
+        return self._recovered
 
-    # -- sequential recovery -------------------------------------------------
-    def _scan(self) -> Iterator[Any]:
-        """Every readable record in file order; stops (and reports) at the first damage."""
-        self._file.seek(0)
-        stream = StreamReader(self._file, validate_crcs=self.validate_crcs)
-        try:
-            yield from stream.records
-        except Exception as exc:  # noqa: BLE001 - any parse error in damaged bytes ends the scan
-            where = self._file.tell()
-            msg = f"truncated or damaged near byte {where} ({type(exc).__name__}{': ' + str(exc) if str(exc) else ''})"
-            if msg not in self.problems:
-                self.problems.append(msg)
+    @property
+    def problems(self) -> list[str]:
+        """What is wrong with the file as a whole (empty for a whole file)."""
+        return self.damage.problems
 
-    def _scan_messages(self) -> Iterator[tuple[Schema | None, Channel, Message]]:
-        schemas: dict[int, Schema] = {}
-        channels: dict[int, Channel] = {}
-        for rec in self._scan():
-            if isinstance(rec, Schema):
-                schemas[rec.id] = rec
-            elif isinstance(rec, Channel):
-                channels[rec.id] = rec
-            elif isinstance(rec, Message) and rec.channel_id in channels:
-                ch = channels[rec.channel_id]
-                yield schemas.get(ch.schema_id), ch, rec
+    def warning(self) -> str | None:
+        """One line saying what was skipped so far, or None."""
+        return self.damage.line()
 
     # -- messages --------------------------------------------------------------
     def raw_messages(
         self, topics: Iterable[str] | None = None, start_ns: int | None = None, end_ns: int | None = None,
     ) -> Iterator[tuple[Schema | None, Channel, Message]]:
-        """Undecoded (schema, channel, message) in log-time order; end is exclusive."""
+        """Undecoded (schema, channel, message) in log-time order through the mcap library itself.
+
+        A reference for tests of `messages` on our own files; it is not
+        bounded against crafted ones.
+        """
         wanted = set(topics) if topics is not None else None
-        if self._summary is not None:
-            yield from self._reader.iter_messages(
+        self._file.seek(0)
+        if not self._recovered:
+            yield from SeekingReader(self._file, validate_crcs=self.validate_crcs).iter_messages(
                 topics=list(wanted) if wanted is not None else None,
                 starting_at=start_ns, ending_before=end_ns, log_time_order=True,
             )
             return
-        # A damaged file has no index: recovery buffers and sorts what it finds.
-        found = [
-            (m.log_time, i, (s, c, m))
-            for i, (s, c, m) in enumerate(self._scan_messages())
-            if (wanted is None or c.topic in wanted)
-            and (start_ns is None or m.log_time >= start_ns)
-            and (end_ns is None or m.log_time < end_ns)
-        ]
+        schemas: dict[int, Schema] = {}
+        channels: dict[int, Channel] = {}
+        found: list[tuple[int, int, tuple[Schema | None, Channel, Message]]] = []
+        try:
+            for rec in StreamReader(self._file, validate_crcs=self.validate_crcs).records:
+                if isinstance(rec, Schema):
+                    schemas[rec.id] = rec
+                elif isinstance(rec, Channel):
+                    channels[rec.id] = rec
+                elif isinstance(rec, Message) and rec.channel_id in channels:
+                    c = channels[rec.channel_id]
+                    if (wanted is None or c.topic in wanted) and (start_ns is None or rec.log_time >= start_ns) \
+                            and (end_ns is None or rec.log_time < end_ns):
+                        found.append((rec.log_time, len(found), (schemas.get(c.schema_id), c, rec)))
+        except (McapError, ValueError, EOFError, struct.error):
+            pass  # the reference stops at the damage, as the scan does
         heapq.heapify(found)
         while found:
             yield heapq.heappop(found)[2]
 
+    def _decoder(self, channel: Channel, schema: Schema | None) -> tuple[Callable[[bytes], Any] | None, str]:
+        """(decode function, "") for a channel, or (None, why its messages are skipped)."""
+        if channel.message_encoding != "protobuf":
+            return None, f"of encoding {channel.message_encoding[:40]!r}, not protobuf"
+        if schema is None:
+            return None, "without a schema record"
+        cls = MESSAGE_CLASSES.get(schema.name)
+        if cls is not None:
+            return cls.FromString, ""
+        try:
+            fn = self._factory.decoder_for(channel.message_encoding, schema)
+        except (*_DECODE_ERRORS, RecursionError):
+            fn = None
+        if fn is None:
+            return None, f"of an unreadable schema {schema.name[:60]!r}"
+        return fn, ""
+
     def messages(
         self, topics: Iterable[str] | None = None, start_ns: int | None = None, end_ns: int | None = None,
     ) -> Iterator[ArchiveMessage]:
-        """Decoded messages in log-time order over the chosen topics and window [start, end)."""
-        if self._summary is not None and self._summary.chunk_indexes:
-            yield from self._indexed_messages(topics, start_ns, end_ns)
-            return
-        try:
-            for schema, channel, msg in self.raw_messages(topics, start_ns, end_ns):
-                yield ArchiveMessage(
-                    channel.topic, schema.name if schema else "", msg.log_time, msg.publish_time,
-                    self._decode(schema, channel, msg.data),
-                )
-        except (McapError, ValueError, EOFError, struct.error) as exc:
-            raise FormatError(f"{self.path}: damaged archive ({type(exc).__name__}: {exc})") from exc
+        """Decoded messages in log-time order over the chosen topics and window [start, end).
 
-    def _indexed_messages(
-        self, topics: Iterable[str] | None, start_ns: int | None, end_ns: int | None,
-    ) -> Iterator[ArchiveMessage]:
-        """The fast path of `messages` through the chunk index (see formats.mcap_chunks)."""
-        s = self._summary
+        What cannot be decoded is skipped and counted in `damage`.
+        """
+        s = self._index
         wanted = set(topics) if topics is not None else None
-        channels = {cid for cid, ch in s.channels.items() if wanted is None or ch.topic in wanted}
-        info = {}
-        for cid in channels:
-            ch = s.channels[cid]
-            schema = s.schemas.get(ch.schema_id)
-            info[cid] = (ch.topic, schema.name if schema else "", schema, ch)
-        try:
-            for log_time, publish_time, cid, data in ordered_messages(
-                    self._file, s.chunk_indexes, channels, self.validate_crcs, start_ns, end_ns):
-                topic, name, schema, ch = info[cid]
-                yield ArchiveMessage(topic, name, log_time, publish_time, self._decode(schema, ch, data))
-        except (McapError, ValueError, EOFError, struct.error, zstandard.ZstdError) as exc:
-            raise FormatError(f"{self.path}: damaged archive ({type(exc).__name__}: {exc})") from exc
+        info: dict[int, tuple[str, str, Callable[[bytes], Any] | None, str]] = {}
+        for cid, ch in s.channels.items():
+            if wanted is None or ch.topic in wanted:
+                schema = s.schemas.get(ch.schema_id)
+                info[cid] = (ch.topic, schema.name if schema else "", *self._decoder(ch, schema))
+        loose = [m for m in self._loose if m[2] in info and (start_ns is None or m[0] >= start_ns)
+                 and (end_ns is None or m[0] < end_ns)]
+        skip = self.damage.skip_message
+        for log_time, publish_time, cid, data in ordered_messages(
+                self._file, s.chunk_indexes, set(info), self.validate_crcs, start_ns, end_ns,
+                self.damage.bad_chunk, self.max_chunk_bytes, loose):
+            topic, name, decode, why = info[cid]
+            if decode is None:
+                skip(topic, why)
+                continue
+            try:
+                msg = decode(data)
+            except _DECODE_ERRORS:
+                skip(topic, "that do not decode")
+                continue
+            yield ArchiveMessage(topic, name, log_time, publish_time, msg)
 
     # -- summary, metadata, attachments ---------------------------------------
     def summary(self) -> ArchiveSummary:
         """Topics with counts and schemas, time span, attachments and metadata names."""
         out = ArchiveSummary()
-        if self._summary is not None:
-            s = self._summary
-            counts = s.statistics.channel_message_counts if s.statistics else {}
-            for cid, ch in s.channels.items():
-                schema = s.schemas.get(ch.schema_id)
-                entry = out.topics.setdefault(ch.topic, {"count": 0, "schema": schema.name if schema else ""})
-                entry["count"] += counts.get(cid, 0)
-            if s.statistics and s.statistics.message_count:
-                out.start_ns, out.end_ns = s.statistics.message_start_time, s.statistics.message_end_time
-                out.message_count = s.statistics.message_count
-            out.attachments = [AttachmentInfo(a.name, a.data_size, a.media_type) for a in s.attachment_indexes]
-            out.metadata_names = [m.name for m in s.metadata_indexes]
-            return out
-        return self._summary_by_scan(out)
-
-    def _summary_by_scan(self, out: ArchiveSummary) -> ArchiveSummary:
-        for schema, channel, msg in self._scan_messages():
-            entry = out.topics.setdefault(channel.topic, {"count": 0, "schema": schema.name if schema else ""})
-            entry["count"] += 1
-            out.message_count += 1
-            out.start_ns = msg.log_time if out.start_ns is None else min(out.start_ns, msg.log_time)
-            out.end_ns = msg.log_time if out.end_ns is None else max(out.end_ns, msg.log_time)
-        for rec in self._scan():
-            if isinstance(rec, Attachment):
-                out.attachments.append(AttachmentInfo(rec.name, len(rec.data), rec.media_type))
-            elif isinstance(rec, Metadata):
-                out.metadata_names.append(rec.name)
+        s = self._index
+        counts = s.statistics.channel_message_counts if s.statistics else {}
+        for cid, ch in s.channels.items():
+            schema = s.schemas.get(ch.schema_id)
+            entry = out.topics.setdefault(ch.topic, {"count": 0, "schema": schema.name if schema else ""})
+            entry["count"] += counts.get(cid, 0)
+        if s.statistics and s.statistics.message_count:
+            out.start_ns, out.end_ns = s.statistics.message_start_time, s.statistics.message_end_time
+            out.message_count = s.statistics.message_count
+        out.attachments = [AttachmentInfo(a.name, a.data_size, a.media_type) for a in s.attachment_indexes]
+        out.metadata_names = [m.name for m in s.metadata_indexes]
         return out
 
     def metadata(self, name: str) -> dict[str, str] | None:
-        """The last metadata record of that name (values as stored, strings), or None."""
+        """The last readable metadata record of that name (values as stored, strings), or None."""
         found = None
-        records = self._scan() if self._summary is None else self._reader.iter_metadata()
-        for rec in records:
-            if isinstance(rec, Metadata) and rec.name == name:
+        for index in self._index.metadata_indexes:
+            if index.name != name:
+                continue
+            try:
+                rec: Metadata = read_record(self._file, index.offset, index.length, self._size, OP_METADATA)
+            except RecordError as exc:
+                self.damage.bad_record("metadata", str(exc))
+                continue
+            if rec.name == name:
                 found = dict(rec.metadata)
         return found
 
@@ -262,18 +320,17 @@ class ArchiveReader:
         for k, v in raw.items():
             try:
                 out[k] = json.loads(v)
-            except ValueError:
+            except (ValueError, RecursionError):
                 out[k] = v
         return out
 
     def attachments(self) -> Iterator[Attachment]:
-        """Every attachment record, data included, CRC-checked by the mcap library."""
-        if self._summary is not None:
-            yield from self._reader.iter_attachments()
-        else:
-            for rec in self._scan():
-                if isinstance(rec, Attachment):
-                    yield rec
+        """Every readable attachment record, data included and CRC-checked; the rest counted in `damage`."""
+        for index in self._index.attachment_indexes:
+            try:
+                yield read_record(self._file, index.offset, index.length, self._size, OP_ATTACHMENT)
+            except RecordError as exc:
+                self.damage.bad_record("attachment", str(exc))
 
     def to_dataframe(self, topic: str, start_ns: int | None = None, end_ns: int | None = None) -> "Any":
         """A pandas DataFrame of one topic: UTC DatetimeIndex (log time), one column per field."""

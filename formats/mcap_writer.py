@@ -111,9 +111,10 @@ class ArchiveWriter:
     Times are integer nanoseconds (UTC); there is no wall-clock default.
     """
 
-    def __init__(self, path: str | os.PathLike[str], chunk_size: int = CHUNK_SIZE):
+    def __init__(self, path: str | os.PathLike[str], chunk_size: int = CHUNK_SIZE, part_path: Path | None = None):
         self.path = Path(path)
-        self.temp_path = self.path.with_name(f".{self.path.name}.part-{os.getpid()}")
+        # a live capture grows under a name the user knows (TRIAL.mcap.part) to recover it after a crash
+        self.temp_path = part_path or self.path.with_name(f".{self.path.name}.part-{os.getpid()}")
         self._stream = open(self.temp_path, "wb")
         self._pos = 0
         self._crc = 0  # CRC32 of the data section so far (magic included)
@@ -247,6 +248,12 @@ class ArchiveWriter:
                                           + _id_map(offsets) + _U64.pack(index_length) + _string("zstd")
                                           + struct.pack("<QQ", len(compressed), len(buf))))
         self._span = (start, end) if self._span is None else (min(self._span[0], start), max(self._span[1], end))
+
+    def flush(self) -> None:
+        """Close the open chunk, write it out and fsync: everything written so far survives a crash."""
+        self._finish_chunk()
+        self._stream.flush()
+        os.fsync(self._stream.fileno())
 
     def add_metadata(self, name: str, data: Mapping[str, Any]) -> None:
         """A metadata record; non-string values are stored as JSON text."""

@@ -28,8 +28,8 @@ from datetime import datetime, timezone
 from typing import Iterator, Sequence
 
 from .lines import iter_lines
+from .nmea.framing import build, frame
 from .records import Reject, Where
-from .sentence import build, frame
 
 BAD_VELOCITY = -32.768
 BAD_FOM = 10.0

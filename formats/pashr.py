@@ -18,9 +18,10 @@ import math
 from dataclasses import dataclass
 from typing import Iterator
 
-from .nmea import NAN, iter_frames, parse_tod
+from .nmea.fields import NAN, parse_tod
+from .nmea.framing import build
+from .nmea.sentences import iter_frames
 from .records import Reject, Where
-from .sentence import build
 
 
 @dataclass(frozen=True, slots=True)
@@ -67,10 +68,10 @@ def parse_fields(f: list[str], where: Where) -> Pashr | Reject | None:
 def decode(data: bytes, prefix: str = "auto") -> Iterator[Pashr | Reject]:
     """Stream every $PASHR attitude record (or Reject) in a log, in file order."""
     for item in iter_frames(data, prefix):
-        if type(item) is Reject:
+        if isinstance(item, Reject):
             yield item
             continue
-        address, fields, where = item  # type: ignore[misc]
+        address, fields, where = item
         if address == "PASHR":
             result = parse_fields(fields[1:], where)
             if result is not None:

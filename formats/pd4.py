@@ -28,6 +28,7 @@ import struct
 from dataclasses import dataclass
 from typing import Iterator, Sequence
 
+from .pd0.frames import beam_to_instrument
 from .records import Reject, Where
 
 SYNC = 0x7D
@@ -70,7 +71,8 @@ class DvlOutput:
 
 
 def _vel(raw: Sequence[int]) -> tuple[float, float, float, float]:
-    return tuple(math.nan if x == BAD_VELOCITY else x / 1000 for x in raw)  # type: ignore[return-value]
+    v1, v2, v3, v4 = (math.nan if x == BAD_VELOCITY else x / 1000 for x in raw)
+    return v1, v2, v3, v4
 
 
 def _parse(buf: bytes, i: int, nbytes: int) -> DvlOutput:
@@ -90,7 +92,7 @@ def _parse(buf: bytes, i: int, nbytes: int) -> DvlOutput:
                    roll_deg=p[3] / 100, heading_deg=p[4] / 100,
                    dmg_bottom_m=tuple(d / 10 for d in p[5:9]),
                    dmg_reference_m=tuple(d / 10 for d in p[9:13]))
-    return DvlOutput(**rec)  # type: ignore[arg-type]
+    return DvlOutput(**rec)  # type: ignore[arg-type]  # fields gathered by name in a dict: their types are the dataclass's
 
 
 def _candidate(buf: bytes, i: int) -> tuple[str | None, int]:
@@ -141,12 +143,10 @@ def vehicle_velocity(coordinates: str, velocity: Sequence[float], beam_angle_deg
     Ship (x port→starboard, y aft→forward, z to surface) becomes BODY_FRD as
     (y, x, -z); earth (east, north, up) becomes EARTH_NED the same way;
     instrument is kept; beam velocities go through the Janus transform
-    (`formats.pd0.beam_to_instrument`, convex head assumed) to INSTRUMENT.
+    (`formats.pd0.frames.beam_to_instrument`, convex head assumed) to INSTRUMENT.
     """
     v = tuple(velocity)
     if coordinates == "beam":
-        from .pd0 import beam_to_instrument
-
         v = beam_to_instrument(v, beam_angle_deg, True)
         coordinates = "instrument"
     if coordinates == "instrument":

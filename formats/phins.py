@@ -32,9 +32,10 @@ from dataclasses import dataclass
 from typing import Callable, Iterator, Union
 
 from .lines import PREFIX_STYLES
-from .nmea import NAN, iter_frames, parse_tod
+from .nmea.fields import NAN, parse_tod
+from .nmea.framing import HEX, build, prefix_xor
+from .nmea.sentences import iter_frames
 from .records import Reject, Where
-from .sentence import HEX, build, prefix_xor
 
 
 @dataclass(frozen=True, slots=True)
@@ -276,10 +277,10 @@ def _parse(address: str, fields: list[str], where: Where) -> PhinsRecord | Rejec
 def decode(data: bytes, prefix: str = "auto") -> Iterator[PhinsRecord | Reject]:
     """Stream every PHINS record (or Reject) in a log, in file order."""
     for item in iter_frames(data, prefix):
-        if type(item) is Reject:
+        if isinstance(item, Reject):
             yield item
             continue
-        address, fields, where = item  # type: ignore[misc]
+        address, fields, where = item
         result = _parse(address, fields, where)
         if result is not None:
             yield result
@@ -331,11 +332,11 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
 def _scan_general(raw: str, line_start: int, number: int, prefix: str) -> Iterator[Scanned | Reject]:
     """A line off the fast path: prefixes, noise, missing checksums, glued sentences, garbage."""
     for item in iter_frames(raw.encode("latin-1"), prefix):
-        if type(item) is Reject:
-            where = Where(line_start, number, item.where.host_time_ns)  # type: ignore[union-attr]
-            yield Reject(where, item.reason, item.bad_checksum)  # type: ignore[union-attr]
+        if isinstance(item, Reject):
+            where = Where(line_start, number, item.where.host_time_ns)
+            yield Reject(where, item.reason, item.bad_checksum)
             continue
-        address, fields, w = item  # type: ignore[misc]
+        address, fields, w = item
         where = Where(line_start, number, w.host_time_ns)
         try:
             found = _values(address, fields)

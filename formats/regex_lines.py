@@ -40,7 +40,11 @@ import math
 import re
 from dataclasses import dataclass, field
 from datetime import date, datetime, timezone
-from typing import Iterator, Mapping
+from typing import Any, Iterator, Mapping
+
+# user patterns run on the `regex` engine for its per-match time limit: a pattern from a shared manifest
+# that backtracks without end ((a|aa)+$) is refused with a message instead of hanging `record`
+import regex
 
 from .lines import PREFIX_STYLES, iter_lines, strip_prefix
 from .records import FormatError, Reject, Where
@@ -91,13 +95,17 @@ class RegexRecord:
         return self.values.get("range_m", math.nan)
 
 
-def compile_pattern(pattern: object, require_range: bool = True) -> re.Pattern[str]:
-    """Compile a user pattern; FormatError with a clear message when it is unusable."""
+MATCH_TIMEOUT_S = 0.05   # per line; a sane pattern takes microseconds
+MAX_LINE_CHARS = 65_536  # longer lines are not records of any modem log
+
+
+def compile_pattern(pattern: object, require_range: bool = True) -> Any:
+    """Compile a user pattern (a `regex` Pattern); FormatError with a clear message when it is unusable."""
     if not isinstance(pattern, str) or not pattern:
         raise FormatError("regex format: the manifest option 'pattern' must be a non-empty string")
     try:
-        compiled = re.compile(pattern)
-    except re.error as exc:
+        compiled = regex.compile(pattern)
+    except (regex.error, OverflowError, RecursionError) as exc:
         raise FormatError(f"regex format: pattern does not compile: {exc}") from None
     names = set(compiled.groupindex)
     if require_range and not names & {"travel_time_s", "range_m"}:
@@ -156,7 +164,7 @@ def _times(g: Mapping[str, str], time_format: str) -> tuple[int | None, float | 
     return t, None, day
 
 
-def _record(m: re.Match[str], where: Where, time_format: str, scale: float) -> RegexRecord | Reject:
+def _record(m: Any, where: Where, time_format: str, scale: float) -> RegexRecord | Reject:
     g = {k: v for k, v in m.groupdict().items() if v is not None}
     try:
         time_ns, tod_s, day = _times(g, time_format)
@@ -173,13 +181,17 @@ def _record(m: re.Match[str], where: Where, time_format: str, scale: float) -> R
 
 def decode(
     data: bytes,
-    pattern: str | re.Pattern[str],
+    pattern: Any,
     time_format: str = "tod",
     prefix: str = "auto",
     travel_time_scale: float = 1.0,
 ) -> Iterator[RegexRecord | Reject]:
-    """Match every line against the user pattern; non-matching lines are Rejects ('no match')."""
-    compiled = pattern if isinstance(pattern, re.Pattern) else compile_pattern(pattern)
+    """Match every line against the user pattern; non-matching lines are Rejects ('no match').
+
+    A pattern that takes over MATCH_TIMEOUT_S on one line is a FormatError
+    naming the line (it would take as long on every other).
+    """
+    compiled = compile_pattern(pattern) if isinstance(pattern, str) else pattern
     if prefix not in PREFIX_STYLES:
         raise FormatError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
     if time_format not in TIME_FORMATS:
@@ -190,8 +202,16 @@ def decode(
     for raw in iter_lines(data, "none"):
         rest, host_ns = strip_prefix(raw.text, prefix)
         where = Where(raw.where.offset, raw.where.line, host_ns)
+        if len(raw.text) > MAX_LINE_CHARS:
+            yield Reject(where, f"line of {len(raw.text)} characters, over {MAX_LINE_CHARS}")
+            continue
         # a pattern may itself read the leading timestamp that looks like a host prefix
-        m = compiled.search(rest) or (compiled.search(raw.text) if host_ns is not None else None)
+        try:
+            m = compiled.search(rest, timeout=MATCH_TIMEOUT_S) or (
+                compiled.search(raw.text, timeout=MATCH_TIMEOUT_S) if host_ns is not None else None)
+        except TimeoutError:
+            raise FormatError(f"regex format: the pattern takes over {MATCH_TIMEOUT_S} s on line {where.line} "
+                              "(nested repetition such as (a|aa)+ backtracks without end): simplify it") from None
         if m is None:
             yield Reject(where, "no match")
             continue

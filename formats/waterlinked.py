@@ -142,7 +142,8 @@ def _serial(kind: str, p: list[str], where: Where) -> WaterLinkedRecord:
     if kind == "wrx":
         return VelocityReport(where, "wrx", (_f(p[1]), _f(p[2]), _f(p[3])), p[6].strip() == "y",
                               _pos(_f(p[5])), _f(p[4]), (), None, None, _f(p[0]), _int(p[7]) or 0)
-    return LegacyDistances(where, tuple(_pos(_f(x)) for x in p[:4]))  # type: ignore[arg-type]
+    d1, d2, d3, d4 = (_pos(_f(x)) for x in p[:4])
+    return LegacyDistances(where, (d1, d2, d3, d4))
 
 
 def parse_serial(text: str, where: Where) -> WaterLinkedRecord | Reject | None:
@@ -180,8 +181,12 @@ def _json_transducer(t: dict[str, Any], where: Where) -> TransducerReport:
                             bool(t.get("beam_valid", dist >= 0)))
 
 
+_US_MAX = 7_258_118_400_000_000  # 2200-01-01 in microseconds: later is not a time of a trial
+
+
 def _us(value: Any) -> int | None:
-    return int(value) if isinstance(value, (int, float)) and math.isfinite(value) else None
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and 0 <= value < _US_MAX
+    return int(value) if ok else None
 
 
 def parse_json(text: str, where: Where) -> WaterLinkedRecord | Reject:
@@ -207,7 +212,7 @@ def parse_json(text: str, where: Where) -> WaterLinkedRecord | Reject:
             return PositionReport(where, *(_f(obj[k]) for k in ("ts", "x", "y", "z", "std")),
                                   *(_f(obj.get(k, "nan")) for k in ("roll", "pitch", "yaw")),
                                   int(obj.get("status", 0)))
-    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+    except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as exc:
         return Reject(where, f"JSON {kind} report: bad or missing field {exc}")
     return Reject(where, f"JSON message of type {kind!r} is not a report")
 

@@ -4,17 +4,27 @@ from __future__ import annotations
 
 import hashlib
 import os
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
+from typing import BinaryIO
+
+from formats.mcap_reader import ArchiveReader
+
+RAW_PREFIX = "/raw/"  # a capture's raw streams (recorders.capture.session)
 
 
 @dataclass
 class UnpackResult:
-    """Files written, attachment names refused (unsafe), and checksum mismatches."""
+    """Files written, names refused (unsafe), repeated names not written, checksum mismatches, and
+    the reader's one-line account of what it skipped (None when nothing)."""
 
     written: list[Path] = field(default_factory=list)
     refused: list[str] = field(default_factory=list)
     mismatched: list[str] = field(default_factory=list)
+    incomplete: list[str] = field(default_factory=list)  # captured streams with bytes missing (a gap)
+    repeated: list[str] = field(default_factory=list)
+    warning: str | None = None
 
 
 def safe_target(root: Path, name: str) -> Path | None:
@@ -37,16 +47,25 @@ def safe_target(root: Path, name: str) -> Path | None:
 
 
 def unpack(archive_path: str | os.PathLike[str], target_dir: str | os.PathLike[str]) -> UnpackResult:
-    """Write every attachment under target_dir; refuse unsafe names, verify recorded sha256."""
-    from formats.mcap_reader import ArchiveReader
+    """Write every attachment under target_dir; refuse unsafe names, verify recorded sha256.
 
+    A second attachment of a name already written is not written over the
+    first: it is listed in `repeated`.
+    """
     root = Path(target_dir)
     root.mkdir(parents=True, exist_ok=True)
     result = UnpackResult()
     with ArchiveReader(archive_path) as reader:
         recording = reader.metadata_json("recording") or {}
-        expected = {f["path"]: f.get("sha256", "") for f in recording.get("files", []) if isinstance(f, dict)}
+        files = recording.get("files")
+        expected = {f["path"]: f.get("sha256", "") for f in (files if isinstance(files, list) else [])
+                    if isinstance(f, dict) and isinstance(f.get("path"), str)}
+        seen: set[str] = set()
         for att in reader.attachments():
+            if att.name in seen:
+                result.repeated.append(att.name)
+                continue
+            seen.add(att.name)
             target = safe_target(root, att.name)
             if target is None:
                 result.refused.append(att.name)
@@ -61,4 +80,42 @@ def unpack(archive_path: str | os.PathLike[str], target_dir: str | os.PathLike[s
             want = expected.get(att.name)
             if want and hashlib.sha256(att.data).hexdigest() != want:
                 result.mismatched.append(att.name)
+        _unpack_streams(reader, root, expected, result)
+        result.warning = reader.warning()
     return result
+
+
+def _unpack_streams(reader, root: Path, expected: dict[str, str], result: UnpackResult) -> None:
+    """A capture's streams (its RawBytes messages), each written back at its offsets: the bytes as received."""
+    topics = [t for t in reader.summary().topics if t.startswith(RAW_PREFIX)]
+    if not topics:
+        return
+    files: dict[str, tuple[BinaryIO, list[int]]] = {}  # stream -> (file, [bytes written, end])
+    with ExitStack() as stack:
+        for m in reader.messages(topics):
+            raw = m.message
+            got = files.get(raw.stream)
+            if got is None:
+                target = safe_target(root, raw.stream)
+                if target is None or raw.stream in result.refused:
+                    if raw.stream not in result.refused:
+                        result.refused.append(raw.stream)
+                    continue
+                target.parent.mkdir(parents=True, exist_ok=True)
+                if safe_target(root, raw.stream) is None or target.is_symlink():
+                    result.refused.append(raw.stream)
+                    continue
+                got = files[raw.stream] = (stack.enter_context(open(target, "wb")), [0, 0])
+                result.written.append(target)
+            f, counts = got
+            f.seek(raw.offset)  # in offset order whatever the receive times say
+            f.write(raw.data)
+            counts[0] += len(raw.data)
+            counts[1] = max(counts[1], raw.offset + len(raw.data))
+    for stream, (f, (written, end)) in files.items():
+        if written != end:
+            result.incomplete.append(stream)
+            continue
+        want = expected.get(stream)
+        if want and hashlib.sha256(Path(f.name).read_bytes()).hexdigest() != want:
+            result.mismatched.append(stream)

@@ -17,13 +17,14 @@ import math
 from datetime import datetime, timezone
 from typing import Any, Callable, Iterator
 
+from google.protobuf.descriptor import FieldDescriptor
+
 from formats import csv_table
 from formats import schemas as S
 from formats.records import FormatError, Reject
-from google.protobuf.descriptor import FieldDescriptor
 
 from .base import NS, LogContext, Output, output
-from .clock import DayClock
+from .clock import DayClock, plausible_ns
 
 # family -> (message class, topic suffix)
 FAMILY_MESSAGES: dict[str, tuple[Any, str]] = {
@@ -131,10 +132,12 @@ def converter_for(family: str) -> Callable[[bytes, LogContext], Iterator[Output 
                 t = parse_time(row.values[columns["time"]])
                 if t is None:
                     raise ValueError("time of day without a date (set [trial] date)")
+                if not plausible_ns(t + ctx.clock_offset_ns):
+                    raise ValueError(f"time {row.values[columns['time']][:40]!r} is outside 1970-2200")
                 msg = _new_message(cls, ctx)
                 for field, set_value in setters.items():
                     set_value(msg, row.values[columns[field]])
-            except (ValueError, KeyError) as exc:
+            except (ValueError, KeyError, OverflowError) as exc:
                 yield Reject(row.where, f"bad row: {exc}")
                 continue
             _complete(msg, ctx)

@@ -3,7 +3,7 @@
 Every message carries the VEHICLE velocity over ground (m/s) in the frame
 the data are in: PD0 from the fixed leader's EX coordinate bits (bottom-track
 values negated, RDI ship axes x starboard / y forward / z up turned into
-BODY_FRD x forward / y starboard / z down: see `formats.pd0.vehicle_velocity`),
+BODY_FRD x forward / y starboard / z down: see `formats.pd0.frames.vehicle_velocity`),
 PD4/PD5 from their config byte, PD6 from the line used (BS, BE or BI), Nortek
 and Water Linked from the manifest option ``dvl_frame`` (default INSTRUMENT
 for Nortek, BODY_FRD for Water Linked, whose axes are the mounted frame).
@@ -25,17 +25,22 @@ order or repeated times are kept as they come.
 from __future__ import annotations
 
 import math
-import struct
 from typing import Any, Iterator, Sequence
 
 import numpy as np
+from google.protobuf.timestamp_pb2 import Timestamp
 
-from formats import nortek, pd0, pd0_blocks, pd4, pd6, waterlinked
+from formats import nortek, pd4, pd6, waterlinked
+from formats.pd0 import blocks as pd0_blocks
+from formats.pd0 import ensembles as pd0
+from formats.pd0.frames import vehicle_velocity
 from formats.records import FormatError, Reject, Where
 from formats.schemas import DvlVelocity, timestamp
+from formats.wire import DVL_VELOCITY
 
 from .base import NS, Converter, LogContext, Output, output
 from .clock import DayClock
+from .value_checks import TIME_RANGE_NS
 
 NAN = math.nan
 FRAMES = {"BODY_FRD": DvlVelocity.BODY_FRD, "EARTH_NED": DvlVelocity.EARTH_NED,
@@ -83,8 +88,10 @@ def message(ctx: LogContext, t_ns: int, frame: str, velocity: Sequence[float], *
     vx, vy, vz = velocity
     if valid is None:
         valid = all(math.isfinite(v) for v in velocity)
+    # a time no Timestamp holds (a 400-digit field) is left unset: the record-time checks refuse it by t_ns
+    stamp = timestamp(t_ns) if TIME_RANGE_NS[0] <= t_ns < TIME_RANGE_NS[1] else Timestamp()
     return DvlVelocity(
-        timestamp=timestamp(t_ns), frame_id=ctx.vehicle, frame=FRAMES[frame],
+        timestamp=stamp, frame_id=ctx.vehicle, frame=FRAMES[frame],
         velocity_x_mps=vx, velocity_y_mps=vy, velocity_z_mps=vz, error_velocity_mps=error,
         beam_range_m=list(ranges), altitude_m=altitude, valid=bool(valid),
         figure_of_merit=fom, sound_speed_mps=sound_speed, source_format=source,
@@ -99,75 +106,51 @@ def _host_time(ctx: LogContext, where: Where) -> int | None:
 # --- Teledyne RDI ------------------------------------------------------------------------
 
 
-def _pd0_items(rec: pd0.Ensemble, fixed: pd0.FixedLeader | None, ctx: LogContext) -> Iterator[Output | Reject]:
+def pd0_items(rec: pd0.Ensemble, fixed: pd0.FixedLeader | None, ctx: LogContext) -> Iterator[Output | Reject]:
     """The message of one ensemble, or why it has none (`fixed`: its own or the last one seen)."""
-    number = rec.variable.ensemble_number if rec.variable else "?"
-    if rec.time_ns is None:
+    bt, var, time_ns = rec.bottom_track, rec.variable, rec.time_ns
+    number = var.ensemble_number if var else "?"
+    if time_ns is None or var is None:  # no variable leader gives no time either
         yield Reject(rec.where, f"ensemble {number}: no variable leader or invalid RTC time")
-    elif rec.bottom_track is None:
+    elif bt is None:
         yield Reject(rec.where, f"ensemble {number}: no bottom-track data")
     elif fixed is None:
         yield Reject(rec.where, f"ensemble {number}: no fixed leader yet (coordinates unknown)")
     else:
-        yield _pd0_output(ctx, rec, fixed)
+        yield _pd0_output(ctx, rec.where, time_ns + ctx.clock_offset_ns, bt, var, fixed)
 
 
-def convert_pd0_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
-    """`convert_pd0` the obvious way, over `pd0.decode` records: the judge of the fast path in tests."""
-    fixed: pd0.FixedLeader | None = None
-    for rec in pd0.decode(data):
-        if isinstance(rec, Reject):
-            yield rec
-            continue
-        fixed = rec.fixed or fixed  # an ensemble without a fixed leader uses the last one
-        yield from _pd0_items(rec, fixed, ctx)
-
-
-def _pd0_output(ctx: LogContext, rec: pd0.Ensemble, fixed: pd0.FixedLeader) -> Output:
-    bt, var = rec.bottom_track, rec.variable
+def _pd0_output(ctx: LogContext, where: Where, t: int, bt: pd0.BottomTrack, var: pd0.VariableLeader,
+                fixed: pd0.FixedLeader) -> Output:
     angle = beam_angle(ctx, fixed.beam_angle_deg)
-    frame, x, y, z, err = pd0.vehicle_velocity(fixed.coordinates, bt.velocity_mps, angle,
-                                               fixed.convex)
+    frame, x, y, z, err = vehicle_velocity(fixed.coordinates, bt.velocity_mps, angle, fixed.convex)
     slant, alt = ranges_from_vertical(bt.range_m, angle)
-    t = rec.time_ns + ctx.clock_offset_ns
     msg = message(ctx, t, frame, (x, y, z), error=err, ranges=slant, altitude=alt,
                   sound_speed=var.sound_speed_mps, temperature=var.temperature_c, source="pd0")
-    return output(ctx, "dvl", msg, t, rec.where)
-
+    return output(ctx, "dvl", msg, t, where)
 
 
 # ---------------------------------------------------------------- PD0, fast path
-# The same messages as `convert_pd0_reference`, over `pd0_blocks.scan`: a run
+# The same messages as tests/reference_converters.py's `convert_pd0_reference`, over `pd0_blocks.scan`: a run
 # of like ensembles has its velocities, ranges and altitudes computed as
 # arrays (the same IEEE operations in the same order, so the same bits, NaN
-# signs included), and each DvlVelocity is parsed from packed wire bytes.
-
-# velocity x, y, z, error (4..7), beam_range_m packed (8, 4 doubles), altitude (9), valid (10),
-# sound speed (12), temperature (14): tags (field << 3 | wire type) included
-_PD0_NUMBERS = struct.Struct("<BdBdBdBdBB4dBdBBBdBd")
+# signs included), and each DvlVelocity is parsed from wire bytes packed by `formats.wire`.
 
 
 def _pd0_motion(block: pd0_blocks.Block, fixed: pd0.FixedLeader, ctx: LogContext) -> tuple:
     """(frame name, columns x, y, z, error, slant ranges, altitude, valid) of a block (`_pd0_output`)."""
     angle = beam_angle(ctx, fixed.beam_angle_deg)
-    bt, coords = block.velocity_mps, fixed.coordinates
-    if coords == "beam":  # rare: the Janus transform row by row, as the reference does it
-        rows = [pd0.vehicle_velocity(coords, b, angle, fixed.convex) for b in bt.tolist()]  # type: ignore[union-attr]
-        frame = rows[0][0]
-        x, y, z, err = (np.array([r[k] for r in rows]) for k in range(1, 5))
-    elif coords == "instrument":
-        frame, x, y, z, err = "INSTRUMENT", -bt[:, 0], -bt[:, 1], -bt[:, 2], bt[:, 3]  # type: ignore[index]
-    else:
-        frame = "BODY_FRD" if coords == "ship" else "EARTH_NED"
-        x, y, z, err = -bt[:, 1], -bt[:, 0], bt[:, 2], bt[:, 3]  # type: ignore[index]
-    vertical = block.range_m
-    good = np.isfinite(vertical)  # type: ignore[arg-type]
+    bt, vertical = block.velocity_mps, block.range_m
+    if bt is None or vertical is None:
+        raise ValueError("a block without bottom track has no motion")  # the caller rejects those first
+    frame, x, y, z, err = vehicle_velocity(fixed.coordinates, tuple(bt.T), angle, fixed.convex)
+    good = np.isfinite(vertical)
     # `ranges_from_vertical`'s sum(good) / len(good): adding 0.0 for a bad beam leaves the sum's bits alone
-    w = np.where(good, vertical, 0.0)  # type: ignore[call-overload]
+    w = np.where(good, vertical, 0.0)
     count = good.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         alt = np.where(count > 0, (((w[:, 0] + w[:, 1]) + w[:, 2]) + w[:, 3]) / count, NAN)
-    slant = vertical / math.cos(math.radians(angle))  # type: ignore[operator]
+    slant = vertical / math.cos(math.radians(angle))
     valid = np.isfinite(x) & np.isfinite(y) & np.isfinite(z)
     return frame, x.tolist(), y.tolist(), z.tolist(), err.tolist(), slant.tolist(), alt.tolist(), valid.tolist()
 
@@ -176,7 +159,8 @@ def _pd0_block_outputs(block: pd0_blocks.Block, fixed: pd0.FixedLeader | None, c
                        ) -> Iterator[Output | Reject]:
     """`convert_pd0_reference`'s items for the ensembles of one block."""
     offsets, times, numbers = block.offsets, block.time_ns, block.numbers
-    if times is None or block.velocity_mps is None or fixed is None:
+    sounds, temps = block.sound_speed_mps, block.temperature_c  # None only with `times` (no variable leader)
+    if times is None or numbers is None or sounds is None or temps is None or block.velocity_mps is None or fixed is None:
         for k, off in enumerate(offsets):
             number = numbers[k] if numbers is not None else "?"
             if times is None or times[k] is None:
@@ -189,16 +173,15 @@ def _pd0_block_outputs(block: pd0_blocks.Block, fixed: pd0.FixedLeader | None, c
     frame, xs, ys, zs, errs, slants, alts, valids = _pd0_motion(block, fixed, ctx)
     head = DvlVelocity(frame_id=ctx.vehicle, frame=FRAMES[frame], figure_of_merit=NAN,
                        source_format="pd0").SerializeToString()
-    pack, parse, topic, offset_ns = _PD0_NUMBERS.pack, DvlVelocity.FromString, f"/{ctx.vehicle}/dvl", ctx.clock_offset_ns
+    pack, parse, topic, offset_ns = DVL_VELOCITY.struct.pack, DvlVelocity.FromString, f"/{ctx.vehicle}/dvl", ctx.clock_offset_ns
+    k0, k1, k2, k3, k4, k5, k6, k7, k8 = DVL_VELOCITY.keys
     for off, t, number, x, y, z, err, r, alt, valid, sound, temp in zip(
-            offsets, times, block.numbers, xs, ys, zs, errs, slants, alts, valids,  # type: ignore[arg-type]
-            block.sound_speed_mps, block.temperature_c):  # type: ignore[arg-type]
+            offsets, times, numbers, xs, ys, zs, errs, slants, alts, valids, sounds, temps):
         if t is None:
             yield Reject(Where(off), f"ensemble {number}: no variable leader or invalid RTC time")
             continue
         t += offset_ns
-        msg = parse(head + pack(0x21, x, 0x29, y, 0x31, z, 0x39, err, 0x42, 32, *r, 0x49, alt, 0x50, valid,
-                                0x61, sound, 0x71, temp))
+        msg = parse(head + pack(k0, x, k1, y, k2, z, k3, err, k4, *r, k5, alt, k6, valid, k7, sound, k8, temp))
         ts = msg.timestamp
         ts.seconds, ts.nanos = divmod(t, NS)
         yield Output(topic, msg, t, t, Where(off))
@@ -208,15 +191,14 @@ def convert_pd0(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """Teledyne RDI PD0 ensembles (bottom track); frame from the EX coordinate bits."""
     fixed: pd0.FixedLeader | None = None
     for item in pd0_blocks.scan(data):
-        kind = type(item)
-        if kind is Reject:
-            yield item  # type: ignore[misc]
-        elif kind is pd0_blocks.Block:
-            fixed = item.fixed or fixed  # type: ignore[union-attr]
-            yield from _pd0_block_outputs(item, fixed, ctx)  # type: ignore[arg-type]
+        if isinstance(item, Reject):
+            yield item
+        elif isinstance(item, pd0_blocks.Block):
+            fixed = item.fixed or fixed
+            yield from _pd0_block_outputs(item, fixed, ctx)
         else:  # an ensemble off the block path: the reference's own steps
-            fixed = item.fixed or fixed  # type: ignore[union-attr]
-            yield from _pd0_items(item, fixed, ctx)  # type: ignore[arg-type]
+            fixed = item.fixed or fixed
+            yield from pd0_items(item, fixed, ctx)
 
 
 def convert_pd4(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:

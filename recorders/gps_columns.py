@@ -1,7 +1,7 @@
-"""`recorders.gps.convert_nmea` over `formats.nmea_columns`: epochs, positions and covariances as arrays.
+"""`recorders.gps.convert_nmea` over `formats.nmea.columns`: epochs, positions and covariances as arrays.
 
 The same messages as the per-line fast path (and so as
-`convert_nmea_reference`), for clean logs of the types `formats.nmea_columns`
+tests/reference_converters.py's `convert_nmea_reference`), for clean logs of the types `formats.nmea.columns`
 takes: epochs are runs of one time of day (ms; a sentence without a time
 joins the run it arrives in), found with numpy; per epoch only the two
 protobuf messages and their Outputs are built in Python. Logs where an epoch
@@ -11,17 +11,19 @@ time at all, get None, and the per-line path.
 
 from __future__ import annotations
 
+from itertools import repeat
 from typing import Iterator
 
 import numpy as np
 
 from formats import schemas as S
-from formats.nmea import KNOT_MPS
-from formats.nmea_columns import KINDS, NmeaColumns
+from formats.nmea.columns import KINDS, NmeaColumns
+from formats.nmea.sentences import KNOT_MPS
 from formats.records import Reject, Where
 
-from .base import Output, LogContext
+from .base import LogContext, Output
 from .clock import DAY_NS, NS, DayClock, date_to_ns
+from .gnss_covariance import fix_covariance
 
 NAN = float("nan")
 
@@ -144,7 +146,7 @@ def convert_columns(cols: NmeaColumns, ctx: LogContext, no_date: str) -> Iterato
     source = np.where(gga_pos, _pick(cols.rows["GGA"], g, 0), np.where(
         gll_pos, _pick(cols.rows["GLL"], ll, 0), np.where(rmc_pos, _pick(cols.rows["RMC"], r, 0), starts)))
     hdop = _pick(gv["hdop"], g, NAN)
-    cov, cov_kind = _covariance(v["GST"], m["GST"], hdop, quality, has_g, ctx)
+    cov, cov_kind = _covariance(v["GST"], m["GST"], hdop, quality, ctx)
     dates, date_tods = _dates(cols, z, r, valid)
     alone = np.diff(np.append(starts, len(cols.kind))) == 1
     silent = (alone & (z >= 0)).tolist() if len(cols.rows["ZDA"]) else [False] * n
@@ -198,25 +200,12 @@ def _clock(ctx: LogContext) -> DayClock:
     return DayClock(ctx.trial_date, ctx.clock_offset_ns)
 
 
-def _covariance(sv: dict, s: np.ndarray, hdop: np.ndarray, quality: np.ndarray, has_g: np.ndarray, ctx: LogContext
+def _covariance(sv: dict, s: np.ndarray, hdop: np.ndarray, quality: np.ndarray, ctx: LogContext
                 ) -> tuple[list, list[int]]:
-    """`gps._scan_covariance` per epoch: GST's sigmas, else GGA's HDOP times the UERE, else None."""
-    from .gps import DEFAULT_UERE_M, UERE_M
-
-    lat_std, lon_std, alt_std = _pick(sv["lat_std"], s, NAN), _pick(sv["lon_std"], s, NAN), _pick(sv["alt_std"], s, NAN)
-    known = (s >= 0) & ~np.isnan(lat_std) & ~np.isnan(lon_std)
-    approx = ~known & has_g & ~np.isnan(hdop) & (quality > 0)
-    m = np.zeros((len(s), 9))
-    e, n_, u = lon_std[known], lat_std[known], alt_std[known]
-    m[known, 0], m[known, 4], m[known, 8] = e * e, n_ * n_, u * u
-    if approx.any():
-        uere = {q: float(ctx.options.get("uere_m", UERE_M.get(q, DEFAULT_UERE_M))) for q in np.unique(quality[approx]).tolist()}
-        h = hdop[approx] * np.array([uere[q] for q in quality[approx].tolist()])
-        m[approx, 0] = m[approx, 4] = h * h / 2
-        m[approx, 8] = 4 * h * h
-    kind = np.where(known, S.COVARIANCE_DIAGONAL_KNOWN, np.where(approx, S.COVARIANCE_APPROXIMATED, S.COVARIANCE_UNKNOWN))
-    rows = m.tolist()
-    return [row if k != S.COVARIANCE_UNKNOWN else None for row, k in zip(rows, kind.tolist())], kind.tolist()
+    """`fix_covariance` per epoch: GST's sigmas (NaN where the epoch has no GST), else GGA's HDOP, else None."""
+    lat_std, lon_std, alt_std = (_pick(sv[k], s, NAN).tolist() for k in ("lat_std", "lon_std", "alt_std"))
+    pairs = list(map(fix_covariance, lat_std, lon_std, alt_std, hdop.tolist(), quality.tolist(), repeat(ctx.options)))
+    return [p[0] for p in pairs], [p[1] for p in pairs]
 
 
 def _emit(ctx: LogContext, times: list, silent: list[bool], fix: zip, status: zip, where: zip, first: zip, no_date: str

@@ -4,7 +4,7 @@ Conventions of InsState: heading true, clockwise from north; roll positive
 starboard side down (= port side up); pitch positive bow up; longitude in
 [-180, 180); depth positive down; velocity north/east/down; NaN when absent.
 
-Epochs (see `recorders.gps.group_epochs`):
+Epochs (see `recorders.epochs.group_epochs`):
 
 - phins: PHINS writes one burst per output epoch, each sentence type once
   ($HEHDT, $PIXSE ATITUD, POSITI, SPEED_, ..., TIME__, STDHRP, ...). An
@@ -28,102 +28,51 @@ from __future__ import annotations
 import math
 from typing import Iterator
 
-from formats import nmea, novatel, novatel_scan, pashr, phins
+from formats import pashr, phins
 from formats import schemas as S
+from formats.nmea import sentences as nmea
+from formats.novatel import scan as novatel_scan
 from formats.records import Reject, Where
 
 from .base import Converter, LogContext, Output, output
 from .clock import DayClock
-from .gps import (
-    group_epochs, host_time_ns, nmea_epoch_time, nmea_key, nmea_motion, nmea_position, nmea_update_date,
-    novatel_key, novatel_time,
+from .epochs import host_time_ns
+from .nmea_epochs import (
+    NmeaEpoch,
+    gga_altitude,
+    nmea_epoch_time,
+    nmea_motion,
+    nmea_position,
+    nmea_update_date,
+    record_epochs,
 )
-from .novatel_epochs import novatel_scan_epochs, novatel_scan_time
+from .novatel_epochs import novatel_publish_ns, novatel_scan_epochs, novatel_scan_time
 
 NAN = float("nan")
-NAV = (phins.Heading, phins.Atitud, phins.Positi, phins.Speed, phins.Phtro)
 
 
-def ins_state(t_ns: int, ctx: LogContext, source: str, **fields: object) -> S.InsState:  # type: ignore[name-defined]
-    """An InsState with every float NaN unless given (proto3 would default them to 0)."""
-    if not fields.keys() <= _INS_FIELDS:
-        raise ValueError(f"InsState has no field {sorted(fields.keys() - _INS_FIELDS)[0]!r}")
-    g = fields.get
+def ins_state(t_ns: int, ctx: LogContext, source: str, status: str = "", /, **values: float) -> S.InsState:
+    """An InsState with its status words and every float NaN unless given (proto3 would default them to 0)."""
+    if not values.keys() <= _INS_VALUES:
+        raise ValueError(f"InsState has no field {sorted(values.keys() - _INS_VALUES)[0]!r}")
+    g = values.get
     return S.ins_state(
-        t_ns, ctx.vehicle, source, g("status", ""), g("latitude", NAN), g("longitude", NAN), g("depth_m", NAN),  # type: ignore[arg-type]
-        g("roll_deg", NAN), g("pitch_deg", NAN), g("heading_deg", NAN), g("velocity_north_mps", NAN),  # type: ignore[arg-type]
-        g("velocity_east_mps", NAN), g("velocity_down_mps", NAN), g("heading_std_deg", NAN),  # type: ignore[arg-type]
-        g("position_std_north_m", NAN), g("position_std_east_m", NAN), g("roll_std_deg", NAN),  # type: ignore[arg-type]
-        g("pitch_std_deg", NAN), g("altitude_m", NAN),  # type: ignore[arg-type]
+        t_ns, ctx.vehicle, source, status, g("latitude", NAN), g("longitude", NAN), g("depth_m", NAN),
+        g("roll_deg", NAN), g("pitch_deg", NAN), g("heading_deg", NAN), g("velocity_north_mps", NAN),
+        g("velocity_east_mps", NAN), g("velocity_down_mps", NAN), g("heading_std_deg", NAN),
+        g("position_std_north_m", NAN), g("position_std_east_m", NAN), g("roll_std_deg", NAN),
+        g("pitch_std_deg", NAN), g("altitude_m", NAN),
     )
 
 
-_INS_FIELDS = frozenset((
-    "status", "latitude", "longitude", "depth_m", "roll_deg", "pitch_deg", "heading_deg", "velocity_north_mps",
+_INS_VALUES = frozenset((
+    "latitude", "longitude", "depth_m", "roll_deg", "pitch_deg", "heading_deg", "velocity_north_mps",
     "velocity_east_mps", "velocity_down_mps", "heading_std_deg", "position_std_north_m", "position_std_east_m",
     "roll_std_deg", "pitch_std_deg", "altitude_m",
 ))
 
 
 # ---------------------------------------------------------------- PHINS
-
-
-def phins_key(rec: phins.PhinsRecord) -> tuple[str, None]:
-    """Epoch key of a PHINS record: its sentence kind (bursts are delimited by repetition)."""
-    return (rec.kind if type(rec) is phins.StatusWords else type(rec).__name__), None  # type: ignore[union-attr]
-
-
-def _phins_fields(epoch: list) -> dict[str, object]:
-    f: dict[str, object] = {}
-    words = []
-    for r in epoch:
-        kind = type(r)
-        if kind is phins.Heading and r.mode != "V":
-            f["heading_deg"] = r.heading_deg
-        elif kind is phins.Atitud:
-            f["roll_deg"], f["pitch_deg"] = r.roll_port_up_deg, -r.pitch_bow_down_deg
-        elif kind is phins.Phtro and "roll_deg" not in f:
-            f["roll_deg"], f["pitch_deg"] = r.roll_port_up_deg, r.pitch_bow_up_deg
-        elif kind is phins.Positi:
-            f["latitude"], f["longitude"] = r.latitude, r.longitude
-            f["altitude_m"], f["depth_m"] = r.altitude_m, 0.0 - r.altitude_m
-        elif kind is phins.Speed:
-            f["velocity_north_mps"], f["velocity_east_mps"], f["velocity_down_mps"] = r.north_mps, r.east_mps, 0.0 - r.up_mps
-        elif kind is phins.StdHrp:
-            f["heading_std_deg"], f["roll_std_deg"], f["pitch_std_deg"] = r.heading_std_deg, r.roll_std_deg, r.pitch_std_deg
-        elif kind is phins.StdPos:
-            f["position_std_north_m"], f["position_std_east_m"] = r.lat_std_m, r.lon_std_m
-        elif kind is phins.StatusWords:
-            words.append(f"{r.kind}={r.lsb:08X}" + ("" if r.kind == "HT_STS" else f",{r.msb:08X}"))
-    f["status"] = " ".join(words)
-    return f
-
-
-def _phins_outputs(epoch: list, ctx: LogContext, clock: DayClock) -> Iterator[Output | Reject]:
-    if not any(type(r) in NAV for r in epoch):
-        return
-    stamp = next((r for r in epoch if type(r) is phins.Time and r.time_s == r.time_s), None)
-    if stamp is not None:
-        t = clock.resolve(stamp.time_s)
-        if t is None:
-            yield Reject(stamp.where, "no date for PHINS TIME__: set the [trial] date in the manifest")
-            return
-    else:
-        t = host_time_ns(epoch, ctx)
-        if t is None:
-            yield Reject(epoch[0].where, "no time: PHINS burst without TIME__ and without a host timestamp")
-            return
-    yield output(ctx, "ins", ins_state(t, ctx, "phins", **_phins_fields(epoch)), t, epoch[0].where)
-
-
-def convert_phins_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
-    """`convert_phins` the obvious way, over `phins.decode` records: the judge of the fast path in tests."""
-    clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
-    for epoch in group_epochs(phins.decode(data, ctx.prefix), phins_key):
-        if type(epoch) is Reject:
-            yield epoch
-        else:
-            yield from _phins_outputs(epoch, ctx, clock)  # type: ignore[arg-type]
 
 
 # ---------------------------------------------------------------- PHINS, fast path
@@ -138,22 +87,27 @@ def _phins_scan_fields(burst: dict[str, phins.Scanned]) -> tuple:
     lat = lon = depth = roll = pitch = heading = vn = ve = vd = NAN
     hstd = pn = pe = rstd = pstd = alt = NAN
     words = []
-    for key, v, _, _, _ in burst.values():
+    for key, v, _, _, _ in burst.values():  # v: the record's fields after `where`, in order
         if key == "Heading":
-            if v[2] != "V":
-                heading = v[1]
+            _, heading_deg, mode = v
+            if mode != "V":
+                heading = heading_deg
         elif key == "Atitud":
-            roll, pitch = v[0], -v[1]
+            roll, pitch_bow_down = v
+            pitch = -pitch_bow_down
         elif key == "Positi":
-            lat, lon, alt, depth = v[0], v[1], v[2], 0.0 - v[2]
+            lat, lon, alt = v
+            depth = 0.0 - alt
         elif key == "Speed":
-            vn, ve, vd = v[1], v[0], 0.0 - v[2]
+            ve, vn, up = v
+            vd = 0.0 - up
         elif key == "StdHrp":
             hstd, rstd, pstd = v
         elif key == "StdPos":
-            pn, pe = v[0], v[1]
+            pn, pe, _ = v
         elif key in ("ALGSTS", "STATUS", "HT_STS"):
-            words.append(f"{key}={v[1]:08X}" + ("" if key == "HT_STS" else f",{v[2]:08X}"))
+            _, lsb, msb = v
+            words.append(f"{key}={lsb:08X}" + ("" if key == "HT_STS" else f",{msb:08X}"))
     ph = burst.get("Phtro")
     if ph is not None and "Atitud" not in burst:
         pitch, roll = ph[1]  # ATITUD wins wherever it stands in the burst
@@ -166,7 +120,7 @@ def _phins_scan_outputs(burst: dict[str, phins.Scanned], ctx: LogContext, clock:
         return
     first = next(iter(burst.values()))
     stamp = burst.get("Time")
-    if stamp is not None and stamp[1][0] == stamp[1][0]:
+    if stamp is not None and not math.isnan(stamp[1][0]):  # TIME__'s only value: time_s
         t = clock.resolve(stamp[1][0])
         if t is None:
             yield Reject(Where(*stamp[2:]), "no date for PHINS TIME__: set the [trial] date in the manifest")
@@ -186,13 +140,13 @@ def convert_phins(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     burst: dict[str, phins.Scanned] = {}
     for item in phins.scan(data, ctx.prefix):
-        if type(item) is Reject:
-            yield item  # type: ignore[misc]
+        if isinstance(item, Reject):
+            yield item
             continue
         if item[0] in burst:  # a repeated sentence starts the next burst (`group_epochs` with no times)
             yield from _phins_scan_outputs(burst, ctx, clock)
             burst = {}
-        burst[item[0]] = item  # type: ignore[index,assignment]
+        burst[item[0]] = item
     if burst:
         yield from _phins_scan_outputs(burst, ctx, clock)
 
@@ -204,11 +158,11 @@ def convert_pashr(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """$PASHR attitude/heading sentences, one InsState each."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     for r in pashr.decode(data, ctx.prefix):
-        if type(r) is Reject:
+        if isinstance(r, Reject):
             yield r
             continue
-        if r.time_s == r.time_s:  # type: ignore[union-attr]
-            t = clock.resolve(r.time_s)  # type: ignore[union-attr]
+        if not math.isnan(r.time_s):
+            t = clock.resolve(r.time_s)
             if t is None:
                 yield Reject(r.where, "no date for $PASHR time of day: set the [trial] date in the manifest")
                 continue
@@ -218,52 +172,14 @@ def convert_pashr(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
                 yield Reject(r.where, "no time: $PASHR without time of day or host timestamp")
                 continue
         state = ins_state(
-            t, ctx, "pashr", heading_deg=r.heading_deg if r.heading_true else NAN,  # type: ignore[union-attr]
-            roll_deg=r.roll_deg, pitch_deg=r.pitch_deg, roll_std_deg=r.roll_std_deg,  # type: ignore[union-attr]
-            pitch_std_deg=r.pitch_std_deg, heading_std_deg=r.heading_std_deg,  # type: ignore[union-attr]
-            status=f"gnss_quality={r.gnss_quality} ins_status={r.ins_status}",  # type: ignore[union-attr]
+            t, ctx, "pashr", f"gnss_quality={r.gnss_quality} ins_status={r.ins_status}",
+            heading_deg=r.heading_deg if r.heading_true else NAN, roll_deg=r.roll_deg, pitch_deg=r.pitch_deg,
+            roll_std_deg=r.roll_std_deg, pitch_std_deg=r.pitch_std_deg, heading_std_deg=r.heading_std_deg,
         )
         yield output(ctx, "ins", state, t, r.where)
 
 
 # ---------------------------------------------------------------- NovAtel SPAN
-
-
-def _span_fields(epoch: list) -> dict[str, object]:
-    f: dict[str, object] = {}
-    status = []
-    for r in epoch:
-        f.update(
-            latitude=r.latitude, longitude=r.longitude, altitude_m=r.height_m,
-            velocity_north_mps=r.north_mps, velocity_east_mps=r.east_mps, velocity_down_mps=0.0 - r.up_mps,
-            roll_deg=r.roll_deg, pitch_deg=r.pitch_deg, heading_deg=r.azimuth_deg,
-        )
-        status.append(r.status)
-        if type(r) is novatel.InsPvax:
-            u = r.undulation_m
-            f.update(
-                depth_m=-(r.height_m - u) if u == u else NAN, heading_std_deg=r.azimuth_std_deg,
-                roll_std_deg=r.roll_std_deg, pitch_std_deg=r.pitch_std_deg,
-                position_std_north_m=r.lat_std_m, position_std_east_m=r.lon_std_m,
-            )
-            status.append(r.position_type)
-    f["status"] = " ".join(dict.fromkeys(status))
-    return f
-
-
-def convert_span_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
-    """`convert_span` the obvious way, over `novatel.decode` records: the judge of the fast path in tests."""
-    records = (r for r in novatel.decode(data, ctx.prefix) if isinstance(r, (Reject, novatel.InsPva, novatel.InsPvax)))
-    for epoch in group_epochs(records, novatel_key):
-        if type(epoch) is Reject:
-            yield epoch
-            continue
-        t = novatel_time(epoch, ctx)  # type: ignore[arg-type]
-        if type(t) is Reject:
-            yield t
-            continue
-        source = "novatel:" + ",".join(r.header.message + ("B" if r.header.encoding.startswith("binary") else "A") for r in epoch)  # type: ignore[union-attr]
-        yield output(ctx, "ins", ins_state(t, ctx, source, **_span_fields(epoch)), t, epoch[0].where)  # type: ignore[arg-type,index]
 
 
 # ---------------------------------------------------------------- NovAtel SPAN, fast path
@@ -278,18 +194,19 @@ def _span_scan_fields(epoch: dict[str, novatel_scan.Scanned]) -> tuple:
     lat = lon = depth = roll = pitch = heading = vn = ve = vd = hstd = pn = pe = rstd = pstd = alt = NAN
     status = []
     for kind, item in epoch.items():  # in arrival order: a later log overrides, as f.update does
-        v = item[4]
         if kind == "InsPva":
-            lat, lon, alt, vn, ve, vd = v[2], v[3], v[4], v[5], v[6], 0.0 - v[7]
-            roll, pitch, heading = v[8], v[9], v[10]
-            status.append(v[11])
+            p = novatel_scan.INS_PVA._make(item[4])
+            lat, lon, alt, vn, ve, vd = p.latitude, p.longitude, p.height_m, p.north_mps, p.east_mps, 0.0 - p.up_mps
+            roll, pitch, heading = p.roll_deg, p.pitch_deg, p.azimuth_deg
+            status.append(p.status)
         else:
-            lat, lon, alt, vn, ve, vd = v[2], v[3], v[4], v[6], v[7], 0.0 - v[8]
-            roll, pitch, heading = v[9], v[10], v[11]
-            u = v[5]
-            depth = -(v[4] - u) if u == u else NAN
-            hstd, rstd, pstd, pn, pe = v[20], v[18], v[19], v[12], v[13]
-            status += (v[0], v[1])
+            x = novatel_scan.INS_PVAX._make(item[4])
+            lat, lon, alt, vn, ve, vd = x.latitude, x.longitude, x.height_m, x.north_mps, x.east_mps, 0.0 - x.up_mps
+            roll, pitch, heading = x.roll_deg, x.pitch_deg, x.azimuth_deg
+            u = x.undulation_m
+            depth = NAN if math.isnan(u) else -(x.height_m - u)
+            hstd, rstd, pstd, pn, pe = x.azimuth_std_deg, x.roll_std_deg, x.pitch_std_deg, x.lat_std_m, x.lon_std_m
+            status += (x.status, x.position_type)
     return " ".join(dict.fromkeys(status)), lat, lon, depth, roll, pitch, heading, vn, ve, vd, hstd, pn, pe, rstd, pstd, alt
 
 
@@ -297,56 +214,54 @@ def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """NovAtel SPAN INSPVA / INSPVAS / INSPVAX logs (ASCII or binary), merged per GPS time."""
     topic = f"/{ctx.vehicle}/ins"
     for epoch in novatel_scan_epochs(data, ctx, _SPAN_KINDS):
-        if type(epoch) is Reject:
-            yield epoch  # type: ignore[misc]
+        if isinstance(epoch, Reject):
+            yield epoch
             continue
-        t = novatel_scan_time(epoch, ctx)  # type: ignore[arg-type]
-        if type(t) is Reject:
-            yield t  # type: ignore[misc]
+        t = novatel_scan_time(epoch, ctx)
+        if isinstance(t, Reject):
+            yield t
             continue
-        items = list(epoch.values())  # type: ignore[union-attr]
+        items = list(epoch.values())
         source = "novatel:" + ",".join([item[1] for item in items])
-        state = S.ins_state(t, ctx.vehicle, source, *_span_scan_fields(epoch))  # type: ignore[arg-type]
+        state = S.ins_state(t, ctx.vehicle, source, *_span_scan_fields(epoch))
         first = items[0]
-        yield Output(topic, state, t, t if first[7] is None else first[7] + ctx.clock_offset_ns, Where(*first[5:]))  # type: ignore[arg-type]
+        yield Output(topic, state, t, novatel_publish_ns(first, t, ctx), novatel_scan.where_of(first))
 
 
 # ---------------------------------------------------------------- NMEA heading / INS-as-NMEA
 
 
-def _nmea_ins(epoch: list, ctx: LogContext, clock: DayClock) -> Iterator[Output | Reject]:
-    by = {type(r): r for r in epoch}
-    _, _, heading = nmea_motion(by)
-    pos = nmea_position(by)
-    if heading != heading and pos is None:
-        nmea_update_date(by, clock)  # says nothing about the INS, but its date counts
+def _nmea_ins(records: list[nmea.NmeaRecord], ctx: LogContext, clock: DayClock) -> Iterator[Output | Reject]:
+    epoch = NmeaEpoch.of(records)
+    speed, course, heading = nmea_motion(epoch)
+    pos = nmea_position(epoch)
+    if math.isnan(heading) and pos is None:
+        nmea_update_date(epoch, clock)  # says nothing about the INS, but its date counts
         return
-    t = nmea_epoch_time(by, epoch, clock, ctx)
-    if type(t) is Reject:
+    t = nmea_epoch_time(epoch, clock, ctx)
+    if isinstance(t, Reject):
         yield t
         return
-    f: dict[str, object] = {"heading_deg": heading}
+    f: dict[str, float] = {"heading_deg": heading}
     if pos is not None:
         f["latitude"], f["longitude"] = pos.latitude, pos.longitude
-        if type(pos) is nmea.Gga:
-            sep = pos.geoid_separation_m
-            f["altitude_m"] = pos.altitude_msl_m + sep if sep == sep else pos.altitude_msl_m
-    speed, course, _ = nmea_motion(by)
-    if speed == speed and course == course:
+        if isinstance(pos, nmea.Gga):
+            f["altitude_m"] = gga_altitude(pos)
+    if math.isfinite(speed) and math.isfinite(course):  # cos(inf) raises
         f["velocity_north_mps"] = speed * math.cos(math.radians(course))
         f["velocity_east_mps"] = speed * math.sin(math.radians(course))
-    source = "nmea:" + ",".join(type(r).__name__.upper() for r in epoch)
-    yield output(ctx, "ins", ins_state(t, ctx, source, **f), t, epoch[0].where)  # type: ignore[arg-type]
+    source = "nmea:" + ",".join(type(r).__name__.upper() for r in records)
+    yield output(ctx, "ins", ins_state(t, ctx, source, **f), t, records[0].where)
 
 
 def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """NMEA heading ($--HDT, $--THS) and position/velocity sentences from an INS or gyrocompass."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
-    for epoch in group_epochs(nmea.decode(data, ctx.prefix), nmea_key):
-        if type(epoch) is Reject:
+    for epoch in record_epochs(data, ctx.prefix):
+        if isinstance(epoch, Reject):
             yield epoch
         else:
-            yield from _nmea_ins(epoch, ctx, clock)  # type: ignore[arg-type]
+            yield from _nmea_ins(epoch, ctx, clock)
 
 
 CONVERTERS: dict[str, Converter] = {

@@ -12,9 +12,11 @@ from datetime import date
 from pathlib import Path, PurePosixPath
 from typing import Any
 
+from .manifest_checks import ValueProblem, check_log_paths, check_values
+
 ROLES = ("leader", "follower", "buoy")
 SENSORS = ("gps", "dvl", "ins", "modem", "usbl")
-_LOG_KEYS = {"sensor", "format", "path", "clock_offset_s", "prefix"}
+_LOG_KEYS = {"sensor", "format", "path", "source", "clock_offset_s", "prefix"}
 
 
 class ManifestError(ValueError):
@@ -32,6 +34,8 @@ class LogSpec:
     clock_offset_s: float = 0.0
     prefix: str = "auto"
     options: dict[str, Any] = field(default_factory=dict)
+    # a live source (`auvreplay capture`) instead of a file: serial://, udp://, tcp://, tcp-listen://, tail:
+    source: str = ""
 
 
 @dataclass(frozen=True)
@@ -84,6 +88,11 @@ def _parse_log(raw: Any, vehicle: str, index: int, where: str) -> LogSpec:
     label = f"{where}: vehicle {vehicle!r}, log {index + 1}"
     if not isinstance(raw, dict):
         raise ManifestError(f"{label}: expected a table")
+    source = raw.get("source", "")
+    if not isinstance(source, str):
+        raise ManifestError(f"{label}: 'source' must be text such as udp://127.0.0.1:5000")
+    if source and not raw.get("path"):  # a live log's name (in the archive, for unpack) when it gives none
+        raw = {**raw, "path": f"{vehicle}/{raw.get('sensor')}.{raw.get('format')}"}
     for key in ("sensor", "format", "path"):
         if not isinstance(raw.get(key), str) or not raw[key]:
             raise ManifestError(f"{label}: missing or empty '{key}'")
@@ -95,7 +104,8 @@ def _parse_log(raw: Any, vehicle: str, index: int, where: str) -> LogSpec:
     except (TypeError, ValueError) as exc:
         raise ManifestError(f"{label} ({raw['path']}): clock_offset_s must be a number") from exc
     options = {k: v for k, v in raw.items() if k not in _LOG_KEYS}
-    return LogSpec(vehicle, raw["sensor"], raw["format"], str(path), offset, str(raw.get("prefix", "auto")), options)
+    return LogSpec(vehicle, raw["sensor"], raw["format"], str(path), offset, str(raw.get("prefix", "auto")), options,
+                   source)
 
 
 def _parse_vehicle(raw: Any, index: int, where: str) -> Vehicle:
@@ -121,6 +131,10 @@ def parse_manifest(text: str, path: Path) -> Manifest:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ManifestError(f"{where}: not valid TOML ({exc})") from exc
+    try:
+        check_values(data, where)
+    except ValueProblem as exc:
+        raise ManifestError(str(exc)) from None
     trial = data.get("trial", {})
     if not isinstance(trial, dict):
         raise ManifestError(f"{where}: [trial] must be a table")
@@ -150,8 +164,12 @@ def _check_references(manifest: Manifest, names: list[str]) -> None:
                                     f"{key} = {ref!r} is not a vehicle of this trial")
 
 
-def load_manifest(path: str | Path) -> Manifest:
-    """Read and parse a manifest file; a missing file or log is a ManifestError."""
+def load_manifest(path: str | Path, allow_outside: bool = False) -> Manifest:
+    """Read and parse a manifest file; a missing file or log is a ManifestError.
+
+    A log path that resolves outside the manifest's folder is a ManifestError
+    too, unless `allow_outside`.
+    """
     path = Path(path)
     try:
         text = path.read_bytes().decode("utf-8")
@@ -160,8 +178,12 @@ def load_manifest(path: str | Path) -> Manifest:
     except UnicodeDecodeError as exc:
         raise ManifestError(f"{path}: manifest is not UTF-8 text") from exc
     manifest = parse_manifest(text, path)
+    try:
+        check_log_paths(manifest.root, [log.path for log in manifest.logs()], str(path), allow_outside)
+    except ValueProblem as exc:
+        raise ManifestError(str(exc)) from None
     for log in manifest.logs():
         full = manifest.root / log.path
-        if not full.is_file():
+        if not log.source and not full.is_file():
             raise ManifestError(f"{path}: vehicle {log.vehicle!r}: log file {log.path} not found (looked in {full})")
     return manifest

@@ -31,21 +31,24 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from datetime import datetime, timezone
-from typing import Any, Iterator, Mapping
+from functools import partial
+from typing import Any, Callable, Iterator, Mapping
 
 from formats import acoustic_messages as AM
-from formats import evologics as ev
-from formats import evologics_scan as evs
-from formats import micromodem as mm
-from formats import micromodem_scan as mms
 from formats import regex_lines as rx
+from formats.evologics import notifications as ev
+from formats.evologics import scan as evs
+from formats.micromodem import scan as mms
+from formats.micromodem import sentences as mm
 from formats.records import FormatError, Reject, Where
+from formats.scanned import positions
 from formats.schemas import AcousticRange, timestamp
 
 from .base import Converter, LogContext, Output, output
 from .clock import DAY_NS, NS, DayClock
 
 SUFFIX = "modem/range"
+LONG = positions(ev.UsblLong)  # where each field sits in a scanned USBLLONG's values
 
 
 # ---- helpers shared with recorders.usbl
@@ -98,20 +101,23 @@ def own_address(ctx: LogContext) -> int:
 def endpoint(ctx: LogContext, text: str) -> tuple[str, int]:
     """(vehicle name, address) from a regex group holding an address or a vehicle name."""
     text = text.strip()
-    if text.isdigit():
+    if text.isdigit() and len(text) <= 9:  # an address an int32 holds; longer digits are a name
         return ctx.vehicle_for_address(int(text)), int(text)
     addresses = [a for a, v in ctx.address_book.items() if v == text]
     return text, addresses[0] if len(addresses) == 1 else -1
 
 
-def usbl_reception_ns(ctx: LogContext, where: Where, current_s: float, measured_s: float) -> int | None:
-    """Host time of an EvoLogics USBL line moved back to the modem's measurement time."""
-    host = host_time(ctx, where)
-    if host is None:
-        return None
+def measurement_ns(host_ns: int, current_s: float, measured_s: float) -> int:
+    """An EvoLogics USBL line's host time (offset applied) moved back by the modem's own lag to its measurement."""
     lag = current_s - measured_s
     # the modem clock is its own; trust its lag only when it is plausible
-    return host - round(lag * NS) if 0.0 <= lag < 60.0 else host
+    return host_ns - round(lag * NS) if 0.0 <= lag < 60.0 else host_ns
+
+
+def usbl_reception_ns(ctx: LogContext, where: Where, current_s: float, measured_s: float) -> int | None:
+    """Host time of an EvoLogics USBL line moved back to the modem's measurement time (`measurement_ns`)."""
+    host = host_time(ctx, where)
+    return None if host is None else measurement_ns(host, current_s, measured_s)
 
 
 def acoustic_range(
@@ -130,36 +136,20 @@ def acoustic_range(
 # ---- Micro-Modem
 
 @dataclass(frozen=True)
-class _MmOptions:
+class MicromodemOptions:
     round_trip: bool
     period_s: float | None
     offset_s: float
     c: float
 
 
-def _mm_options(ctx: LogContext) -> _MmOptions:
+def micromodem_options(ctx: LogContext) -> MicromodemOptions:
     round_trip = option_choice(ctx, "campr_travel_time", ("one_way", "round_trip")) == "round_trip"
     offset = option_float(ctx, "owtt_offset_s", 0.0, positive=False)
-    return _MmOptions(round_trip, option_float(ctx, "owtt_period_s", None), offset or 0.0, sound_speed(ctx))
+    return MicromodemOptions(round_trip, option_float(ctx, "owtt_period_s", None), offset or 0.0, sound_speed(ctx))
 
 
-def _ping(ctx: LogContext, rec: mm.PingReply, own: frozenset[int], c: float) -> Output | Reject:
-    heard, measurer = rec.src, rec.dest
-    if own and heard in own and measurer not in own:
-        heard, measurer = measurer, heard  # firmware that writes the pinger first
-    elif own and measurer not in own:
-        return Reject(rec.where, f"ping reply between modems {heard} and {measurer}: neither is {ctx.vehicle}'s")
-    arrival = rec.utc_ns + ctx.clock_offset_ns if rec.utc_ns is not None else host_time(ctx, rec.where)
-    if arrival is None:
-        return Reject(rec.where, "no time: the ping reply carries none and the line has no host timestamp")
-    t = arrival - round(rec.one_way_travel_time_s * NS)
-    return acoustic_range(
-        ctx, t, rec.where, (ctx.vehicle_for_address(heard), heard), (ctx.vehicle, measurer),
-        rec.one_way_travel_time_s, "ping", "micromodem", c,
-    )
-
-
-def _toa(ctx: LogContext, where: Where, arrival: int | None, src: int | None, opts: _MmOptions) -> Output | Reject:
+def toa_range(ctx: LogContext, where: Where, arrival: int | None, src: int | None, opts: MicromodemOptions) -> Output | Reject:
     if arrival is None:
         return Reject(where, "no date: time of arrival without a trial date or a modem date")
     if src is None:
@@ -172,7 +162,7 @@ def _toa(ctx: LogContext, where: Where, arrival: int | None, src: int | None, op
     return acoustic_range(ctx, t, where, heard, (ctx.vehicle, own_address(ctx)), travel, "toa", "micromodem", opts.c)
 
 
-def _set_date(clock: DayClock, rec: mm.TransmitStats | mm.Clock) -> None:
+def set_modem_date(clock: DayClock, rec: mm.TransmitStats | mm.Clock) -> None:
     if isinstance(rec, mm.TransmitStats):
         clock.set_date(rec.date, rec.tod_s)
         return
@@ -180,34 +170,7 @@ def _set_date(clock: DayClock, rec: mm.TransmitStats | mm.Clock) -> None:
     clock.set_date(dt.date(), (rec.utc_ns % DAY_NS) / NS)
 
 
-def _micromodem(data: bytes, ctx: LogContext, opts: _MmOptions) -> Iterator[Output | Reject]:
-    clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
-    own = own_addresses(ctx)
-    last_src: int | None = None
-    for rec in mm.decode(data, ctx.prefix, opts.round_trip):
-        if isinstance(rec, Reject):
-            yield rec
-        elif isinstance(rec, mm.PingReply):
-            yield _ping(ctx, rec, own, opts.c)
-        elif isinstance(rec, (mm.TransmitStats, mm.Clock)):
-            _set_date(clock, rec)
-        elif isinstance(rec, (mm.CycleInit, mm.ReceivedData, mm.PingHeard)) and rec.src not in own:
-            last_src = rec.src
-        elif isinstance(rec, mm.ReceiveStats):
-            last_src = rec.src
-            if opts.period_s is not None:
-                yield _toa(ctx, rec.where, clock.resolve(rec.tod_s), rec.src, opts)
-        elif isinstance(rec, mm.TimeOfArrival) and opts.period_s is not None:
-            arrival = clock.resolve(rec.tod_s) if rec.tod_s is not None else rec.utc_ns + ctx.clock_offset_ns  # type: ignore[operator]
-            yield _toa(ctx, rec.where, arrival, last_src, opts)
-
-
-def convert_micromodem_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
-    """`convert_micromodem` the obvious way, over `micromodem.decode` records: the judge of the fast path in tests."""
-    return _micromodem(data, ctx, _mm_options(ctx))
-
-
-# ---- Micro-Modem, fast path: the same ranges over `micromodem_scan.scan` tuples
+# ---- Micro-Modem, fast path: the same ranges over `formats.micromodem.scan` tuples
 
 class _ScanPings:
     """`_ping` on scanned values, with what is the same for every range of a log worked out once."""
@@ -237,80 +200,67 @@ class _ScanPings:
         return Output(self.topic, msg, t, t if publish is None else publish, Where(offset, line, host))
 
 
-def _micromodem_scan(data: bytes, ctx: LogContext, opts: _MmOptions) -> Iterator[Output | Reject]:
+def _micromodem_scan(data: bytes, ctx: LogContext, opts: MicromodemOptions) -> Iterator[Output | Reject]:
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     ping = _ScanPings(ctx, opts.c)
     own = ping.own
     last_src: int | None = None
     for item in mms.scan(data, ctx.prefix, opts.round_trip):
-        if type(item) is Reject:
-            yield item  # type: ignore[misc]
+        if isinstance(item, Reject):
+            yield item
             continue
-        kind, v, offset, line, host = item  # type: ignore[misc]
+        kind, v, offset, line, host = item
         if kind == "reply":
             yield ping(v, offset, line, host)
         elif kind == "heard":
-            if v[0] not in own:
-                last_src = v[0]
+            (src,) = v
+            if src not in own:
+                last_src = src
         elif kind == "date":
-            clock.set_date(v[0], v[1])
+            day, tod_s = v
+            clock.set_date(day, tod_s)
         elif kind == "clock":
-            _set_date(clock, mm.Clock(Where(offset, line, host), v[0]))
+            (utc_ns,) = v
+            set_modem_date(clock, mm.Clock(Where(offset, line, host), utc_ns))
         elif kind == "rxstats":
-            last_src = v[0]
+            src, tod_s = v
+            last_src = src
             if opts.period_s is not None:
-                yield _toa(ctx, Where(offset, line, host), clock.resolve(v[1]), v[0], opts)
+                yield toa_range(ctx, Where(offset, line, host), clock.resolve(tod_s), src, opts)
         elif kind == "toa" and opts.period_s is not None:
-            arrival = clock.resolve(v[0]) if v[0] is not None else v[1] + ctx.clock_offset_ns
-            yield _toa(ctx, Where(offset, line, host), arrival, last_src, opts)
+            tod_s, utc_ns = v
+            arrival = clock.resolve(tod_s) if tod_s is not None else utc_ns + ctx.clock_offset_ns
+            yield toa_range(ctx, Where(offset, line, host), arrival, last_src, opts)
 
 
 def convert_micromodem(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """WHOI Micro-Modem log -> ranges (options are checked before the first record)."""
-    return _micromodem_scan(data, ctx, _mm_options(ctx))
+    return _micromodem_scan(data, ctx, micromodem_options(ctx))
 
 
 # ---- EvoLogics S2C
 
-def _evologics(data: bytes, ctx: LogContext, c: float) -> Iterator[Output | Reject]:
-    me = (ctx.vehicle, own_address(ctx))
-    for rec in ev.decode(data, ctx.prefix):
-        if isinstance(rec, Reject):
-            yield rec
-        elif isinstance(rec, ev.PropagationTime):
-            host = host_time(ctx, rec.where)
-            if rec.peer is None:
-                yield Reject(rec.where, "propagation time before any delivery or reception names the peer")
-            elif host is None:
-                yield Reject(rec.where, "no time: EvoLogics line without host timestamp")
-            else:
-                tt = rec.propagation_time_us * 1e-6
-                heard = (ctx.vehicle_for_address(rec.peer), rec.peer)
-                yield acoustic_range(ctx, host - round(tt * NS), rec.where, heard, me, tt, "ping", "evologics", c)
-        elif isinstance(rec, ev.UsblLong):
-            arrival = usbl_reception_ns(ctx, rec.where, rec.current_time_s, rec.measurement_time_s)
-            if arrival is None:
-                yield Reject(rec.where, "no time: EvoLogics line without host timestamp")
-                continue
-            tt = rec.propagation_time_us * 1e-6
-            heard = (ctx.vehicle_for_address(rec.address), rec.address)
-            yield acoustic_range(ctx, arrival - round(tt * NS), rec.where, heard, me, tt, "usbl", "evologics", c)
+MAX_PROPAGATION_US = 1e8  # 100 s one way: far past any acoustic range; more is a parse of garbage
 
 
-def convert_evologics_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
-    """`convert_evologics` the obvious way, over `evologics.decode` records: the judge of the fast path in tests."""
-    return _evologics(data, ctx, sound_speed(ctx))
+def evologics_problem(us: float, address: int) -> str | None:
+    """Why a propagation time or peer address cannot be a measurement (a 400-digit field), or None."""
+    if not 0.0 <= us < MAX_PROPAGATION_US:
+        return f"propagation time {us:g} us out of range"
+    if not -2**31 <= address < 2**31:
+        return f"peer address {str(address)[:20]}... out of range"
+    return None
 
 
 def _evologics_scan(data: bytes, ctx: LogContext, c: float) -> Iterator[Output | Reject]:
-    """`_evologics` over `evologics_scan.scan` tuples, messages from packed wire bytes."""
+    """`_evologics` over `formats.evologics.scan` tuples, messages from packed wire bytes."""
     me, address, offset_ns = ctx.vehicle, own_address(ctx), ctx.clock_offset_ns
-    topic, names = f"/{me}/{SUFFIX}", {}
+    topic, names = f"/{me}/{SUFFIX}", dict[int, str]()
     for item in evs.scan(data, ctx.prefix):
-        if type(item) is Reject:
-            yield item  # type: ignore[misc]
+        if isinstance(item, Reject):
+            yield item
             continue
-        keyword, v, offset, line, host = item  # type: ignore[misc]
+        keyword, v, offset, line, host = item
         if keyword == "AT?T":
             us, heard = v
             if heard is None:
@@ -318,17 +268,19 @@ def _evologics_scan(data: bytes, ctx: LogContext, c: float) -> Iterator[Output |
                 continue
             kind = "ping"
         elif keyword == "USBLLONG":
-            us, heard, kind = v[12], v[2], "usbl"
+            us, heard, kind = v[LONG.propagation_time_us], v[LONG.address], "usbl"
         else:
             continue
         if host is None:
             yield Reject(Where(offset, line, host), "no time: EvoLogics line without host timestamp")
             continue
+        why = evologics_problem(us, heard)
+        if why is not None:
+            yield Reject(Where(offset, line, host), why)
+            continue
         publish = arrival = host + offset_ns
         if kind == "usbl":
-            lag = v[0] - v[1]
-            # the modem clock is its own; trust its lag only when it is plausible (`usbl_reception_ns`)
-            arrival = publish - round(lag * NS) if 0.0 <= lag < 60.0 else publish
+            arrival = measurement_ns(publish, v[LONG.current_time_s], v[LONG.measurement_time_s])
         tt = us * 1e-6
         t = arrival - round(tt * NS)
         name = names.get(heard)
@@ -386,23 +338,26 @@ def travel_and_range(values: Mapping[str, float], c: float) -> tuple[float, floa
     return r / c, r
 
 
-def _regex(data: bytes, ctx: LogContext, opts: RegexOptions) -> Iterator[Output | Reject]:
+def regex_outputs(data: bytes, ctx: LogContext, opts: RegexOptions,
+                  build: Callable[[rx.RegexRecord, int], Output | Reject]) -> Iterator[Output | Reject]:
+    """`build(record, time)` for each matched line of a regex log, or a Reject (the line's own or its time's)."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     for rec in rx.decode(data, opts.pattern, opts.time_format, ctx.prefix, opts.scale):
         if isinstance(rec, Reject):
             yield rec
             continue
         t = regex_time(ctx, rec, clock)
-        tt, _ = travel_and_range(rec.values, opts.c)
-        if isinstance(t, Reject):
-            yield t
-        elif not math.isfinite(tt):
-            yield Reject(rec.where, "no travel time or range on the line")
-        elif not rec.source:
-            yield Reject(rec.where, "no source: the pattern's 'source' group did not match")
-        else:
-            measurer = endpoint(ctx, rec.destination) if rec.destination else (ctx.vehicle, own_address(ctx))
-            yield acoustic_range(ctx, t, rec.where, endpoint(ctx, rec.source), measurer, tt, "user", "regex", opts.c)
+        yield t if isinstance(t, Reject) else build(rec, t)
+
+
+def _regex_range(ctx: LogContext, opts: RegexOptions, rec: rx.RegexRecord, t: int) -> Output | Reject:
+    tt, _ = travel_and_range(rec.values, opts.c)
+    if not math.isfinite(tt):
+        return Reject(rec.where, "no travel time or range on the line")
+    if not rec.source:
+        return Reject(rec.where, "no source: the pattern's 'source' group did not match")
+    measurer = endpoint(ctx, rec.destination) if rec.destination else (ctx.vehicle, own_address(ctx))
+    return acoustic_range(ctx, t, rec.where, endpoint(ctx, rec.source), measurer, tt, "user", "regex", opts.c)
 
 
 def convert_regex(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
@@ -410,7 +365,7 @@ def convert_regex(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     opts = regex_options(ctx)
     if "source" not in opts.pattern.groupindex:
         raise FormatError(f"{ctx.path}: regex format: a modem pattern needs a named group 'source'")
-    return _regex(data, ctx, opts)
+    return regex_outputs(data, ctx, opts, partial(_regex_range, ctx, opts))
 
 
 CONVERTERS: dict[str, Converter] = {

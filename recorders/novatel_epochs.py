@@ -1,4 +1,4 @@
-"""NovAtel logs scanned (`formats.novatel_scan`) and grouped into timed epochs, for the GNSS and INS converters.
+"""NovAtel logs scanned (`formats.novatel.scan`) and grouped into timed epochs, for the GNSS and INS converters.
 
 The fast paths' version of `recorders.gps.group_epochs` with `novatel_key`
 and of `novatel_time`: an epoch is a dict {record kind: scanned tuple} in
@@ -7,13 +7,15 @@ arrival order; values sit at the positions of the record fields.
 
 from __future__ import annotations
 
+import math
 from typing import Iterator
 
-from formats import novatel_scan
 from formats.gpstime import gps_to_unix_ns
-from formats.records import Reject, Where
+from formats.novatel import scan as novatel_scan
+from formats.records import Reject
 
 from .base import LogContext
+from .clock import plausible_ns
 
 
 def novatel_scan_epochs(data: bytes, ctx: LogContext, kinds: frozenset[str]
@@ -23,31 +25,46 @@ def novatel_scan_epochs(data: bytes, ctx: LogContext, kinds: frozenset[str]
     epoch: dict[str, novatel_scan.Scanned] = {}
     epoch_time: tuple[int, int] | None = None
     for item in novatel_scan.scan(data, ctx.prefix):
-        if type(item) is Reject:
-            yield item  # type: ignore[misc]
+        if isinstance(item, Reject):
+            yield item
             continue
-        kind = names[item[0]]  # type: ignore[index]
+        name, _, week, sow, _, _, _, _ = item
+        kind = names[name]
         if kind not in kinds:
             continue
-        sow = item[3]
-        t = (item[2], round(sow * 1000) if sow - sow == 0.0 else -1)  # type: ignore[operator]
+        t = (week, round(sow * 1000) if math.isfinite(sow) else -1)
         if epoch and (kind in epoch or t != epoch_time):
             yield epoch
             epoch = {}
         if not epoch:
-            epoch_time = t  # type: ignore[assignment]
-        epoch[kind] = item  # type: ignore[assignment]
+            epoch_time = t
+        epoch[kind] = item
     if epoch:
         yield epoch
+
+
+def implausible_week(week: int) -> str:
+    """The reason for a GPS week that is no time of a trial (a 400-digit field)."""
+    return f"GPS week {str(week)[:12]} is no time of a trial"
 
 
 def novatel_scan_time(epoch: dict[str, novatel_scan.Scanned], ctx: LogContext) -> int | Reject:
     """`novatel_time` on scanned values."""
     first = next(iter(epoch.values()))
-    week, sow = first[2], first[3]
-    if week > 0 and sow - sow == 0.0:
-        return gps_to_unix_ns(week, sow) + ctx.clock_offset_ns
-    for item in epoch.values():
-        if item[7] is not None:
-            return item[7] + ctx.clock_offset_ns
-    return Reject(Where(*first[5:]), "no time: GPS week 0 or unknown time status, and no host timestamp")
+    _, _, week, sow, _, _, _, _ = first
+    if week > 0 and math.isfinite(sow):
+        try:
+            t = gps_to_unix_ns(week, sow) + ctx.clock_offset_ns
+        except OverflowError:
+            t = -1
+        return t if plausible_ns(t) else Reject(novatel_scan.where_of(first), implausible_week(week))
+    for _, _, _, _, _, _, _, host in epoch.values():
+        if host is not None:
+            return host + ctx.clock_offset_ns
+    return Reject(novatel_scan.where_of(first), "no time: GPS week 0 or unknown time status, and no host timestamp")
+
+
+def novatel_publish_ns(item: novatel_scan.Scanned, t: int, ctx: LogContext) -> int:
+    """A scanned log's publish time: its host time (offset applied), else its own time `t`."""
+    _, _, _, _, _, _, _, host = item
+    return t if host is None else host + ctx.clock_offset_ns

@@ -7,24 +7,38 @@ import mimetypes
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from functools import partial
+from pathlib import Path
 from typing import Any, Callable, Iterator, Protocol
 
 from formats import schemas as S
 from formats.mcap_writer import ArchiveWriter
-from formats.records import FormatError, Reject
+from formats.records import FormatError, Reject, Where
 
 from .base import NS, LogContext, Output
 from .clock import date_to_ns, iso_utc
 from .manifest import LogSpec, Manifest, ManifestError
-from .record_parallel import (Capture, Captured, WorkerDied, WorkerPool, available_cores, can_fork, only_thread,
-                              write_captured)
+from .output_checks import OutputProblem, check_output, remove_stale_parts
+from .record_parallel import (
+    Capture,
+    Captured,
+    WorkerDied,
+    WorkerPool,
+    available_cores,
+    can_fork,
+    only_thread,
+    write_captured,
+)
 from .registry import converters
+from .value_checks import MAX_RANGE_M, TIME_RANGE_NS, ValueChecks
 
 LOG_LEVEL_WARNING = 3  # foxglove.Log.Level.WARNING
 Progress = Callable[[str, int, int], None]  # (file, bytes done, bytes total)
 # automatic mode decodes in-process below this much input: forking workers and
 # shipping results back costs more than it saves on a small trial (see bench/bench_record.py)
 AUTO_PARALLEL_MIN_BYTES = 1 << 20
+# /diagnostics lines kept in full per log and kind of reject; the rest are counted in one line, so the
+# memory and the archive of a log of garbage are bounded by this, not by the log
+DIAGNOSTICS_PER_KIND = 100
 
 
 class MessageSink(Protocol):
@@ -50,6 +64,8 @@ class FileStats:
     bad_checksum: int = 0
     out_of_order: int = 0
     duplicates: int = 0
+    out_of_range: int = 0   # messages refused for a value out of its range (recorders.value_checks)
+    bad_ranges: int = 0     # of those, ranges <= 0 or beyond max_range_m
     start_ns: int | None = None
     end_ns: int | None = None
 
@@ -66,6 +82,7 @@ class RecordingSummary:
 
     files: list[FileStats] = field(default_factory=list)
     workers: int = 1  # processes that decoded the logs (1: in-process)
+    removed_parts: list[str] = field(default_factory=list)  # stale part files of dead processes removed
 
     @property
     def skipped(self) -> int:
@@ -98,10 +115,19 @@ class _LogRecorder:
         self.last_ns: dict[str, int] = {}
         self.records: set[int] = set()
         self.fallback_ns = fallback_ns
+        self.checks = ValueChecks(float(log.options.get("max_range_m", MAX_RANGE_M)))
+        self.kinds: dict[tuple[bool, str], int] = {}  # rejects per kind, listed or not
 
     def add(self, item: Output | Reject) -> None:
         if type(item) is not Output:
             self._reject(item)
+            return
+        problem = self.checks.problem(item.message, item.log_time_ns)
+        if problem is not None:
+            # stamped at the message's own time when it has one: a log whose every message is refused must not
+            # move its diagnostics to the fallback (the trial date's midnight) and with them the trial's start
+            t_hint = item.log_time_ns if TIME_RANGE_NS[0] <= item.log_time_ns < TIME_RANGE_NS[1] else None
+            self._reject(Reject(item.where if item.where is not None else Where(0), problem), t_hint)
             return
         t = item.log_time_ns
         topic = item.topic
@@ -125,13 +151,20 @@ class _LogRecorder:
         if self.pending:
             self.flush(t)
 
-    def _reject(self, item: Reject) -> None:
+    def _reject(self, item: Reject, t_hint: int | None = None) -> None:
         self.stats.skipped += 1
         self.stats.bad_checksum += item.bad_checksum
-        if self.stats.end_ns is None:
+        reason = item.reason
+        cut = reason.find(":")
+        key = (item.bad_checksum, reason[:cut] if 0 < cut < 40 else reason[:40])
+        n = self.kinds[key] = self.kinds.get(key, 0) + 1
+        if n > DIAGNOSTICS_PER_KIND:
+            return
+        t = self.stats.end_ns if self.stats.end_ns is not None else t_hint
+        if t is None:
             self.pending.append(item)
         else:
-            self.writer.write("/diagnostics", _diagnostic(self.log, item, self.stats.end_ns), self.stats.end_ns)
+            self.writer.write("/diagnostics", _diagnostic(self.log, item, t), t)
 
     def flush(self, t_ns: int) -> None:
         for reject in self.pending:
@@ -139,8 +172,15 @@ class _LogRecorder:
         self.pending.clear()
 
     def finish(self) -> None:
-        self.flush(self.stats.start_ns if self.stats.start_ns is not None else self.fallback_ns)
+        t = self.stats.start_ns if self.stats.start_ns is not None else self.fallback_ns
+        for (bad_checksum, kind), n in self.kinds.items():
+            if n > DIAGNOSTICS_PER_KIND:
+                what = "bad checksums" if bad_checksum else f"rejects of kind {kind!r}"
+                self.pending.append(Reject(Where(0), f"{n - DIAGNOSTICS_PER_KIND} more {what} not listed "
+                                                     f"(the first {DIAGNOSTICS_PER_KIND} are)", bad_checksum))
+        self.flush(t)
         self.stats.parsed = len(self.records)
+        self.stats.out_of_range, self.stats.bad_ranges = self.checks.out_of_range, self.checks.bad_ranges
 
 
 def _trial_metadata(manifest: Manifest) -> dict:
@@ -295,29 +335,57 @@ def _next_captured(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[C
 
 
 def record(manifest: Manifest, output_path, progress: Progress | None = None,
-           workers: int | None = None) -> RecordingSummary:
+           workers: int | None = None, replace: bool = True) -> RecordingSummary:
     """Record every log of the manifest into `output_path`; returns the per-file summary.
 
     `workers` processes decode the logs (None: automatic, see `resolve_workers`);
-    the archive is byte-for-byte the same whatever their number.
+    the archive is byte-for-byte the same whatever their number. The output is
+    never one of the inputs nor an existing file other than an MCAP archive,
+    and an existing archive only with `replace` (see recorders.output_checks);
+    the part file is removed on any failure, and stale ones of dead processes
+    before the start.
     """
+    output = Path(output_path)
+    try:
+        check_output(output, [manifest.path, *(manifest.root / log.path for log in manifest.logs())], replace)
+    except OutputProblem as exc:
+        raise ManifestError(str(exc)) from None
     table = converters()
     _check_formats(manifest, table)
+    live = next((log for log in manifest.logs() if log.source), None)
+    if live is not None:
+        raise ManifestError(f"{manifest.path}: log {live.path} is a live source ({live.source}): "
+                            "use `auvreplay capture`")
     summary = RecordingSummary(workers=resolve_workers(manifest, workers))
+    summary.removed_parts = [str(p) for p in remove_stale_parts(output)]
     fallback = date_to_ns(manifest.date) if manifest.date else 0
-    with ExitStack() as stack:
-        pool = None
-        if summary.workers > 1:
-            # forked before the writer opens its file, so no worker holds it; this process is one of the
-            # decoding processes and starts on the first log while the workers start
-            pool = stack.enter_context(WorkerPool(partial(_capture_log, manifest, table, fallback),
-                                                  len(manifest.logs()), summary.workers - 1, caller_first=True))
-        writer = stack.enter_context(ArchiveWriter(output_path))
-        # first, so that an archive cut off mid-write still says who is who
-        writer.add_metadata("trial", _trial_metadata(manifest))
-        if pool is None:
-            _record_serial(manifest, writer, table, fallback, summary, progress)
-        else:
-            _record_parallel(manifest, writer, pool, table, fallback, summary, progress)
-        writer.add_metadata("recording", {"files": [f.as_json() for f in summary.files]})
+    writer: ArchiveWriter | None = None
+    try:
+        with ExitStack() as stack:
+            pool = None
+            if summary.workers > 1:
+                # forked before the writer opens its file, so no worker holds it; this process is one of the
+                # decoding processes and starts on the first log while the workers start
+                pool = stack.enter_context(WorkerPool(partial(_capture_log, manifest, table, fallback),
+                                                      len(manifest.logs()), summary.workers - 1, caller_first=True))
+            writer = stack.enter_context(ArchiveWriter(output))
+            # first, so that an archive cut off mid-write still says who is who
+            writer.add_metadata("trial", _trial_metadata(manifest))
+            if pool is None:
+                _record_serial(manifest, writer, table, fallback, summary, progress)
+            else:
+                _record_parallel(manifest, writer, pool, table, fallback, summary, progress)
+            writer.add_metadata("recording", {"files": [f.as_json() for f in summary.files]})
+    except BaseException:
+        # the writer drops its part file on an error inside; this also covers a failed final rename
+        if writer is not None:
+            writer.temp_path.unlink(missing_ok=True)
+        raise
     return summary
+
+
+# what `recorders.capture` shares with file recording: the same statistics, diagnostics and metadata
+LogRecorder = _LogRecorder
+log_context = _context
+trial_metadata = _trial_metadata
+check_formats = _check_formats

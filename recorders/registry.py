@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib
 
+from . import csvlog
 from .base import Converter
 from .manifest import SENSORS
 
@@ -19,8 +20,6 @@ FAMILY_MODULES: dict[str, str] = {
 
 def converters() -> dict[tuple[str, str], Converter]:
     """Every (sensor, format) -> converter, the csv mapping included for every family."""
-    from . import csvlog
-
     table: dict[tuple[str, str], Converter] = {}
     for family in SENSORS:
         module = importlib.import_module(FAMILY_MODULES[family])

@@ -26,29 +26,38 @@ when the line has a position but no angles.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import partial
 from typing import Iterator, Mapping
 
 from formats import acoustic_messages as AM
-from formats import evologics as ev
-from formats import evologics_scan as evs
 from formats import regex_lines as rx
+from formats.evologics import notifications as ev
+from formats.evologics import scan as evs
 from formats.records import FormatError, Reject, Where
+from formats.scanned import positions
 from formats.schemas import UsblObservation, timestamp
 
 from .base import Converter, LogContext, Output, output
-from .clock import NS, DayClock
+from .clock import NS, plausible_ns
 from .modem import (
-    RegexOptions, endpoint, option_choice, option_float, regex_options, regex_time, sound_speed,
-    travel_and_range, usbl_reception_ns,
+    RegexOptions,
+    endpoint,
+    measurement_ns,
+    option_choice,
+    option_float,
+    regex_options,
+    regex_outputs,
+    sound_speed,
+    travel_and_range,
 )
 
 SUFFIX = "usbl"
 NAN = math.nan
-_MATCH_S = 1e-3  # USBLPHYD's measurement time differs from USBLLONG's by a microsecond or so
+MATCH_S = 1e-3  # USBLPHYD's measurement time differs from USBLLONG's by a microsecond or so
 
 
-def _angles(east: float, north: float, up: float) -> tuple[float, float]:
+def bearing_elevation(east: float, north: float, up: float) -> tuple[float, float]:
     """(bearing, elevation) in degrees of an ENU vector; NaN when it has no direction."""
     horizontal = math.hypot(east, north)
     if not math.isfinite(horizontal) or (horizontal == 0 and up == 0):
@@ -58,7 +67,10 @@ def _angles(east: float, north: float, up: float) -> tuple[float, float]:
 
 def observation(t_ns: int, node: str, target: str, fmt: str, v: Mapping[str, float]) -> UsblObservation:
     """A UsblObservation from named values (missing ones NaN)."""
-    g = lambda k: float(v.get(k, NAN))  # noqa: E731
+
+    def g(key: str) -> float:
+        return float(v.get(key, NAN))
+
     return UsblObservation(
         timestamp=timestamp(t_ns), node=node, target=target, travel_time_s=g("travel_time_s"),
         range_m=g("range_m"), bearing_deg=g("bearing_deg"), elevation_deg=g("elevation_deg"),
@@ -70,116 +82,59 @@ def observation(t_ns: int, node: str, target: str, fmt: str, v: Mapping[str, flo
 
 # ---- EvoLogics
 
-UsblRecord = ev.UsblLong | ev.UsblAngles | ev.UsblPhaseDelays
-
-
-@dataclass
-class _Group:
-    """The USBL lines of one measurement, in the order they were logged."""
-
-    first: UsblRecord
-    parts: dict[type, UsblRecord] = field(default_factory=dict)
-
-    def accepts(self, rec: UsblRecord) -> bool:
-        return (
-            rec.address == self.first.address and type(rec) not in self.parts
-            and abs(rec.measurement_time_s - self.first.measurement_time_s) <= _MATCH_S
-        )
-
-
 @dataclass(frozen=True)
-class _UsblOptions:
+class UsblOptions:
     carrier_hz: float | None
     convention: str
     c: float
 
 
-def _values(group: _Group, opts: _UsblOptions) -> dict[str, float]:
-    v: dict[str, float] = {}
-    fix = group.parts.get(ev.UsblLong)
-    ang = group.parts.get(ev.UsblAngles)
-    phyd = group.parts.get(ev.UsblPhaseDelays)
-    if isinstance(fix, ev.UsblLong):
-        tt = fix.propagation_time_us * 1e-6
-        v.update(travel_time_s=tt, range_m=tt * opts.c, east_m=fix.east_m, north_m=fix.north_m, up_m=fix.up_m)
-        v["bearing_deg"], v["elevation_deg"] = _angles(fix.east_m, fix.north_m, fix.up_m)
-        v.update(integrity=fix.integrity, rssi_db=fix.rssi_db)
-    elif isinstance(ang, ev.UsblAngles):
-        v["bearing_deg"] = ev.bearing_from_vendor(ang.bearing_rad, opts.convention)
-        v["elevation_deg"] = math.degrees(ang.elevation_rad)
-        v.update(integrity=ang.integrity, rssi_db=ang.rssi_db)
-    if isinstance(phyd, ev.UsblPhaseDelays) and opts.carrier_hz is not None:
-        v["phase_x_rad"], v["phase_y_rad"] = ev.phases_from_delays(phyd.delays_ns, opts.carrier_hz)
-    return v
-
-
-def _emit(ctx: LogContext, group: _Group, opts: _UsblOptions) -> Output | Reject:
-    first = group.first
-    arrival = usbl_reception_ns(ctx, first.where, first.current_time_s, first.measurement_time_s)
-    if arrival is None:
-        return Reject(first.where, "no time: EvoLogics line without host timestamp")
-    v = _values(group, opts)
-    t = arrival - round(v.get("travel_time_s", 0.0) * NS)
-    msg = observation(t, ctx.vehicle, ctx.vehicle_for_address(first.address), "evologics", v)
-    return output(ctx, SUFFIX, msg, t, first.where)
-
-
-def _evologics(data: bytes, ctx: LogContext, opts: _UsblOptions) -> Iterator[Output | Reject]:
-    group: _Group | None = None
-    for rec in ev.decode(data, ctx.prefix):
-        if isinstance(rec, Reject):
-            yield rec
-        elif isinstance(rec, (ev.UsblLong, ev.UsblAngles, ev.UsblPhaseDelays)):
-            if group is not None and group.accepts(rec):
-                group.parts[type(rec)] = rec
-                continue
-            if group is not None:
-                yield _emit(ctx, group, opts)
-            group = _Group(rec, {type(rec): rec})
-    if group is not None:
-        yield _emit(ctx, group, opts)
-
-
-def _usbl_options(ctx: LogContext) -> _UsblOptions:
-    return _UsblOptions(
+def usbl_options(ctx: LogContext) -> UsblOptions:
+    return UsblOptions(
         option_float(ctx, "carrier_hz", None),
         option_choice(ctx, "bearing_convention", ("enu", "compass")),
         sound_speed(ctx),
     )
 
 
-def convert_evologics_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
-    """`convert_evologics` the obvious way, over `evologics.decode` records: the judge of the fast path in tests."""
-    return _evologics(data, ctx, _usbl_options(ctx))
-
-
-# ---- EvoLogics, fast path: the same groups and messages over `evologics_scan.scan` tuples
+# ---- EvoLogics, fast path: the same groups and messages over `formats.evologics.scan` tuples
 
 _USBL_KEYWORDS = frozenset(("USBLLONG", "USBLANGLES", "USBLPHYD"))
+# where each field sits in a scanned line's values; the three USBL lines start alike (times, then address)
+LONG, ANGLES, PHASE_DELAYS = positions(ev.UsblLong), positions(ev.UsblAngles), positions(ev.UsblPhaseDelays)
 
 
-def _scan_values(parts: dict[str, list], opts: _UsblOptions) -> tuple[float, ...]:
+def _scan_values(parts: dict[str, list], opts: UsblOptions) -> tuple[float, ...]:
     """`_values` on scanned values, as usbl_observation's doubles from travel_time_s on."""
     tt = rng = bearing = elevation = px = py = east = north = up = integrity = rssi = NAN
     fix = parts.get("USBLLONG")
     ang = parts.get("USBLANGLES")
     phyd = parts.get("USBLPHYD")
     if fix is not None:
-        tt = fix[12] * 1e-6
-        rng, east, north, up, integrity, rssi = tt * opts.c, fix[6], fix[7], fix[8], fix[14], fix[13]
-        bearing, elevation = _angles(east, north, up)
+        tt = fix[LONG.propagation_time_us] * 1e-6
+        east, north, up = fix[LONG.east_m], fix[LONG.north_m], fix[LONG.up_m]
+        rng, integrity, rssi = tt * opts.c, fix[LONG.integrity], fix[LONG.rssi_db]
+        bearing, elevation = bearing_elevation(east, north, up)
     elif ang is not None:
-        bearing = ev.bearing_from_vendor(ang[5], opts.convention)
-        elevation, integrity, rssi = math.degrees(ang[6]), ang[11], ang[10]
+        bearing = ev.bearing_from_vendor(ang[ANGLES.bearing_rad], opts.convention)
+        elevation, integrity, rssi = math.degrees(ang[ANGLES.elevation_rad]), ang[ANGLES.integrity], ang[ANGLES.rssi_db]
     if phyd is not None and opts.carrier_hz is not None:
-        px, py = ev.phases_from_delays(phyd[4:], opts.carrier_hz)
+        px, py = ev.phases_from_delays(phyd[PHASE_DELAYS.delays_ns:], opts.carrier_hz)
     return tt, rng, bearing, elevation, px, py, east, north, up, integrity, rssi
+
+
+IMPLAUSIBLE_FIX = "travel time puts the measurement outside 1970-2200"
+
+
+def fix_time(arrival: int, travel_s: float) -> int:
+    """When the signal left: the arrival less the travel time (the arrival itself when that is not finite)."""
+    return arrival - round(travel_s * NS) if math.isfinite(travel_s) else arrival
 
 
 class _ScanEmitter:
     """`_emit` on scanned values, with what is the same for every observation of a log worked out once."""
 
-    def __init__(self, ctx: LogContext, opts: _UsblOptions) -> None:
+    def __init__(self, ctx: LogContext, opts: UsblOptions) -> None:
         self.ctx, self.opts = ctx, opts
         self.topic, self.offset_ns = f"/{ctx.vehicle}/{SUFFIX}", ctx.clock_offset_ns
         self.targets: dict[int, str] = {}
@@ -189,44 +144,46 @@ class _ScanEmitter:
         if host is None:
             return Reject(Where(offset, line, host), "no time: EvoLogics line without host timestamp")
         publish = host + self.offset_ns
-        lag = v[0] - v[1]
-        # the modem clock is its own; trust its lag only when it is plausible (`usbl_reception_ns`)
-        arrival = publish - round(lag * NS) if 0.0 <= lag < 60.0 else publish
+        arrival = measurement_ns(publish, v[LONG.current_time_s], v[LONG.measurement_time_s])
         values = _scan_values(parts, self.opts)
-        tt = values[0]
-        t = arrival - round(tt * NS) if tt == tt else arrival
-        target = self.targets.get(v[2])
+        t = fix_time(arrival, values[0])
+        if not plausible_ns(t):
+            return Reject(Where(offset, line, host), IMPLAUSIBLE_FIX)
+        address = v[LONG.address]
+        target = self.targets.get(address)
         if target is None:
-            target = self.targets[v[2]] = self.ctx.vehicle_for_address(v[2])
+            target = self.targets[address] = self.ctx.vehicle_for_address(address)
         msg = AM.usbl_observation(t, self.ctx.vehicle, target, "evologics", *values)
         return Output(self.topic, msg, t, publish, Where(offset, line, host))
 
 
-def _evologics_scan(data: bytes, ctx: LogContext, opts: _UsblOptions) -> Iterator[Output | Reject]:
+def _evologics_scan(data: bytes, ctx: LogContext, opts: UsblOptions) -> Iterator[Output | Reject]:
     emit = _ScanEmitter(ctx, opts)
     first: evs.Scanned | None = None
     parts: dict[str, list] = {}
     for item in evs.scan(data, ctx.prefix):
-        if type(item) is Reject:
-            yield item  # type: ignore[misc]
+        if isinstance(item, Reject):
+            yield item
             continue
         keyword, v = item[0], item[1]
         if keyword not in _USBL_KEYWORDS:
             continue
         if first is not None:
-            # `_Group.accepts`: same target, a kind not yet in the group, measured within _MATCH_S
-            if v[2] == first[1][2] and keyword not in parts and abs(v[1] - first[1][1]) <= _MATCH_S:
+            # `_Group.accepts`: same target, a kind not yet in the group, measured within MATCH_S
+            head = first[1]
+            if (v[LONG.address] == head[LONG.address] and keyword not in parts
+                    and abs(v[LONG.measurement_time_s] - head[LONG.measurement_time_s]) <= MATCH_S):
                 parts[keyword] = v
                 continue
             yield emit(first, parts)
-        first, parts = item, {keyword: v}  # type: ignore[assignment]
+        first, parts = item, {keyword: v}
     if first is not None:
         yield emit(first, parts)
 
 
 def convert_evologics(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """EvoLogics USBL log -> one UsblObservation per measurement."""
-    return _evologics_scan(data, ctx, _usbl_options(ctx))
+    return _evologics_scan(data, ctx, usbl_options(ctx))
 
 
 # ---- user-defined lines
@@ -240,27 +197,17 @@ def _regex_values(values: Mapping[str, float], c: float) -> dict[str, float]:
     if "travel_time_s" in v or "range_m" in v:
         v["travel_time_s"], v["range_m"] = travel_and_range(values, c)
     if "bearing_deg" not in v and {"east_m", "north_m"} <= v.keys():
-        v["bearing_deg"], elevation = _angles(v["east_m"], v["north_m"], v.get("up_m", 0.0))
+        v["bearing_deg"], elevation = bearing_elevation(v["east_m"], v["north_m"], v.get("up_m", 0.0))
         if "up_m" in v:
             v.setdefault("elevation_deg", elevation)
     return v
 
 
-def _regex(data: bytes, ctx: LogContext, opts: RegexOptions) -> Iterator[Output | Reject]:
-    clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
-    for rec in rx.decode(data, opts.pattern, opts.time_format, ctx.prefix, opts.scale):
-        if isinstance(rec, Reject):
-            yield rec
-            continue
-        t = regex_time(ctx, rec, clock)
-        if isinstance(t, Reject):
-            yield t
-        elif not rec.source:
-            yield Reject(rec.where, "no target: the pattern's 'target' group did not match")
-        else:
-            v = _regex_values(rec.values, opts.c)
-            msg = observation(t, ctx.vehicle, endpoint(ctx, rec.source)[0], "regex", v)
-            yield output(ctx, SUFFIX, msg, t, rec.where)
+def _regex_observation(ctx: LogContext, opts: RegexOptions, rec: rx.RegexRecord, t: int) -> Output | Reject:
+    if not rec.source:
+        return Reject(rec.where, "no target: the pattern's 'target' group did not match")
+    msg = observation(t, ctx.vehicle, endpoint(ctx, rec.source)[0], "regex", _regex_values(rec.values, opts.c))
+    return output(ctx, SUFFIX, msg, t, rec.where)
 
 
 def convert_regex(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
@@ -271,7 +218,7 @@ def convert_regex(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
         raise FormatError(f"{ctx.path}: regex format: a USBL pattern needs a named group 'target'")
     if not names & set(_USBL_VALUES):
         raise FormatError(f"{ctx.path}: regex format: a USBL pattern needs a measurement group, one of {_USBL_VALUES}")
-    return _regex(data, ctx, opts)
+    return regex_outputs(data, ctx, opts, partial(_regex_observation, ctx, opts))
 
 
 CONVERTERS: dict[str, Converter] = {

@@ -29,11 +29,11 @@ def run(archive: str | Path, overrides: Mapping[str, Any] | Sequence[str] = (), 
         output: str | Path | None = None) -> RunOutcome:
     """Replay with STACK.md defaults, a TOML file and overrides ({"r_m": 2.5} or ["r_m=2.5"]); review data kept.
 
-    No results file is written unless `output` is given.
+    No results file is written unless `output` is given; a program asked for it, so it replaces one there.
     """
     items = [f"{k}={v}" for k, v in overrides.items()] if isinstance(overrides, Mapping) else list(overrides)
     cfg = load_config(config, items)
-    return replay_archive(archive, cfg, output, write_output=output is not None, review=True)
+    return replay_archive(archive, cfg, output, write_output=output is not None, review=True, force=True)
 
 
 def metrics_frame(outcome: RunOutcome) -> pd.DataFrame:

@@ -33,7 +33,7 @@ class Fix:
 
 
 class ErrorSample(NamedTuple):
-    """Horizontal error of one method's estimate at one follower GPS fix."""
+    """Horizontal error of one method's estimate against GPS: at a follower GPS fix, or at a USBL epoch."""
 
     # a NamedTuple, not a frozen dataclass: one per method at every GPS fix, built ~3x cheaper
 
@@ -180,7 +180,7 @@ class Listener:
     def epoch(self, follower: str, results: list[EpochResult], leader_fix: Fix | None) -> None:
         """One range epoch: a result per method, and the ranged leader's position at the epoch."""
 
-    def estimates(self, follower: str, t_s: float, estimates: dict[str, tuple[float, ...]]) -> None:
+    def estimates(self, follower: str, t_s: float, estimates: Mapping[str, tuple[float, ...]]) -> None:
         """Every method's estimate (lat, lon rad, nn, ne, ee m²) at t."""
 
     def errors(self, follower: str, samples: list[ErrorSample]) -> None:

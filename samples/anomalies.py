@@ -15,7 +15,7 @@ from typing import Sequence
 import numpy as np
 
 from .scenario import AnomalyEvent, NaturalAnomalies
-from .trajectories import stream
+from .trajectories import radii, stream
 
 KIND_CODES = {"": 0, "stale": 1, "drift": 2, "outlier": 3}
 T1_M = 9.0
@@ -111,8 +111,6 @@ def horizontal_range(slant_m: np.ndarray, depth_a_m: np.ndarray, depth_b_m: np.n
 def gps_range(lat_a: np.ndarray, lon_a: np.ndarray, lat_b: np.ndarray, lon_b: np.ndarray,
               depth_a: np.ndarray, depth_b: np.ndarray) -> np.ndarray:
     """Horizontal range between two fixes with common mid-point radii (STACK.md section 1, A.4)."""
-    from .trajectories import radii
-
     la, lb = np.radians(lat_a), np.radians(lat_b)
     mid = 0.5 * (la + lb)
     h = 0.5 * (depth_a + depth_b)

@@ -11,9 +11,11 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from formats import evologics, micromodem
+from formats.evologics import notifications as evologics
+from formats.micromodem import sentences as micromodem
 
 from .simulator import SimulatedTrial
+from .trajectories import interp_track
 
 NS = 1_000_000_000
 # USBL modem clocks count seconds from power-up, switched on before the trial
@@ -66,8 +68,6 @@ def _follower_lines(trial: SimulatedTrial, name: str) -> list[tuple[int, str]]:
 
 
 def _true_range(trial: SimulatedTrial, follower: str, leader: str, t: float) -> float:
-    from .trajectories import interp_track
-
     a = interp_track(trial.vehicle(follower).track, np.array([t]))
     b = interp_track(trial.vehicle(leader).track, np.array([t]))
     return float(math.hypot(a["east_m"][0] - b["east_m"][0], a["north_m"][0] - b["north_m"][0]))

@@ -10,7 +10,11 @@ import math
 
 import numpy as np
 
-from formats import nmea, novatel, pd0, phins
+from formats import phins
+from formats.nmea import sentences as nmea
+from formats.novatel import logs as novatel
+from formats.pd0 import ensembles as pd0
+from formats.pd0 import frames
 
 from .sensors import GEOID_SEPARATION_M, GpsSeries
 from .simulator import SimulatedTrial
@@ -124,7 +128,7 @@ def pd0_dvl(trial: SimulatedTrial, name: str) -> bytes:
     depth = np.interp(d.t_s, v.track.t_s, v.track.depth_m)
     out = []
     for i in range(len(d.t_s)):
-        bottom = pd0.bottom_velocity_from_frd(float(d.forward_mps[i]), float(d.starboard_mps[i]),
+        bottom = frames.bottom_velocity_from_frd(float(d.forward_mps[i]), float(d.starboard_mps[i]),
                                               float(d.down_mps[i]), float(d.error_mps[i]))
         out.append(pd0.encode_ensemble(
             int(t_ns[i]), i + 1, bottom, [float(x) for x in vertical[i]], coordinates="ship",

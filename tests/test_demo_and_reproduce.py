@@ -38,11 +38,13 @@ def test_demo_writes_archive_results_metrics_and_recording(demo_dir, capsys):
     rid = metrics["run_id"]
     at = lambda path: rows[f"/{rid}/{path}"]  # noqa: E731
     # every view holds the real run: tracks, ranges, features, lanes, CDFs, ANFIS, KMCDF, events
-    assert at("map/follower/gps/position") == 1701 and at("local/follower/anfis/position") > 1000
+    # positions: one row per GPS fix and one static styling row (colour, size, name)
+    assert at("map/follower/gps/position") == 1701 + 1 and at("local/follower/anfis/position") > 1000
     ranges = at("series/range/follower/leader1/measured") + at("series/range/follower/leader2/measured")
     assert 701 <= ranges <= 701 + 2          # the views add one styling row per series
     assert at("series/f1_innovation_m/follower/leader1") + at("series/f1_innovation_m/follower/leader2") == ranges
-    assert at("series/lanes/follower/leader1/truth") + at("series/lanes/follower/leader2/truth") == ranges
+    # the lanes moved to state-timeline lanes (lanes/...); each has one static StateConfiguration row
+    assert at("lanes/follower/leader1/1_truth") + at("lanes/follower/leader2/1_truth") == 701 + 2
     assert at("cdf/follower/anfis/curve") > 10
     assert at("anfis/leader1/training/mf/in1") == 101   # 100 epochs and the kept model
     explained = at("anfis/leader1/explain/firing") + at("anfis/leader2/explain/firing")

@@ -27,7 +27,7 @@ from replay.run.evaluate import (
     split_seeds,
 )
 from samples.anomalies import KIND_CODES
-from samples.scenario import ANOMALY_KINDS, Scenario, ScenarioError
+from samples.scenario import ANOMALY_KINDS, Scenario, ScenarioError, scenario_to_toml
 from samples.simulator import simulate_trial
 
 # short trials: 700 s with t_a = 400 s keeps a scripted stale segment in training and natural anomalies after it
@@ -53,8 +53,16 @@ class Spied:
 
 
 @pytest.fixture(scope="module")
-def evaluated() -> Spied:
-    """`evaluate --json` on seeds 1-2 (train seed 0) with one sweep rate, watched at every step."""
+def evaluated(tmp_path_factory: pytest.TempPathFactory) -> Spied:
+    """`evaluate --json` on seeds 1-2 (train seed 0) with one sweep rate, watched at every step.
+
+    The scenario moves the sample trial's drift (70 s, 25 m) inside the short trial's scored part.
+    """
+    base = Scenario()
+    events = tuple(replace(e, start_s=480.0, end_s=550.0) if e.kind == "drift" else e
+                   for e in base.anomalies if e.end_s < 700.0 or e.kind == "drift")
+    path = tmp_path_factory.mktemp("evaluate") / "scenario.toml"
+    path.write_text(scenario_to_toml(replace(base, anomalies=events)))
     spied = Spied({})
     real_trial, real_set, real_replay = ev.evaluate_trial, ev.training_set_of, ev.replay_archive
 
@@ -78,7 +86,7 @@ def evaluated() -> Spied:
         mp.setattr(ev, "training_set_of", training)
         mp.setattr(ev, "replay_archive", replay)
         code, out, _ = _cli(["evaluate", "--seeds", "1-2", "--train-seed", "0", "--drift-rate", "0.5",
-                             "--workers", "1", "--json", *SHORT])
+                             "--scenario", str(path), "--workers", "1", "--json", *SHORT])
     assert code == 0
     spied.obj = json.loads(out)
     return spied
@@ -103,13 +111,14 @@ def test_json_has_the_documented_shape(evaluated: Spied) -> None:
         # FNR can only fall as the allowed FPR grows
         assert 0 <= f["fnr_at_fpr_5"] <= f["fnr_at_fpr_2"] <= f["fnr_at_fpr_1"] <= 1
         assert f["recall_by_kind"]["outlier"] is not None      # outliers are drawn at 2 % of leader 1's epochs
+        assert f["recall_by_kind"]["drift"] is not None
     sweep = obj["drift_sweep"]
     assert [r["method"] for r in sweep] == detecting
     for r in sweep:
         assert set(r) == {"rate_mps", "method", "recall", "epochs"}
         assert r["rate_mps"] == 0.5
-        # the scripted drift (1100-1170 s) lies past an 800 s trial: no drift epoch, no recall
-        assert r["epochs"] == 0 and r["recall"] is None
+        # 35 m over 70 s on leader 1 (pinged every 4.8 s) in two trials: most of its epochs past 9 m
+        assert r["epochs"] == sweep[0]["epochs"] >= 10 and 0 <= r["recall"] <= 1
 
 
 def test_trained_on_the_train_seed_and_scored_on_the_others(evaluated: Spied) -> None:
@@ -147,7 +156,8 @@ def test_dask_gives_the_serial_figures() -> None:
 
 def test_bad_arguments_are_one_line_errors() -> None:
     for argv in (["--seeds", "x"], ["--seeds", "1", "--train-seed", "1"], ["--seeds", "1-2", "--drift-rate", "a"],
-                 ["--seeds", "1-2", "--drift-rate", "-0.1"], ["--seeds", "1-2", "--duration", "0"]):
+                 ["--seeds", "1-2", "--drift-rate", "-0.1"], ["--seeds", "1-2", "--duration", "0"],
+                 ["--seeds", "1-2", "--scenario", "/nonexistent/scenario.toml"]):
         code, _, err = _cli(["evaluate", "--workers", "1", *argv])
         assert code == 1 and err.count("\n") == 1 and "Traceback" not in err, argv
 

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from formats import evologics as ev
+from formats.evologics import notifications as ev
 from formats.records import Reject, Where
 
 # a published data-mode session (S2C USBL, target address 3); lengths as the modem wrote them

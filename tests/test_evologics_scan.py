@@ -9,13 +9,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from formats import acoustic_messages as AM
-from formats import evologics as ev
-from formats import evologics_scan as evs
 from formats import host_lines
+from formats.evologics import notifications as ev
+from formats.evologics import scan as evs
 from formats.lines import iter_lines
 from formats.schemas import UsblObservation, timestamp
 from recorders import modem, usbl
 from recorders.base import LogContext, Output
+from tests import reference_converters as reference
 
 PREFIXES = [
     "", "2016-10-12T02:00:03.263140Z ", "2016-10-12T23:59:59.5Z\t|", "[2016-10-12T02:00:03.263Z] ",
@@ -119,7 +120,7 @@ def test_fast_usbl_path_equals_the_record_based_reference(data, options, offset_
     ctx = LogContext("buoy1", options=options, address_book={3: "follower", 11: "buoy1"},
                      clock_offset_ns=offset_s * 1_000_000_000)
     fast = list(usbl.convert_evologics(data, ctx))
-    assert _outputs(fast) == _outputs(list(usbl.convert_evologics_reference(data, ctx)))
+    assert _outputs(fast) == _outputs(list(reference.convert_usbl_evologics_reference(data, ctx)))
 
 
 _DOUBLE = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.just(-0.0), st.just(0.0))
@@ -155,4 +156,4 @@ def test_non_ascii_digits_after_a_query_are_a_reject() -> None:
 def test_fast_evologics_ranges_equal_the_record_based_reference(data, book, offset_s) -> None:
     ctx = LogContext("buoy1", address_book=book, clock_offset_ns=offset_s * 1_000_000_000, sound_speed_mps=1450.0)
     fast = list(modem.convert_evologics(data, ctx))
-    assert _outputs(fast) == _outputs(list(modem.convert_evologics_reference(data, ctx)))
+    assert _outputs(fast) == _outputs(list(reference.convert_modem_evologics_reference(data, ctx)))

@@ -8,9 +8,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from formats import micromodem as mm
+from formats.micromodem import sentences as mm
+from formats.nmea.framing import nmea_checksum
 from formats.records import Reject, Where
-from formats.sentence import nmea_checksum
 
 W = Where(0, 1)
 

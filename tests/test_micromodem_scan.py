@@ -9,12 +9,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from formats import acoustic_messages as AM
-from formats import micromodem as mm
-from formats import micromodem_scan as mms
+from formats.micromodem import scan as mms
+from formats.micromodem import sentences as mm
+from formats.nmea.framing import build
 from formats.schemas import AcousticRange, timestamp
-from formats.sentence import build
 from recorders import modem
 from recorders.base import LogContext, Output
+from tests import reference_converters as reference
 
 T0 = 1476237600 * 1_000_000_000  # 2016-10-12T02:00:00Z
 _LINES = st.sampled_from([
@@ -97,7 +98,7 @@ def test_fast_micromodem_path_equals_the_record_based_reference(data, options, b
     ctx = LogContext("follower", options=options, address_book=book, trial_date=day,
                      clock_offset_ns=offset_s * 1_000_000_000)
     fast = list(modem.convert_micromodem(data, ctx))
-    assert _outputs(fast) == _outputs(list(modem.convert_micromodem_reference(data, ctx)))
+    assert _outputs(fast) == _outputs(list(reference.convert_micromodem_reference(data, ctx)))
 
 
 _DOUBLE = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.just(-0.0), st.just(0.0))

@@ -9,9 +9,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from formats import nmea
+from formats.nmea import sentences as nmea
+from formats.nmea.framing import build
 from formats.records import Reject
-from formats.sentence import build
 
 # Published examples (NMEA 0183 references, receiver manuals) with their own checksums.
 GGA = b"$GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*47\r\n"

@@ -7,10 +7,12 @@ from datetime import date
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from formats import nmea, nmea_columns
-from formats.sentence import build
+from formats.nmea import columns as nmea_columns
+from formats.nmea import sentences as nmea
+from formats.nmea.framing import build
 from recorders import gps, gps_columns
 from recorders.base import LogContext, Output
+from tests import reference_converters as reference
 
 DAY = date(2016, 10, 12)
 T0 = 1476230400 * 10**9 + 23 * 3600 * 10**9 + 3599 * 10**9  # 23:59:59: epochs roll over midnight
@@ -86,7 +88,7 @@ def test_columns_equal_the_per_line_path(parts, day, offset_s, options, tail) ->
     data = "".join(lines).encode("latin-1")
     ctx = LogContext("boat", trial_date=day, clock_offset_ns=offset_s * S1, options=options)
     for blob in (data, data + tail):
-        fast, ref = list(gps.convert_nmea(blob, ctx)), list(gps.convert_nmea_reference(blob, ctx))
+        fast, ref = list(gps.convert_nmea(blob, ctx)), list(reference.convert_nmea_reference(blob, ctx))
         assert _comparable(fast) == _comparable(ref)
 
 
@@ -109,7 +111,7 @@ def _epoch_log(draw: st.DrawFn) -> bytes:
 @given(_epoch_log(), st.sampled_from([None, DAY]), st.integers(-2, 2), st.sampled_from([{}, {"uere_m": 2.0}]))
 def test_columns_equal_the_reference_on_receiver_logs(data, day, offset_s, options) -> None:
     ctx = LogContext("boat", trial_date=day, clock_offset_ns=offset_s * S1, options=options)
-    ref = _comparable(list(gps.convert_nmea_reference(data, ctx)))
+    ref = _comparable(list(reference.convert_nmea_reference(data, ctx)))
     cols = nmea_columns.decode_columns(data)
     outputs = gps_columns.convert_columns(cols, ctx, gps.NO_DATE) if cols is not None else None
     if outputs is not None:  # the columnar path itself, not only `convert_nmea` (which may have fallen back)

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from formats import novatel as nv
 from formats.gpstime import gps_to_unix_ns
+from formats.novatel import logs as nv
 from formats.records import Reject
 
 # Example logs as NovAtel's EDIE decoder tests carry them (OEM7 firmware output).

@@ -7,11 +7,12 @@ import math
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from formats import novatel as nv
-from formats import novatel_scan
+from formats.novatel import logs as nv
+from formats.novatel import scan as novatel_scan
 from formats.records import Reject
 from recorders import gps, ins
 from recorders.base import LogContext, Output
+from tests import reference_converters as reference
 
 T0 = 1476259201_250_000_000  # 2016-10-12T08:00:01.25Z
 S1 = 1_000_000_000
@@ -101,5 +102,5 @@ def test_any_bytes_scan_as_decode_does(data: bytes) -> None:
 @given(_log(), st.integers(-2, 2))
 def test_fast_novatel_paths_equal_the_record_based_references(data: bytes, offset_s: int) -> None:
     ctx = LogContext("boat", clock_offset_ns=offset_s * S1)
-    assert _outputs(gps.convert_novatel(data, ctx)) == _outputs(gps.convert_novatel_reference(data, ctx))
-    assert _outputs(ins.convert_span(data, ctx)) == _outputs(ins.convert_span_reference(data, ctx))
+    assert _outputs(gps.convert_novatel(data, ctx)) == _outputs(reference.convert_novatel_reference(data, ctx))
+    assert _outputs(ins.convert_span(data, ctx)) == _outputs(reference.convert_span_reference(data, ctx))

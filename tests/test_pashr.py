@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from formats import pashr
-from formats.sentence import build
+from formats.nmea.framing import build
 
 # The example of the RT300/Applanix $PASHR description (its own checksum).
 EXAMPLE = b"$PASHR,085335.000,224.19,T,-01.26,+00.83,+00.00,0.101,0.113,0.267,1,0*06\r\n"

@@ -9,7 +9,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from formats import pd0
+from formats.pd0 import ensembles as pd0
+from formats.pd0 import frames
 from formats.records import Reject
 
 T0 = 1476259201_250_000_000  # 2016-10-12T08:00:01.25Z
@@ -88,17 +89,17 @@ def test_hand_built_ensemble_values() -> None:
 
 def test_ship_coordinates_become_body_frd() -> None:
     # bottom moving aft at 1.5 m/s and to port at 0.25 m/s: vehicle forward 1.5, starboard 0.25
-    frame, x, y, z, e = pd0.vehicle_velocity("ship", (-0.25, 1.5, 0.02, 0.01))
+    frame, x, y, z, e = frames.vehicle_velocity("ship", (-0.25, 1.5, 0.02, 0.01))
     assert frame == "BODY_FRD"
     assert (x, y, z, e) == (-1.5, 0.25, 0.02, 0.01)
-    assert pd0.bottom_velocity_from_frd(-1.5, 0.25, 0.02, 0.01) == (-0.25, 1.5, 0.02, 0.01)
+    assert frames.bottom_velocity_from_frd(-1.5, 0.25, 0.02, 0.01) == (-0.25, 1.5, 0.02, 0.01)
 
 
 def test_beam_transform_matches_hand_values() -> None:
     # 30°: a = 1, b = 1/(4 cos30) = 0.288675; beams (1, -1, 0, 0) -> X = 2
-    x, y, z, e = pd0.beam_to_instrument((1.0, -1.0, 0.0, 0.0), 30.0, convex=True)
+    x, y, z, e = frames.beam_to_instrument((1.0, -1.0, 0.0, 0.0), 30.0, convex=True)
     assert math.isclose(x, 2.0) and y == 0.0 and z == 0.0
-    _, _, z, _ = pd0.beam_to_instrument((1.0, 1.0, 1.0, 1.0), 30.0)
+    _, _, z, _ = frames.beam_to_instrument((1.0, 1.0, 1.0, 1.0), 30.0)
     assert math.isclose(z, 4 / (4 * math.cos(math.radians(30))))
 
 

@@ -9,10 +9,12 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from formats import pd0, pd0_blocks
+from formats.pd0 import blocks as pd0_blocks
+from formats.pd0 import ensembles as pd0
 from formats.records import Reject
 from recorders import dvl
 from recorders.base import LogContext, Output
+from tests import reference_converters as reference
 
 T0 = 1476259201_250_000_000  # 2016-10-12T08:00:01.25Z
 S1 = 1_000_000_000
@@ -118,7 +120,7 @@ def test_scan_gives_what_decode_gives(parts, damage, cut) -> None:
 def test_fast_pd0_path_equals_the_record_based_reference(parts, damage, offset_s, options) -> None:
     data = _build(parts, damage)
     ctx = LogContext("follower", clock_offset_ns=offset_s * S1, options=options)
-    assert _outputs(dvl.convert_pd0(data, ctx)) == _outputs(dvl.convert_pd0_reference(data, ctx))
+    assert _outputs(dvl.convert_pd0(data, ctx)) == _outputs(reference.convert_pd0_reference(data, ctx))
 
 
 @settings(max_examples=200, deadline=None)
@@ -128,7 +130,7 @@ def test_any_bytes_scan_as_decode_does(data: bytes) -> None:
     for blob in (data, good + data, data + good + good, good + data[:3] + good):
         assert _rows(list(pd0_blocks.scan(blob))) == _reference_rows(blob)
         ctx = LogContext("follower")
-        assert _outputs(dvl.convert_pd0(blob, ctx)) == _outputs(dvl.convert_pd0_reference(blob, ctx))
+        assert _outputs(dvl.convert_pd0(blob, ctx)) == _outputs(reference.convert_pd0_reference(blob, ctx))
 
 
 def test_a_clean_deployment_is_one_block() -> None:

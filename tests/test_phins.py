@@ -9,8 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from formats import phins
+from formats.nmea.framing import build
 from formats.records import Reject
-from formats.sentence import build
 
 # One PHINS standard burst as printed in the iXblue protocol description (checksums theirs).
 BURST = b"""$HEHDT,116.581,T*25\r

@@ -17,7 +17,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from formats import nmea, nortek, pashr, pd0
+from formats import nortek, pashr
+from formats.nmea import sentences as nmea
+from formats.pd0 import ensembles as pd0
 from formats.records import Reject, Where
 
 REAL = Path(__file__).parent / "data" / "real"

@@ -70,15 +70,17 @@ def test_record_writes_topics_diagnostics_and_summary(trial, capsys):
     assert [m.log_time_ns for m in gps] == [1476259200_500000000, 1476259201_500000000]
     assert gps[1].message.latitude == 45.70001 and gps[0].message.timestamp.nanos == 500_000_000
     ranges = [m for m in msgs if m.topic == "/follower/modem/range"]
-    # time of day with the manifest date, rolling over midnight
-    assert [m.log_time_ns for m in ranges] == [1476316798_000000000, 1476316803_000000000]
+    # time of day with the manifest date; the row after midnight has no range: refused at record time
+    assert [m.log_time_ns for m in ranges] == [1476316798_000000000]
     assert ranges[0].message.travel_time_s == pytest.approx(600.5 / 1500.0)
     assert ranges[0].message.source == "leader1" and ranges[0].message.destination == "follower"
     diags = [m.message for m in msgs if m.topic == "/diagnostics"]
-    assert len(diags) == 2 and all(d.file == "logs/gps.csv" for d in diags)
-    assert sorted(d.line for d in diags) == [4, 5]
+    assert len(diags) == 3 and sorted((d.file, d.line) for d in diags) == [
+        ("logs/gps.csv", 4), ("logs/gps.csv", 5), ("logs/range.csv", 3)]
+    assert any("range_m is NaN" in d.message for d in diags)
     assert files["logs/gps.csv"]["parsed"] == 2 and files["logs/gps.csv"]["skipped"] == 2
-    assert files["logs/range.csv"]["parsed"] == 2 and files["logs/range.csv"]["skipped"] == 0
+    assert files["logs/range.csv"]["parsed"] == 1 and files["logs/range.csv"]["skipped"] == 1
+    assert files["logs/range.csv"]["bad_ranges"] == 1
     assert [v["name"] for v in trial_meta["vehicles"]] == ["leader1", "follower"]
     assert trial_meta["modem_addresses"] == {"1": "leader1", "3": "follower"}
     assert "csv-trial" in trial_meta["manifest"]
@@ -100,7 +102,7 @@ def test_info_reports_the_recording(trial, capsys):
     assert main(["info", str(out), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["diagnostics"]["logs/gps.csv"]["skipped"] == 2
-    assert info["topics"]["/diagnostics"]["count"] == 2
+    assert info["topics"]["/diagnostics"]["count"] == 3  # the range row without a range too
     assert {a["name"] for a in info["attachments"]} == {"logs/gps.csv", "logs/range.csv"}
 
 

@@ -7,8 +7,10 @@ from datetime import date
 
 import pytest
 
-from formats import nortek, pd0, pd4, pd6
+from formats import nortek, pd4, pd6
 from formats import waterlinked as wl
+from formats.pd0 import ensembles as pd0
+from formats.pd0 import frames
 from formats.records import FormatError, Reject
 from formats.schemas import DvlVelocity, to_ns
 from recorders.base import LogContext, Output
@@ -33,7 +35,7 @@ def test_registry_names() -> None:
 
 
 def test_pd0_ship_to_body_frd_ranges_and_altitude() -> None:
-    bt = pd0.bottom_velocity_from_frd(1.5, -0.2, 0.05, 0.01)
+    bt = frames.bottom_velocity_from_frd(1.5, -0.2, 0.05, 0.01)
     data = pd0.encode_ensemble(T0, 1, bt, (10.0, 10.0, 10.3, math.nan), temperature_c=8.5,
                                sound_speed_mps=1481)
     (o,), rejects = _run("pd0", data)

@@ -9,9 +9,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from formats import evologics as ev
-from formats import micromodem as mm
 from formats import regex_lines as rx
+from formats.evologics import notifications as ev
+from formats.micromodem import sentences as mm
 from formats.records import FormatError, Reject
 from recorders import modem, usbl
 from recorders.base import LogContext, Output

@@ -9,12 +9,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from formats import nmea, novatel, pashr, phins
+from formats import pashr, phins
 from formats import schemas as S
+from formats.nmea import sentences as nmea
+from formats.nmea.framing import build
+from formats.novatel import logs as novatel
 from formats.records import Reject, Where
-from formats.sentence import build
-from recorders import gps, ins
+from recorders import gnss_covariance, gps, ins
 from recorders.base import LogContext, Output
+from tests import reference_converters as reference
 
 DAY = date(2016, 10, 12)
 MIDNIGHT = 1476230400 * 10**9  # 2016-10-12T00:00:00Z
@@ -53,7 +56,7 @@ def test_hdop_covariance_is_approximated_with_the_documented_uere() -> None:
     data = nmea.encode_gga(T0, 45.7, 126.6, hdop=1.5, quality=2).encode()
     outs, _ = run(gps.convert_nmea, data, trial_date=DAY)
     cov = list(fixes(outs)[0].message.position_covariance)
-    h = 1.5 * gps.UERE_M[2]
+    h = 1.5 * gnss_covariance.UERE_M[2]
     assert cov == pytest.approx([h * h / 2, 0, 0, 0, h * h / 2, 0, 0, 0, 4 * h * h])
     assert fixes(outs)[0].message.position_covariance_type == S.COVARIANCE_APPROXIMATED
     outs, _ = run(gps.convert_nmea, data, trial_date=DAY, options={"uere_m": 2.0})
@@ -223,7 +226,7 @@ def test_fast_nmea_path_equals_the_record_based_reference(parts, day, offset_s, 
         lines.append(line if crlf else line.replace("\r\n", "\n"))
     data = "".join(lines).encode("latin-1")
     ctx = LogContext("boat", trial_date=day, clock_offset_ns=offset_s * S1, options=options)
-    fast, ref = list(gps.convert_nmea(data, ctx)), list(gps.convert_nmea_reference(data, ctx))
+    fast, ref = list(gps.convert_nmea(data, ctx)), list(reference.convert_nmea_reference(data, ctx))
     assert _scanned_outputs(fast) == _scanned_outputs(ref)
 
 
@@ -261,7 +264,7 @@ def test_fast_phins_path_equals_the_record_based_reference(parts, day, offset_s)
         lines.append(make(t))
     data = "".join(lines).encode("latin-1")
     ctx = LogContext("boat", trial_date=day, clock_offset_ns=offset_s * S1)
-    fast, ref = list(ins.convert_phins(data, ctx)), list(ins.convert_phins_reference(data, ctx))
+    fast, ref = list(ins.convert_phins(data, ctx)), list(reference.convert_phins_reference(data, ctx))
     assert _scanned_outputs(fast) == _scanned_outputs(ref)
 
 

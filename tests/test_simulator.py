@@ -11,8 +11,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from samples import anomalies as an
-from samples.scenario import (AnomalyEvent, Scenario, ScenarioError, TrialConfig, load_scenario,
-                              scenario_from_dict, scenario_to_toml)
+from samples.scenario import (
+    AnomalyEvent,
+    Scenario,
+    ScenarioError,
+    TrialConfig,
+    load_scenario,
+    scenario_from_dict,
+    scenario_to_toml,
+)
 from samples.simulator import simulate_trial
 from samples.trajectories import LocalFrame, gauss_markov, radii, stream
 from samples.writer import render
@@ -224,7 +231,12 @@ def test_extra_followers_leave_the_leaders_untouched(trial, short):
 # ---- logs on disk
 
 def test_logs_decode_without_a_single_reject(short):
-    from formats import evologics, micromodem, nmea, novatel, pd0, phins
+    from formats import phins
+    from formats.evologics import notifications as evologics
+    from formats.micromodem import sentences as micromodem
+    from formats.nmea import sentences as nmea
+    from formats.novatel import logs as novatel
+    from formats.pd0 import ensembles as pd0
     from formats.records import Reject
 
     by_name = {"gps.log": nmea.decode, "ins.log": phins.decode, "dvl.pd0": pd0.decode,

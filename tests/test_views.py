@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import json
 from collections import defaultdict
 from pathlib import Path
 
@@ -11,19 +12,19 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from replay.review.data import ReviewData
-from tests.review_fixtures import FOLLOWER, LEADERS, synthetic_review
-
 from rerun.chunk import RrdReader
 
-from replay.views import recording as views
 from replay.commands import view as view_cmd
 from replay.errors import UserError
+from replay.review.data import ReviewData
+from replay.review.scoreboard import format_value, scoreboard
 from replay.stack.detectors.anfis import AnfisModel, predict
+from replay.views import recording as views
 from replay.views.anfis import SURFACE_GRID, grid_triangles, history_of, surface
-from replay.views.series import CDF_SNAPSHOTS, PERCENTILES, expanding_quantiles
+from replay.views.cdf import CDF_SNAPSHOTS, PERCENTILES, error_axis, expanding_quantiles
+from replay.views.common import make_runs
 from replay.views.tracks import decimate
+from tests.review_fixtures import FOLLOWER, LEADERS, synthetic_review
 
 N_EPOCHS, ANFIS_EPOCHS = 40, 6
 
@@ -113,45 +114,84 @@ def test_range_circles_one_per_epoch_around_the_leader(rrd: Rrd, review: ReviewD
 
 
 def test_time_series_ranges_features_anfis_and_lanes(rrd: Rrd, review: ReviewData) -> None:
-    det = review.detections
-    methods = sorted(det.method.unique())
-    for k, leader in enumerate(sorted(LEADERS)):
+    for leader in sorted(LEADERS):
         rows = review.ranges[review.ranges.leader == leader].sort_values("t_s")
         measured = [c[0] for c in rrd.cells(f"/run-a/series/range/{FOLLOWER}/{leader}/measured", "Scalars:scalars")]
         np.testing.assert_allclose(measured, rows.measured_m)
         assert rrd.rows(f"/run-a/series/residual/{FOLLOWER}/{leader}") == len(rows)
         for feature in ("f1_innovation_m", "f2_mahalanobis2", "f3_r_adapted_m2"):
             assert rrd.rows(f"/run-a/series/{feature}/{FOLLOWER}/{leader}") == len(rows)
-        base = k * (len(methods) + 2)
-        for lane, method in enumerate(methods, start=1):
-            m_rows = det[(det.leader == leader) & (det.method == method)].sort_values("t_s")
-            lane_v = np.array([c[0] for c in rrd.cells(f"/run-a/series/lanes/{FOLLOWER}/{leader}/{method}",
-                                                        "Scalars:scalars")])
-            np.testing.assert_allclose(lane_v, base + lane + 0.8 * m_rows.flagged.to_numpy())
-        truth = np.array([c[0] for c in rrd.cells(f"/run-a/series/lanes/{FOLLOWER}/{leader}/truth",
-                                                   "Scalars:scalars")])
-        assert int(np.sum(truth > base + 0.5)) == int((det[(det.leader == leader) & (det.method == methods[0])]
-                                                       .label == 1).sum())
-        for method in ("anfis", "anfis_aqpso"):
-            for series in ("output", "T2"):
-                assert rrd.rows(f"/run-a/series/anfis/{FOLLOWER}/{leader}/{method}/{series}") == len(rows)
     assert not any("/series/anfis/" in e and "/chi_square/" in e for e in rrd.temporal)
 
 
+def _expected_state(t: float, t_a: float, flagged: bool, label: int) -> str:
+    """The lane state of one epoch, written out case by case (the reference for the vectorised rule)."""
+    if t <= t_a:
+        return "training"
+    if label < 0:
+        return "no label"
+    if flagged:
+        return "hit" if label == 1 else "false alarm"
+    return "miss" if label == 1 else "quiet"
+
+
+def test_detection_lanes_are_named_and_tell_hits_false_alarms_and_misses_apart(rrd: Rrd, review: ReviewData) -> None:
+    """Lanes moved from numeric series (/series/lanes/...) to state-timeline lanes (/lanes/...)."""
+    det, t_a = review.detections, review.metrics["window"][0]
+    detectors = [m for m in review.methods if m in set(det.method.unique())]
+    assert detectors == ["chi_square", "dual_threshold", "anfis", "anfis_aqpso"]
+    seen: set[str] = set()
+    for leader in LEADERS:
+        truth_rows = det[(det.leader == leader) & (det.method == detectors[0])].sort_values("t_s")
+        truth = [s[0] for s in rrd.cells(f"/run-a/lanes/{FOLLOWER}/{leader}/1_truth", "StateChange:state")]
+        assert truth == ["anomaly" if v == 1 else "normal" if v == 0 else "no label" for v in truth_rows.label]
+        for k, method in enumerate(detectors):
+            rows = det[(det.leader == leader) & (det.method == method)].sort_values("t_s")
+            states = [s[0] for s in rrd.cells(f"/run-a/lanes/{FOLLOWER}/{leader}/{k + 2}_{method}",
+                                              "StateChange:state")]
+            assert states == [_expected_state(t, t_a, f, lab) for t, f, lab in zip(rows.t_s, rows.flagged,
+                                                                                   rows.label, strict=True)]
+            seen |= set(states)
+    assert {"hit", "quiet", "training"} <= seen
+    window = [s[0] for s in rrd.cells(f"/run-a/lanes/{FOLLOWER}/0_scoring_window", "StateChange:state")]
+    assert window == ["training", "scored", "scored"]
+    config = rrd.static[f"/run-a/lanes/{FOLLOWER}/{leader}/2_chi_square"][0]
+    assert {"hit", "false alarm", "miss", "quiet"} <= set(config.column("StateConfiguration:values").to_pylist()[0])
+
+
+def test_anfis_output_series(rrd: Rrd) -> None:
+    for leader in LEADERS:
+        rows = rrd.rows(f"/run-a/series/f1_innovation_m/{FOLLOWER}/{leader}")
+        for method in ("anfis", "anfis_aqpso"):
+            for series in ("output", "T2"):
+                assert rrd.rows(f"/run-a/series/anfis/{FOLLOWER}/{leader}/{method}/{series}") == rows
+
+
 def test_error_cdf_grows_with_readable_percentiles(rrd: Rrd, review: ReviewData) -> None:
-    errors = review.errors[(review.errors.method == "ckf")].sort_values("t_s")
+    """The CDF counts the metrics window only (from t_a) and is drawn on a log x axis: the curve read back
+    through the axis is the quantile function of the scored errors."""
+    t_a = review.metrics["window"][0]
+    errors = review.errors[(review.errors.method == "ckf") & (review.errors.t_s >= t_a)].sort_values("t_s")
+    axis = error_axis(make_runs([review]))[FOLLOWER]
     n_snap = min(errors.t_s.nunique(), CDF_SNAPSHOTS)
     curves = rrd.cells(f"/run-a/cdf/{FOLLOWER}/ckf/curve", "LineStrips2D:strips")
     assert len(curves) == n_snap and all(len(c) == 1 for c in curves)
+    assert rrd.times_ns(f"/run-a/cdf/{FOLLOWER}/ckf/curve")[0] >= review.trial_start_ns + t_a * 1e9 - 1
     last = np.array(curves[-1][0])
-    np.testing.assert_allclose(last[:, 0], np.quantile(errors.error_m, np.linspace(0, 1, last.shape[0])), rtol=1e-5)
+    expected = np.clip(np.quantile(errors.error_m, np.linspace(0, 1, last.shape[0])), axis.lo, axis.hi)
+    np.testing.assert_allclose(axis.error(last[:, 0]), expected, rtol=1e-4)
     assert np.all(np.diff(last[:, 0]) >= 0) and np.all(np.diff(last[:, 1]) <= 0)
     marks = rrd.cells(f"/run-a/cdf/{FOLLOWER}/ckf/percentiles", "Points2D:positions")
     assert len(marks) == n_snap and all(len(m) == len(PERCENTILES) for m in marks)
-    np.testing.assert_allclose([p[0] for p in marks[-1]], np.quantile(errors.error_m, PERCENTILES), rtol=1e-5)
+    np.testing.assert_allclose(axis.error(np.array([p[0] for p in marks[-1]])),
+                               np.clip(np.quantile(errors.error_m, PERCENTILES), axis.lo, axis.hi), rtol=1e-4)
     table = rrd.cells(f"/run-a/cdf/{FOLLOWER}/table", "TextDocument:text")
     assert len(table) == n_snap
-    assert f"| ckf | {np.quantile(errors.error_m, 0.5):.2f} |" in table[-1][0]
+    assert f"| ckf | {np.quantile(errors.error_m, 0.5):.2f} |" in table[-1][0] and f"t_a = {t_a:.0f} s" in table[-1][0]
+    ticks = rrd.static[f"/run-a/cdf/{FOLLOWER}/axes/x_ticks"][0].column("Points2D:labels").to_pylist()[0]
+    assert all(float(t) == pytest.approx(v) for t, v in zip(ticks, axis.ticks(), strict=True)) and len(ticks) >= 3
+    legend = rrd.static[f"/run-a/cdf/{FOLLOWER}/legend/names"][0].column("Points2D:labels").to_pylist()[0]
+    assert sorted(t.split()[0] for t in legend) == sorted(review.errors.method.unique())
     for method in review.errors.method.unique():
         assert rrd.rows(f"/run-a/series/error/{FOLLOWER}/{method}") == (review.errors.method == method).sum()
 
@@ -198,13 +238,16 @@ def test_kmcdf_epochs_and_events(rrd: Rrd, review: ReviewData) -> None:
 def test_blueprint_saved_with_every_view(rrd: Rrd) -> None:
     names = rrd.view_names
     for expected in ("Map: GPS truth and every track", "Local east/north (m), range circles", "Events",
-                     "Ranges measured / true (m)", "ANFIS output vs T2 (m)", "Rule firing strengths",
-                     "Why (not) flagged", "Output surface (f3 at median)", "Horizontal error vs GPS (m)"):
+                     "Ranges measured / true (m)", "ANFIS output vs T2 (m); above T2 = flagged",
+                     "Rule firing strengths", "Why (not) flagged", "Output surface (f3 at median)", "Scoreboard",
+                     "Colour key", "Training RMSE (m) per epoch"):
         assert expected in names
     assert any(n.startswith("Error CDF of follower") for n in names)
+    assert any(n.startswith("Error vs GPS (m), whole mission") for n in names)
     assert any(n.startswith("Detection lanes") for n in names)
-    assert sum(n.startswith("KMCDF follower/") for n in names) == 2
-    assert {"Map", "2D", "3D", "TimeSeries", "TextLog", "TextDocument"} <= set(rrd.view_classes)
+    assert sum(n.startswith("KMCDF follower:") and "preliminary fixes of kmcdf1, kmcdf2" in n for n in names) == 1
+    assert {"Map", "2D", "3D", "TimeSeries", "TextLog", "TextDocument", "StateTimeline", "BarChart"} <= set(
+        rrd.view_classes)
 
 
 def test_two_runs_compared_in_one_recording(review: ReviewData, tmp_path: Path) -> None:
@@ -310,3 +353,118 @@ def test_web_viewer_binds_loopback_only(tmp_path: Path) -> None:
     assert Path(cmd[0]).name == "rerun" and cmd[1].endswith("a.mcap")
     assert cmd[cmd.index("--bind") + 1] == "127.0.0.1" and "--web-viewer" in cmd
     assert "--bind" not in views.viewer_command(tmp_path / "a.rrd")
+
+
+def test_comparison_names_runs_by_what_differs_and_says_what_changed(review: ReviewData, tmp_path: Path) -> None:
+    a = ReviewData(**{**review.__dict__, "parameters": {"stack": {"r_m": 2.0, "q": 1}}})
+    b = ReviewData(**{**synthetic_review(8, n_epochs=20, anfis_epochs=3, run_id="run-b").__dict__,
+                      "parameters": {"stack": {"r_m": 2.5, "q": 1}}})
+    out = Rrd(views.save_rrd([a, b], tmp_path / "cmp.rrd"))
+    context = out.static["/run-b"][0].column("AnnotationContext:context").to_pylist()[0][0]
+    info = {c["class_description"]["info"]["label"]: c["class_description"]["info"]["color"] for c in context}
+    first = out.static["/run-a"][0].column("AnnotationContext:context").to_pylist()[0][0]
+    info_a = {c["class_description"]["info"]["label"]: c["class_description"]["info"]["color"] for c in first}
+    assert "ckf [r_m=2.5]" in info and "ckf [r_m=2]" in info_a and info["ckf [r_m=2.5]"] != info_a["ckf [r_m=2]"]
+    assert not any("] " in n and n.count("[") > 1 for n in out.view_names)          # no doubled tags
+    changes = out.static["/run-b/changes"][0].column("TextDocument:text").to_pylist()[0][0]
+    assert "**A = r_m=2** against **B = r_m=2.5**" in changes
+    assert sum(n.startswith("Scoreboard") for n in out.view_names) == 2
+    assert sum(n.startswith("Detection lanes") for n in out.view_names) == 1     # both runs in one view
+    # a detector's lanes of both runs are neighbours: one root, the run last
+    assert out.rows("/lanes/follower/leader1/2_chi_square/1_r_m_2") == (
+        (a.detections.leader == "leader1") & (a.detections.method == "chi_square")).sum()
+    assert out.rows("/lanes/follower/leader1/2_chi_square/2_r_m_2.5") == (
+        (b.detections.leader == "leader1") & (b.detections.method == "chi_square")).sum()
+
+
+def _view_args(*argv: str) -> argparse.Namespace:
+    parser = argparse.ArgumentParser()
+    view_cmd.add_arguments(parser)
+    return parser.parse_args(list(argv))
+
+
+def test_view_never_replaces_a_recording_it_did_not_make(tmp_path: Path) -> None:
+    a, b = tmp_path / "a.mcap", tmp_path / "b.mcap"
+    assert view_cmd.recording_path([a], None, False) == tmp_path / "a.rrd"
+    assert view_cmd.recording_path([a, b], None, False) == tmp_path / "a-vs-b.rrd"
+    (tmp_path / "a.rrd").write_bytes(b"earlier")
+    (tmp_path / "a-vs-b.rrd").write_bytes(b"earlier")
+    (tmp_path / "a-vs-b-2.rrd").write_bytes(b"earlier")
+    assert view_cmd.recording_path([a], None, False) == tmp_path / "a-2.rrd"
+    assert view_cmd.recording_path([a, b], None, False) == tmp_path / "a-vs-b-3.rrd"
+    assert view_cmd.recording_path([a], None, True) == tmp_path / "a.rrd"
+    with pytest.raises(UserError, match="exists"):
+        view_cmd.recording_path([a], str(tmp_path / "a.rrd"), False)
+    assert view_cmd.recording_path([a], str(tmp_path / "a.rrd"), True) == tmp_path / "a.rrd"
+    assert _view_args(str(a), "--force").force and not _view_args(str(a)).force
+    assert (tmp_path / "a.rrd").read_bytes() == b"earlier"
+
+
+@pytest.fixture(scope="module")
+def sample(tmp_path_factory: pytest.TempPathFactory) -> tuple[ReviewData, dict, Rrd]:
+    """The bundled sample trial recorded, replayed with every method (metrics.json written) and drawn."""
+    from recorders.manifest import load_manifest
+    from recorders.record import record
+    from replay.reproduce.anfis import sample_trial_dir
+    from replay.run.pipeline import replay_archive
+
+    d = tmp_path_factory.mktemp("sample")
+    record(load_manifest(sample_trial_dir() / "trial.toml"), d / "lake.mcap")
+    outcome = replay_archive(d / "lake.mcap", output=d / "results.mcap", review=True)
+    metrics = json.loads((d / "results.metrics.json").read_text())
+    return outcome.review, metrics, Rrd(views.save_rrd([outcome.review], d / "lake.rrd"))
+
+
+def test_sample_scoreboard_shows_metrics_json_exactly(sample: tuple[ReviewData, dict, Rrd]) -> None:
+    review, metrics, rrd = sample
+    doc = rrd.static[f"/{review.run_id}/scoreboard"][0].column("TextDocument:text").to_pylist()[0][0]
+    assert "after t_a: 600 s to 1700 s (mission seconds)" in doc
+    rows = [[c.strip() for c in line.strip("|").split("|")] for line in doc.splitlines()
+            if line.startswith("| ") and line[2].isdigit()]
+    assert [r[1] for r in rows] == [r.method for r in scoreboard(metrics)]
+    assert {r[1] for r in rows} == set(metrics["methods"])
+    columns = ("error_p50_m", "error_p90_m", "error_rms_m", "tp", "fp", "fn", "fpr", "fnr", "auc")
+    for row in rows:
+        assert row[3:] == [format_value(metrics["methods"][row[1]][c]) for c in columns], row[1]
+    best = min(metrics["methods"], key=lambda m: metrics["methods"][m]["error_p50_m"])
+    assert f"Lowest error: **{best}**" in doc
+
+
+def test_sample_every_method_has_a_track_an_error_series_and_a_cdf(sample: tuple[ReviewData, dict, Rrd]) -> None:
+    review, metrics, rrd = sample
+    p = f"/{review.run_id}"
+    followers = [v for v, role in review.vehicles.items() if role == "follower"]
+    assert followers == ["follower"]
+    for method in metrics["methods"]:
+        assert rrd.rows(f"{p}/map/follower/{method}/position") > 100, method
+        assert rrd.rows(f"{p}/local/follower/{method}/trail") > 100, method
+        assert rrd.rows(f"{p}/series/error/follower/{method}") > 100, method
+        marks = rrd.cells(f"{p}/cdf/follower/{method}/percentiles", "Points2D:positions")
+        axis = error_axis(make_runs([review]))["follower"]
+        # the last snapshot of the CDF is the scoreboard's: p50 and p90 of the metrics window
+        np.testing.assert_allclose(axis.error(np.array([marks[-1][0][0], marks[-1][1][0]])),
+                                   [metrics["methods"][method]["error_p50_m"],
+                                    min(metrics["methods"][method]["error_p90_m"], axis.hi)], rtol=1e-4)
+    for leader in ("leader1", "leader2"):
+        lanes = [e for e in rrd.temporal if e.startswith(f"{p}/lanes/follower/{leader}/")]
+        assert len(lanes) == 1 + sum(r.kind == "detector" for r in scoreboard(metrics))
+
+
+def test_sample_mission_seconds_beside_utc_and_events_use_them(sample: tuple[ReviewData, dict, Rrd]) -> None:
+    review, _, rrd = sample
+    batches = rrd.temporal[f"/{review.run_id}/events"]
+    mission = np.concatenate([b.column("mission_s").cast("int64").to_numpy() for b in batches])
+    utc = np.concatenate([b.column("time").cast("int64").to_numpy() for b in batches])
+    np.testing.assert_array_equal(utc - mission, review.trial_start_ns)
+    np.testing.assert_array_equal(np.sort(mission), np.sort(np.round(review.events.t_s.to_numpy() * 1e9)))
+    assert all("mission_s" in b.schema.names for e in (f"/{review.run_id}/series/error/follower/kmcdf2",
+                                                        f"/{review.run_id}/local/follower/gps/position")
+               for b in rrd.temporal[e])
+    ev = review.events
+    warn = ev[ev.level == "WARN"].text
+    assert warn.str.startswith("FALSE ALARM").any() and warn.str.startswith("MISS").any()
+    starts, ends = ev.text.str.startswith("ANOMALY STARTS").sum(), ev.text.str.startswith("ANOMALY ENDS").sum()
+    assert 0 <= starts - ends <= 2                 # at most one interval per leader still open at the end
+    assert (ev.text.str.startswith("ANOMALY STARTS").sum() > 10
+            and ev[ev.level == "INFO"].text.str.contains("trained at t_a").any())
+    assert not ev[ev.level == "INFO"].text.str.startswith(("FALSE ALARM", "MISS")).any()

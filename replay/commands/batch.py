@@ -43,6 +43,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="LocalCluster worker processes (one thread each)")
     parser.add_argument("--json", action="store_true", help="print one JSON object with every run's metrics")
     parser.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
+    parser.add_argument("--force", action="store_true",
+                        help="replace the tables (and runs) of an earlier batch in DIR (default: refuse)")
 
 
 class _Progress:
@@ -80,7 +82,14 @@ def _text(df: pd.DataFrame) -> str:
 def run(args: argparse.Namespace) -> int:
     """Run the batch, write the tables, print a summary; 1 when any run failed."""
     from replay.errors import UserError
-    from replay.run.batch import batch, parse_seeds, parse_sweeps, summary_table
+    from replay.run.batch import (
+        batch,
+        parse_seeds,
+        parse_sweeps,
+        summary_table,
+        table_paths,
+    )
+    from replay.run.outputs import claim_outputs
 
     if not args.archives and not args.simulate_seeds:
         raise UserError("give archives, or --simulate-seeds")
@@ -90,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
     if args.window:
         overrides.append(f"window_s=[{args.window[0]!r},{args.window[1]!r}]")
     seeds = parse_seeds(args.simulate_seeds) if args.simulate_seeds else []
+    claim_outputs(table_paths(args.output), args.force)
     df, records = batch(args.archives, args.output, args.config, overrides, parse_sweeps(args.sweep), seeds,
                         args.duration, scheduler=args.scheduler, workers=args.workers,
                         progress=_Progress(not args.quiet and not args.json))

@@ -1,8 +1,8 @@
 """Compare detectors honestly: simulated trials, trained on one seed, scored on the others, closed loop.
 
-Every seed is simulated, written as vendor logs, recorded and replayed (as
-`simulate`, `record` and `replay` do) in a temporary directory, with every
-method of the configuration. The train seed (default: the first) is never
+Every seed is simulated (the sample trial's scenario, or `--scenario FILE`),
+written as vendor logs, recorded and replayed (as `simulate`, `record` and
+`replay` do) in a temporary directory, with every method of the configuration. The train seed (default: the first) is never
 scored. Per method, pooled over the test seeds after t_a: open-loop AUC and
 FNR at FPR 1, 2 and 5 %; closed-loop recall per injected anomaly kind among
 the epochs labelled anomalous (dropout: none, a dropout leaves no range to
@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from replay.run.evaluate import Evaluation
+    from samples.scenario import Scenario
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -43,6 +44,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one replay parameter, as for `replay`")
     parser.add_argument("--duration", type=float, metavar="S", help="simulated trial length (default 1700 s)")
+    parser.add_argument("--scenario", metavar="FILE",
+                        help="scenario TOML for every trial, as for `simulate` (default: the sample trial's)")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="a running Dask scheduler (tcp://host:8786); default: a LocalCluster")
     parser.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),
@@ -68,6 +71,21 @@ def _rates(text: str | None) -> list[float]:
 TRAINING_TEXT = {"given": "every test trial on the train seed's training set",
                  "both": "every test trial on the train seed's training set and its own window",
                  "own": "every test trial on its own window (the train seed not run)"}
+
+
+def _scenario(path: str | None) -> Scenario | None:
+    """The `--scenario` file, read and checked here (a bad file is one line, before any trial runs)."""
+    from replay.errors import UserError
+    from samples.scenario import ScenarioError, load_scenario
+
+    if path is None:
+        return None
+    try:
+        return load_scenario(path)
+    except OSError as exc:
+        raise UserError(f"cannot read scenario {path}: {exc.strerror or exc}") from None
+    except ScenarioError as exc:
+        raise UserError(f"scenario: {exc}") from None
 
 
 def _cell(v: Any) -> str:
@@ -139,13 +157,15 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--seeds {args.seeds!r}: expected seeds like 100-109 or 1,4,7") from None
     config = load_config(args.config, args.set)
     rates = _rates(args.drift_rate)
+    scenario = _scenario(args.scenario)
     progress = _Progress(not args.json)
     if args.scheduler is None and args.workers == 1:
-        ev = evaluate(seeds, config, args.train_seed, rates, args.duration, args.training, progress=progress)
+        ev = evaluate(seeds, config, args.train_seed, rates, args.duration, args.training, progress=progress,
+                      scenario=scenario)
     else:
         with dask_client(args.scheduler, args.workers) as client:
             ev = evaluate(seeds, config, args.train_seed, rates, args.duration, args.training, client=client,
-                          progress=progress)
+                          progress=progress, scenario=scenario)
     if args.json:
         print(json.dumps(ev.to_json(), indent=2))
         print(f"evaluate: {ev.trials} trials in {ev.wall_s:.1f} s wall ({ev.workers}; {ev.cpu_s:.0f} CPU-s in the "

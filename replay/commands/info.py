@@ -17,16 +17,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def describe(path: str) -> dict[str, Any]:
-    """The `info --json` object for an archive (DESIGN.md "Command line")."""
+    """The `info --json` object for an archive (DESIGN.md "Command line").
+
+    Metadata comes from other people's machines: a value of the wrong shape
+    is left out and counted in the warning, never trusted.
+    """
     from formats.mcap_reader import ArchiveReader
 
     with ArchiveReader(path) as reader:
         summary = reader.summary()
-        trial = reader.metadata_json("trial") or {}
-        recording = reader.metadata_json("recording") or {}
+        trial = _mapping(reader.metadata_json("trial"))
+        recording = _mapping(reader.metadata_json("recording"))
         runs = [n for n in summary.metadata_names if n == "run"]
+        files, dropped = _files(recording.get("files"))
+        vehicles = [v for v in _list(trial.get("vehicles")) if isinstance(v, (dict, str))]
+        if dropped:
+            reader.damage.bad_record("recording metadata entry", f"{dropped} log entries not of the recorded shape")
         problems = list(reader.problems)
-    files = recording.get("files", [])
+        warning = reader.warning()
     return {
         "file": str(path),
         "topics": {t: {"count": v["count"], "schema": v["schema"]} for t, v in sorted(summary.topics.items())},
@@ -34,8 +42,8 @@ def describe(path: str) -> dict[str, Any]:
         "attachments": [{"name": a.name, "size": a.size, "media_type": a.media_type} for a in summary.attachments],
         "start": iso(summary.start_ns),
         "end": iso(summary.end_ns),
-        "trial": trial.get("name"),
-        "vehicles": trial.get("vehicles", []),
+        "trial": trial.get("name") if isinstance(trial.get("name"), str) else None,
+        "vehicles": vehicles,
         "diagnostics": {
             f["path"]: {k: f.get(k) for k in ("vehicle", "sensor", "format", "parsed", "skipped", "bad_checksum",
                                                "out_of_order", "duplicates", "start", "end")}
@@ -45,7 +53,27 @@ def describe(path: str) -> dict[str, Any]:
         "runs": len(runs),
         "recovered": bool(problems),
         "problems": problems,
+        "warning": warning,
     }
+
+
+def _mapping(value: Any) -> dict[str, Any]:
+    return value if isinstance(value, dict) else {}
+
+
+def _list(value: Any) -> list[Any]:
+    return value if isinstance(value, list) else []
+
+
+def _files(value: Any) -> tuple[list[dict[str, Any]], int]:
+    """The recording's per-log entries that have a path, and how many others were dropped."""
+    entries = _list(value)
+    good = [f for f in entries if isinstance(f, dict) and isinstance(f.get("path"), str)]
+    return good, len(entries) - len(good) + (1 if value is not None and not isinstance(value, list) else 0)
+
+
+def _count(value: Any) -> str:
+    return str(value) if isinstance(value, int) else "?"
 
 
 def _print_text(info: dict[str, Any]) -> None:
@@ -67,9 +95,9 @@ def _print_text(info: dict[str, Any]) -> None:
     if info["diagnostics"]:
         print("logs:                                parsed  skipped  bad checksum")
         for path, d in info["diagnostics"].items():
-            print(f"  {path:<34} {d['parsed']:>7}  {d['skipped']:>7}  {d['bad_checksum']:>12}")
-    for p in info["problems"]:
-        print(f"auvreplay info: warning: {p}", file=sys.stderr)
+            print(f"  {path:<34} {_count(d['parsed']):>7}  {_count(d['skipped']):>7}  {_count(d['bad_checksum']):>12}")
+    if info["warning"]:
+        print(f"auvreplay info: warning: {info['warning']}", file=sys.stderr)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -77,6 +105,8 @@ def run(args: argparse.Namespace) -> int:
     info = describe(args.file)
     if args.json:
         print(json.dumps(info, indent=2))
+        if info["warning"]:
+            print(f"auvreplay info: warning: {info['warning']}", file=sys.stderr)
     else:
         _print_text(info)
     return 0

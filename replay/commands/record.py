@@ -12,6 +12,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("manifest", help="the trial manifest (TOML)")
     parser.add_argument("-o", "--output", required=True, help="the archive to write (.mcap)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar, no table")
+    parser.add_argument("--force", action="store_true", help="replace the output archive if it exists")
+    parser.add_argument("--allow-outside", action="store_true",
+                        help="read logs whose paths resolve outside the manifest's folder")
     parser.add_argument("--workers", type=_worker_count, default=None, metavar="N",
                         help="processes decoding the logs (default: automatic, one per core for a trial "
                              "of 1 MiB or more, else in-process); the archive is the same for any N")
@@ -74,11 +77,13 @@ def run(args: argparse.Namespace) -> int:
     from replay.errors import UserError
 
     try:
-        manifest = load_manifest(args.manifest)
+        manifest = load_manifest(args.manifest, allow_outside=args.allow_outside)
         summary = record(manifest, args.output, progress=None if args.quiet else _ProgressBar(),
-                         workers=args.workers)
+                         workers=args.workers, replace=args.force)
     except ManifestError as exc:
         raise UserError(str(exc)) from exc
+    for part in summary.removed_parts:
+        print(f"auvreplay record: removed {part}, the part file of a process that is gone", file=sys.stderr)
     if not args.quiet:
         print_summary(summary)
         print(f"wrote {args.output}: {sum(f.messages for f in summary.files)} messages, "

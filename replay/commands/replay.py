@@ -21,6 +21,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--compare", metavar="RESULTS.mcap",
                         help="with --rrd: put this earlier run into the same recording, side by side")
     parser.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+    parser.add_argument("--force", action="store_true",
+                        help="replace existing output files (default: refuse to overwrite them)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -28,12 +30,15 @@ def run(args: argparse.Namespace) -> int:
     from replay.errors import UserError
     from replay.run.config import load_config
     from replay.run.metrics import format_table
+    from replay.run.outputs import claim_outputs
     from replay.run.pipeline import replay_archive
 
     if args.compare and not args.rrd:
         raise UserError("--compare needs --rrd (the comparison is a recording)")
     config = load_config(args.config, args.set, tuple(args.window) if args.window else None, args.rate)
-    outcome = replay_archive(args.archive, config, args.output, review=bool(args.rrd))
+    claim_outputs([args.rrd], args.force)
+    outcome = replay_archive(args.archive, config, args.output, review=bool(args.rrd), force=args.force,
+                             require_work=True)
     if args.rrd:
         from replay.views.recording import save_rrd
 
@@ -52,4 +57,6 @@ def run(args: argparse.Namespace) -> int:
               f"({outcome.metrics['anomalous']} anomalous), {outcome.messages} messages in {outcome.wall_s:.2f} s")
         print(format_table(outcome.metrics))
         print(f"results: {outcome.output}" + (f"; recording: {args.rrd}" if args.rrd else ""))
+    if outcome.warning:
+        print(f"auvreplay replay: warning: {outcome.warning}", file=sys.stderr)
     return 0

@@ -28,6 +28,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of tables")
     parser.add_argument("--png", default="out/reproduce_kmcdf.png", help="figure path ('' for none)")
     parser.add_argument("--rrd", default="out/reproduce_kmcdf.rrd", help="Rerun path ('' for none)")
+    parser.add_argument("--force", action="store_true",
+                        help="replace an existing --png / --rrd file (default: refuse to overwrite it)")
     parser.add_argument("--sensitivity", action="store_true",
                         help="also the KMCDF success at the paper's points over the phase noise")
     parser.add_argument("--phase-noise", type=float, default=0.1,
@@ -56,8 +58,10 @@ def run(args: argparse.Namespace) -> int:
         save_rrd,
         sensitivity,
     )
+    from replay.run.outputs import claim_outputs
     from replay.stack.positioning.kmcdf import KmcdfParams
 
+    claim_outputs([args.png, args.rrd], args.force)
     params = KmcdfParams(sigma_phase_rad=args.phase_noise)
     with _dask(args.scheduler, args.workers) as client:
         result = reproduce(args.trials, args.seed, params, workers=args.workers, client=client)

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from replay.errors import UserError
 
@@ -52,15 +51,12 @@ def _scenario(args: argparse.Namespace):
 
 def run(args: argparse.Namespace) -> int:
     """Simulate and write the trial directory; exit 0 on success."""
+    from replay.run.outputs import claim_directory
     from samples.simulator import simulate_trial
     from samples.writer import write_trial
 
     scenario = _scenario(args)
-    out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise UserError(f"{out} exists and is not a directory")
-    if out.is_dir() and any(out.iterdir()) and not args.force:
-        raise UserError(f"{out} is not empty (use --force to write into it)")
+    out = claim_directory(args.output, args.force)
     trial = simulate_trial(scenario, args.seed)
     written = write_trial(trial, out)
     if not args.quiet:

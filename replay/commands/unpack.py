@@ -13,7 +13,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Unpack; exit 1 if any attachment was refused or failed its recorded checksum."""
+    """Unpack; exit 1 if any attachment was refused, repeated a name or failed its recorded checksum."""
     from recorders.attachments import unpack
 
     result = unpack(args.file, args.directory)
@@ -24,4 +24,12 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
     for name in result.mismatched:
         print(f"auvreplay unpack: {name}: sha256 differs from the one recorded", file=sys.stderr)
-    return 1 if result.refused or result.mismatched else 0
+    for name in result.incomplete:
+        print(f"auvreplay unpack: {name}: bytes missing from the captured stream (written with a gap)",
+              file=sys.stderr)
+    for name in result.repeated:
+        print(f"auvreplay unpack: a second attachment named {name!r}: not written over the first",
+              file=sys.stderr)
+    if result.warning:
+        print(f"auvreplay unpack: warning: {result.warning}", file=sys.stderr)
+    return 1 if result.refused or result.mismatched or result.incomplete or result.repeated else 0

@@ -3,6 +3,11 @@
 The native viewer needs a display ($DISPLAY or $WAYLAND_DISPLAY); without one,
 and without --web, the command prints the command to run elsewhere and exits 0.
 --web serves Rerun's web viewer bound to 127.0.0.1 only.
+
+Results archives are made into a recording first: `a.rrd` beside `a.mcap`, or
+`a-vs-b.rrd` for two. A file that is already there is never replaced (it may be
+someone's earlier recording): the recording takes the next free name (`a-2.rrd`)
+and says so; `--save NAME` refuses an existing NAME; `--force` replaces either.
 """
 
 from __future__ import annotations
@@ -14,6 +19,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from replay.errors import UserError
+from replay.run.outputs import claim_output
 
 SUFFIXES = (".rrd", ".mcap")
 
@@ -25,7 +31,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "archives (shown with every view; two are compared in one recording)")
     parser.add_argument("--web", action="store_true", help="serve the web viewer on 127.0.0.1 instead")
     parser.add_argument("--archive", help="the input trial archive of the results, if not found by itself")
-    parser.add_argument("--save", help="with results archives: where to save the recording (.rrd)")
+    parser.add_argument("--save", help="with results archives: where to save the recording (.rrd); an existing "
+                                       "file is refused unless --force")
+    parser.add_argument("--force", action="store_true", help="replace an existing recording")
 
 
 def has_display(env: Mapping[str, str]) -> bool:
@@ -55,11 +63,33 @@ def _recording_of_results(args: argparse.Namespace) -> Path | None:
         raise UserError("give one .rrd or .mcap file, or one or two replay results archives")
     from replay.views.recording import save_rrd
 
+    out = recording_path(paths, args.save, args.force)
     reviews = [review_from_results(p, args.archive) for p in paths]
-    out = Path(args.save) if args.save else paths[0].with_suffix(".rrd")
     save_rrd(reviews, out)
-    print(f"saved {out}")
+    default = default_recording(paths)
+    print(f"saved {out}" + (f" ({default} exists and was kept; --force replaces it)" if out != default and
+                            not args.save else ""))
     return out
+
+
+def default_recording(paths: list[Path]) -> Path:
+    """Where a recording of results archives goes by default: a.rrd, or a-vs-b.rrd for two."""
+    if len(paths) == 1:
+        return paths[0].with_suffix(".rrd")
+    return paths[0].with_name(f"{paths[0].stem}-vs-{paths[1].stem}.rrd")
+
+
+def recording_path(paths: list[Path], save: str | None, force: bool) -> Path:
+    """The file to write: --save (refused when it exists, unless force), else the default or its next free name."""
+    if save:
+        return claim_output(save, force)
+    out = default_recording(paths)
+    if force or not (out.exists() or out.is_symlink()):
+        return claim_output(out, force)
+    k = 2
+    while (candidate := out.with_name(f"{out.stem}-{k}{out.suffix}")).exists():
+        k += 1
+    return candidate
 
 
 def run(args: argparse.Namespace) -> int:

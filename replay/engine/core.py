@@ -12,7 +12,8 @@ import math
 import time
 from array import array
 from collections import Counter
-from typing import Any, Callable
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -34,7 +35,7 @@ NS = 1_000_000_000
 class Engine:
     """Streams one trial's messages through the stack (push one message at a time, in time order)."""
 
-    def __init__(self, layout: TrialLayout, config: RunConfig, t0_ns: int, listeners: list[Listener] = (),
+    def __init__(self, layout: TrialLayout, config: RunConfig, t0_ns: int, listeners: Sequence[Listener] = (),
                  training_set: TrainingSet | None = None):
         """The engine of one trial; `training_set` (another run's) goes to every follower's runner."""
         self.layout, self.config, self.t0_ns = layout, config, t0_ns
@@ -74,14 +75,12 @@ class Engine:
         if route is None:
             route = self._routes[topic] = self._route(topic)
         vehicle, handler = route
-        if handler is None:
-            if vehicle is None:
-                if topic == "/diagnostics":
-                    for listener in self.listeners:
-                        listener.event(t_s, "WARN", f"rejected record: {msg.message}")
-                return
-        else:
-            handler(self, vehicle, t_s, msg)
+        if handler is None or vehicle is None:     # a handled topic always has its vehicle
+            if vehicle is None and topic == "/diagnostics":
+                for listener in self.listeners:
+                    listener.event(t_s, "WARN", f"rejected record: {msg.message}")
+            return
+        handler(self, vehicle, t_s, msg)
         self._release(self.last_s - self._lag_s)
 
     def _route(self, topic: str) -> tuple[str | None, Callable[[Engine, str, float, Any], None] | None]:
@@ -145,7 +144,7 @@ class Engine:
     # -- release and callbacks ---------------------------------------------------
     def _release(self, until_s: float) -> None:
         feeding = self._usbl is not None and bool(self.config.engine.usbl_update)
-        if feeding:
+        if feeding and self._usbl is not None:
             # fixes go to the followers' queues before they are released past them; an epoch is
             # complete once the stream is usbl_group_s past its first observation
             self._usbl.flush(min(until_s, self.last_s - self.config.engine.usbl_group_s))
@@ -188,7 +187,7 @@ class Engine:
             for listener in self.listeners:
                 listener.epoch(follower, results, leader_fix)
 
-    def _on_estimates(self, follower: str, t_s: float, est: dict[str, tuple[float, ...]]) -> None:
+    def _on_estimates(self, follower: str, t_s: float, est: Mapping[str, tuple[float, ...]]) -> None:
         for listener in self.listeners:
             listener.estimates(follower, t_s, est)
 
@@ -216,14 +215,19 @@ class Engine:
     def _on_usbl(self, epoch: UsblEpoch, truth: tuple[float, float] | None,
                  positions: dict[str, tuple[float, float]]) -> None:
         self.usbl_epochs += 1
-        if truth is not None and epoch.t_s >= self.training_end_s:   # every method is scored on one window
+        samples: list[ErrorSample] = []
+        if truth is not None:
             e, n = truth
-            for method, (pe, pn) in positions.items():
-                if math.isfinite(pe) and math.isfinite(pn):
-                    self.positioning_errors[method].append(math.hypot(pe - float(e), pn - float(n)))
+            samples = [ErrorSample(epoch.t_s, method, math.hypot(pe - float(e), pn - float(n)))
+                       for method, (pe, pn) in positions.items() if math.isfinite(pe) and math.isfinite(pn)]
+        if epoch.t_s >= self.training_end_s:   # every method is scored on one window
+            for s in samples:
+                self.positioning_errors[s.method].append(s.error_m)
         self._feed_fix(epoch, positions)
         for listener in self.listeners:
             listener.usbl(epoch, positions)
+            if samples:     # the positioning methods' error series, beside the filters' (views, report)
+                listener.errors(epoch.target, samples)
 
     def _feed_fix(self, epoch: UsblEpoch, positions: dict[str, tuple[float, float]]) -> None:
         """With engine.usbl_update set, the chosen method's fix of a follower goes to its filters."""

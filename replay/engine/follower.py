@@ -11,6 +11,7 @@ from __future__ import annotations
 import heapq
 import math
 from collections import Counter
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -43,7 +44,7 @@ class FollowerPipeline:
 
     def __init__(self, plan: FollowerPlan, config: RunConfig, tracks: dict[str, VehicleTracks],
                  on_epoch: Callable[[str, list[EpochResult]], None],
-                 on_estimates: Callable[[str, float, dict[str, tuple[float, ...]]], None],
+                 on_estimates: Callable[[str, float, Mapping[str, tuple[float, ...]]], None],
                  on_error: Callable[[str, list[ErrorSample]], None], training_set: TrainingSet | None = None):
         """One follower's queue; `training_set` is handed to its runner (StackConfig.training_source)."""
         self.plan, self.config, self.tracks = plan, config, tracks
@@ -76,16 +77,17 @@ class FollowerPipeline:
         if not msg.valid or not (math.isfinite(msg.velocity_x_mps) and math.isfinite(msg.velocity_y_mps)):
             self.counts["dvl_invalid"] += 1
             return
-        fresh = self._heading is not None and t_s - self._heading[0] <= self.config.engine.max_gap_s
+        last = self._heading
+        heading = last[1] if last is not None and t_s - last[0] <= self.config.engine.max_gap_s else None
         if msg.frame == EARTH_NED:
-            theta = self._heading[1] * DEG if fresh else 0.0
+            theta = heading * DEG if heading is not None else 0.0
             vn, ve = msg.velocity_x_mps, msg.velocity_y_mps
             fwd, lat = vn * math.cos(theta) + ve * math.sin(theta), -vn * math.sin(theta) + ve * math.cos(theta)
         elif msg.frame == BODY_FRD:
-            if not fresh:
+            if heading is None:
                 self.counts["dvl_without_heading"] += 1
                 return
-            theta, fwd, lat = self._heading[1] * DEG, msg.velocity_x_mps, msg.velocity_y_mps
+            theta, fwd, lat = heading * DEG, msg.velocity_x_mps, msg.velocity_y_mps
         else:
             self.counts["dvl_frame_unusable"] += 1
             return
@@ -123,31 +125,33 @@ class FollowerPipeline:
             if kind == "gps":
                 self._pending_gps.append(payload[0])
                 continue
-            if self.runner is None and not self._start(t_s):
+            runner = self.runner if self.runner is not None else self._start(t_s)
+            if runner is None:
                 self.counts[f"{kind}_before_initial_fix"] += 1
                 continue
             if kind == "dr":
-                if self.runner.dead_reckon(t_s, *payload):
-                    self._after_step(t_s)
+                if runner.dead_reckon(t_s, *payload):
+                    self._after_step(runner, t_s)
             elif kind == "fix":
-                if self.runner.position_fix(t_s, *payload):
-                    self._after_step(t_s, force=True)
+                if runner.position_fix(t_s, *payload):
+                    self._after_step(runner, t_s, force=True)
             else:
-                self._range(t_s, *payload)
+                self._range(runner, t_s, *payload)
 
-    def _start(self, t_s: float) -> bool:
+    def _start(self, t_s: float) -> CooperativeRunner | None:
+        """The runner, started at the follower's own position at t; None while it has none."""
         own = self.tracks[self.plan.name]
         fix = own.gps.at(t_s, self.config.engine.max_gap_s) or own.ins.at(t_s, self.config.engine.max_gap_s)
         if fix is None:
-            return False
+            return None
         self.runner = CooperativeRunner(
             self.config.stack, self.plan.name, self.plan.leaders, start_time_s=0.0,
             initial_lat_rad=fix.lat_rad, initial_lon_rad=fix.lon_rad, initial_depth_m=self._depth,
             keep_history=False, training_set=self.training_set)
         self._prev = (0.0, self.runner.positions())
-        return True
+        return self.runner
 
-    def _range(self, t_s: float, leader: str, slant_m: float) -> None:
+    def _range(self, runner: CooperativeRunner, t_s: float, leader: str, slant_m: float) -> None:
         gap = self.config.engine.max_gap_s
         pos = self.tracks[leader].position(t_s, gap)
         if pos is None:
@@ -157,15 +161,15 @@ class FollowerPipeline:
         own, other = self.tracks[self.plan.name].gps.at(t_s, gap), self.tracks[leader].gps.at(t_s, gap)
         if own is not None and other is not None:
             truth = horizontal_distance_scalar(own.lat_rad, own.lon_rad, other.lat_rad, other.lon_rad)
-        results = self.runner.range_epoch(t_s, leader, pos.lat_rad, pos.lon_rad, pos.depth_m, slant_m, truth)
+        results = runner.range_epoch(t_s, leader, pos.lat_rad, pos.lon_rad, pos.depth_m, slant_m, truth)
         if results:
             self.on_epoch(self.plan.name, results)
-            self._after_step(t_s, force=True)
+            self._after_step(runner, t_s, force=True)
 
-    def _after_step(self, t_s: float, force: bool = False) -> None:
+    def _after_step(self, runner: CooperativeRunner, t_s: float, force: bool = False) -> None:
         """Errors at GPS fixes between the last two estimates; estimates out at most once a second."""
-        now = self.runner.positions()
-        prev_t, prev = self._prev
+        now = runner.positions()
+        prev_t, prev = self._prev if self._prev is not None else (t_s, now)
         samples: list[ErrorSample] = []
         keep: list[Fix] = []
         for fix in self._pending_gps:
@@ -187,7 +191,7 @@ class FollowerPipeline:
         self._prev = (t_s, now)
         if force or t_s - self._last_output_s >= 1.0:
             self._last_output_s = t_s
-            self.on_estimates(self.plan.name, t_s, self.runner.estimates())
+            self.on_estimates(self.plan.name, t_s, runner.estimates())
 
     def finish(self) -> None:
         """Release everything still queued."""

@@ -3,16 +3,25 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from replay.engine.layout import TrialLayout
-from replay.events import EpochResult, ErrorSample, Fix, Listener, RunResults, TrainedDetectors, UsblEpoch
+from replay.events import (
+    EpochResult,
+    ErrorSample,
+    Fix,
+    Listener,
+    RunResults,
+    TrainedDetectors,
+    UsblEpoch,
+)
 from replay.review.data import ReviewData
 from replay.stack.config import DETECTING_METHODS
-from replay.stack.model import horizontal_offset_m
+from replay.stack.model import horizontal_offset_m, offset_to_latlon
 
 RAD = 180.0 / math.pi
 INS_DECIMATE_S = 1.0
@@ -21,8 +30,13 @@ INS_DECIMATE_S = 1.0
 class ReviewCollector(Listener):
     """Keeps rows for every ReviewData table while the engine runs."""
 
-    def __init__(self, run_id: str, trial: dict[str, Any], t0_ns: int, layout: TrialLayout):
+    def __init__(self, run_id: str, trial: dict[str, Any], t0_ns: int, layout: TrialLayout,
+                 parameters: dict[str, Any] | None = None):
         self.run_id, self.trial, self.t0_ns, self.layout = run_id, trial, t0_ns, layout
+        self.parameters = dict(parameters or {})
+        self._label: dict[tuple[str, str], tuple[int, float, int]] = {}    # (follower, leader) -> label, since, n
+        # with one follower, events need not name it
+        self._many = sum(role == "follower" for role in dict(layout.roles).values()) > 1
         self._origin: tuple[float, float] | None = None
         self.rows: dict[str, list[dict[str, Any]]] = {k: [] for k in (
             "tracks", "ranges", "detections", "errors", "anfis_epochs", "anfis_explain", "kmcdf", "events")}
@@ -53,7 +67,7 @@ class ReviewCollector(Listener):
             self._last_ins[vehicle] = fix.t_s
         self._track_row(fix.t_s, vehicle, source, fix.lat_rad, fix.lon_rad)
 
-    def estimates(self, follower: str, t_s: float, est: dict[str, tuple[float, ...]]) -> None:
+    def estimates(self, follower: str, t_s: float, est: Mapping[str, tuple[float, ...]]) -> None:
         for method, (lat, lon, nn, _ne, ee) in est.items():
             self._track_row(t_s, follower, method, lat, lon, math.sqrt(max(ee, 0.0)), math.sqrt(max(nn, 0.0)))
 
@@ -65,6 +79,9 @@ class ReviewCollector(Listener):
                                     "measured_m": r0.range_m, "true_m": truth, "residual_m": r0.range_m - truth,
                                     "leader_east_m": le, "leader_north_m": ln, "horizontal_m": r0.range_m})
         models = self._models.get(follower)
+        self._interval(follower, r0)
+        if models is not None and r0.time_s > models.training_end_s:
+            self._verdict_event(follower, [r for r in results if r.method in DETECTING_METHODS])
         for r in results:
             if r.method not in DETECTING_METHODS:
                 continue
@@ -73,11 +90,50 @@ class ReviewCollector(Listener):
                 "flagged": bool(r.flagged), "score": r.score, "threshold": r.threshold, "f1_innovation_m": r.f1,
                 "f2_mahalanobis2": r.f2, "f3_r_adapted_m2": r.f3, "label": int(r.label),
                 "isolated": bool(r.isolated), "capped": bool(r.capped)})
-            if r.flagged:
-                self.event(r.time_s, "INFO", f"{follower}: {r.method} flagged the range to {r.leader} "
-                                             f"(score {r.score:.2f} > {r.threshold:.2f}, label {r.label})")
             if r.method == "anfis" and models is not None and r.time_s > models.training_end_s:
                 self._explain(models, r)
+
+    def _who(self, follower: str, leader: str) -> str:
+        return f"{follower}/{leader}" if self._many else leader
+
+    def _interval(self, follower: str, r: EpochResult) -> None:
+        """Anomaly intervals of the truth labels: an event where one starts and where it ends."""
+        key = (follower, r.leader)
+        last, since, n = self._label.get(key, (0, r.time_s, 0))
+        label = int(r.label)
+        if label == 1 and last != 1:
+            self.event(r.time_s, "INFO", f"ANOMALY STARTS {self._who(follower, r.leader)} (truth label 1)")
+            since, n = r.time_s, 0
+        elif label != 1 and last == 1:
+            self.event(r.time_s, "INFO", f"ANOMALY ENDS {self._who(follower, r.leader)}: {n} epochs, {since:.1f} s to "
+                                         f"{r.time_s:.1f} s")
+        self._label[key] = (label, since, n + (label == 1))
+
+    def _verdict_event(self, follower: str, results: list[EpochResult]) -> None:
+        """One line per epoch where a detector flagged or the truth is anomalous; WARN on a miss or false alarm."""
+        if not results:
+            return
+        r0 = results[0]
+        who = self._who(follower, r0.leader)
+        flagged = [r for r in results if r.flagged]
+        if r0.label != 1 and not flagged:
+            return
+        why = f"|innovation| {r0.f1:.1f} m, range error {r0.range_m - r0.truth_range_m:+.1f} m"
+        if r0.label == 1:
+            missed = [r for r in results if not r.flagged]
+            hits = ", ".join(r.method for r in flagged) or "none"
+            if missed:
+                self.event(r0.time_s, "WARN", f"MISS {who}: " + ", ".join(
+                    f"{r.method} ({r.score:.2f} <= T {r.threshold:.2f})" for r in missed)
+                    + f"; anomalous range, {why}; hit by {hits}")
+            else:
+                self.event(r0.time_s, "INFO", f"HIT {who} by every detector; anomalous range, {why}")
+        elif r0.label == 0:
+            self.event(r0.time_s, "WARN", f"FALSE ALARM {who}: " + ", ".join(
+                f"{r.method} ({r.score:.2f} > T {r.threshold:.2f})" for r in flagged) + f"; normal range, {why}")
+        else:
+            self.event(r0.time_s, "INFO", f"FLAGGED {who} (no truth label): "
+                       + ", ".join(r.method for r in flagged))
 
     def _explain(self, models: TrainedDetectors, r: EpochResult) -> None:
         det = models.detectors("anfis").get(r.leader)
@@ -113,6 +169,11 @@ class ReviewCollector(Listener):
     def usbl(self, epoch: UsblEpoch, positions: dict[str, tuple[float, float]]) -> None:
         fixes = epoch.fix.fixes
         for method, (e, n) in positions.items():
+            if self._origin is not None and math.isfinite(e) and math.isfinite(n):
+                lat, lon = offset_to_latlon(n, e, *self._origin)
+                self.rows["tracks"].append({"t_s": epoch.t_s, "vehicle": epoch.target, "source": method,
+                                            "lat_deg": lat * RAD, "lon_deg": lon * RAD, "east_m": e, "north_m": n,
+                                            "std_east_m": math.nan, "std_north_m": math.nan})
             self.rows["kmcdf"].append({
                 "t_s": epoch.t_s, "target": epoch.target, "method": method, "east_m": e, "north_m": n,
                 "fixes_east_m": [f.xy[0] for f in fixes] if method == "kmcdf2" else [],
@@ -120,7 +181,7 @@ class ReviewCollector(Listener):
                 "fixes_cluster": [f.cluster for f in fixes] if method == "kmcdf2" else [],
                 "nodes_east_m": epoch.node_en[:, 0].tolist(), "nodes_north_m": epoch.node_en[:, 1].tolist(),
                 "delay_normal": np.asarray(epoch.fix.delay_normal).tolist(),
-                "phase_normal": np.asarray(epoch.fix.phase_normal).tolist()})
+                "phase_normal": np.asarray(epoch.fix.phase_normal).tolist(), "nodes": list(epoch.nodes)})
 
     def event(self, t_s: float, level: str, text: str) -> None:
         self.rows["events"].append({"t_s": t_s, "level": level, "text": text})
@@ -139,4 +200,6 @@ class ReviewCollector(Listener):
         for name, rows in self.rows.items():
             if rows:
                 setattr(data, name, pd.DataFrame(rows))
+        data.parameters = self.parameters
+        data.events = data.events.sort_values("t_s", kind="stable", ignore_index=True)
         return data

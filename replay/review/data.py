@@ -29,7 +29,7 @@ ERROR_COLUMNS = ["t_s", "follower", "method", "error_m"]
 ANFIS_EPOCH_COLUMNS = ["model", "epoch", "rmse", "params"]          # params: dict (see AnfisSnapshot)
 ANFIS_EXPLAIN_COLUMNS = ["t_s", "model", "inputs", "memberships", "firing", "output", "threshold", "flagged"]
 KMCDF_COLUMNS = ["t_s", "target", "method", "east_m", "north_m", "fixes_east_m", "fixes_north_m", "fixes_cluster",
-                 "nodes_east_m", "nodes_north_m", "delay_normal", "phase_normal"]
+                 "nodes_east_m", "nodes_north_m", "delay_normal", "phase_normal", "nodes"]
 EVENT_COLUMNS = ["t_s", "level", "text"]
 
 
@@ -47,8 +47,12 @@ class ReviewData:
       membership [input][mf] -> (a, b, c), consequents, input_min, input_max).
     - anfis_explain: per ranging epoch after training, the inputs (normalized),
       memberships per input/MF, rule firing strengths, output and threshold.
-    - kmcdf: per USBL epoch, the preliminary fixes with their cluster and the final fix.
-    - events: text log (training finished, detections, rejected records).
+    - kmcdf: per USBL epoch and positioning method, the final fix, the preliminary fixes with
+      their cluster (only methods that make them: kmcdf2), and the nodes by vehicle name (`nodes`).
+      Every positioning method also has a track (vehicle = target) and error rows.
+    - events: text log on mission seconds: training, notes, anomaly interval start and end, and one
+      line per epoch where a detector flagged or the truth is anomalous (WARN on a false alarm or a miss).
+    - parameters: the run's configuration as a dict (what `run_labels` names comparisons by).
     """
 
     run_id: str
@@ -67,3 +71,4 @@ class ReviewData:
     kmcdf: pd.DataFrame = field(default_factory=lambda: empty(KMCDF_COLUMNS))
     events: pd.DataFrame = field(default_factory=lambda: empty(EVENT_COLUMNS))
     metrics: dict[str, Any] = field(default_factory=dict)       # the replay --json object
+    parameters: dict[str, Any] = field(default_factory=dict)    # the run's configuration (to_dict)

@@ -13,7 +13,11 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from replay.run.metrics import format_value
 from replay.stack.config import DETECTING_METHODS, POSITIONING_METHODS
+
+__all__ = ["DETECTION_COLUMNS", "ERROR_COLUMNS", "ScoreRow", "format_value", "method_kind", "scoreboard",
+           "window_text"]
 
 ERROR_COLUMNS: tuple[str, ...] = ("error_p50_m", "error_p90_m", "error_rms_m")
 DETECTION_COLUMNS: tuple[str, ...] = ("tp", "fp", "fn", "fpr", "fnr", "auc")
@@ -57,12 +61,3 @@ def window_text(metrics: dict[str, Any]) -> str:
     """The scoring window as a reviewer reads it: 't_a = 600 s to 1700 s (mission seconds)'."""
     window = metrics.get("window") or [math.nan, math.nan]
     return f"after t_a: {window[0]:.0f} s to {window[1]:.0f} s (mission seconds)"
-
-
-def format_value(value: Any) -> str:
-    """A figure as printed on the scoreboard: '-' for none, 3 decimals under 100, 1 above."""
-    if value is None:
-        return "-"
-    if isinstance(value, float):
-        return f"{value:.3f}" if abs(value) < 100 else f"{value:.1f}"
-    return str(value)

@@ -212,7 +212,8 @@ def replay_task(archive: str, overrides: Sequence[str], out_dir: str, trial: str
         record["run_id"] = rid
         output = Path(out_dir) / "runs" / f"{trial}-{rid}.mcap"
         output.parent.mkdir(parents=True, exist_ok=True)
-        outcome = replay_archive(archive, config, output)
+        # the command claimed DIR's tables, so an earlier batch's runs here are replaced only under --force
+        outcome = replay_archive(archive, config, output, force=True)
         record.update(output=str(output), metrics=outcome.metrics, notes=list(outcome.notes))
     except Exception as exc:        # a failed run is data for the table; the batch goes on
         record["error"] = describe_error(exc)
@@ -347,11 +348,15 @@ def _typed(df: pd.DataFrame, swept: Sequence[str]) -> pd.DataFrame:
     return df
 
 
+def table_paths(out_dir: str | Path) -> tuple[Path, Path]:
+    """The combined tables a batch writes: DIR/metrics.parquet and DIR/metrics.csv."""
+    return Path(out_dir) / "metrics.parquet", Path(out_dir) / "metrics.csv"
+
+
 def save_table(df: pd.DataFrame, out_dir: str | Path) -> tuple[Path, Path]:
     """DIR/metrics.parquet and DIR/metrics.csv."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    parquet, csv = out / "metrics.parquet", out / "metrics.csv"
+    parquet, csv = table_paths(out_dir)
+    parquet.parent.mkdir(parents=True, exist_ok=True)
     df.to_parquet(parquet, index=False)
     df.to_csv(csv, index=False)
     return parquet, csv

@@ -1,4 +1,10 @@
-"""Comparing two replay runs: parameters, metrics and per-epoch detections."""
+"""Comparing two replay runs: parameters, metrics and per-epoch detections, in mission seconds.
+
+Runs are named by what differs in their configuration (`run_labels`); every
+decision that differs is listed with its truth label, and each run is credited
+with the differing decisions it got right (flagged an anomalous range, or
+passed a normal one).
+"""
 
 from __future__ import annotations
 
@@ -8,21 +14,28 @@ from typing import Any
 
 from formats.mcap_reader import ArchiveReader
 from replay.errors import UserError
+from replay.run.metrics import format_value
+from replay.run.mission_time import NS, trial_start_ns
 from replay.stack.scoring import RESULT_KEYS
 
+DetectionKey = tuple[int, str, str, str]
 
-def load_run(path: str | Path) -> tuple[dict[str, Any], dict[tuple[float, str, str, str], bool]]:
-    """A results archive's `run` metadata (JSON fields decoded) and its detections by (t, follower, leader, method)."""
+
+def load_run(path: str | Path) -> tuple[dict[str, Any], dict[DetectionKey, tuple[bool, int]]]:
+    """A results archive's `run` metadata (JSON fields decoded, `trial_start_ns` an int) and its detections:
+    (flagged, truth label) by (ns from the trial start, follower, leader, method)."""
     with ArchiveReader(path) as reader:
         meta = reader.metadata_json("run")
         if meta is None:
             raise UserError(f"{path}: not a replay results archive (no 'run' metadata record)")
         rid = meta["run_id"]
+        start = trial_start_ns(reader, meta)
         topics = [t for t in reader.summary().topics if t.startswith(f"/replay/{rid}/") and t.endswith("/detections")]
         detections = {}
         for m in reader.messages(topics):
             d = m.message
-            detections[(m.log_time_ns / 1e9, d.follower, d.leader, d.method)] = bool(d.flagged)
+            detections[(m.log_time_ns - start, d.follower, d.leader, d.method)] = (bool(d.flagged), int(d.label))
+    meta["trial_start_ns"] = start
     for key in ("configuration", "metrics", "parameters"):
         if isinstance(meta.get(key), str):
             meta[key] = json.loads(meta[key])
@@ -82,21 +95,43 @@ def compare_runs(a: str | Path, b: str | Path) -> dict[str, Any]:
                         isinstance(vb, (int, float)) else None}
         metrics[method] = row
     differing: dict[str, list[dict[str, Any]]] = {}
-    for key in sorted(set(det_a) | set(det_b)):
-        fa, fb = det_a.get(key), det_b.get(key)
-        if fa != fb:
-            t, follower, leader, method = key
-            differing.setdefault(method, []).append({"t_s": t, "follower": follower, "leader": leader,
-                                                     "a": fa, "b": fb})
-    return {"a": {"run_id": meta_a["run_id"], "file": str(a)}, "b": {"run_id": meta_b["run_id"], "file": str(b)},
+    right: dict[str, dict[str, int]] = {}
+    for dkey in sorted(set(det_a) | set(det_b)):
+        da, db = det_a.get(dkey), det_b.get(dkey)
+        fa, fb = (da[0] if da else None), (db[0] if db else None)
+        if fa == fb:
+            continue
+        t_ns, follower, leader, method = dkey
+        label = (da or db or (False, 0))[1]
+        differing.setdefault(method, []).append({"mission_s": t_ns / NS, "follower": follower, "leader": leader,
+                                                 "a": fa, "b": fb, "label": label})
+        tally = right.setdefault(method, {"a": 0, "b": 0, "epochs": 0})
+        tally["epochs"] += 1
+        tally["a"] += int(fa is not None and fa == bool(label))
+        tally["b"] += int(fb is not None and fb == bool(label))
+    label_a, label_b = run_labels([meta_a["parameters"], meta_b["parameters"]])
+    return {"a": {"run_id": meta_a["run_id"], "file": str(a), "label": label_a},
+            "b": {"run_id": meta_b["run_id"], "file": str(b), "label": label_b},
             "same_input": meta_a.get("input_sha256") == meta_b.get("input_sha256"),
-            "parameters": params, "metrics": metrics, "differing_epochs": differing}
+            "parameters": params, "metrics": metrics, "differing_epochs": differing, "right": right}
+
+
+def _decision(flagged: bool | None) -> str:
+    return "-" if flagged is None else ("flagged" if flagged else "passed")
+
+
+def verdict(tally: dict[str, int], name_a: str, name_b: str) -> str:
+    """Which run was right on the decisions that differ: 'A (r_m=2.5) right on 7 of 9, B (...) on 2'."""
+    a, b, n = tally["a"], tally["b"], tally["epochs"]
+    winner = "A was right more often" if a > b else ("B was right more often" if b > a else "a tie")
+    return f"{winner}: A ({name_a}) right on {a} of {n}, B ({name_b}) on {b} of {n}"
 
 
 def format_comparison(result: dict[str, Any], limit: int = 20) -> str:
     """The printed comparison."""
-    lines = [f"A: run {result['a']['run_id']} ({result['a']['file']})",
-             f"B: run {result['b']['run_id']} ({result['b']['file']})"]
+    la, lb = result["a"]["label"], result["b"]["label"]
+    lines = [f"A: {la}  (run {result['a']['run_id']}, {result['a']['file']})",
+             f"B: {lb}  (run {result['b']['run_id']}, {result['b']['file']})"]
     if not result["same_input"]:
         lines.append("note: the two runs replayed different archives")
     lines.append("parameters changed:" if result["parameters"] else "parameters: identical")
@@ -106,11 +141,23 @@ def format_comparison(result: dict[str, Any], limit: int = 20) -> str:
         for key, v in row.items():
             if v["a"] is None and v["b"] is None:
                 continue
-            fmt = (lambda x: "-" if x is None else (f"{x:.3f}" if isinstance(x, float) else str(x)))
             if v["diff"] not in (0, 0.0, None) or key in ("tp", "fp", "fn", "error_p50_m"):
-                lines.append(f"{method:<20} {key:<16} {fmt(v['a']):>10} {fmt(v['b']):>10} {fmt(v['diff']):>10}")
+                a, b, d = (format_value(v[k]) for k in ("a", "b", "diff"))
+                lines.append(f"{method:<20} {key:<16} {a:>10} {b:>10} {d:>10}")
+    if result["differing_epochs"]:
+        lines.append("decisions that differ (mission seconds from the trial start; truth: the range's label):")
     for method, rows in result["differing_epochs"].items():
-        lines.append(f"{method}: {len(rows)} epochs decided differently")
+        lines.append(f"{method}: {len(rows)} epochs decided differently; "
+                     f"{verdict(result['right'][method], la, lb)}")
         for r in rows[:limit]:
-            lines.append(f"  t={r['t_s']:.3f}  {r['follower']} <- {r['leader']}  A={r['a']}  B={r['b']}")
+            truth = "anomalous" if r["label"] else "normal"
+            lines.append(f"  {r['mission_s']:9.1f} s  {r['follower']} <- {r['leader']:<10} "
+                         f"A {_decision(r['a']):<7}  B {_decision(r['b']):<7}  truth {truth}")
+        if len(rows) > limit:
+            lines.append(f"  ... {len(rows) - limit} more (--limit)")
+    if result["right"]:
+        total = {k: sum(t[k] for t in result["right"].values()) for k in ("a", "b", "epochs")}
+        lines.append(f"all detectors: {verdict(total, la, lb)}")
+    else:
+        lines.append("detections: the two runs decided every epoch alike")
     return "\n".join(lines)

@@ -15,6 +15,7 @@ import tomllib
 import types
 import typing
 from dataclasses import dataclass, field
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -141,7 +142,7 @@ def _route(key: str) -> str:
     return f"stack.{key}"
 
 
-def load_config(path: str | Path | None = None, overrides: list[str] = (), window: tuple[float, float] | None = None,
+def load_config(path: str | Path | None = None, overrides: Sequence[str] = (), window: tuple[float, float] | None = None,
                 rate: float | None = None) -> RunConfig:
     """Defaults, then the TOML file, then each `key=value` override, then the window and rate options."""
     cfg = RunConfig()
@@ -165,7 +166,7 @@ def load_config(path: str | Path | None = None, overrides: list[str] = (), windo
             raise UserError(f"--set {item!r}: expected key=value")
         cfg = _apply(cfg, _nest(_route(key.strip()), value.strip()), "")
     if window is not None:
-        cfg = dataclasses.replace(cfg, engine=dataclasses.replace(cfg.engine, window_s=tuple(window)))
+        cfg = dataclasses.replace(cfg, engine=dataclasses.replace(cfg.engine, window_s=(float(window[0]), float(window[1]))))
     if rate is not None:
         cfg = dataclasses.replace(cfg, engine=dataclasses.replace(cfg.engine, rate=rate))
     w = cfg.engine.window_s

@@ -86,15 +86,16 @@ NO_KIND = -1
 
 @dataclass(frozen=True)
 class TrialSpec:
-    """One trial to simulate and replay: the seed, its drift rate (None: the scenario's) and its length."""
+    """One trial to simulate and replay: the seed, its drift rate (None: the scenario's), length and scenario."""
 
     seed: int
     drift_rate_mps: float | None = None
     duration_s: float | None = None
+    base: Scenario = field(default_factory=Scenario)
 
     def scenario(self) -> Scenario:
-        """The scenario of this trial: the default one with the length and drift rate applied."""
-        s = Scenario().with_options(self.duration_s, None)
+        """The scenario of this trial: the base one with the length and drift rate applied."""
+        s = self.base.with_options(self.duration_s, None)
         return s if self.drift_rate_mps is None else s.with_drift_rate(self.drift_rate_mps)
 
 
@@ -367,8 +368,13 @@ def _run_specs(specs: Sequence[TrialSpec], config: RunConfig, train: TrialSpec |
 
 def evaluate(seeds: Sequence[int], config: RunConfig, train_seed: int | None = None,
              drift_rates: Sequence[float] = DEFAULT_DRIFT_RATES, duration_s: float | None = None,
-             training: str = "given", client: Client | None = None, progress: Progress | None = None) -> Evaluation:
-    """Simulate and replay the test seeds (and the sweep's), score them; see the module docstring."""
+             training: str = "given", client: Client | None = None, progress: Progress | None = None,
+             scenario: Scenario | None = None) -> Evaluation:
+    """Simulate and replay the test seeds (and the sweep's) of a scenario (default: the sample trial's); score them.
+
+    See the module docstring.
+    """
+    base = scenario if scenario is not None else Scenario()
     if training not in TRAINING_MODES:
         raise UserError(f"training {training!r}: expected one of {', '.join(TRAINING_MODES)}")
     if duration_s is not None and not duration_s > 0:
@@ -378,10 +384,10 @@ def evaluate(seeds: Sequence[int], config: RunConfig, train_seed: int | None = N
     train, test = split_seeds(list(seeds), train_seed)
     wall0 = time.monotonic()
     rates = list(dict.fromkeys(float(r) for r in drift_rates))
-    specs = [TrialSpec(s, None, duration_s) for s in test]
-    specs += [TrialSpec(s, rate, duration_s) for rate in rates for s in test]
+    specs = [TrialSpec(s, None, duration_s, base) for s in test]
+    specs += [TrialSpec(s, rate, duration_s, base) for rate in rates for s in test]
     config = replace(config, stack=replace(config.stack, training_source=training))
-    train_spec = TrialSpec(train, None, duration_s) if training != "own" else None
+    train_spec = TrialSpec(train, None, duration_s, base) if training != "own" else None
     try:
         trials = _run_specs(specs, config, train_spec, client, progress)
     except ScenarioError as exc:

@@ -75,7 +75,7 @@ def metrics_table(metrics: dict[str, Any]) -> list[dict[str, Any]]:
 def format_table(metrics: dict[str, Any]) -> str:
     """The printed metrics table."""
     cols = ["method", "tp", "tn", "fp", "fn", "accuracy", "fpr", "fnr", "auc", "error_p50_m", "error_p90_m"]
-    rows = [[_fmt(r.get(c)) for c in cols] for r in metrics_table(metrics)]
+    rows = [[format_value(r.get(c)) for c in cols] for r in metrics_table(metrics)]
     widths = [max(len(c), *(len(r[i]) for r in rows)) if rows else len(c) for i, c in enumerate(cols)]
     lines = ["  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in enumerate(zip(cols, widths)))]
     lines.append("  ".join("-" * w for w in widths))
@@ -83,9 +83,10 @@ def format_table(metrics: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _fmt(v: Any) -> str:
-    if v is None:
+def format_value(value: Any) -> str:
+    """A figure as printed in metrics tables and the scoreboard: '-' for none, 3 decimals under 100, 1 above."""
+    if value is None:
         return "-"
-    if isinstance(v, float):
-        return f"{v:.3f}" if abs(v) < 100 else f"{v:.1f}"
-    return str(v)
+    if isinstance(value, float):
+        return f"{value:.3f}" if abs(value) < 100 else f"{value:.1f}"
+    return str(value)

@@ -22,10 +22,16 @@ from replay.events import Listener, RunResults
 from replay.review.collector import ReviewCollector
 from replay.run.config import RunConfig, canonical_json, run_id, to_dict
 from replay.run.metrics import format_table, metrics_table, run_metrics
+from replay.run.outputs import claim_outputs
 from replay.run.results_writer import ResultsWriter
 from replay.stack.training import TrainingSet
 
 SENSORS = ("gps", "ins", "dvl", "modem/range", "usbl")
+# the schema each topic the engine reads must have (an archive from elsewhere may say otherwise)
+SENSOR_SCHEMAS = {"gps": "foxglove.LocationFix", "ins": "auvreplay.InsState", "dvl": "auvreplay.DvlVelocity",
+                  "modem/range": "auvreplay.AcousticRange", "usbl": "auvreplay.UsblObservation"}
+DIAGNOSTICS_SCHEMA = "foxglove.Log"
+ROLES = ("leader", "follower", "buoy")
 NS = 1_000_000_000
 
 
@@ -42,6 +48,7 @@ class RunOutcome:
     review: Any = None
     messages: int = 0
     extra: dict[str, Any] = field(default_factory=dict)
+    warning: str | None = None  # one line: what the archive reader skipped (None: nothing)
 
 
 def file_sha256(path: str | Path) -> str:
@@ -66,28 +73,64 @@ def default_output(archive: str | Path, rid: str) -> Path:
     return Path(f"{Path(archive).stem}-replay-{rid}.mcap")
 
 
+def trial_metadata(raw: Any) -> dict[str, Any] | None:
+    """The archive's `trial` metadata with only vehicles of the recorded shape (a name, a known role)."""
+    if not isinstance(raw, dict):
+        return None
+    vehicles = raw.get("vehicles")
+    keep = [v for v in (vehicles if isinstance(vehicles, list) else [])
+            if isinstance(v, dict) and isinstance(v.get("name"), str) and v.get("role", "leader") in ROLES]
+    return {**raw, "vehicles": keep}
+
+
+def _readable_topics(summary: Any, reader: ArchiveReader) -> dict[str, int]:
+    """Topic -> count, less the sensor topics whose schema is not the one the engine reads (counted as skipped)."""
+    topics = {}
+    for t, v in summary.topics.items():
+        parts = t.strip("/").split("/", 1)
+        want = DIAGNOSTICS_SCHEMA if t == "/diagnostics" else (
+            SENSOR_SCHEMAS.get(parts[1]) if len(parts) == 2 else None)
+        if want is not None and v["schema"] != want:
+            if v["count"]:
+                reader.damage.messages[(t, f"of schema {v['schema'][:60]!r}, not {want}")] += v["count"]
+            continue
+        topics[t] = v["count"]
+    return topics
+
+
 def replay_archive(archive: str | Path, config: RunConfig | None = None, output: str | Path | None = None,
-                   write_output: bool = True, review: bool = False, listeners: Sequence[Listener] = (),
-                   training_set: TrainingSet | None = None) -> RunOutcome:
+                   write_output: bool = True, review: bool = False, force: bool = False,
+                   listeners: Sequence[Listener] = (), training_set: TrainingSet | None = None,
+                   require_work: bool = False) -> RunOutcome:
     """Replay an archive with a configuration; see the module docstring for what comes out.
 
-    `listeners` hear the run too, after the review collector and the results writer;
-    `training_set` (another run's `RunResults.training_set`) is what `stack.training_source`
-    "given" or "both" trains on.
+    The results archive and its metrics files are claimed (replay.run.outputs) before the run:
+    an existing one is refused unless `force`. `listeners` hear the run too, after the review
+    collector and the results writer; `training_set` (another run's `RunResults.training_set`) is
+    what `stack.training_source` "given" or "both" trains on. With `require_work`, a replay with
+    nothing to run (no follower that can run, or no scored epoch) is a UserError naming why, and
+    writes nothing.
     """
     config = config or RunConfig()
     sha = file_sha256(archive)
     version = package_version()
     rid = run_id(config, sha, version)
     out_path = Path(output) if output is not None else (default_output(archive, rid) if write_output else None)
+    if out_path is not None:
+        claim_outputs(results_paths(out_path), force)
     wall0 = time.monotonic()
     with ArchiveReader(archive) as reader:
         summary = reader.summary()
         if not summary.message_count or summary.start_ns is None:
-            raise UserError(f"{archive}: the archive holds no messages")
-        layout = plan_trial(reader.metadata_json("trial"), {t: v["count"] for t, v in summary.topics.items()})
+            raise UserError(_nothing_to_run(archive, "the archive holds no messages", [], reader))
+        trial = trial_metadata(reader.metadata_json("trial"))
+        readable = _readable_topics(summary, reader)
+        layout = plan_trial(trial, readable)
+        if require_work and not any(p.runnable for p in layout.followers):
+            raise UserError(_nothing_to_run(archive, "no follower can run", layout.notes
+                                            + [n for p in layout.followers for n in p.notes], reader))
         t0_ns = summary.start_ns
-        topics = [t for t in summary.topics
+        topics = [t for t in readable
                   if t == "/diagnostics" or any(t == f"/{v}/{s}" for v in layout.roles for s in SENSORS)]
         window = config.engine.window_s
         start_ns = t0_ns + round(window[0] * NS) if window else None
@@ -95,7 +138,8 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
         heard: list[Listener] = []
         collector = None
         if review:
-            collector = ReviewCollector(rid, reader.metadata_json("trial") or {}, t0_ns, layout)
+            collector = ReviewCollector(rid, trial or {}, t0_ns, layout,
+                                        to_dict(config))
             heard.append(collector)
         writer = ArchiveWriter(out_path) if out_path is not None else None
         try:
@@ -109,18 +153,23 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
             results = engine.finish()
             end_s = max(engine.last_s, 0.0)
             metrics = run_metrics(engine.scores(), results, rid, end_s)
+            if require_work and not metrics.get("epochs"):
+                raise UserError(_nothing_to_run(archive, f"0 scored epochs from {engine.messages} messages",
+                                                list(engine.notes), reader))
             wall = time.monotonic() - wall0
             metrics["wall_s"] = wall
             if writer is not None:
-                _write_run_metadata(writer, config, rid, sha, version, archive, wall, metrics, t0_ns, engine)
+                write_run_metadata(writer, config, rid, sha, version, archive, wall, metrics, t0_ns, engine)
                 writer.close()
         except BaseException:
             if writer is not None:
                 writer.abort()
             raise
         problems = list(reader.problems)
-    notes = list(engine.notes) + [f"archive: {p}" for p in problems]
-    outcome = RunOutcome(rid, metrics, results, out_path, notes, wall, None, engine.messages)
+        refused = record_time_refusals(reader.metadata_json("recording"))
+        warning = reader.warning()
+    notes = list(engine.notes) + ([refused] if refused else []) + [f"archive: {p}" for p in problems]
+    outcome = RunOutcome(rid, metrics, results, out_path, notes, wall, None, engine.messages, warning=warning)
     if collector is not None:
         outcome.review = collector.finish(metrics)
     if out_path is not None:
@@ -128,8 +177,30 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
     return outcome
 
 
-def _write_run_metadata(writer: ArchiveWriter, config: RunConfig, rid: str, sha: str, version: str,
+def record_time_refusals(recording: Any) -> str | None:
+    """One note: the ranges and other values `record` refused as out of range (recording metadata), or None."""
+    files = recording.get("files") if isinstance(recording, dict) else None
+    counts = [(f.get("bad_ranges"), f.get("out_of_range")) for f in (files if isinstance(files, list) else [])
+              if isinstance(f, dict)]
+    ranges = sum(r for r, _ in counts if isinstance(r, int))
+    values = sum(v for _, v in counts if isinstance(v, int))
+    if not values:
+        return None
+    return (f"record time: {ranges} ranges refused (not above 0 m, or beyond max_range_m) and "
+            f"{values - ranges} other values out of range; they are not in the archive")
+
+
+def _nothing_to_run(archive: Any, what: str, notes: list[str], reader: ArchiveReader) -> str:
+    """One line: the archive, that nothing ran and why (the first notes, and the archive's damage)."""
+    why = "; ".join(dict.fromkeys(notes[:3]))
+    damage = reader.warning()
+    return (f"{archive}: nothing to replay: {what}" + (f" ({why})" if why else "")
+            + (f"; archive: {damage}" if damage else ""))
+
+
+def write_run_metadata(writer: ArchiveWriter, config: RunConfig, rid: str, sha: str, version: str,
                         archive: Any, wall: float, metrics: dict[str, Any], t0_ns: int, engine: Engine) -> None:
+    """The run's notes as events and its `run` metadata record (parameters, version, input hash, metrics)."""
     for note in engine.notes:
         writer.write(f"/replay/{rid}/events", S.Log(timestamp=S.timestamp(t0_ns), level=3, message=note,
                                                     name="engine"), t0_ns)
@@ -142,10 +213,14 @@ def _write_run_metadata(writer: ArchiveWriter, config: RunConfig, rid: str, sha:
     })
 
 
+def results_paths(output: Path) -> tuple[Path, Path, Path]:
+    """The files a run with results archive `output` writes: the archive, <output>.metrics.csv and .json."""
+    return output, output.with_suffix(".metrics.csv"), output.with_suffix(".metrics.json")
+
+
 def save_metrics(metrics: dict[str, Any], output: Path) -> tuple[Path, Path]:
     """<output>.metrics.csv (one row per method) and <output>.metrics.json."""
-    csv_path = output.with_suffix(".metrics.csv")
-    json_path = output.with_suffix(".metrics.json")
+    _, csv_path, json_path = results_paths(output)
     rows = metrics_table(metrics)
     with open(csv_path, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]) if rows else ["method"])
@@ -155,4 +230,4 @@ def save_metrics(metrics: dict[str, Any], output: Path) -> tuple[Path, Path]:
     return csv_path, json_path
 
 
-__all__ = ["RunOutcome", "format_table", "replay_archive", "save_metrics"]
+__all__ = ["RunOutcome", "format_table", "replay_archive", "results_paths", "save_metrics", "write_run_metadata"]

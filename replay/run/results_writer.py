@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 from formats import schemas as S
@@ -42,7 +43,7 @@ class ResultsWriter(Listener):
     def _ns(self, t_s: float) -> int:
         return self.t0_ns + round(t_s * NS)
 
-    def estimates(self, follower: str, t_s: float, est: dict[str, tuple[float, ...]]) -> None:
+    def estimates(self, follower: str, t_s: float, est: Mapping[str, tuple[float, ...]]) -> None:
         t = self._ns(t_s)
         for method, (lat, lon, nn, ne, ee) in est.items():
             fix = S.location_fix(t, follower, lat * RAD, lon * RAD, math.nan, _cov_enu(nn, ne, ee),

@@ -115,7 +115,8 @@ def cov_radians_to_metres(cov_rad2: np.ndarray, lat_rad: np.ndarray | float, dep
 
 
 def horizontal_offset_m(
-    lat_rad: np.ndarray, lon_rad: np.ndarray, ref_lat_rad: np.ndarray, ref_lon_rad: np.ndarray,
+    lat_rad: np.ndarray | float, lon_rad: np.ndarray | float, ref_lat_rad: np.ndarray | float,
+    ref_lon_rad: np.ndarray | float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """North and east offsets (m) of points from reference points, radii at the mid latitude."""
     b, a = metric_scales(0.5 * (lat_rad + ref_lat_rad), 0.0)

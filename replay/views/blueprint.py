@@ -1,86 +1,180 @@
 """The one blueprint saved with every recording: tabs a reviewer can read without a manual.
 
-Tabs: Navigation (map + local metric plot with range circles), Ranges & detection
-(time series per run), Errors (growing CDF + error series), ANFIS (one tab per model:
-MFs and surface per training epoch, then the explanation of each ranging epoch),
-KMCDF (one view per target and method). The event log sits on the right of every tab.
-With two runs, the map, the local plot and the errors overlay both runs (names tagged
-with the run); the other views are side by side, one column per run.
+Tabs, each answering one question (the event log sits on the right of every tab):
+- Scoreboard: which method is best after t_a, by error and by detection (the ranked table with
+  metrics.json's figures, the error CDFs, every method's error over the whole mission);
+- Detection: where each detector hit, missed or false-alarmed (a state-timeline lane per leader
+  and detector under the truth), and the ANFIS outputs against T2 and the features behind them;
+- Navigation: the map and the local east/north plot, every track, trails ending at the cursor,
+  bounds holding every vehicle and buoy, a colour key;
+- ANFIS (one tab per model): what the model learned and where this epoch sits in it;
+- KMCDF (one view pair per target): the fixes around the GPS truth, and the nodes by name.
+With two runs, the scoreboards sit side by side with what changed, and the other views overlay
+both runs (every name tagged with the run's label) instead of repeating per run.
+The recording opens paused, on the `mission_s` timeline, with the time series on the whole mission.
 """
 
 from __future__ import annotations
 
+import numpy as np
+import rerun as rr
 import rerun.blueprint as rrb
+from rerun.blueprint.api import VisualizerLike
+from rerun.encodings import EntityPathLike
 
-from replay.views.common import Run, groups, part
+from replay.review.data import ReviewData
+from replay.views.cdf import HEIGHT, WIDTH
+from replay.views.common import Run, floats, groups, part
+from replay.views.lanes import COMPARED_ROOT, training_end_s
+from replay.views.positioning import fix_methods, kmcdf_half_width
+from replay.views.tracks import KEY, KEY_STEP, geo_bounds, key_rows, track_bounds
+
+TIMELINES = ("time", "mission_s")
 
 
 def _contents(runs: list[Run], *parts: str) -> list[str]:
     return [f"+ {r.path(*parts)}/**" for r in runs]
 
 
+def _whole_mission() -> rrb.archetypes.TimeAxis:
+    """The x axis of a time series: every sample of the mission, whatever the cursor."""
+    return rrb.archetypes.TimeAxis(link="Independent", view_range=rr.TimeRange(
+        start=rr.TimeRangeBoundary.infinite(), end=rr.TimeRangeBoundary.infinite()))
+
+
+def _series(name: str, contents: list[str], y_max: float | None = None, legend: bool = True) -> rrb.TimeSeriesView:
+    return rrb.TimeSeriesView(name=name, contents=contents, axis_x=_whole_mission(),
+                              axis_y=rrb.ScalarAxis(range=(0.0, y_max), zoom_lock=False) if y_max else None,
+                              plot_legend=rrb.PlotLegend(corner="RightTop", visible=legend))
+
+
+def _up_to_cursor() -> rrb.VisibleTimeRanges:
+    return rrb.VisibleTimeRanges([rr.VisibleTimeRange(t, start=rr.TimeRangeBoundary.infinite(),
+                                                      end=rr.TimeRangeBoundary.cursor_relative())
+                                  for t in TIMELINES])
+
+
+def _trail_overrides(runs: list[Run], view: str) -> dict[EntityPathLike, VisualizerLike]:
+    """Every trail entity shows its samples from the start up to the cursor."""
+    pairs = [(r, r.review.tracks[["vehicle", "source"]].drop_duplicates()) for r in runs
+             if {"vehicle", "source"} <= set(r.review.tracks.columns)]
+    return {r.path(view, str(v), str(s), "trail"): _up_to_cursor()
+            for r, p in pairs for v, s in zip(p["vehicle"], p["source"], strict=True)}
+
+
+def _local_bounds(reviews: list[ReviewData]) -> rrb.VisualBounds2D | None:
+    found = track_bounds(reviews)
+    if found is None:
+        return None
+    lo, hi = found
+    pad = 0.08 * max(float(np.max(hi - lo)), 50.0)
+    return rrb.VisualBounds2D(x_range=[float(lo[0] - pad), float(hi[0] + pad)],
+                              y_range=[float(-hi[1] - pad), float(-lo[1] + pad)])
+
+
+def map_zoom(reviews: list[ReviewData], width_px: float = 450.0) -> float | None:
+    """The OpenStreetMap zoom level at which every GPS fix fits in a map `width_px` wide (with a margin)."""
+    found = geo_bounds(reviews)
+    if found is None:
+        return None
+    (lat0, lon0), (lat1, lon1) = found
+    span_deg = max(lon1 - lon0, (lat1 - lat0) / max(np.cos(np.radians(0.5 * (lat0 + lat1))), 1e-6), 1e-5)
+    return float(np.clip(np.log2(360.0 * width_px / (256.0 * 1.3 * span_deg)), 1.0, 19.0))
+
+
 def _navigation(runs: list[Run]) -> rrb.Container:
+    reviews = [r.review for r in runs]
     return rrb.Horizontal(
-        rrb.MapView(name="Map: GPS truth and every track", contents=_contents(runs, "map")),
-        rrb.Spatial2DView(name="Local east/north (m), range circles", contents=_contents(runs, "local")),
-        name="Navigation",
+        rrb.MapView(name="Map: GPS truth and every track", contents=_contents(runs, "map"),
+                    overrides=_trail_overrides(runs, "map"), zoom=map_zoom(reviews)),
+        rrb.Spatial2DView(name="Local east/north (m), range circles", contents=_contents(runs, "local"),
+                          overrides=_trail_overrides(runs, "local"), visual_bounds=_local_bounds(reviews)),
+        rrb.Spatial2DView(name="Colour key", contents=[f"+ {KEY}/**"], visual_bounds=rrb.VisualBounds2D(
+            x_range=[-0.5, 9.0], y_range=[-1.0, 1.0 + KEY_STEP * key_rows(runs)])),
+        column_shares=[5, 5, 1.6], name="Navigation",
     )
 
 
-def _ranges_column(run: Run) -> rrb.Container:
-    tag = f" [{run.label}]" if run.label else ""
-    features = [rrb.TimeSeriesView(name=f"{f}{tag}", contents=[f"+ {run.path('series', f)}/**"])
+def _scoreboard(runs: list[Run], error_top: float) -> rrb.Container:
+    followers = sorted({str(k[0]) for r in runs for k, _ in groups(r.review.errors, ["follower"])})
+    docs = [rrb.TextDocumentView(name=f"Scoreboard{' [' + r.label + ']' if r.label else ''}",
+                                 contents=[f"+ {r.path('scoreboard')}"]) for r in runs]
+    if len(runs) == 2:
+        docs.append(rrb.TextDocumentView(name="What changed, and which run did better",
+                                         contents=[f"+ {runs[1].path('changes')}"]))
+    cdfs: list[rrb.View | rrb.Container] = []
+    for f in followers:
+        bounds = rrb.VisualBounds2D(x_range=[-13.0, WIDTH + 8.0], y_range=[-HEIGHT - 8.0, 11.0])
+        cdfs.append(rrb.Spatial2DView(name=f"Error CDF of {f} after t_a, so far",
+                                      contents=[f"+ {r.path('cdf', f)}/**" for r in runs]
+                                      + [f"- {r.path('cdf', f, 'table')}" for r in runs], visual_bounds=bounds))
+        cdfs.append(rrb.Horizontal(*(rrb.TextDocumentView(
+            name=f"Percentiles from t_a to the cursor{' [' + r.label + ']' if r.label else ''}",
+            contents=[f"+ {r.path('cdf', f, 'table')}"]) for r in runs)))
+    errors = _series("Error vs GPS (m), whole mission; colours as in the CDF; grey line: t_a",
+                     _contents(runs, "series", "error") + _contents(runs, "series", "marks"), error_top, legend=False)
+    # two runs: what changed first, the two scoreboards as tabs beneath (side by side they would not fit)
+    left = (rrb.Vertical(docs[0], errors, row_shares=[1, 1]) if len(docs) == 1 else
+            rrb.Vertical(docs[2], rrb.Tabs(*docs[:2]), errors, row_shares=[1.1, 1.1, 1]))
+    return rrb.Horizontal(
+        left,
+        rrb.Vertical(*cdfs, row_shares=[1.4, 1] * len(followers)) if cdfs else rrb.Vertical(),
+        column_shares=[1.45, 1], name="Scoreboard",
+    )
+
+
+def _detection(runs: list[Run]) -> rrb.Container:
+    t_a = ", ".join(f"{training_end_s(r):.0f} s" for r in runs)
+    lanes = rrb.StateTimelineView(
+        name=f"Detection lanes: truth, then hit / false alarm / miss / quiet per detector (t_a = {t_a})",
+        contents=_contents(runs, "lanes") if len(runs) == 1 else [f"+ {COMPARED_ROOT}/**"],
+        time_view=_whole_mission())
+    features = [_series(f, [f"+ {r.path('series', f)}/**" for r in runs])
                 for f in ("f1_innovation_m", "f2_mahalanobis2", "f3_r_adapted_m2")]
     return rrb.Vertical(
-        rrb.TimeSeriesView(name=f"Ranges measured / true (m){tag}", contents=[f"+ {run.path('series', 'range')}/**"]),
-        rrb.TimeSeriesView(name=f"Residual measured - true (m){tag}",
-                           contents=[f"+ {run.path('series', 'residual')}/**"]),
-        rrb.Horizontal(*features),
-        rrb.TimeSeriesView(name=f"ANFIS output vs T2 (m){tag}", contents=[f"+ {run.path('series', 'anfis')}/**"]),
-        rrb.TimeSeriesView(name=f"Detection lanes (0 = truth label; raised = flagged){tag}",
-                           contents=[f"+ {run.path('series', 'lanes')}/**"]),
-        row_shares=[2, 1, 1, 1, 2],
+        lanes,
+        _series("ANFIS output vs T2 (m); above T2 = flagged", _contents(runs, "series", "anfis"),
+                anfis_top(runs)),
+        rrb.Horizontal(*features, _series("Ranges measured / true (m)", _contents(runs, "series", "range")),
+                       _series("Residual measured - true (m)", _contents(runs, "series", "residual"))),
+        row_shares=[7, 2, 1.5], name="Detection",
     )
 
 
-def _errors(runs: list[Run], scale: dict[str, float]) -> rrb.Container:
-    followers = sorted({str(k[0]) for r in runs for k, _ in groups(r.review.errors, ["follower"])})
-    cdfs = []
-    for f in followers:
-        s = scale.get(f, 1.0)
-        bounds = rrb.VisualBounds2D(x_range=[-0.05 * s, 1.1 * s], y_range=[-1.08 * s, 0.05 * s])
-        cdfs.append(rrb.Vertical(
-            rrb.Spatial2DView(name=f"Error CDF of {f} so far (x: error m; lines at 0/50/90/95/100 %)",
-                              contents=[f"+ {r.path('cdf', f)}/**" for r in runs]
-                              + [f"- {r.path('cdf', f, 'table')}" for r in runs], visual_bounds=bounds),
-            rrb.Horizontal(*(rrb.TextDocumentView(name=f"Percentiles so far{' [' + r.label + ']' if r.label else ''}",
-                                                  contents=[f"+ {r.path('cdf', f, 'table')}"]) for r in runs)),
-            row_shares=[3, 1]))
-    return rrb.Horizontal(
-        *cdfs,
-        rrb.Vertical(rrb.TimeSeriesView(name="Horizontal error vs GPS (m)", contents=_contents(runs, "series", "error")),
-                     *(rrb.TextDocumentView(name=f"Run {r.review.run_id}", contents=[f"+ {r.path('info')}"])
-                       for r in runs), row_shares=[3] + [1] * len(runs)),
-        name="Errors",
-    )
+def anfis_top(runs: list[Run]) -> float | None:
+    """The ANFIS plot's y extent: four times the largest T2 (outputs reach 1000 m where T2 is a few)."""
+    thr = [floats(r.review.detections[r.review.detections["method"].astype(str).str.startswith("anfis")],
+                  "threshold") for r in runs if "method" in r.review.detections]
+    v = np.concatenate(thr) if thr else np.zeros(0)
+    v = v[np.isfinite(v)]
+    return float(4.0 * v.max()) if v.size else None
 
 
 def _anfis_model(run: Run, model: str) -> rrb.Container:
     base = run.path("anfis", model)
     tag = f" [{run.label}]" if run.label else ""
-    mf = [rrb.Spatial2DView(name=f"MF input {i} (per epoch on anfis_epoch; kept model on time)", contents=[f"+ {base}/training/mf/in{i}/**"])
-          for i in (1, 2, 3)]
-    now = [rrb.Spatial2DView(name=f"Input {i} on the final MFs", contents=[f"+ {base}/explain/mf/in{i}/**"])
-           for i in (1, 2, 3)]
+    mf_bounds = rrb.VisualBounds2D(x_range=[-0.08, 1.08], y_range=[-1.15, 0.12])
+    names = ("f1 |r|", "f2 Mahal.", "f3 R*")
+    mf = [rrb.Spatial2DView(name=f"{n}: MFs learned", contents=[f"+ {base}/training/mf/in{i}/**"],
+                            visual_bounds=mf_bounds) for i, n in enumerate(names, start=1)]
+    now = [rrb.Spatial2DView(name=f"{n}: now", contents=[f"+ {base}/explain/mf/in{i}/**"],
+                             visual_bounds=mf_bounds) for i, n in enumerate(names, start=1)]
+    surface = rrb.Spatial3DView(name="Output surface (f3 at median)",
+                                eye_controls=rrb.EyeControls3D(kind="Orbital", position=(2.5, -1.7, 1.8),
+                                                               look_target=(0.45, 0.45, 0.3), eye_up=(0, 0, 1)),
+                                contents=[f"+ {base}/training/surface", f"+ {base}/training/axes",
+                                          f"+ {base}/training/T2", f"+ {base}/training/T2_label",
+                                          f"+ {base}/training/epoch"])
     return rrb.Horizontal(
-        rrb.Vertical(*mf, name="training"),
-        rrb.Vertical(rrb.Spatial3DView(name="Output surface (f3 at median)", contents=[f"+ {base}/training/surface",
-                                                                                     f"+ {base}/training/axes"]),
-                     rrb.TimeSeriesView(name="Training RMSE (m), timeline anfis_epoch", contents=[f"+ {base}/training/rmse"])),
-        rrb.Vertical(*now, name="this epoch"),
-        rrb.Vertical(rrb.Spatial2DView(name="Rule firing strengths", contents=[f"+ {base}/explain/firing"]),
+        rrb.Vertical(*mf),
+        rrb.Vertical(surface, rrb.BarChartView(name="Training RMSE (m) per epoch",
+                                               contents=[f"+ {base}/training/rmse_bars"],
+                                               plot_legend=rrb.PlotLegend(visible=False)), row_shares=[3, 1]),
+        rrb.Vertical(*now),
+        rrb.Vertical(rrb.Spatial2DView(name="Rule firing strengths", contents=[f"+ {base}/explain/firing"],
+                                       visual_bounds=rrb.VisualBounds2D(x_range=[-0.1, 1.1], y_range=[-1.1, 0.1])),
                      rrb.TextDocumentView(name="Why (not) flagged", contents=[f"+ {base}/explain/verdict"])),
-        name=f"{model}{tag}",
+        column_shares=[1, 1.4, 1, 1], name=f"{model}{tag}",
     )
 
 
@@ -94,23 +188,40 @@ def _anfis(runs: list[Run]) -> rrb.Container | None:
 
 
 def _kmcdf(runs: list[Run]) -> rrb.Container | None:
-    views = [rrb.Spatial2DView(name=f"KMCDF {target}/{method}" + (f" [{run.label}]" if run.label else "")
-                               + " (fixes by cluster, final fix, nodes)",
-                               contents=[f"+ {run.path('kmcdf', str(target), str(method))}/**",
-                                         f"+ {run.path('local', str(target), 'gps', 'position')}"])
-             for run in runs for (target, method), _ in groups(run.review.kmcdf, ["target", "method"])]
-    return rrb.Grid(*views, name="KMCDF") if views else None
+    views = []
+    for run in runs:
+        tag = f" [{run.label}]" if run.label else ""
+        with_fixes = fix_methods(run.review.kmcdf)
+        for (target,), rows in groups(run.review.kmcdf, ["target"]):
+            t = str(target)
+            half = kmcdf_half_width(run, t)
+            methods = sorted(rows["method"].astype(str).unique())
+            prelim = ", ".join(with_fixes) if with_fixes else "none"
+            views.append(rrb.Spatial2DView(
+                name=f"KMCDF {t}{tag}: fixes minus GPS (m); preliminary fixes of {prelim}: green kept, red C2",
+                contents=[f"+ {run.path('kmcdf', t, m)}/final" for m in methods]
+                + [f"+ {run.path('kmcdf', t, m)}/fixes" for m in with_fixes]
+                + [f"+ {run.path('kmcdf', t, 'truth')}/**"],
+                visual_bounds=rrb.VisualBounds2D(x_range=[-half, half], y_range=[-half, half])))
+            views.append(rrb.Spatial2DView(
+                name=f"Nodes{tag} by name (red: delay judged abnormal) and {t}'s fixes",
+                contents=[f"+ {run.path('kmcdf', t, methods[0])}/nodes", f"+ {run.path('local', t, 'gps')}/**"]
+                + [f"+ {run.path('local', t, m)}/position" for m in methods],
+                overrides={run.path("local", t, "gps", "trail"): _up_to_cursor()}))
+    return rrb.Grid(*views, name="KMCDF", grid_columns=2) if views else None
 
 
-def build_blueprint(runs: list[Run], scale: dict[str, float], active_tab: int | str = 0) -> rrb.Blueprint:
-    """The workstation layout for one run or two compared; `scale` the CDF extents; `active_tab` index or name."""
-    tabs = [_navigation(runs), rrb.Horizontal(*(_ranges_column(r) for r in runs), name="Ranges & detection"),
-            _errors(runs, scale), _anfis(runs), _kmcdf(runs)]
+def build_blueprint(runs: list[Run], error_top: float, active_tab: int | str = 0) -> rrb.Blueprint:
+    """The workstation layout for one run or two compared; `error_top` the error plots' y extent."""
+    tabs = [_scoreboard(runs, error_top), _detection(runs), _navigation(runs), _anfis(runs), _kmcdf(runs)]
     main = rrb.Tabs(*(t for t in tabs if t is not None), active_tab=active_tab)
-    log = rrb.TextLogView(name="Events", contents=_contents(runs, "events"))
+    log = rrb.TextLogView(name="Events", contents=_contents(runs, "events"),
+                          columns=rrb.archetypes.TextLogColumns(
+                              timeline_columns=[rrb.encodings.TimelineColumn("mission_s")],
+                              text_log_columns=[rrb.encodings.TextLogColumn("LogLevel"), rrb.encodings.TextLogColumn("Body")]))
     return rrb.Blueprint(
-        rrb.Horizontal(main, log, column_shares=[4, 1]),
+        rrb.Horizontal(main, log, column_shares=[3, 1.1]),
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
-        rrb.TimePanel(timeline="time", state="collapsed"),
+        rrb.TimePanel(timeline="mission_s", state="collapsed", play_state="paused"),
     )

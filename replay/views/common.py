@@ -8,6 +8,8 @@ and ignore view coordinates (rerun issue #1387), so the 2D views log
 
 from __future__ import annotations
 
+import colorsys
+import json
 import re
 import zlib
 from dataclasses import dataclass
@@ -17,30 +19,13 @@ import pandas as pd
 import rerun as rr
 
 from replay.review.data import ReviewData
+from replay.review.palette import METHOD_RGB
+from replay.review.palette import method_rgb as palette_rgb
+from replay.run.compare import run_labels
 
-# (name, RGB); the order fixes the class ids (1-based) and never changes
-METHOD_STYLE: tuple[tuple[str, tuple[int, int, int]], ...] = (
-    ("gps", (235, 235, 235)),
-    ("ins", (150, 150, 150)),
-    ("dead_reckoning", (166, 118, 29)),
-    ("ckf", (31, 119, 230)),
-    ("ackf", (23, 190, 207)),
-    ("chi_square", (255, 127, 14)),
-    ("dual_threshold", (148, 103, 189)),
-    ("anfis", (44, 200, 44)),
-    ("anfis_aqpso", (188, 230, 34)),
-    ("anfis_compensation", (0, 150, 120)),
-    ("kmcdf1", (214, 39, 40)),
-    ("kmcdf2", (227, 119, 194)),
-    ("gar", (240, 220, 60)),
-    ("ear", (255, 152, 150)),
-    ("lms", (128, 128, 0)),
-    ("lhc", (120, 170, 255)),
-    ("truth", (250, 250, 250)),
-    ("measured", (255, 200, 80)),
-)
+# the palette's order fixes the class ids (1-based) and never changes: new names are added at its end
+METHOD_STYLE: tuple[tuple[str, tuple[int, int, int]], ...] = tuple(METHOD_RGB.items())
 _IDS = {name: i + 1 for i, (name, _) in enumerate(METHOD_STYLE)}
-_RGB = dict(METHOD_STYLE)
 FIRST_FREE_ID = 100
 # KMCDF cluster of a preliminary fix: 1 = C1 (consistent, kept) green, 2 = C2 red; 0 = unclustered grey
 CLUSTER_COLORS = np.array([[160, 160, 160], [60, 200, 90], [220, 60, 50], [230, 200, 60]], dtype=np.uint8)
@@ -54,14 +39,14 @@ def class_id(name: str) -> int:
 
 
 def method_rgb(name: str, run_index: int = 0) -> tuple[int, int, int]:
-    """A method's colour; the second run of a comparison gets it blended halfway to grey."""
-    rgb = _RGB.get(name)
-    if rgb is None:
-        h = zlib.crc32(name.encode())
-        rgb = (80 + h % 160, 80 + (h >> 8) % 160, 80 + (h >> 16) % 160)
+    """A method's colour; in a comparison the second run gets the same hue, clearly lighter or darker."""
+    rgb = palette_rgb(name)
     if run_index == 0:
         return rgb
-    return tuple(int(0.5 * c + 0.5 * 110) for c in rgb)  # type: ignore[return-value]
+    hue, light, sat = colorsys.rgb_to_hls(*(c / 255 for c in rgb))
+    light = light * 0.55 if light > 0.45 else light + 0.3
+    r, g, b = (round(255 * c) for c in colorsys.hls_to_rgb(hue, light, sat))
+    return r, g, b
 
 
 def part(name: str) -> str:
@@ -82,10 +67,12 @@ class Run:
         """An entity path under this run's prefix, each part made safe."""
         return "/".join([self.prefix, *(part(p) for p in parts)])
 
-    def times(self, t_s: np.ndarray | pd.Series) -> rr.TimeColumn:
-        """The `time` timeline column: UTC timestamps from trial_start_ns + t_s."""
-        ns = self.review.trial_start_ns + np.round(np.asarray(t_s, dtype=float) * 1e9).astype(np.int64)
-        return rr.TimeColumn("time", timestamp=ns.astype("datetime64[ns]"))
+    def times(self, t_s: np.ndarray | pd.Series) -> list[rr.TimeColumn]:
+        """The two timelines of every logged row: `time` (UTC, trial_start_ns + t_s) and `mission_s`."""
+        t = np.asarray(t_s, dtype=float)
+        ns = self.review.trial_start_ns + np.round(t * 1e9).astype(np.int64)
+        return [rr.TimeColumn("time", timestamp=ns.astype("datetime64[ns]")),
+                rr.TimeColumn("mission_s", duration=np.round(t * 1e9).astype(np.int64).astype("timedelta64[ns]"))]
 
     def name(self, method: str) -> str:
         """A series name: the method, tagged with the run label in a comparison."""
@@ -93,14 +80,24 @@ class Run:
 
 
 def make_runs(reviews: list[ReviewData]) -> list[Run]:
-    """Prefixes `/<run_id>` (unique even when two runs share an id); labels only for comparisons."""
-    runs, seen = [], set()
+    """Prefixes `/<run_id>` (unique even when two runs share an id); in a comparison, labels by what differs.
+
+    Runs whose configurations differ are named by `run_labels` ("r_m=2.5"); runs of one configuration
+    (another input, another version) by their prefix.
+    """
+    prefixes, seen = [], set()
     for i, review in enumerate(reviews):
         base = part(review.run_id or f"run{i}")
         prefix = base if base not in seen else f"{base}_{i}"
         seen.add(prefix)
-        runs.append(Run(review, "/" + prefix, prefix if len(reviews) > 1 else "", i))
-    return runs
+        prefixes.append(prefix)
+    labels = [""] * len(reviews)
+    if len(reviews) > 1:
+        named = run_labels([r.parameters for r in reviews])
+        differ = len({json.dumps(r.parameters, sort_keys=True, default=str) for r in reviews}) > 1
+        labels = named if differ else prefixes
+    return [Run(review, "/" + p, label, i) for i, (review, p, label) in enumerate(zip(reviews, prefixes, labels,
+                                                                                    strict=True))]
 
 
 def annotation_context(run: Run, names: list[str]) -> rr.AnnotationContext:
@@ -122,13 +119,28 @@ def run_names(review: ReviewData) -> list[str]:
 
 
 def groups(frame: pd.DataFrame, keys: list[str]) -> list[tuple[tuple, pd.DataFrame]]:
-    """(key tuple, rows sorted by t_s) for every group of a table; nothing for an empty table."""
+    """(key tuple, rows sorted by t_s) for every group of a table, keys in sorted order; nothing for an empty table.
+
+    One stable sort of the whole table by (keys, t_s), then contiguous slices: a groupby and a sort per
+    group cost several times as much on the string-keyed tables the views read.
+    """
     if frame.empty or any(k not in frame for k in keys):
         return []
+    codes = [pd.factorize(frame[k], sort=True) for k in keys]
+    order_keys = [c for c, _ in codes[::-1]]
+    if "t_s" in frame:
+        order_keys = [frame["t_s"].to_numpy(dtype=float), *order_keys]
+    order = np.lexsort(order_keys)
+    code_matrix = np.stack([c[order] for c, _ in codes], axis=1)
+    starts = np.flatnonzero(np.r_[True, (code_matrix[1:] != code_matrix[:-1]).any(axis=1)])
+    ends = np.r_[starts[1:], order.size]
+    ordered = frame.iloc[order]
     out = []
-    for key, rows in frame.groupby(keys, sort=True):
-        key = key if isinstance(key, tuple) else (key,)
-        out.append((key, rows.sort_values("t_s", kind="stable") if "t_s" in rows else rows))
+    for a, b in zip(starts, ends, strict=True):
+        if (code_matrix[a] < 0).any():          # a missing key: pandas' groupby drops those rows too
+            continue
+        key = tuple(uniq[c] for (_, uniq), c in zip(codes, code_matrix[a], strict=True))
+        out.append((key, ordered.iloc[a:b]))
     return out
 
 
@@ -136,7 +148,10 @@ def floats(rows: pd.DataFrame, column: str) -> np.ndarray:
     """A column as float64 (missing column: NaN)."""
     if column not in rows:
         return np.full(len(rows), np.nan)
-    return pd.to_numeric(rows[column], errors="coerce").to_numpy(dtype=float)
+    col = rows[column]
+    if pd.api.types.is_float_dtype(col.dtype) or pd.api.types.is_integer_dtype(col.dtype):
+        return col.to_numpy(dtype=float, na_value=np.nan)
+    return pd.to_numeric(col, errors="coerce").to_numpy(dtype=float)
 
 
 def ragged(rows: pd.DataFrame, column: str) -> tuple[np.ndarray, np.ndarray]:

@@ -1,13 +1,16 @@
-"""KMCDF epochs (preliminary fixes coloured by cluster, final fix, nodes) and the text log of events.
+"""KMCDF-family epochs (preliminary fixes by cluster, final fixes, nodes by vehicle name) and the event log.
 
-Entities under a run prefix P, on `time`:
-- ``P/kmcdf/<target>/<method>/fixes``  Points2D, every preliminary fix of the epoch,
-  coloured by its cluster (1 = C1, the kept cluster, green; 2 = C2 red; as replay.stack.positioning.kmcdf numbers them);
-- ``P/kmcdf/<target>/<method>/final``  Points2D, the final fix in the method's colour;
-- ``P/kmcdf/<target>/<method>/nodes``  Points2D, the nodes, red when the epoch judged
-  that node's delay abnormal, amber when only a phase;
+Entities under a run prefix P, on `time` and `mission_s`:
+- ``P/kmcdf/<target>/<method>/fixes``  Points2D, every preliminary fix of the epoch (methods that
+  make them), coloured by its cluster (1 = C1, the kept cluster, green; 2 = C2 red; as
+  replay.stack.positioning.kmcdf numbers them), as east/north offsets from the target's GPS truth
+  at the epoch, so a zoomed view stays on the fixes while the target moves;
+- ``P/kmcdf/<target>/<method>/final``  Points2D, the method's final fix, offset from the truth alike;
+- ``P/kmcdf/<target>/<method>/nodes``  Points2D in east/north, the nodes named by vehicle ("buoy3"),
+  red when the epoch judged that node's delay abnormal, amber when only a phase;
+- ``P/kmcdf/<target>/truth``  static: the GPS truth at (0, 0) with 5, 10 and 20 m rings;
 - ``P/events``  TextLog.
-East/north metres with y = -north (see replay.views.common).
+Offsets and east/north metres with y = -north (see replay.views.common).
 """
 
 from __future__ import annotations
@@ -21,29 +24,77 @@ from replay.views.common import CLUSTER_COLORS, Run, class_id, floats, groups, r
 NODE_OK, NODE_DELAY_BAD, NODE_PHASE_BAD = (200, 200, 200), (230, 50, 40), (240, 180, 40)
 
 
+RINGS_M = (5.0, 10.0, 20.0)
+
+
 def log_kmcdf(rec: rr.RecordingStream, run: Run) -> None:
-    """Every KMCDF-family epoch of a run, per target and method."""
+    """Every KMCDF-family epoch of a run, per target and method, and the truth rings of each target."""
     for (target, method), rows in groups(run.review.kmcdf, ["target", "method"]):
         _log_epochs(rec, run, str(target), str(method), rows)
+    for (target,), _ in groups(run.review.kmcdf, ["target"]):
+        rings = [np.column_stack([r * np.cos(a), r * np.sin(a)]) for r in RINGS_M
+                 for a in [np.linspace(0, 2 * np.pi, 73)]]
+        rec.log(run.path("kmcdf", str(target), "truth", "rings"),
+                rr.LineStrips2D(rings, labels=[f"{r:g} m" for r in RINGS_M], colors=[(128, 128, 128, 140)],
+                                radii=rr.Radius.ui_points(0.5)), static=True)
+        rec.log(run.path("kmcdf", str(target), "truth", "gps"),
+                rr.Points2D([[0.0, 0.0]], labels=[f"{target} GPS"], class_ids=[class_id("gps")],
+                            radii=rr.Radius.ui_points(6.0)), static=True)
+
+
+def truth_at(run: Run, target: str, t_s: np.ndarray) -> np.ndarray:
+    """(n, 2) east/north of the target's GPS at each instant, linearly interpolated; NaN outside its track."""
+    tr = run.review.tracks
+    gps = tr[(tr["vehicle"] == target) & (tr["source"] == "gps")].sort_values("t_s") if not tr.empty else tr
+    if gps.empty:
+        return np.full((t_s.size, 2), np.nan)
+    gt = floats(gps, "t_s")
+    out = np.column_stack([np.interp(t_s, gt, floats(gps, "east_m")), np.interp(t_s, gt, floats(gps, "north_m"))])
+    out[(t_s < gt[0]) | (t_s > gt[-1])] = np.nan
+    return out
+
+
+def fix_methods(review_kmcdf: pd.DataFrame) -> list[str]:
+    """The positioning methods whose rows carry preliminary fixes."""
+    if review_kmcdf.empty or "fixes_east_m" not in review_kmcdf:
+        return []
+    has = review_kmcdf["fixes_east_m"].map(lambda v: hasattr(v, "__len__") and len(v) > 0)
+    return sorted(review_kmcdf.loc[has, "method"].astype(str).unique())
 
 
 def _log_epochs(rec: rr.RecordingStream, run: Run, target: str, method: str, rows: pd.DataFrame) -> None:
-    times = [run.times(rows["t_s"])]
+    times = run.times(rows["t_s"])
+    truth = truth_at(run, target, floats(rows, "t_s"))
     fe, lengths = ragged(rows, "fixes_east_m")
     fn, n_lengths = ragged(rows, "fixes_north_m")
     cl, c_lengths = ragged(rows, "fixes_cluster")
     if np.array_equal(lengths, n_lengths) and lengths.sum() > 0:
         cl = cl if np.array_equal(c_lengths, lengths) else np.zeros(fe.size)
         colors = CLUSTER_COLORS[np.nan_to_num(cl).astype(np.int64) % len(CLUSTER_COLORS)]
-        cols = rr.Points2D.columns(positions=np.column_stack([fe, -fn]), colors=colors,
-                                   radii=np.full(fe.size, rr.Radius.ui_points(3.0), dtype=np.float32))
+        origin = np.repeat(np.nan_to_num(truth), lengths, axis=0)
+        cols = rr.Points2D.columns(positions=np.column_stack([fe - origin[:, 0], -(fn - origin[:, 1])]),
+                                   colors=colors, radii=np.full(fe.size, rr.Radius.ui_points(3.0), dtype=np.float32))
         rec.send_columns(run.path("kmcdf", target, method, "fixes"), indexes=times, columns=cols.partition(lengths))
     n = len(rows)
-    cols = rr.Points2D.columns(positions=np.column_stack([floats(rows, "east_m"), -floats(rows, "north_m")]),
+    off = np.column_stack([floats(rows, "east_m"), floats(rows, "north_m")]) - np.nan_to_num(truth)
+    cols = rr.Points2D.columns(positions=np.column_stack([off[:, 0], -off[:, 1]]),
                                class_ids=np.full(n, class_id(method), dtype=np.uint16),
+                               labels=np.full(n, run.name(method)),
                                radii=np.full(n, rr.Radius.ui_points(7.0), dtype=np.float32))
     rec.send_columns(run.path("kmcdf", target, method, "final"), indexes=times, columns=cols)
     _log_nodes(rec, run, target, method, rows, times)
+
+
+def kmcdf_half_width(run: Run, target: str) -> float:
+    """Half the zoomed view's width (m): 1.5 x the 90th percentile of the fixes' distance to the truth, >= 10 m."""
+    rows = run.review.kmcdf[run.review.kmcdf["target"] == target] if not run.review.kmcdf.empty else run.review.kmcdf
+    if rows.empty:
+        return 10.0
+    off = np.column_stack([floats(rows, "east_m"), floats(rows, "north_m")]) - truth_at(run, target,
+                                                                                      floats(rows, "t_s"))
+    d = np.hypot(off[:, 0], off[:, 1])
+    d = d[np.isfinite(d)]
+    return float(max(10.0, 1.5 * np.quantile(d, 0.9))) if d.size else 10.0
 
 
 def _log_nodes(rec: rr.RecordingStream, run: Run, target: str, method: str, rows: pd.DataFrame,
@@ -59,6 +110,10 @@ def _log_nodes(rec: rr.RecordingStream, run: Run, target: str, method: str, rows
     colors = np.where((delay == 0)[:, None], NODE_DELAY_BAD, np.where((phase == 0)[:, None], NODE_PHASE_BAD, NODE_OK))
     index = np.concatenate([np.arange(k) for k in lengths])
     labels = (pd.Series("node ", index=range(ne.size)) + pd.Series(index + 1).astype(str)).to_numpy()
+    if "nodes" in rows:
+        names = [list(v) if isinstance(v, (list, tuple, np.ndarray)) else [] for v in rows["nodes"]]
+        if [len(v) for v in names] == lengths.tolist():
+            labels = np.array([str(x) for v in names for x in v], dtype=object)
     cols = rr.Points2D.columns(positions=np.column_stack([ne, -nn]), colors=colors.astype(np.uint8), labels=labels,
                                radii=np.full(ne.size, rr.Radius.ui_points(6.0), dtype=np.float32))
     rec.send_columns(run.path("kmcdf", target, method, "nodes"), indexes=times, columns=cols.partition(lengths))
@@ -72,7 +127,8 @@ def log_events(rec: rr.RecordingStream, run: Run) -> None:
     ev = ev.sort_values("t_s", kind="stable")
     level = ev["level"].fillna("INFO").astype(str).str.upper() if "level" in ev else pd.Series("INFO", index=ev.index)
     text = ev["text"].astype(str)
+
     if run.label:
         text = f"[{run.label}] " + text
-    rec.send_columns(run.path("events"), indexes=[run.times(ev["t_s"])],
+    rec.send_columns(run.path("events"), indexes=run.times(ev["t_s"]),
                      columns=rr.TextLog.columns(text=text.to_numpy(), level=level.to_numpy()))

@@ -5,10 +5,12 @@
 `save_rrd` writes it atomically with the blueprint inside; `open_viewer` opens a
 file in Rerun's native viewer, or in the web viewer bound to 127.0.0.1 only.
 
-Timelines: `time` (UTC timestamps, trial_start_ns + t_s) for mission data and
-`anfis_epoch` (sequence) for ANFIS training. Entity layout per run under
-``/<run_id>``: ``map``, ``local``, ``series``, ``cdf``, ``anfis``, ``kmcdf``,
-``events``, ``info`` (see the other modules of ``replay.views``). This package's modules are
+Timelines: every mission row is on both `time` (UTC timestamps, trial_start_ns + t_s) and
+`mission_s` (seconds from the trial start, the one time base of the events, `compare` and
+`export`); `anfis_epoch` (sequence) for ANFIS training. Entity layout per run under
+``/<run_id>``: ``scoreboard``, ``map``, ``local``, ``series``, ``lanes``, ``cdf``, ``anfis``,
+``kmcdf``, ``events``, ``info`` (see the other modules of ``replay.views``); ``/colour_key``
+once per recording. This package's modules are
 the only ones that import `rerun` (with `replay.views.kmcdf`).
 """
 
@@ -22,14 +24,18 @@ import sys
 from pathlib import Path
 
 import rerun as rr
+import rerun.blueprint as rrb
 
 from replay.review.data import ReviewData
 from replay.views.anfis import log_anfis
 from replay.views.blueprint import build_blueprint
+from replay.views.cdf import error_axis, log_cdf_frame, log_cdfs
 from replay.views.common import Run, annotation_context, make_runs, run_names
+from replay.views.lanes import log_lanes
 from replay.views.positioning import log_events, log_kmcdf
-from replay.views.series import cdf_scale, log_detections, log_errors, log_ranges
-from replay.views.tracks import log_range_circles, log_tracks
+from replay.views.scores import log_scores
+from replay.views.series import error_ceiling, log_detections, log_errors, log_ranges
+from replay.views.tracks import log_colour_key, log_range_circles, log_tracks
 
 WEB_BIND = "127.0.0.1"
 
@@ -49,7 +55,7 @@ def _summary(run: Run) -> str:
     return "\n".join(lines)
 
 
-def log_review(rec: rr.RecordingStream, run: Run, scale: dict[str, float]) -> None:
+def log_review(rec: rr.RecordingStream, run: Run, axes: dict, error_top: float) -> None:
     """Every view's entities for one run."""
     rec.log(run.prefix, annotation_context(run, run_names(run.review)), static=True)
     rec.log(run.path("info"), rr.TextDocument(_summary(run), media_type="text/markdown"), static=True)
@@ -57,29 +63,46 @@ def log_review(rec: rr.RecordingStream, run: Run, scale: dict[str, float]) -> No
     log_range_circles(rec, run)
     log_ranges(rec, run)
     log_detections(rec, run)
-    log_errors(rec, run, scale)
+    log_lanes(rec, run)
+    log_errors(rec, run, error_top)
+    log_cdfs(rec, run, axes)
     log_anfis(rec, run)
     log_kmcdf(rec, run)
     log_events(rec, run)
 
 
+def prepare(reviews: list[ReviewData], active_tab: int | str = 0) -> tuple[list[Run], dict, float, rrb.Blueprint]:
+    """The runs of one or two reviews, their error axes and ceiling, and the workstation blueprint."""
+    if not 1 <= len(reviews) <= 2:
+        raise ValueError(f"a recording takes one run or two to compare, got {len(reviews)}")
+    runs = make_runs(reviews)
+    error_top = error_ceiling([r.errors for r in reviews])
+    return runs, error_axis(runs), error_top, build_blueprint(runs, error_top, active_tab)
+
+
+def log_runs(rec: rr.RecordingStream, reviews: list[ReviewData], runs: list[Run], axes: dict,
+             error_top: float) -> None:
+    """Everything of the runs into a recording: its name and start, scores, colour key, CDF frame, every view."""
+    rec.send_recording_name(" vs ".join(f"{r.trial} {run.label or r.run_id}" for r, run in zip(reviews, runs,
+                                                                                             strict=True)))
+    rec.send_recording_start_time_nanos(int(reviews[0].trial_start_ns))
+    log_scores(rec, runs)
+    log_colour_key(rec, runs)
+    log_cdf_frame(rec, runs, axes)
+    for run in runs:
+        log_review(rec, run, axes, error_top)
+
+
 def build_recording(reviews: list[ReviewData], application_id: str = "auvreplay",
                     path: str | os.PathLike[str] | None = None, active_tab: int | str = 0) -> rr.RecordingStream:
     """A recording of one or two runs with the blueprint; streamed to `path` (.rrd) when given, else buffered."""
-    if not 1 <= len(reviews) <= 2:
-        raise ValueError(f"build_recording takes one run or two to compare, got {len(reviews)}")
-    runs = make_runs(reviews)
-    scale = cdf_scale([r.errors for r in reviews])
-    blueprint = build_blueprint(runs, scale, active_tab)
+    runs, axes, error_top, blueprint = prepare(reviews, active_tab)
     rec = rr.RecordingStream(application_id, recording_id=recording_id(reviews), send_properties=False)
     if path is not None:
         rec.save(str(path), default_blueprint=blueprint)
     else:
         rec.send_blueprint(blueprint)
-    rec.send_recording_name(" vs ".join(f"{r.trial} {r.run_id}" for r in reviews))
-    rec.send_recording_start_time_nanos(int(reviews[0].trial_start_ns))
-    for run in runs:
-        log_review(rec, run, scale)
+    log_runs(rec, reviews, runs, axes, error_top)
     return rec
 
 

@@ -1,10 +1,13 @@
 """Map and local metric plot: every track per vehicle and source, and the range circle of each epoch.
 
 Entities under a run prefix P:
-- ``P/map/<vehicle>/<source>/track``  GeoLineStrings, static (the whole track);
-- ``P/map/<vehicle>/<source>/position``  GeoPoints on `time` (where it is now);
-- ``P/local/<vehicle>/<source>/track`` and ``/position``  the same in east/north metres
-  (LineStrips2D static, Points2D on `time`; y = -north, see replay.views.common);
+- ``P/map/<vehicle>/<source>/track``  static, faint: the whole track (GeoLineStrings; GeoPoints for
+  positioning fixes, whose outliers a line would join across the plot);
+- ``P/map/<vehicle>/<source>/trail``  GeoPoints on `time`, small: the blueprint shows them from the
+  start up to the cursor (a per-entity visible time range), so the trail ends where the vehicle is;
+- ``P/map/<vehicle>/<source>/position``  GeoPoints on `time`: where it is now, labelled
+  "<vehicle> <source>" ("leader1 GPS");
+- ``P/local/...`` the same in east/north metres (y = -north, see replay.views.common);
 - ``P/local/ranges/<follower>/<leader>``  Ellipses2D on `time`: a circle of the
   measured horizontal range around the ranged leader at that instant, red when
   the epoch is labelled anomalous.
@@ -16,9 +19,16 @@ import numpy as np
 import pandas as pd
 import rerun as rr
 
+from replay.review.data import ReviewData
+from replay.review.scoreboard import method_kind
 from replay.views.common import Run, class_id, floats, groups, method_rgb
 
 MAX_STATIC_VERTICES = 4000
+KEY = "/colour_key"
+KEY_STEP = 1.6
+"""The colour key's entity (one for the recording, every run's names in it)."""
+TRAIL_STEP_S = 2.0
+"""A trail keeps one sample every this many seconds (every sample of sparser tracks)."""
 """The static whole-track line keeps at most this many vertices (every k-th sample, and the last)."""
 ANOMALOUS_RGB = (230, 60, 50)
 NORMAL_RGB = (120, 170, 230)
@@ -39,32 +49,94 @@ def log_tracks(rec: rr.RecordingStream, run: Run) -> None:
         _log_track(rec, run, str(vehicle), str(source), rows)
 
 
+def mark_label(vehicle: str, source: str) -> str:
+    """How a mark is named on the map and the local plot: 'leader1 GPS', 'follower kmcdf2'."""
+    return f"{vehicle} {source.upper() if source in ('gps', 'ins') else source}"
+
+
+def trail_indices(t_s: np.ndarray, step_s: float = TRAIL_STEP_S) -> np.ndarray:
+    """Indices of the first sample in every `step_s` bin of time (all samples when sparser)."""
+    if t_s.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    bins = np.floor((t_s - t_s[0]) / step_s)
+    return np.flatnonzero(np.r_[True, bins[1:] != bins[:-1]])
+
+
 def _log_track(rec: rr.RecordingStream, run: Run, vehicle: str, source: str, rows: pd.DataFrame) -> None:
     lat, lon = floats(rows, "lat_deg"), floats(rows, "lon_deg")
     east, north = floats(rows, "east_m"), floats(rows, "north_m")
-    n, cid, rgb = len(rows), class_id(source), method_rgb(source, run.index)
-    times = [run.times(rows["t_s"])]
+    t = floats(rows, "t_s")
+    cid, rgb = class_id(source), method_rgb(source, run.index)
+    # only GPS marks carry a name ("leader1 GPS"): INS and every estimate sit within metres of their
+    # vehicle's GPS and their names would pile up on it (the colour key names them)
+    truth = source == "gps"
+    faint = (*rgb, 110 if truth else 45)
+    # positioning fixes jump (outliers of hundreds of metres): their whole track would hatch the plot
+    scatter = method_kind(source) == "positioning"
+    size, trail_size = (6.0, 2.0) if truth else (4.5, 1.0)
+    times = run.times(rows["t_s"])
+    trail = trail_indices(t)
+    trail_times = run.times(t[trail])
+    # what is the same on every row (colour, size, name) is logged once, static; the rows carry positions
     geo_ok = np.isfinite(lat) & np.isfinite(lon)
     if geo_ok.any():
-        keep = decimate(int(geo_ok.sum()))
-        line = np.column_stack([lat[geo_ok], lon[geo_ok]])[keep]
-        rec.log(run.path("map", vehicle, source, "track"),
-                rr.GeoLineStrings(lat_lon=[line], radii=rr.Radius.ui_points(1.5), colors=[rgb]), static=True)
-        rec.send_columns(run.path("map", vehicle, source, "position"), indexes=times,
-                         columns=rr.GeoPoints.columns(positions=np.column_stack([lat, lon]),
-                                                      class_ids=np.full(n, cid, dtype=np.uint16),
-                                                      radii=np.full(n, rr.Radius.ui_points(5.0), dtype=np.float32)))
+        base = run.path("map", vehicle, source)
+        ll = np.column_stack([lat[geo_ok], lon[geo_ok]])
+        if scatter:
+            rec.log(base + "/track", rr.GeoPoints(lat_lon=ll, radii=rr.Radius.ui_points(1.0), colors=[faint]),
+                    static=True)
+        else:
+            rec.log(base + "/track", rr.GeoLineStrings(lat_lon=[ll[decimate(ll.shape[0])]],
+                                                       radii=rr.Radius.ui_points(1.0), colors=[faint]), static=True)
+        rec.log(base + "/position", rr.GeoPoints.from_fields(colors=[rgb], class_ids=[cid],
+                                                            radii=rr.Radius.ui_points(size)), static=True)
+        rec.send_columns(base + "/position", indexes=times,
+                         columns=rr.GeoPoints.columns(positions=np.column_stack([lat, lon])))
+        rec.log(base + "/trail", rr.GeoPoints.from_fields(colors=[rgb], radii=rr.Radius.ui_points(trail_size)),
+                static=True)
+        rec.send_columns(base + "/trail", indexes=trail_times,
+                         columns=rr.GeoPoints.columns(positions=np.column_stack([lat[trail], lon[trail]])))
     local_ok = np.isfinite(east) & np.isfinite(north)
     if local_ok.any():
-        keep = decimate(int(local_ok.sum()))
-        strip = np.column_stack([east[local_ok], -north[local_ok]])[keep]
-        rec.log(run.path("local", vehicle, source, "track"),
-                rr.LineStrips2D([strip], class_ids=[cid], radii=rr.Radius.ui_points(1.0)), static=True)
-        rec.send_columns(run.path("local", vehicle, source, "position"), indexes=times,
-                         columns=rr.Points2D.columns(positions=np.column_stack([east, -north]),
-                                                     class_ids=np.full(n, cid, dtype=np.uint16),
-                                                     show_labels=np.zeros(n, dtype=bool),
-                                                     radii=np.full(n, rr.Radius.ui_points(5.0), dtype=np.float32)))
+        base = run.path("local", vehicle, source)
+        xy = np.column_stack([east[local_ok], -north[local_ok]])
+        if scatter:
+            rec.log(base + "/track", rr.Points2D(xy, colors=[faint], radii=rr.Radius.ui_points(1.0)), static=True)
+        else:
+            rec.log(base + "/track", rr.LineStrips2D([xy[decimate(xy.shape[0])]], colors=[faint],
+                                                     radii=rr.Radius.ui_points(0.75)), static=True)
+        rec.log(base + "/position", rr.Points2D.from_fields(
+            class_ids=[cid], labels=[run.name(mark_label(vehicle, source))], show_labels=truth,
+            radii=rr.Radius.ui_points(size), draw_order=40.0 if truth else 30.0), static=True)
+        rec.send_columns(base + "/position", indexes=times,
+                         columns=rr.Points2D.columns(positions=np.column_stack([east, -north])))
+        rec.log(base + "/trail", rr.Points2D.from_fields(class_ids=[cid], show_labels=False,
+                                                         radii=rr.Radius.ui_points(trail_size),
+                                                         draw_order=20.0 if truth else 10.0), static=True)
+        rec.send_columns(base + "/trail", indexes=trail_times,
+                         columns=rr.Points2D.columns(positions=np.column_stack([east[trail], -north[trail]])))
+
+
+def track_bounds(runs: list[ReviewData]) -> tuple[np.ndarray, np.ndarray] | None:
+    """(min, max) east/north over every GPS fix and buoy of the runs, for the default view bounds."""
+    parts = [r.tracks[r.tracks["source"] == "gps"] for r in runs if not r.tracks.empty and "source" in r.tracks]
+    frame = pd.concat(parts) if parts else pd.DataFrame()
+    if frame.empty:
+        return None
+    en = np.column_stack([floats(frame, "east_m"), floats(frame, "north_m")])
+    en = en[np.isfinite(en).all(axis=1)]
+    return (en.min(axis=0), en.max(axis=0)) if en.size else None
+
+
+def geo_bounds(runs: list[ReviewData]) -> tuple[np.ndarray, np.ndarray] | None:
+    """(min, max) latitude/longitude over every GPS fix of the runs."""
+    parts = [r.tracks[r.tracks["source"] == "gps"] for r in runs if not r.tracks.empty and "source" in r.tracks]
+    frame = pd.concat(parts) if parts else pd.DataFrame()
+    if frame.empty:
+        return None
+    ll = np.column_stack([floats(frame, "lat_deg"), floats(frame, "lon_deg")])
+    ll = ll[np.isfinite(ll).all(axis=1)]
+    return (ll.min(axis=0), ll.max(axis=0)) if ll.size else None
 
 
 def _epoch_labels(run: Run, ranges: pd.DataFrame) -> np.ndarray:
@@ -85,9 +157,34 @@ def log_range_circles(rec: rr.RecordingStream, run: Run) -> None:
         centre = np.column_stack([floats(rows, "leader_east_m"), -floats(rows, "leader_north_m")])
         label = _epoch_labels(run, rows)
         rgb = np.where((label == 1)[:, None], ANOMALOUS_RGB, np.where((label == 0)[:, None], NORMAL_RGB, UNKNOWN_RGB))
-        text = (f"{leader} " + pd.Series(radius).round(1).astype(str) + " m").to_numpy()
-        rec.send_columns(run.path("local", "ranges", str(follower), str(leader)), indexes=[run.times(rows["t_s"])],
+        rec.send_columns(run.path("local", "ranges", str(follower), str(leader)), indexes=run.times(rows["t_s"]),
                          columns=rr.Ellipses2D.columns(half_sizes=np.column_stack([radius, radius]), centers=centre,
-                                                       colors=rgb.astype(np.uint8), labels=text,
+                                                       colors=rgb.astype(np.uint8),
                                                        line_radii=np.full(len(rows), rr.Radius.ui_points(1.0),
                                                                           dtype=np.float32)))
+
+
+def colour_key_names(run: Run) -> list[str]:
+    """The names the colour key lists for a run: every track source, methods in the run's order first."""
+    sources = {str(s) for s in run.review.tracks["source"].unique()} if "source" in run.review.tracks else set()
+    return [m for m in [*run.review.methods, "gps", "ins"] if m in sources] + sorted(
+        sources - set(run.review.methods) - {"gps", "ins"})
+
+
+def key_rows(runs: list[Run]) -> int:
+    """Rows of the colour key: one per run and name."""
+    return sum(len(colour_key_names(r)) for r in runs)
+
+
+def log_colour_key(rec: rr.RecordingStream, runs: list[Run]) -> None:
+    """A legend for the map and the local plot: a swatch in each name's colour, top to bottom."""
+    entries = [(r.name("GPS truth" if n == "gps" else n), method_rgb(n, r.index)) for r in runs
+               for n in colour_key_names(r)]
+    if not entries:
+        return
+    y = KEY_STEP * np.arange(len(entries), dtype=float)
+    rec.log(KEY + "/swatches", rr.LineStrips2D([np.array([[0.0, v], [1.5, v]]) for v in y],
+                                               colors=[c for _, c in entries], radii=rr.Radius.ui_points(4.0)),
+            static=True)
+    rec.log(KEY + "/names", rr.Points2D(np.column_stack([np.full(y.size, 5.0), y]), labels=[t for t, _ in entries],
+                                        colors=[c for _, c in entries], radii=rr.Radius.ui_points(0.1)), static=True)

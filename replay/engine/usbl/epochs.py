@@ -105,19 +105,19 @@ class UsblEpochBuilder:
         groups: dict[tuple[int, KmcdfParams], list[int]] = {}
         for i, c in enumerate(closed):
             groups.setdefault((len(c.nodes), c.params), []).append(i)
-        fixes: list[KmcdfFix | None] = [None] * len(closed)
+        fixes: dict[int, KmcdfFix] = {}
         for (_, params), members in groups.items():
-            stacked = [np.stack([getattr(closed[i], f) for i in members])
-                       for f in ("node_en", "delays_s", "phase_x", "phase_y")]
-            for i, fix in zip(members, kmcdf_epochs(*stacked, params)):
+            nodes, delays, phase_x, phase_y = (np.stack([getattr(closed[i], f) for i in members])
+                                               for f in ("node_en", "delays_s", "phase_x", "phase_y"))
+            for i, fix in zip(members, kmcdf_epochs(nodes, delays, phase_x, phase_y, params)):
                 fixes[i] = fix
         self.on_epochs([UsblEpoch(c.t_s, c.target, c.nodes, c.node_en, c.delays_s, c.phase_x, c.phase_y,
-                                  fix, c.params) for c, fix in zip(closed, fixes)], [c.context for c in closed])
+                                  fixes[i], c.params) for i, c in enumerate(closed)], [c.context for c in closed])
 
     def _close(self, target: str) -> None:
         group = self._open.pop(target, [])
         self._earliest = min((g[0][0] for g in self._open.values() if g), default=math.inf)
-        by_node = {}
+        by_node: dict[str, tuple[float, Any, float]] = {}
         for emitted, node, msg, t_s in group:
             by_node.setdefault(node, (emitted, msg, t_s))   # a node heard twice keeps its first
         rows = []

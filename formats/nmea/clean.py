@@ -17,13 +17,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from operator import itemgetter
-from typing import Callable, Sequence
+from typing import Sequence
 
 import numpy as np
 
-from .sentence import prefix_xor
-
-NAN = float("nan")
+from .framing import prefix_xor
 
 # byte -> hex digit value, -1 for anything else
 _HEX_VALUE = np.full(256, -1, dtype=np.int16)
@@ -108,73 +106,3 @@ def select(lines: list[str], idx: np.ndarray) -> list[str]:
     return list(itemgetter(*idx.tolist())(lines))
 
 
-def number_column(convert: Callable[[str], object], column: list[str], empty: object) -> list | None:
-    """convert() of every string, `empty` for empty ones (the per-line parsers' rule); None if one fails."""
-    distinct = set(column)
-    try:
-        if len(distinct) * 4 < len(column):  # status fields, sigmas, empty ones: convert each string once
-            table = {x: convert(x) if x else empty for x in distinct}
-            return list(map(table.__getitem__, column))
-        if "" not in distinct:
-            return list(map(convert, column))
-        return [convert(x) if x else empty for x in column]
-    except (ValueError, OverflowError):
-        return None
-
-
-def _codes(column: list[str]) -> tuple[np.ndarray, np.ndarray]:
-    """(n, width) code points of the strings (0 past each end) and their lengths."""
-    lengths = np.fromiter(map(len, column), dtype=np.int64, count=len(column))
-    arr = np.array(column)
-    width = max(arr.dtype.itemsize // 4, 1)
-    codes = arr.view(np.uint32).reshape(len(column), -1) if arr.dtype.itemsize else np.zeros((len(column), 1), np.uint32)
-    return codes[:, :width], lengths
-
-
-def tod_column(column: list[str]) -> np.ndarray | None:
-    """`nmea.parse_tod` of every string (all non-empty), or None where it would not simply succeed."""
-    if not column:
-        return np.zeros(0)
-    codes, lengths = _codes(column)
-    if codes.shape[1] < 6 or (lengths < 6).any():
-        return None
-    head = codes[:, :6]
-    if ((head < 48) | (head > 57)).any():
-        return None
-    values = number_column(float, column, NAN)
-    if values is None:
-        return None
-    v = np.array(values, dtype=np.float64)
-    h, rest = np.divmod(v, 10000.0)
-    m, sec = np.divmod(rest, 100.0)
-    if not ((h <= 23) & (m <= 59) & (sec < 61.0)).all():
-        return None
-    return h * 3600.0 + m * 60.0 + sec
-
-
-def angle_column(column: list[str], hemis: list[str], neg: str, limit: float) -> np.ndarray | None:
-    """`nmea._angle` of every (d)ddmm.mmmm string and hemisphere letter (empty: NaN), or None."""
-    if not column:
-        return np.zeros(0)
-    codes, lengths = _codes(column)
-    digit = (codes >= 48) & (codes <= 57)
-    dot = codes == 46
-    if not np.array_equal((digit | dot).sum(axis=1), lengths) or (dot.sum(axis=1) > 1).any():
-        return None
-    has = lengths > 0
-    dot_at = np.where(dot.any(axis=1), dot.argmax(axis=1), lengths)
-    if (has & (dot_at < 3)).any():
-        return None
-    values = number_column(float, column, NAN)
-    if values is None:
-        return None
-    v = np.array(values, dtype=np.float64)
-    deg = np.floor_divide(v, 100.0)
-    minutes = v - deg * 100.0
-    value = deg + minutes / 60.0
-    if (has & ~((minutes < 60.0) & (value <= limit))).any():
-        return None
-    south = np.array([h == neg for h in hemis], dtype=bool)
-    if not all(h in ("", "N", "E", "NE", neg) for h in set(hemis)):
-        return None  # `_angle` accepts exactly these letters ('NE' too: it tests `in "NE"`)
-    return np.where(south & has, -value, value)

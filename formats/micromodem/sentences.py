@@ -36,10 +36,10 @@ from dataclasses import dataclass
 from datetime import date, datetime, timezone
 from typing import Callable, Iterator, Sequence
 
-from .lines import iter_lines
-from .records import Reject, Where
-from .regex_lines import parse_iso8601_ns, parse_tod_s
-from .sentence import build, frame
+from ..lines import iter_lines
+from ..nmea.framing import build, frame
+from ..records import Reject, Where
+from ..regex_lines import parse_iso8601_ns, parse_tod_s
 
 NS = 1_000_000_000
 

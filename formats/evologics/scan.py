@@ -1,4 +1,4 @@
-"""`formats.evologics.decode` as plain tuples: the recording hot path for EvoLogics logs.
+"""`formats.evologics.notifications.decode` as plain tuples: the recording hot path for EvoLogics logs.
 
 `scan` yields what the range and USBL converters use, USBLLONG, USBLANGLES,
 USBLPHYD and AT?T propagation times, as ``(keyword, values, offset, line,
@@ -21,9 +21,9 @@ from __future__ import annotations
 import math
 from typing import Iterator
 
-from . import evologics as ev
-from .host_lines import scan_lines
-from .records import Reject, Where
+from ..host_lines import scan_lines
+from ..records import Reject, Where
+from . import notifications as ev
 
 Scanned = tuple[str, list, int, "int | None", "int | None"]  # keyword, values, offset, line, host ns
 _FIELDS = {"USBLLONG": 16, "USBLANGLES": 13, "USBLPHYD": 12}
@@ -35,7 +35,7 @@ _KEYWORDS = {ev.UsblLong: "USBLLONG", ev.UsblAngles: "USBLANGLES"}
 def _fast_usbl(keyword: str, body: str) -> list | None:
     """A USBL line's values when every field reads cleanly, else None (the decoder says why)."""
     parts = body.split(",")
-    if len(parts) != _FIELDS[keyword] or not parts[2].isdigit():
+    if len(parts) != _FIELDS[keyword] or not parts[2].isdigit() or len(parts[2]) > 9:  # an int32 address
         return None
     try:
         v = list(map(float, parts))
@@ -54,18 +54,15 @@ def _fast_usbl(keyword: str, body: str) -> list | None:
 
 def _scanned(rec: ev.Record | Reject | None) -> Scanned | Reject | None:
     """A decoder record as `scan` yields it (None for what the converters do not use)."""
-    t = type(rec)
-    if t is Reject:
-        return rec  # type: ignore[return-value]
-    if t is ev.UsblLong or t is ev.UsblAngles:
-        values = [getattr(rec, name) for name in t.__slots__[1:]]  # type: ignore[attr-defined]
-        return _KEYWORDS[t], values, *_where(rec)  # type: ignore[arg-type]
-    if t is ev.UsblPhaseDelays:
-        r: ev.UsblPhaseDelays = rec  # type: ignore[assignment]
-        return "USBLPHYD", [r.current_time_s, r.measurement_time_s, r.address, r.fix_type, *r.delays_ns], *_where(r)
-    if t is ev.PropagationTime:
-        p: ev.PropagationTime = rec  # type: ignore[assignment]
-        return "AT?T", [p.propagation_time_us, p.peer], *_where(p)
+    if isinstance(rec, Reject):
+        return rec
+    if isinstance(rec, (ev.UsblLong, ev.UsblAngles)):
+        values = [getattr(rec, name) for name in type(rec).__slots__[1:]]
+        return _KEYWORDS[type(rec)], values, *_where(rec)
+    if isinstance(rec, ev.UsblPhaseDelays):
+        return "USBLPHYD", [rec.current_time_s, rec.measurement_time_s, rec.address, rec.fix_type, *rec.delays_ns], *_where(rec)
+    if isinstance(rec, ev.PropagationTime):
+        return "AT?T", [rec.propagation_time_us, rec.peer], *_where(rec)
     return None
 
 

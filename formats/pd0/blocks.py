@@ -20,8 +20,8 @@ from typing import Iterator
 
 import numpy as np
 
-from . import pd0
-from .records import Reject, Where
+from ..records import Reject, Where
+from . import ensembles as pd0
 
 _NS = 1_000_000_000
 _DAYS_IN_MONTH = np.array([0, 31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31], np.int64)

@@ -28,13 +28,13 @@ from __future__ import annotations
 import math
 import struct
 from dataclasses import dataclass, field
-from functools import lru_cache
 from datetime import datetime, timezone
+from functools import lru_cache
 from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
-from .records import Reject, Where
+from ..records import Reject, Where
 
 HEADER = b"\x7f\x7f"
 BAD_VELOCITY = -32768
@@ -213,9 +213,9 @@ def parse_bottom(buf: bytes, start: int, length: int) -> BottomTrack | None:
     if length >= 81:
         for k in range(4):
             ranges_cm[k] += buf[start + 77 + k] * 65536
-    vel = tuple(math.nan if x == BAD_VELOCITY else x / 1000 for x in b[12:16])
-    rng = tuple(r / 100 if r else math.nan for r in ranges_cm)
-    return BottomTrack(b[1], vel, rng, b[16:20], b[20:24], b[24:28])  # type: ignore[arg-type]
+    v1, v2, v3, v4 = (math.nan if x == BAD_VELOCITY else x / 1000 for x in b[12:16])
+    r1, r2, r3, r4 = (r / 100 if r else math.nan for r in ranges_cm)
+    return BottomTrack(b[1], (v1, v2, v3, v4), (r1, r2, r3, r4), b[16:20], b[20:24], b[24:28])
 
 
 def _parse_profile(buf: bytes, start: int, length: int, fixed: FixedLeader | None) -> np.ndarray:
@@ -322,57 +322,6 @@ def next_frame(buf: bytes, pos: int, intact: Callable[[int, int], bool],
         if i > pos and not gap_reported:
             rejects.append(Reject(Where(pos), f"{i - pos} bytes of noise between ensembles"))
         return rejects, (i, nbytes, ndt)
-
-
-# --- vehicle velocity from bottom track -------------------------------------------------
-
-
-def beam_to_instrument(beams: Sequence[float], beam_angle_deg: float, convex: bool = True
-                       ) -> tuple[float, float, float, float]:
-    """Janus beam velocities to instrument X, Y, Z, error (RDI "ADCP Coordinate Transformation").
-
-    X = c a (b1 - b2), Y = c a (b4 - b3), Z = b (b1 + b2 + b3 + b4),
-    E = d (b1 + b2 - b3 - b4), with a = 1/(2 sin θ), b = 1/(4 cos θ), d = a/√2,
-    c = +1 convex, -1 concave. NaN in, NaN out.
-    """
-    th = math.radians(beam_angle_deg)
-    a, b = 1 / (2 * math.sin(th)), 1 / (4 * math.cos(th))
-    c = 1.0 if convex else -1.0
-    b1, b2, b3, b4 = beams
-    return (c * a * (b1 - b2), c * a * (b4 - b3), b * (b1 + b2 + b3 + b4),
-            a / math.sqrt(2) * (b1 + b2 - b3 - b4))
-
-
-def vehicle_velocity(coordinates: str, bottom: Sequence[float], beam_angle_deg: float = 30.0,
-                     convex: bool = True) -> tuple[str, float, float, float, float]:
-    """Vehicle velocity over ground from PD0 bottom-track values: (frame, x, y, z, error).
-
-    PD0 reports the bottom moving past a stationary instrument, so the vehicle
-    velocity is the negation. Frames: ship (RDI x starboard, y forward, z up)
-    becomes BODY_FRD (x forward, y starboard, z down): (-bt_y, -bt_x, +bt_z);
-    earth (east, north, up) becomes EARTH_NED the same way; instrument stays in
-    the transducer's axes, negated; beam velocities are first transformed to
-    instrument axes (`beam_to_instrument`). The error velocity is passed on
-    as reported (its sign carries no direction).
-    """
-    b = tuple(bottom)
-    if coordinates == "beam":
-        b = beam_to_instrument(b, beam_angle_deg, convex)
-        coordinates = "instrument"
-    if coordinates == "instrument":
-        return ("INSTRUMENT", -b[0], -b[1], -b[2], b[3])
-    frame = "BODY_FRD" if coordinates == "ship" else "EARTH_NED"
-    return (frame, -b[1], -b[0], b[2], b[3])
-
-
-def bottom_velocity_from_frd(forward: float, starboard: float, down: float,
-                             error: float = 0.0) -> tuple[float, float, float, float]:
-    """PD0 ship-coordinate bottom-track values for a vehicle moving (forward, starboard, down) m/s.
-
-    The inverse of `vehicle_velocity("ship", ...)`; the simulator uses it.
-    Also valid for earth coordinates with (north, east, down).
-    """
-    return (-starboard, -forward, down, error)
 
 
 # --- encoding ----------------------------------------------------------------------------

@@ -29,9 +29,9 @@ import zlib
 from dataclasses import dataclass, replace
 from typing import Iterator, Union
 
-from .gpstime import gps_to_unix_ns, unix_ns_to_gps
-from .lines import PREFIX_STYLES, strip_prefix
-from .records import Reject, Where
+from ..gpstime import gps_to_unix_ns, unix_ns_to_gps
+from ..lines import PREFIX_STYLES, strip_prefix
+from ..records import Reject, Where
 
 NAN = float("nan")
 
@@ -559,7 +559,7 @@ def header_at(utc_ns: int, message: str, **kw: object) -> Header:
     kw.setdefault("port", "COM1")
     kw.setdefault("idle_percent", 50.0)
     kw.setdefault("time_status", "FINESTEERING")
-    return Header(message, "ascii", week, round(sow * 1000) / 1000.0, **kw)  # type: ignore[arg-type]
+    return Header(message, "ascii", week, round(sow * 1000) / 1000.0, **kw)  # type: ignore[arg-type]  # `kw`: any Header field, by name
 
 
 def encode_bestposa(

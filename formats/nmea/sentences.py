@@ -30,14 +30,21 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from datetime import date, datetime, timezone
-from functools import lru_cache
 from typing import Callable, Iterator, Union
 
-from .lines import PREFIX_STYLES, strip_prefix
-from .records import Reject, Where
-from .sentence import HEX, nmea_checksum, prefix_xor
+from ..lines import PREFIX_STYLES, strip_prefix
+from ..records import Reject, Where
+from .fields import (
+    NAN,
+    parse_ddmmyy,
+    parse_float,
+    parse_lat,
+    parse_lon,
+    parse_tod,
+    parse_zda_date,
+)
+from .framing import HEX, nmea_checksum, prefix_xor
 
-NAN = float("nan")
 KNOT_MPS = 1852.0 / 3600.0
 _DAY_CS = 8_640_000  # centiseconds per day
 
@@ -154,80 +161,6 @@ NmeaRecord = Union[Gga, Rmc, Zda, Vtg, Gst, Hdt, Ths, Gll]
 TIMED = (Gga, Rmc, Zda, Gst, Gll)
 
 
-# ---------------------------------------------------------------- field parsing
-
-
-def _float(s: str) -> float:
-    return float(s) if s else NAN
-
-
-def _int(s: str) -> int:
-    return int(s) if s else -1
-
-
-# A receiver repeats one epoch's time and position in several sentences (GGA,
-# RMC, GLL, GST, ZDA): a small cache turns the repeats into a dict hit (0.05 us
-# instead of 0.5). Failures raise again each time: exceptions are not cached.
-@lru_cache(maxsize=64)
-def parse_tod(s: str) -> float:
-    """Seconds of day from hhmmss[.sss]; NaN when empty."""
-    if not s:
-        return NAN
-    if len(s) < 6 or not s[:6].isdigit():
-        raise ValueError(f"time {s!r} is not hhmmss.ss")
-    v = float(s)  # one float() and arithmetic: much cheaper than three slices and conversions
-    h, rest = divmod(v, 10000.0)
-    m, sec = divmod(rest, 100.0)
-    if h > 23 or m > 59 or sec >= 61.0:
-        raise ValueError(f"time {s!r} out of range")
-    return h * 3600.0 + m * 60.0 + sec
-
-
-def _angle(s: str, hemi: str, neg: str, limit: float) -> float:
-    """Degrees from NMEA (d)ddmm.mmmm plus hemisphere; NaN when empty."""
-    if not s:
-        return NAN
-    if not s.replace(".", "", 1).isdigit():
-        raise ValueError(f"angle {s!r} is not (d)ddmm.mmmm")
-    dot = s.find(".")
-    if (dot if dot >= 0 else len(s)) < 3:
-        # some receivers and converters write decimal degrees ('37.352387'); read
-        # as ddmm that is 0°37' -- thousands of km off without a sign of error
-        raise ValueError(f"angle {s!r} has no degrees before mm.mmmm (decimal degrees?)")
-    v = float(s)
-    deg = v // 100.0
-    minutes = v - deg * 100.0  # exact: both terms are within a factor of two (Sterbenz)
-    value = deg + minutes / 60.0
-    if minutes >= 60.0 or value > limit:
-        raise ValueError(f"angle {s!r} out of range")
-    if hemi == neg:
-        return -value
-    if hemi and hemi not in "NE":
-        raise ValueError(f"hemisphere {hemi!r}")
-    return value
-
-
-@lru_cache(maxsize=64)
-def _lat(s: str, hemi: str) -> float:
-    return _angle(s, hemi, "S", 90.0)
-
-
-@lru_cache(maxsize=64)
-def _lon(s: str, hemi: str) -> float:
-    return _angle(s, hemi, "W", 180.0)
-
-
-@lru_cache(maxsize=16)  # one date per day of log: a dict hit instead of a date() per RMC
-def _ddmmyy(s: str) -> date | None:
-    if not s:
-        return None
-    if len(s) != 6 or not s.isdigit():
-        raise ValueError(f"date {s!r} is not ddmmyy")
-    yy = int(s[4:6])
-    # two-digit years: 80..99 -> 1980s/90s (GPS did not exist before 1980)
-    return date(2000 + yy if yy < 80 else 1900 + yy, int(s[2:4]), int(s[0:2]))
-
-
 def _need(fields: list[str], n: int, kind: str) -> None:
     if len(fields) < n:
         raise IndexError(f"truncated {kind}: {len(fields)} fields, {n} needed")
@@ -250,7 +183,7 @@ def _gga(f: list[str]) -> tuple:
         f = f + [""] * (14 - len(f))
     # inline conversions: GGA is the hot sentence of every log
     return (
-        parse_tod(f[0]), _lat(f[1], f[2]), _lon(f[3], f[4]), int(f[5]) if f[5] else -1,
+        parse_tod(f[0]), parse_lat(f[1], f[2]), parse_lon(f[3], f[4]), int(f[5]) if f[5] else -1,
         int(f[6]) if f[6] else -1, float(f[7]) if f[7] else NAN, float(f[8]) if f[8] else NAN,
         float(f[10]) if f[10] else NAN, float(f[12]) if f[12] else NAN, f[13],
     )
@@ -263,8 +196,8 @@ def _rmc(f: list[str]) -> tuple:
         f = f + [""] * (12 - len(f))
     var = float(f[9]) if f[9] else NAN
     return (
-        parse_tod(f[0]), f[1] == "A", _lat(f[2], f[3]), _lon(f[4], f[5]), float(f[6]) if f[6] else NAN,
-        float(f[7]) if f[7] else NAN, _ddmmyy(f[8]), -var if f[10] == "W" else var, f[11],
+        parse_tod(f[0]), f[1] == "A", parse_lat(f[2], f[3]), parse_lon(f[4], f[5]), float(f[6]) if f[6] else NAN,
+        float(f[7]) if f[7] else NAN, parse_ddmmyy(f[8]), -var if f[10] == "W" else var, f[11],
     )
 
 
@@ -273,23 +206,18 @@ def _zda(f: list[str]) -> tuple:
         _need(f, 4, "ZDA")
     if len(f) < 6:
         f = f + [""] * (6 - len(f))
-    day = _zda_date(f[3], f[2], f[1]) if f[1] and f[2] and f[3] else None
+    day = parse_zda_date(f[3], f[2], f[1]) if f[1] and f[2] and f[3] else None
     return parse_tod(f[0]), day, int(f[4]) if f[4] else -1, int(f[5]) if f[5] else -1
-
-
-@lru_cache(maxsize=16)
-def _zda_date(year: str, month: str, day: str) -> date:
-    return date(int(year), int(month), int(day))
 
 
 def _vtg(f: list[str]) -> tuple:
     labelled = len(f) >= 7 and f[1] in ("T", "") and f[3] in ("M", "")
     if labelled or (len(f) >= 4 and (f[1] == "T" or f[3] == "M")):
         # some receivers stop after the knots pair ('$GPVTG,,T,,M,0.00,N'): km/h is then NaN
-        return _float(f[0]), _float(_opt(f, 2)), _float(_opt(f, 4)), _float(_opt(f, 6)), _opt(f, 8)
+        return parse_float(f[0]), parse_float(_opt(f, 2)), parse_float(_opt(f, 4)), parse_float(_opt(f, 6)), _opt(f, 8)
     # NMEA 1.x layout without unit letters: course true, course magnetic, knots, km/h
     _need(f, 4, "VTG")
-    return _float(f[0]), _float(f[1]), _float(f[2]), _float(f[3]), ""
+    return parse_float(f[0]), parse_float(f[1]), parse_float(f[2]), parse_float(f[3]), ""
 
 
 def _gst(f: list[str]) -> tuple:
@@ -304,12 +232,12 @@ def _gst(f: list[str]) -> tuple:
 
 def _hdt(f: list[str]) -> tuple:
     _need(f, 1, "HDT")
-    return (_float(f[0]),)
+    return (parse_float(f[0]),)
 
 
 def _ths(f: list[str]) -> tuple:
     _need(f, 2, "THS")
-    return _float(f[0]), f[1]
+    return parse_float(f[0]), f[1]
 
 
 def _gll(f: list[str]) -> tuple:
@@ -317,7 +245,7 @@ def _gll(f: list[str]) -> tuple:
         _need(f, 4, "GLL")
     if len(f) < 7:
         f = f + [""] * (7 - len(f))
-    return _lat(f[0], f[1]), _lon(f[2], f[3]), parse_tod(f[4]), f[5] == "A", f[6]
+    return parse_lat(f[0], f[1]), parse_lon(f[2], f[3]), parse_tod(f[4]), f[5] == "A", f[6]
 
 
 VALUES: dict[str, Callable[[list[str]], tuple]] = {
@@ -442,14 +370,14 @@ def _frame_values(frame: Frame) -> Scanned | Reject | None:
 def parse_frame(frame: Frame) -> NmeaRecord | Reject | None:
     """The record for a framed sentence; None for proprietary and other sentence types."""
     item = _frame_values(frame)
-    if item is None or type(item) is Reject:
-        return item  # type: ignore[return-value]
-    kind, talker, values, _, _, _ = item  # type: ignore[misc]
+    if item is None or isinstance(item, Reject):
+        return item
+    kind, talker, values, _, _, _ = item
     return RECORDS[kind](frame[2], talker, *values)
 
 
 # (sentence type, talker, values in record field order, byte offset, line, host time ns or None)
-Scanned = tuple[str, str, tuple, int, int, Union[int, None]]
+Scanned = tuple[str, str, tuple, int, Union[int, None], Union[int, None]]
 
 
 def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
@@ -500,11 +428,11 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
 def _scan_general(raw: str, line_start: int, number: int, prefix: str) -> Iterator[Scanned | Reject]:
     """A line off the fast path: prefixes, noise, missing checksums, glued sentences, garbage."""
     for item in iter_frames(raw.encode("latin-1"), prefix):
-        if type(item) is Reject:
-            where = item.where  # type: ignore[union-attr]
-            yield Reject(Where(line_start, number, where.host_time_ns), item.reason, item.bad_checksum)  # type: ignore[union-attr]
+        if isinstance(item, Reject):
+            where = item.where
+            yield Reject(Where(line_start, number, where.host_time_ns), item.reason, item.bad_checksum)
             continue
-        address, fields, where = item  # type: ignore[misc]
+        address, fields, where = item
         result = _frame_values((address, fields, Where(line_start, number, where.host_time_ns)))
         if result is not None:
             yield result
@@ -514,10 +442,10 @@ def decode(data: bytes, prefix: str = "auto") -> Iterator[NmeaRecord | Reject]:
     """Stream every GNSS sentence record (or Reject) in a log, in file order (see `scan`)."""
     records = RECORDS
     for item in scan(data, prefix):
-        if type(item) is Reject:
-            yield item  # type: ignore[misc]
+        if isinstance(item, Reject):
+            yield item
         else:
-            kind, talker, values, offset, line, host = item  # type: ignore[misc]
+            kind, talker, values, offset, line, host = item
             yield records[kind](Where(offset, line, host), talker, *values)
 
 

@@ -44,8 +44,8 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Callable, Iterator, Sequence
 
-from .lines import Line, iter_lines
-from .records import Reject, Where
+from ..lines import Line, iter_lines
+from ..records import Reject, Where
 
 INVALID_DELAY = 16777215
 _FRAMED = re.compile(r"\+\+\+AT([^:]*):(\d+):")

@@ -1,10 +1,10 @@
-"""NMEA sentences of a clean log as numpy columns (the whole-log fast path of `nmea.scan`).
+"""NMEA sentences of a clean log as numpy columns (the whole-log fast path of `sentences.scan`).
 
 `decode_columns` gives, for a log whose every line is a clean sentence (see
-`formats.sentence_columns`) of types GGA (14 fields), GST (8), RMC (12),
+`formats.nmea.clean`) of types GGA (14 fields), GST (8), RMC (12),
 VTG (9, with unit letters), GLL (7), ZDA (6), HDT (2) and THS (2), from
 any talker, with sentences of other families among them, the values
-`nmea.scan` would give, as one array per field. It returns None for any other
+`sentences.scan` would give, as one array per field. It returns None for any other
 log, or when one value is anything the per-line parsers might reject: the
 caller then takes the per-line path, which decides every kind of damage.
 Sentences of other families are dropped, as `scan` does; a malformed address
@@ -17,12 +17,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .nmea import NAN, VALUES, _ddmmyy, _zda_date
-from .sentence_columns import CleanLines, angle_column, clean_lines, field_table, number_column, select, tod_column
+from .clean import CleanLines, clean_lines, field_table, select
+from .fields import (
+    NAN,
+    angle_column,
+    number_column,
+    parse_ddmmyy,
+    parse_zda_date,
+    tod_column,
+)
+from .sentences import VALUES
 
 KINDS = ("GGA", "GST", "RMC", "VTG", "GLL", "ZDA", "HDT", "THS")  # kind codes 0..7
 _WIDTH = {"GGA": 15, "GST": 9, "RMC": 13, "VTG": 10, "GLL": 8, "ZDA": 7, "HDT": 3, "THS": 3}  # with the address
-_TIME = {"GGA": 1, "GST": 1, "RMC": 1, "GLL": 5, "ZDA": 1}  # column of the time of day; the others have none
+_TIME = {"GGA": 0, "GST": 0, "RMC": 0, "GLL": 4, "ZDA": 0}  # field of the time of day; the others have none
+# The column parsers below read field k of a sentence as f[k], the numbering of `sentences`' per-line
+# parsers (fields after the address), so the two readings of a sentence line up field by field.
 
 
 @dataclass(frozen=True, slots=True)
@@ -44,70 +54,70 @@ def _address_ok(key: bytes) -> bool:
 
 def _gga(f: list[list[str]]) -> dict | None:
     cols = {
-        "lat": angle_column(f[2], f[3], "S", 90.0), "lon": angle_column(f[4], f[5], "W", 180.0),
-        "quality": number_column(int, f[6], -1), "satellites": number_column(int, f[7], -1),
-        "hdop": number_column(float, f[8], NAN), "alt": number_column(float, f[9], NAN),
-        "sep": number_column(float, f[11], NAN), "age": number_column(float, f[13], NAN),
+        "lat": angle_column(f[1], f[2], "S", 90.0), "lon": angle_column(f[3], f[4], "W", 180.0),
+        "quality": number_column(int, f[5], -1), "satellites": number_column(int, f[6], -1),
+        "hdop": number_column(float, f[7], NAN), "alt": number_column(float, f[8], NAN),
+        "sep": number_column(float, f[10], NAN), "age": number_column(float, f[12], NAN),
     }
     return None if any(v is None for v in cols.values()) else cols
 
 
 def _gst(f: list[list[str]]) -> dict | None:
     cols = {name: number_column(float, f[k], NAN) for k, name in enumerate(
-        ("rms", "major", "minor", "orient", "lat_std", "lon_std", "alt_std"), start=2)}
+        ("rms", "major", "minor", "orient", "lat_std", "lon_std", "alt_std"), start=1)}
     return None if any(v is None for v in cols.values()) else cols
 
 
 def _rmc(f: list[list[str]]) -> dict | None:
     try:
-        dates = list(map(_ddmmyy, f[9]))
+        dates = list(map(parse_ddmmyy, f[8]))
     except (ValueError, IndexError, OverflowError):
         return None
     cols = {
-        "valid": np.array([s == "A" for s in f[2]], dtype=bool),
-        "lat": angle_column(f[3], f[4], "S", 90.0), "lon": angle_column(f[5], f[6], "W", 180.0),
-        "speed": number_column(float, f[7], NAN), "course": number_column(float, f[8], NAN),
-        "date": dates, "variation": number_column(float, f[10], NAN),
+        "valid": np.array([s == "A" for s in f[1]], dtype=bool),
+        "lat": angle_column(f[2], f[3], "S", 90.0), "lon": angle_column(f[4], f[5], "W", 180.0),
+        "speed": number_column(float, f[6], NAN), "course": number_column(float, f[7], NAN),
+        "date": dates, "variation": number_column(float, f[9], NAN),
     }
     return None if any(v is None for v in cols.values()) else cols
 
 
 def _vtg(f: list[list[str]]) -> dict | None:
-    # `nmea._vtg` reads the unit-letter layout unless both letters are odd: only that layout here
-    if not all((t in ("T", "") and m in ("M", "")) or t == "T" or m == "M" for t, m in set(zip(f[2], f[4]))):
+    # `sentences._vtg` reads the unit-letter layout unless both letters are odd: only that layout here
+    if not all((t in ("T", "") and m in ("M", "")) or t == "T" or m == "M" for t, m in set(zip(f[1], f[3]))):
         return None
     cols = {name: number_column(float, f[k], NAN) for k, name in
-            ((1, "course"), (3, "course_magnetic"), (5, "speed"), (7, "kmh"))}
+            ((0, "course"), (2, "course_magnetic"), (4, "speed"), (6, "kmh"))}
     return None if any(v is None for v in cols.values()) else cols
 
 
 def _gll(f: list[list[str]]) -> dict | None:
     cols = {
-        "lat": angle_column(f[1], f[2], "S", 90.0), "lon": angle_column(f[3], f[4], "W", 180.0),
-        "valid": np.array([s == "A" for s in f[6]], dtype=bool),
+        "lat": angle_column(f[0], f[1], "S", 90.0), "lon": angle_column(f[2], f[3], "W", 180.0),
+        "valid": np.array([s == "A" for s in f[5]], dtype=bool),
     }
     return None if any(v is None for v in cols.values()) else cols
 
 
 def _zda(f: list[list[str]]) -> dict | None:
     try:  # one date() per distinct (day, month, year): a log holds one or two
-        table = {k: _zda_date(k[2], k[1], k[0]) if k[0] and k[1] and k[2] else None
-                 for k in set(zip(f[2], f[3], f[4]))}
+        table = {k: parse_zda_date(k[2], k[1], k[0]) if k[0] and k[1] and k[2] else None
+                 for k in set(zip(f[1], f[2], f[3]))}
     except (ValueError, OverflowError):
         return None
-    cols = {"date": list(map(table.__getitem__, zip(f[2], f[3], f[4]))),
-            "zone_hours": number_column(int, f[5], -1), "zone_minutes": number_column(int, f[6], -1)}
+    cols = {"date": list(map(table.__getitem__, zip(f[1], f[2], f[3]))),
+            "zone_hours": number_column(int, f[4], -1), "zone_minutes": number_column(int, f[5], -1)}
     return None if any(v is None for v in cols.values()) else cols
 
 
 def _hdt(f: list[list[str]]) -> dict | None:
-    heading = number_column(float, f[1], NAN)
+    heading = number_column(float, f[0], NAN)
     return None if heading is None else {"heading": heading}
 
 
 def _ths(f: list[list[str]]) -> dict | None:
-    heading = number_column(float, f[1], NAN)
-    return None if heading is None else {"heading": heading, "mode": f[2]}
+    heading = number_column(float, f[0], NAN)
+    return None if heading is None else {"heading": heading, "mode": f[1]}
 
 
 _PARSE = {"GGA": _gga, "GST": _gst, "RMC": _rmc, "VTG": _vtg, "GLL": _gll, "ZDA": _zda, "HDT": _hdt, "THS": _ths}
@@ -150,8 +160,9 @@ def decode_columns(data: bytes) -> NmeaColumns | None:
         if table is None:
             return None
         at = _TIME.get(name)
-        times = tod_column(table[at]) if at is not None else None
-        cols = _PARSE[name](table)
+        fields = table[1:]  # without the address column
+        times = tod_column(fields[at]) if at is not None else None
+        cols = _PARSE[name](fields)
         if (at is not None and times is None) or cols is None:
             return None
         if times is not None:

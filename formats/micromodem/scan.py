@@ -1,4 +1,4 @@
-"""`formats.micromodem.decode` as plain tuples: the recording hot path for Micro-Modem logs.
+"""`formats.micromodem.sentences.decode` as plain tuples: the recording hot path for Micro-Modem logs.
 
 `scan` yields what the range converter uses as ``(kind, values, offset,
 line, host ns)`` tuples, and every Reject; ping commands and other sentences
@@ -20,12 +20,12 @@ Kinds and values:
 from __future__ import annotations
 
 import math
-from typing import Iterator
+from typing import Iterator, Literal
 
-from . import micromodem as mm
-from .host_lines import scan_lines
-from .records import Reject, Where
-from .sentence import HEX, prefix_xor
+from ..host_lines import scan_lines
+from ..nmea.framing import HEX, prefix_xor
+from ..records import Reject, Where
+from . import sentences as mm
 
 Scanned = tuple[str, tuple, int, "int | None", "int | None"]  # kind, values, offset, line, host ns
 _PING_COMMANDS = frozenset(("CCMPC", "CAMPC"))
@@ -34,23 +34,22 @@ _SEEN_MAX = 4096  # distinct sentence texts remembered per log (replies differ b
 
 def _scanned(rec: mm.Record | Reject) -> Scanned | Reject | None:
     """A decoder record as `scan` yields it (None for what the converter does not use)."""
-    t = type(rec)
-    if t is Reject:
-        return rec  # type: ignore[return-value]
+    if isinstance(rec, Reject):
+        return rec
     w = rec.where
     where = w.offset, w.line, w.host_time_ns
-    if t is mm.PingReply:
-        return "reply", (rec.src, rec.dest, rec.one_way_travel_time_s, rec.utc_ns), *where  # type: ignore[union-attr]
-    if t is mm.PingHeard or t is mm.CycleInit or t is mm.ReceivedData:
-        return "heard", (rec.src,), *where  # type: ignore[union-attr]
-    if t is mm.TransmitStats:
-        return "date", (rec.date, rec.tod_s), *where  # type: ignore[union-attr]
-    if t is mm.Clock:
-        return "clock", (rec.utc_ns,), *where  # type: ignore[union-attr]
-    if t is mm.ReceiveStats:
-        return "rxstats", (rec.src, rec.tod_s), *where  # type: ignore[union-attr]
-    if t is mm.TimeOfArrival:
-        return "toa", (rec.tod_s, rec.utc_ns), *where  # type: ignore[union-attr]
+    if isinstance(rec, mm.PingReply):
+        return "reply", (rec.src, rec.dest, rec.one_way_travel_time_s, rec.utc_ns), *where
+    if isinstance(rec, (mm.PingHeard, mm.CycleInit, mm.ReceivedData)):
+        return "heard", (rec.src,), *where
+    if isinstance(rec, mm.TransmitStats):
+        return "date", (rec.date, rec.tod_s), *where
+    if isinstance(rec, mm.Clock):
+        return "clock", (rec.utc_ns,), *where
+    if isinstance(rec, mm.ReceiveStats):
+        return "rxstats", (rec.src, rec.tod_s), *where
+    if isinstance(rec, mm.TimeOfArrival):
+        return "toa", (rec.tod_s, rec.utc_ns), *where
     return None
 
 
@@ -59,7 +58,7 @@ def _ascii_int(text: str) -> bool:
     return text.isdigit() and text.isascii()
 
 
-def _fast(fields: list[str], round_trip: bool) -> tuple[str, tuple] | None | bool:
+def _fast(fields: list[str], round_trip: bool) -> tuple[str, tuple] | None | Literal[False]:
     """A ping sentence's (kind, values), None when it is valid and unused, False when in doubt."""
     address = fields[0]
     if len(fields) < 3 or not (_ascii_int(fields[1]) and _ascii_int(fields[2])):
@@ -85,19 +84,19 @@ def scan(data: bytes, prefix: str = "auto", campr_round_trip: bool = False) -> I
     # a ping exchange repeats its command and echo lines word for word: read each text once
     seen: dict[str, tuple[str, tuple] | None] = {}
     for text, offset, number, host, at in scan_lines(data, prefix):
-        found = seen.get(text, False)
+        found: tuple[str, tuple] | None | Literal[False] = seen.get(text, False)
         if found is False and text[:1] == "$":
             body = text[1:].rstrip("\r\n ")
             star = body.rfind("*")
-            # `sentence.frame`'s checksum: the XOR of the payload's bytes in `data` is pxor's two ends
+            # `nmea.framing.frame`'s checksum: the XOR of the payload's bytes in `data` is pxor's two ends
             if star >= 0 and len(body) - star - 1 >= 2 and HEX.get(body[star + 1 : star + 3]) == pxor[at + star] ^ pxor[at]:
                 found = _fast(body[:star].split(","), campr_round_trip)
                 if found is not False and len(seen) < _SEEN_MAX:
-                    seen[text] = found  # type: ignore[assignment]
+                    seen[text] = found
         if found is None:
             continue
         if found is not False:
-            yield found[0], found[1], offset, number, host  # type: ignore[index]
+            yield found[0], found[1], offset, number, host
             continue
         item = _scanned(mm.decode_sentence(text, Where(offset, number, host), campr_round_trip))
         if item is not None:

@@ -12,11 +12,12 @@ header, a prefix, a bad CRC, a field that does not convert) goes through
 from __future__ import annotations
 
 from dataclasses import fields
-from typing import Callable, Iterator, Union
+from typing import Callable, Iterator, Literal, Union
 
-from . import novatel as N
-from .lines import PREFIX_STYLES, strip_prefix
-from .records import Reject, Where
+from ..lines import PREFIX_STYLES, strip_prefix
+from ..records import Reject, Where
+from ..scanned import values_view
+from . import logs as N
 
 NAN = float("nan")
 
@@ -24,6 +25,17 @@ NAN = float("nan")
 # after `header`, byte offset, line or None, host time ns or None); week and seconds are the record's
 # time (INSPVA: its own, else the header's: `novatel.record_time_ns`)
 Scanned = tuple[str, str, int, float, tuple, int, Union[int, None], Union[int, None]]
+
+
+# `BEST_POS._make(item[4])` names a scanned BESTPOS's values as the record does
+BEST_POS, BEST_VEL, INS_PVA, INS_PVAX = (values_view(r) for r in (N.BestPos, N.BestVel, N.InsPva, N.InsPvax))
+
+
+def where_of(item: Scanned) -> Where:
+    """Where a scanned log was read."""
+    return Where(item[5], item[6], item[7])
+
+
 KINDS = {"BESTPOS": "BestPos", "BESTVEL": "BestVel", "INSPVA": "InsPva", "INSPVAS": "InsPva", "INSPVAX": "InsPvax"}
 
 
@@ -74,10 +86,10 @@ def _inspvax(f: list[str]) -> tuple:
 VALUES: dict[str, Callable[[list[str]], tuple]] = {
     "BESTPOS": _bestpos, "BESTVEL": _bestvel, "INSPVA": _inspva, "INSPVAS": _inspva, "INSPVAX": _inspvax,
 }
-_SLOW = object()  # "let the reference parse this line"
+_SLOW: Literal[False] = False  # "let the reference parse this line"
 
 
-def _fast_line(text: str, where: tuple[int, int | None]) -> Scanned | None | object:
+def _fast_line(text: str, where: tuple[int, int | None]) -> Scanned | None | Literal[False]:
     """A long-header ASCII log at the start of `text`; None for other logs; _SLOW for anything unusual."""
     star = text.rfind("*")
     semi = text.find(";", 0, star) if star > 0 else -1
@@ -108,8 +120,8 @@ def _fast_line(text: str, where: tuple[int, int | None]) -> Scanned | None | obj
 def from_record(rec: N.NovatelRecord) -> Scanned:
     """The scanned tuple of a decoded record."""
     h, w = rec.header, rec.where
-    values = tuple(getattr(rec, f.name) for f in fields(rec)[2:])  # type: ignore[arg-type]
-    week, seconds = (rec.week, rec.seconds) if type(rec) is N.InsPva else (h.week, h.seconds)  # type: ignore[union-attr]
+    values = tuple(getattr(rec, f.name) for f in fields(rec)[2:])
+    week, seconds = (rec.week, rec.seconds) if isinstance(rec, N.InsPva) else (h.week, h.seconds)
     source = h.message + ("B" if h.encoding.startswith("binary") else "A")
     return h.message, source, week, seconds, values, w.offset, w.line, w.host_time_ns
 
@@ -120,17 +132,16 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
         raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
     if N._next_sync(data, 0) >= 0:  # binary logs in the file: ASCII lines are located by offset only
         for rec in N.decode(data, prefix):
-            yield rec if type(rec) is Reject else from_record(rec)  # type: ignore[misc,arg-type]
+            yield rec if isinstance(rec, Reject) else from_record(rec)
         return
     offset = 0
     for number, raw in enumerate(data.decode("latin-1").split("\n"), start=1):
         line_start = offset
         offset += len(raw) + 1
-        item = _fast_line(raw.rstrip("\r"), (line_start, number)) if raw[:1] == "#" else _SLOW
-        if item is _SLOW:
-            item = _slow_line(raw, line_start, number, prefix)
+        fast = _fast_line(raw.rstrip("\r"), (line_start, number)) if raw[:1] == "#" else _SLOW
+        item = _slow_line(raw, line_start, number, prefix) if fast is False else fast
         if item is not None:
-            yield item  # type: ignore[misc]
+            yield item
 
 
 def _slow_line(raw: str, line_start: int, number: int, prefix: str) -> Scanned | Reject | None:
@@ -142,6 +153,6 @@ def _slow_line(raw: str, line_start: int, number: int, prefix: str) -> Scanned |
     if prefix != "none" and line[0] not in "#%$":
         line, host = strip_prefix(line, prefix)
     result = N.parse_ascii(line, Where(line_start, number, host))
-    if result is None or type(result) is Reject:
-        return result  # type: ignore[return-value]
-    return from_record(result)  # type: ignore[arg-type]
+    if result is None or isinstance(result, Reject):
+        return result
+    return from_record(result)

@@ -1,0 +1,168 @@
+"""Live capture: throughput as a multiple of the sample trial's data rate on one core, and latency.
+
+Throughput: `auvreplay feed` (another process) plays the whole sample trial
+over UDP on 127.0.0.1 at --rate times real time into a `CaptureSession` in
+this process (raw bytes and decoded messages into a crash-safe archive,
+chunks flushed and fsync'd every second). The figure is the trial's
+duration over the CPU seconds the capture used (this process, one thread):
+how many times the trial's data rate one core sustains. The run also checks
+that nothing was lost (every byte received, as many messages as `record`).
+
+Latency: from a line received to its position sent to Rerun by the live
+view (`replay.views.live.LiveView`, into an .rrd file, batches at most every
+0.1 s as in `capture --view`), over the lines the capture stamps with their
+receive time (the NMEA GPS and PHINS INS logs: the others carry the
+logger's own 2016 prefix or are binary); also to the decoded message alone. A GPS epoch or a PHINS burst is
+complete only when the next one starts, so the latency includes one epoch
+of the stream at the feed rate: at 1x that is about a second, by design of
+the formats, at 20x a twentieth of it. Median and p95 are printed per rate.
+
+Run: .venv/bin/python bench/bench_capture.py [--rate 400] [--latency-rates 1,20] [--latency-seconds 10]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import random
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from bench.common import print_table  # noqa: E402 - after the sys.path line, as the other bench scripts
+from formats.mcap_reader import ArchiveReader  # noqa: E402 - after the sys.path line, as the other bench scripts
+from recorders.capture.session import CaptureOptions, CaptureSession  # noqa: E402 - after the sys.path line, as the other bench scripts
+from recorders.feed import live_manifest, make_targets  # noqa: E402 - after the sys.path line, as the other bench scripts
+from recorders.manifest import load_manifest, parse_manifest  # noqa: E402 - after the sys.path line, as the other bench scripts
+from recorders.record import record  # noqa: E402 - after the sys.path line, as the other bench scripts
+from replay.views.live import LiveView, open_stream  # noqa: E402 - after the sys.path line, as the other bench scripts
+
+SAMPLE = ROOT / "samples" / "lake_trial" / "trial.toml"
+
+
+def _free_ports(n: int) -> int:
+    rng = random.Random(os.getpid())
+    for _ in range(100):
+        base = rng.randrange(20000, 60000 - n)
+        socks = []
+        try:
+            for port in range(base, base + n):
+                s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+                socks.append(s)
+                s.bind(("127.0.0.1", port))
+        except OSError:
+            continue
+        finally:
+            for s in socks:
+                s.close()
+        return base
+    raise RuntimeError("no free ports")
+
+
+def _capture(tmp: Path, rate: float, seconds: float | None, listener=None) -> tuple[CaptureSession, float, float]:
+    """Capture the sample fed at `rate`; returns the session, its CPU seconds and wall seconds."""
+    manifest = load_manifest(SAMPLE)
+    base = _free_ports(len(manifest.logs()))
+    targets = make_targets(f"udp://127.0.0.1:{base}", len(manifest.logs()))
+    text = live_manifest(manifest, targets)
+    for t in targets:
+        t.close()
+    live = parse_manifest(text, tmp / "live.toml")
+    out = tmp / f"capture-{rate:g}.mcap"
+    session = CaptureSession(live, out, CaptureOptions(flush_s=1.0), listener=listener)
+    go = tmp / f"go-{rate:g}"
+    cmd = [sys.executable, "-m", "replay.cli", "feed", str(SAMPLE), "--to", f"udp://127.0.0.1:{base}",
+           "--rate", str(rate), "--start-after", str(go), "--hold-s", "0"]
+    if seconds is not None:
+        cmd += ["--seconds", str(seconds)]
+    feed = subprocess.Popen(cmd, env={**os.environ, "PYTHONPATH": str(ROOT)}, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    time.sleep(0.2)
+    go.touch()
+    cpu0, wall0 = time.thread_time(), time.monotonic()
+    last_bytes, quiet_since = -1, time.monotonic()
+
+    def should_stop() -> bool:
+        nonlocal last_bytes, quiet_since
+        total = sum(s.bytes for s in session.statuses())
+        now = time.monotonic()
+        if total != last_bytes:
+            last_bytes, quiet_since = total, now
+        return feed.poll() is not None and now - quiet_since > 0.5
+
+    session.run(should_stop)
+    cpu, wall = time.thread_time() - cpu0, time.monotonic() - wall0
+    feed.wait(timeout=60)
+    return session, cpu, wall
+
+
+def throughput(tmp: Path, rate: float) -> None:
+    manifest = load_manifest(SAMPLE)
+    sizes = {log.path: (manifest.root / log.path).stat().st_size for log in manifest.logs()}
+    record(manifest, tmp / "ref.mcap", workers=1)
+    with ArchiveReader(tmp / "ref.mcap") as r:
+        want = r.summary()
+        assert want.start_ns is not None and want.end_ns is not None
+        trial_s = (want.end_ns - want.start_ns) / 1e9
+        want_messages = want.message_count
+    session, cpu, wall = _capture(tmp, rate, None)
+    got_bytes = {s.name: s.bytes for s in session.statuses()}
+    with ArchiveReader(session.output) as r:
+        got = r.summary()
+        decoded = sum(v["count"] for t, v in got.topics.items() if not t.startswith("/raw/"))
+    lost = sum(sizes.values()) - sum(got_bytes.values())
+    rows = [[f"capture, fed at {rate:g}x over UDP", f"{cpu:.2f}", f"{trial_s / cpu:.0f}x", f"{wall:.2f}",
+             sum(got_bytes.values()), lost, f"{decoded}/{want_messages}"]]
+    print_table(f"capture throughput: the sample trial ({trial_s:.0f} s, {sum(sizes.values()) / 1e6:.2f} MB, "
+                f"{sum(sizes.values()) / trial_s / 1e3:.1f} kB/s) on one core (goal >= 100x)",
+                ["run", "CPU s", "trial s / CPU s", "wall s", "bytes in", "bytes lost", "messages / record's"],
+                rows)
+
+
+def latency(tmp: Path, rates: list[float], seconds: float) -> None:
+    rows = []
+    for rate in rates:
+        lat: list[float] = []
+        view = LiveView(open_stream(f"bench-{rate:g}", rrd=str(tmp / f"live-{rate:g}.rrd")), f"bench-{rate:g}",
+                        measure=True)
+
+        def listen(log, outputs, lat=lat, view=view) -> None:
+            now = time.time_ns()
+            if log.format not in ("nmea", "phins"):  # only these are stamped with their receive time
+                return
+            for o in outputs:
+                if o.where is not None and o.where.host_time_ns is not None:
+                    lat.append((now - o.where.host_time_ns) / 1e6)
+                    view.recorded(o.topic, o.log_time_ns, o.message, o.where.host_time_ns)
+            view.flush()
+
+        _capture(tmp, rate, seconds * rate, listen)
+        view.finish(None)
+        for what, values in (("decoded", lat), ("sent to Rerun", view.latencies_ms)):
+            q = statistics.quantiles(values, n=20)
+            rows.append([f"{rate:g}x", what, len(values), f"{statistics.median(values):.1f}", f"{q[18]:.1f}",
+                         f"{1000 / rate:.0f}"])
+    print_table("capture latency: line received -> decoded, -> position sent to Rerun by the live view (ms)",
+                ["feed rate", "to", "messages", "median ms", "p95 ms", "one 1 Hz epoch at this rate, ms"], rows)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--rate", type=float, default=400.0)
+    parser.add_argument("--latency-rates", default="1,20")
+    parser.add_argument("--latency-seconds", type=float, default=8.0, help="wall seconds per latency run")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        throughput(Path(tmp), args.rate)
+        latency(Path(tmp), [float(r) for r in args.latency_rates.split(",")], args.latency_seconds)
+
+
+if __name__ == "__main__":
+    main()

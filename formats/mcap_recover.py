@@ -1,0 +1,376 @@
+"""Salvaging a damaged MCAP file: every intact record kept, also past a damaged chunk, indexes rebuilt.
+
+The scan walks the records from the magic. A record that does not parse
+(a length past the end, a chunk whose zstd stream or CRC fails, records
+inside a chunk that do not add up) is damage: the scan resyncs at the next
+position where a record validates (a chunk or attachment by its CRC, any
+other record by parsing whole and being followed by a plausible record
+header), and the bytes between are reported lost with the time span they
+held as far as it can be told. Schemas and channels come from wherever
+they are found (chunks, the data section, a surviving summary), so
+messages after a lost chunk keep their topics; messages whose channel was
+only defined in lost bytes go to `/recovered/channel-<id>`.
+
+The output is written with the `mcap` library's writer (chunks, message
+indexes, statistics, summary), under a temporary name renamed at the end.
+This module never changes `formats.mcap_reader`: that one reads archives,
+this one repairs them.
+"""
+
+from __future__ import annotations
+
+import mmap
+import os
+import struct
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from mcap.writer import CompressionType, Writer
+
+from formats.mcap_chunks import ChunkError
+from formats.mcap_chunks import decompress as chunk_decompress
+from formats.records import FormatError
+
+MAGIC = b"\x89MCAP0\r\n"
+OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE = 0x01, 0x02, 0x03, 0x04, 0x05
+OP_CHUNK, OP_ATTACHMENT, OP_METADATA, OP_DATA_END = 0x06, 0x09, 0x0C, 0x0F
+KNOWN = frozenset(range(0x01, 0x10))
+_RECORD = struct.Struct("<BQ")
+_U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
+_MESSAGE = struct.Struct("<HIQQ")
+_CHUNK = struct.Struct("<QQQI")
+MAX_UNCOMPRESSED = 1 << 31  # a chunk header claiming more is damage, not data
+
+
+class _Bad(Exception):
+    """The bytes at hand are not a valid record."""
+
+
+@dataclass
+class LostRange:
+    """Bytes that did not survive: where, why, and the message time span they held when known (ns)."""
+
+    start: int
+    end: int
+    reason: str
+    start_ns: int | None = None
+    end_ns: int | None = None
+    chunk: bool = False
+
+
+@dataclass
+class RecoveryReport:
+    """What recover kept and what it lost."""
+
+    source: str
+    output: str
+    size: int = 0
+    chunks_kept: int = 0
+    messages: int = 0
+    attachments: int = 0
+    metadata: int = 0
+    orphan_messages: int = 0          # channel defined only in lost bytes: kept under /recovered/...
+    had_summary: bool = False
+    lost: list[LostRange] = field(default_factory=list)
+    start_ns: int | None = None
+    end_ns: int | None = None
+
+    @property
+    def bytes_lost(self) -> int:
+        """Bytes in damaged or missing ranges."""
+        return sum(r.end - r.start for r in self.lost)
+
+    @property
+    def chunks_lost(self) -> int:
+        """Damaged chunks (whose header could still be read)."""
+        return sum(r.chunk for r in self.lost)
+
+
+class _Reader:
+    """Bounds-checked reads from a buffer; every overrun is `_Bad`."""
+
+    __slots__ = ("buf", "end", "pos")
+
+    def __init__(self, buf: bytes | mmap.mmap, pos: int = 0, end: int | None = None):
+        self.buf, self.pos, self.end = buf, pos, len(buf) if end is None else end
+
+    def take(self, n: int) -> bytes:
+        if n < 0 or self.pos + n > self.end:
+            raise _Bad("record runs past its end")
+        out = bytes(self.buf[self.pos:self.pos + n])
+        self.pos += n
+        return out
+
+    def unpack(self, st: struct.Struct) -> tuple:
+        return st.unpack(self.take(st.size))
+
+    def string(self) -> str:
+        (n,) = self.unpack(_U32)
+        try:
+            return self.take(n).decode("utf-8")
+        except UnicodeDecodeError:
+            raise _Bad("string is not UTF-8") from None
+
+    def string_map(self) -> dict[str, str]:
+        (n,) = self.unpack(_U32)
+        sub = _Reader(self.take(n))
+        out = {}
+        while sub.pos < sub.end:
+            k = sub.string()
+            out[k] = sub.string()
+        return out
+
+
+@dataclass
+class _Found:
+    """Everything salvaged, in file order."""
+
+    profile: str = ""
+    schemas: dict[int, tuple[str, str, bytes]] = field(default_factory=dict)
+    channels: dict[int, tuple[str, str, int, dict[str, str]]] = field(default_factory=dict)
+    messages: list[tuple[int, int, int, int, bytes]] = field(default_factory=list)  # channel, seq, log, pub, data
+    attachments: list[tuple[int, int, str, str, bytes]] = field(default_factory=list)
+    metadata: list[tuple[str, dict[str, str]]] = field(default_factory=list)
+    chunk_spans: list[tuple[int, int, int]] = field(default_factory=list)  # file offset, start ns, end ns
+
+
+def _schema(r: _Reader, found: _Found) -> None:
+    (sid,) = r.unpack(_U16)
+    name, encoding = r.string(), r.string()
+    (n,) = r.unpack(_U32)
+    if sid:
+        found.schemas.setdefault(sid, (name, encoding, r.take(n)))
+
+
+def _channel(r: _Reader, found: _Found) -> None:
+    cid, sid = struct.unpack("<HH", r.take(4))
+    topic, encoding = r.string(), r.string()
+    found.channels.setdefault(cid, (topic, encoding, sid, r.string_map()))
+
+
+def _message(r: _Reader, length: int) -> tuple[int, int, int, int, bytes]:
+    cid, seq, log_time, publish_time = r.unpack(_MESSAGE)
+    return cid, seq, log_time, publish_time, r.take(length - _MESSAGE.size)
+
+
+def _chunk_head(r: _Reader) -> tuple[int, int, int, int, str, int]:
+    start, end, size, crc = r.unpack(_CHUNK)
+    compression = r.string()
+    (n,) = r.unpack(_U64)
+    if size > MAX_UNCOMPRESSED or start > end:
+        raise _Bad("implausible chunk header")
+    return start, end, size, crc, compression, n
+
+
+def _chunk(r: _Reader, found: _Found, offset: int) -> None:
+    """A chunk whose records all parse and whose CRC holds; its records go into `found` only then."""
+    start, end, size, crc, compression, n = _chunk_head(r)
+    try:    # one bounded decompression for every reader of ours: a frame claiming 4 GiB is refused unread
+        records = chunk_decompress(compression, r.take(n), size, offset)
+    except ChunkError as exc:
+        raise _Bad(str(exc)) from None
+    if len(records) != size:
+        raise _Bad("uncompressed size differs from the header")
+    if crc and zlib.crc32(records) != crc:
+        raise _Bad("chunk CRC mismatch")
+    inner = _Found(schemas=dict(found.schemas), channels=dict(found.channels))
+    sub = _Reader(records)
+    while sub.pos < sub.end:
+        op, length = sub.unpack(_RECORD)
+        body = _Reader(sub.take(length))
+        if op == OP_SCHEMA:
+            _schema(body, inner)
+        elif op == OP_CHANNEL:
+            _channel(body, inner)
+        elif op == OP_MESSAGE:
+            inner.messages.append(_message(body, length))
+    found.schemas, found.channels = inner.schemas, inner.channels
+    found.messages.extend(inner.messages)
+    found.chunk_spans.append((offset, start, end))
+
+
+def _attachment(r: _Reader, found: _Found, raw: bytes) -> None:
+    log_time, create_time = struct.unpack("<QQ", r.take(16))
+    name, media = r.string(), r.string()
+    (n,) = r.unpack(_U64)
+    data = r.take(n)
+    (crc,) = r.unpack(_U32)
+    if crc and zlib.crc32(raw[:len(raw) - 4]) != crc:
+        raise _Bad("attachment CRC mismatch")
+    found.attachments.append((log_time, create_time, name, media, data))
+
+
+def _parse(buf: mmap.mmap, pos: int, found: _Found) -> tuple[int, int]:
+    """(opcode, end) of the valid record at `pos`, its content added to `found`; `_Bad` otherwise."""
+    if pos + _RECORD.size > len(buf):
+        raise _Bad("truncated record header")
+    op, length = _RECORD.unpack_from(buf, pos)
+    end = pos + _RECORD.size + length
+    if op not in KNOWN or end > len(buf):
+        raise _Bad("truncated record" if op in KNOWN else f"unknown opcode {op:#x}")
+    raw = buf[pos + _RECORD.size:end]
+    r = _Reader(raw)
+    if op == OP_HEADER:
+        found.profile = r.string()
+    elif op == OP_SCHEMA:
+        _schema(r, found)
+    elif op == OP_CHANNEL:
+        _channel(r, found)
+    elif op == OP_MESSAGE:
+        found.messages.append(_message(r, length))
+    elif op == OP_CHUNK:
+        _chunk(r, found, pos)
+    elif op == OP_ATTACHMENT:
+        _attachment(r, found, raw)
+    elif op == OP_METADATA:
+        name = r.string()
+        found.metadata.append((name, r.string_map()))
+    return op, end
+
+
+def _plausible_next(buf: mmap.mmap, end: int) -> bool:
+    """A record header (known opcode, length inside the file) at `end`, or the file's end or closing magic."""
+    if end == len(buf) or buf[end:end + len(MAGIC)] == MAGIC:
+        return True
+    if end + _RECORD.size > len(buf):
+        return False
+    op, length = _RECORD.unpack_from(buf, end)
+    return op in KNOWN and end + _RECORD.size + length <= len(buf)
+
+
+def _resync(buf: mmap.mmap, pos: int) -> int:
+    """The next position after `pos` where a record validates, else the file's end."""
+    n = len(buf)
+    for q in range(pos + 1, n - _RECORD.size + 1):
+        op = buf[q]
+        if op not in KNOWN:
+            continue
+        (length,) = _U64.unpack_from(buf, q + 1)
+        if q + _RECORD.size + length > n:
+            continue
+        probe = _Found()
+        try:
+            _, end = _parse(buf, q, probe)
+        except _Bad:
+            continue
+        if op in (OP_CHUNK, OP_ATTACHMENT) or _plausible_next(buf, end):
+            return q
+    return n
+
+
+def _skip_whole(buf: mmap.mmap, pos: int) -> int | None:
+    """The end of a damaged record whose length still holds (a valid record starts there), else None."""
+    op, length = _RECORD.unpack_from(buf, pos) if pos + _RECORD.size <= len(buf) else (0, 0)
+    end = pos + _RECORD.size + length
+    if op not in KNOWN or end >= len(buf):
+        return None
+    try:
+        _parse(buf, end, _Found())
+    except _Bad:
+        return None
+    return end
+
+
+def _damaged_span(buf: mmap.mmap, pos: int) -> tuple[int | None, int | None, bool]:
+    """The message time span a damaged chunk's header still tells, and whether it was a chunk at all."""
+    try:
+        op, _ = _RECORD.unpack_from(buf, pos)
+        if op != OP_CHUNK:
+            return None, None, False
+        start, end, *_ = _chunk_head(_Reader(buf, pos + _RECORD.size))
+        return start, end, True
+    except (_Bad, struct.error):
+        return None, None, False
+
+
+def scan(buf: mmap.mmap, report: RecoveryReport) -> _Found:
+    """Every valid record of the file, the damaged ranges into `report.lost`."""
+    found = _Found()
+    pos, n = len(MAGIC), len(buf)
+    while pos < n:
+        if buf[pos:pos + len(MAGIC)] == MAGIC and pos + len(MAGIC) == n:
+            break  # the closing magic
+        try:
+            op, end = _parse(buf, pos, found)
+        except _Bad as exc:
+            nxt = _skip_whole(buf, pos)
+            if nxt is None:
+                nxt = _resync(buf, pos)
+            start_ns, end_ns, chunk = _damaged_span(buf, pos)
+            reason = "truncated (the file ends inside it)" if nxt == n and "truncated" in str(exc) else str(exc)
+            report.lost.append(LostRange(pos, nxt, reason, start_ns, end_ns, chunk))
+            pos = nxt
+            continue
+        if op == OP_DATA_END:
+            report.had_summary = True  # what follows is the summary: its schemas and channels help too
+        if op == OP_FOOTER:
+            break
+        pos = end
+    return found
+
+
+def _fill_gap_times(report: RecoveryReport, found: _Found) -> None:
+    """For lost ranges without a readable chunk header: the span between the kept chunks around them."""
+    spans = sorted(found.chunk_spans)
+    for lost in report.lost:
+        if lost.start_ns is not None:
+            continue
+        before = [e for off, _, e in spans if off < lost.start]
+        after = [s for off, s, _ in spans if off >= lost.end]
+        lost.start_ns = max(before) if before else None
+        lost.end_ns = min(after) if after else None
+
+
+def _write(found: _Found, out: Path, report: RecoveryReport) -> None:
+    with open(out, "wb") as f:
+        w = Writer(f, compression=CompressionType.ZSTD)
+        w.start(profile=found.profile, library="auvreplay recover")
+        schema_ids = {sid: w.register_schema(*s) for sid, s in found.schemas.items()}
+        channel_ids: dict[int, int] = {}
+        for cid, (topic, encoding, sid, meta) in found.channels.items():
+            channel_ids[cid] = w.register_channel(topic, encoding, schema_ids.get(sid, 0), meta)
+        for cid, seq, log_time, publish_time, data in found.messages:
+            new = channel_ids.get(cid)
+            if new is None:
+                new = channel_ids[cid] = w.register_channel(f"/recovered/channel-{cid}", "", 0)
+            if cid not in found.channels:
+                report.orphan_messages += 1
+            w.add_message(new, log_time, data, publish_time, seq)
+            report.start_ns = log_time if report.start_ns is None else min(report.start_ns, log_time)
+            report.end_ns = log_time if report.end_ns is None else max(report.end_ns, log_time)
+        for log_time, create_time, name, media, data in found.attachments:
+            w.add_attachment(create_time, log_time, name, media, data)
+        for name, meta in found.metadata:
+            w.add_metadata(name, meta)
+        w.finish()
+        f.flush()
+        os.fsync(f.fileno())
+
+
+def recover(source: str | os.PathLike[str], output: str | os.PathLike[str]) -> RecoveryReport:
+    """Write every intact record of `source` to `output` with fresh indexes and summary; say what was lost."""
+    src, out = Path(source), Path(output)
+    if src.resolve() == out.resolve():
+        raise FormatError(f"{out}: recover writes a new file; give an output other than the input")
+    report = RecoveryReport(str(src), str(out))
+    try:
+        with open(src, "rb") as f:
+            report.size = os.fstat(f.fileno()).st_size
+            if report.size < len(MAGIC) or f.read(len(MAGIC)) != MAGIC:
+                raise FormatError(f"{src}: not an MCAP file (no MCAP magic at the start)")
+            with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+                found = scan(buf, report)
+    except OSError as exc:
+        raise FormatError(f"{src}: cannot read ({exc.strerror or exc})") from None
+    report.chunks_kept = len(found.chunk_spans)
+    report.messages = len(found.messages)
+    report.attachments, report.metadata = len(found.attachments), len(found.metadata)
+    _fill_gap_times(report, found)
+    temp = out.with_name(f".{out.name}.part-{os.getpid()}")
+    try:
+        _write(found, temp, report)
+        os.replace(temp, out)
+    finally:
+        temp.unlink(missing_ok=True)
+    return report

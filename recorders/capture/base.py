@@ -1,0 +1,64 @@
+"""What every live source offers the capture loop: open, a file descriptor to wait on, read, close."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from urllib.parse import urlsplit
+
+
+class SourceClosed(Exception):
+    """The peer or device went away: the loop closes the source and opens it again later."""
+
+
+class SourceError(ValueError):
+    """A source address that cannot be used, with a message naming the problem."""
+
+
+READ_SIZE = 1 << 16
+
+
+class Source(ABC):
+    """One live stream of bytes; `read` never blocks (the loop waits on `fileno`, or polls)."""
+
+    #: False for sources the loop polls (a growing file is always "readable")
+    selectable = True
+
+    def __init__(self, url: str):
+        self.url = url
+
+    @abstractmethod
+    def open(self) -> None:
+        """Open, bind or connect; raises OSError when it cannot (the loop retries)."""
+
+    @abstractmethod
+    def fileno(self) -> int:
+        """The descriptor to wait on while open."""
+
+    @abstractmethod
+    def read(self) -> bytes:
+        """The bytes available now (b"" if none); raises SourceClosed when the stream ended."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Release the descriptor; `open` may be called again."""
+
+    def shutdown(self) -> None:
+        """Release everything at the end of the capture (a listener its port too)."""
+        self.close()
+
+    @property
+    def streaming(self) -> bool:
+        """True when bytes can arrive (a listener without a client is open but not streaming)."""
+        return True
+
+
+def host_port(url: str) -> tuple[str, int]:
+    """(host, port) of scheme://HOST:PORT, a SourceError when either is missing or bad."""
+    parts = urlsplit(url)
+    try:
+        port = parts.port
+    except ValueError:
+        port = None
+    if not parts.hostname or port is None:
+        raise SourceError(f"{url}: expected {parts.scheme}://HOST:PORT")
+    return parts.hostname, port

@@ -1,0 +1,314 @@
+"""The capture loop: every live log of a manifest read as it arrives, archived raw and decoded, crash-safe.
+
+The archive grows as TRIAL.mcap.part: each read's bytes go in as an
+`auvreplay.RawBytes` message stamped with the receive time (ns UTC), and
+the stream goes through the log's converter (`decoder.StreamDecoder`) into
+the same messages, statistics and diagnostics `record` writes. At least
+every `flush_s` the open chunk is closed, written and fsync'd, so a crash
+or a power cut loses at most that interval (`auvreplay recover` salvages
+the rest). A clean stop decodes what is left, writes the summary and
+renames the file to its final name.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import selectors
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from formats import schemas as S
+from formats.mcap_writer import ArchiveWriter
+
+from ..attachments import RAW_PREFIX
+from ..base import Output
+from ..clock import date_to_ns
+from ..manifest import LogSpec, Manifest, ManifestError
+from ..record import (
+    FileStats,
+    LogRecorder,
+    RecordingSummary,
+    check_formats,
+    log_context,
+    trial_metadata,
+)
+from ..registry import converters
+from .base import Source, SourceClosed, SourceError
+from .decoder import StreamDecoder
+from .sources import make_source
+from .status import SourceStatus
+
+Listener = Callable[[LogSpec, list[Output]], None]
+Reporter = Callable[[str], None]
+RETRY_MAX_S = 5.0
+
+
+@dataclass(frozen=True)
+class CaptureOptions:
+    """How often to flush (s), when to stop, when a source counts as quiet, how often to decode."""
+
+    flush_s: float = 1.0
+    duration_s: float | None = None
+    quiet_s: float = 5.0
+    decode_s: float = 0.05
+    retry_s: float = 0.25
+
+
+@dataclass
+class CaptureSummary:
+    """What a capture wrote: the archive, per-log statistics (as `record`'s) and per-source counters."""
+
+    path: Path
+    recording: RecordingSummary
+    sources: list[SourceStatus] = field(default_factory=list)
+
+
+def part_path(output: Path) -> Path:
+    """Where a capture into `output` grows until it stops cleanly."""
+    return output.with_name(output.name + ".part")
+
+
+def raw_topic(log: LogSpec) -> str:
+    """The topic of a live log's raw bytes."""
+    return RAW_PREFIX + log.path
+
+
+class _Live:
+    """One live log: its source, decoder, statistics and counters."""
+
+    def __init__(self, log: LogSpec, source: Source, decoder: StreamDecoder, stats: FileStats):
+        self.log, self.source, self.decoder, self.stats = log, source, decoder, stats
+        self.recorder: LogRecorder | None = None
+        self.status = SourceStatus(log.path, log.source)
+        self.topic = raw_topic(log)
+        self.sha = hashlib.sha256()
+        self.is_open = False
+        self.retry_at = 0.0
+        self.backoff = 0.0
+        self.fd = -1  # registered with the selector, -1 when not
+
+
+def _prepare(manifest: Manifest) -> list[_Live]:
+    """A source, decoder and statistics per log; every problem a ManifestError before anything is opened."""
+    table = converters()
+    check_formats(manifest, table)
+    out = []
+    for log in manifest.logs():
+        if not log.source:
+            raise ManifestError(f"{manifest.path}: log {log.path} has a path but no live source: give it "
+                                "source = \"udp://HOST:PORT\" (or record the files with `auvreplay record`)")
+        try:
+            source = make_source(log.source)
+        except SourceError as exc:
+            raise ManifestError(f"{manifest.path}: vehicle {log.vehicle!r}, log {log.path}: {exc}") from None
+        convert = table[(log.sensor, log.format)]
+        ctx = log_context(manifest, log)
+        try:
+            list(convert(b"", ctx))  # bad format options fail now, not at the first byte
+        except ValueError as exc:
+            raise ManifestError(f"{log.path}: {exc}") from None
+        stats = FileStats(log.path, log.vehicle, log.sensor, log.format)
+        out.append(_Live(log, source, StreamDecoder(convert, ctx, log.sensor, log.format), stats))
+    return out
+
+
+class CaptureSession:
+    """Captures every live log of a manifest into one archive; `run` loops until told to stop."""
+
+    def __init__(self, manifest: Manifest, output: str | Path, options: CaptureOptions = CaptureOptions(),
+                 listener: Listener | None = None, report: Reporter | None = None):
+        self.manifest, self.options = manifest, options
+        self.output = Path(output)
+        self.listener = listener
+        self.report: Reporter = report or (lambda text: None)
+        self.part = part_path(self.output)
+        self.logs = _prepare(manifest)
+        if self.part.exists():
+            raise ManifestError(f"{self.part} exists (a capture that did not stop cleanly): "
+                                "`auvreplay recover` it or move it away first")
+        self.writer = ArchiveWriter(self.output, part_path=self.part)
+        fallback = date_to_ns(manifest.date) if manifest.date else 0
+        self.writer.add_metadata("trial", trial_metadata(manifest))
+        for live in self.logs:
+            live.recorder = LogRecorder(self.writer, live.log, live.stats, fallback)
+            self.writer.channel(live.topic, S.RawBytes)
+        self.writer.flush()  # the raw channels are on disk before any data
+        self._selector = selectors.DefaultSelector()
+        now = time.monotonic()
+        self.started_s = now
+        self._next_flush = now + options.flush_s
+        self._next_decode = now + options.decode_s
+        self._announced = False
+        self.first_receive_ns: int | None = None  # the first raw message's time: where the archive starts
+
+    # -- sources ----------------------------------------------------------------
+    def _open_due(self, now: float) -> None:
+        for live in self.logs:
+            if live.is_open or now < live.retry_at:
+                continue
+            try:
+                live.source.open()
+            except OSError as exc:
+                live.backoff = min(max(live.backoff * 2, self.options.retry_s), RETRY_MAX_S)
+                live.retry_at = now + live.backoff
+                if live.status.state != "retrying" or live.status.error != str(exc):
+                    live.status.error = str(exc)
+                    self.report(f"{live.log.path}: cannot open {live.log.source} ({exc}); retrying")
+                live.status.state = "retrying"
+                continue
+            live.is_open, live.backoff, live.status.error = True, 0.0, ""
+            live.status.opens += 1
+            live.status.state = "open"
+            if live.status.opens > 1:
+                self.report(f"{live.log.path}: {live.log.source} open again")
+            self._register(live)
+        if not self._announced and all(live.is_open for live in self.logs):
+            self._announced = True
+            self.report(f"capturing {len(self.logs)} sources into {self.part}")
+
+    def _register(self, live: _Live) -> None:
+        """Keep the selector on the source's current descriptor (a listener's changes when a client comes)."""
+        fd = live.source.fileno() if live.is_open and live.source.selectable else -1
+        if fd == live.fd:
+            return
+        if live.fd >= 0:
+            self._selector.unregister(live.fd)
+        if fd >= 0:
+            self._selector.register(fd, selectors.EVENT_READ, live)
+        live.fd = fd
+
+    def _closed(self, live: _Live, why: str, now: float) -> None:
+        live.is_open = False
+        self._register(live)
+        live.source.close()
+        live.retry_at = now + self.options.retry_s
+        live.status.state = "retrying"
+        self.report(f"{live.log.path}: {live.log.source} closed ({why}); reopening")
+
+    def _read(self, live: _Live, now: float) -> None:
+        try:
+            data = live.source.read()
+        except SourceClosed as exc:
+            self._closed(live, str(exc), now)
+            return
+        self._register(live)
+        if live.source.streaming and live.status.state == "open":
+            live.status.state = "streaming"
+        if not data:
+            return
+        t = time.time_ns()
+        if self.first_receive_ns is None:
+            self.first_receive_ns = t
+        st = live.status
+        self.writer.write(live.topic, S.RawBytes(timestamp=S.timestamp(t), stream=live.log.path, offset=st.bytes,
+                                                 data=data, connection=st.opens), t)
+        live.sha.update(data)
+        live.decoder.feed(data, t)
+        st.bytes += len(data)
+        st.reads += 1
+        st.last_data_s = now
+        if st.quiet:
+            st.quiet = False
+            self.report(f"{live.log.path}: data again")
+
+    # -- decoding, flushing --------------------------------------------------------
+    def _decode(self, live: _Live, now: float, final: bool = False) -> None:
+        items = live.decoder.decode(final)
+        if not items:
+            return
+        recorder = live.recorder
+        assert recorder is not None
+        outputs = []
+        for item in items:
+            recorder.add(item)
+            if type(item) is Output:
+                outputs.append(item)
+        st = live.status
+        st.records += len(outputs)
+        st.rejects += len(items) - len(outputs)
+        if outputs:
+            st.last_record_s = now
+            if self.listener is not None:
+                self.listener(live.log, outputs)
+
+    def _check_quiet(self, now: float) -> None:
+        for live in self.logs:
+            st = live.status
+            last = st.last_data_s if st.last_data_s is not None else self.started_s
+            if live.is_open and not st.quiet and now - last > self.options.quiet_s:
+                st.quiet = True
+                self.report(f"warning: {live.log.path}: no data from {live.log.source} for "
+                            f"{now - last:.1f} s")
+
+    def step(self, now: float) -> None:
+        """One turn of the loop: open what is due, wait for data until the next deadline, read, decode, flush."""
+        self._open_due(now)
+        deadline = min(self._next_flush, self._next_decode)
+        if any(not live.is_open for live in self.logs):
+            deadline = min(deadline, min(live.retry_at for live in self.logs if not live.is_open))
+        polled = [live for live in self.logs if live.is_open and not live.source.selectable]
+        timeout = max(0.0, deadline - time.monotonic())
+        if polled:
+            timeout = min(timeout, self.options.decode_s)
+        events = self._selector.select(timeout)  # epoll waits out the timeout with nothing registered too
+        now = time.monotonic()
+        for key, _ in events:
+            self._read(key.data, now)
+        for live in polled:
+            self._read(live, now)
+        if now >= self._next_decode:
+            for live in self.logs:
+                if live.decoder.pending:
+                    self._decode(live, now)
+            self._next_decode = now + self.options.decode_s
+        if now >= self._next_flush:
+            self.writer.flush()
+            self._check_quiet(now)
+            self._next_flush = now + self.options.flush_s
+
+    def statuses(self) -> list[SourceStatus]:
+        """Every source's counters, in manifest order."""
+        return [live.status for live in self.logs]
+
+    def run(self, should_stop: Callable[[], bool] = lambda: False) -> CaptureSummary:
+        """Loop until `should_stop()` or the duration; then `finish`. On an error the part file stays."""
+        try:
+            while not should_stop():
+                now = time.monotonic()
+                if self.options.duration_s is not None and now - self.started_s >= self.options.duration_s:
+                    break
+                self.step(now)
+        except BaseException:
+            self.abandon()
+            raise
+        return self.finish()
+
+    def finish(self) -> CaptureSummary:
+        """Decode what is left, write statistics and summary, rename the part file to the output."""
+        now = time.monotonic()
+        for live in self.logs:
+            self._decode(live, now, final=True)
+            assert live.recorder is not None
+            live.recorder.finish()
+            live.stats.size = live.status.bytes
+            live.stats.sha256 = live.sha.hexdigest()
+            live.source.shutdown()
+        self._selector.close()
+        summary = RecordingSummary(files=[live.stats for live in self.logs])
+        self.writer.add_metadata("recording", {"files": [f.as_json() for f in summary.files]})
+        self.writer.add_metadata("capture", {"sources": [s.as_json() for s in self.statuses()],
+                                             "flush_s": self.options.flush_s})
+        self.writer.close()
+        return CaptureSummary(self.output, summary, self.statuses())
+
+    def abandon(self) -> None:
+        """Flush what was received and leave the part file for `auvreplay recover`."""
+        try:
+            self.writer.flush()
+        except (OSError, ValueError):
+            pass
+        for live in self.logs:
+            live.source.shutdown()
+        self._selector.close()

@@ -1,0 +1,53 @@
+"""udp://HOST:PORT: listen for datagrams (every datagram's bytes, in arrival order)."""
+
+from __future__ import annotations
+
+import socket
+
+from .base import READ_SIZE, Source, host_port
+
+# datagrams drained per read: one archive message for a burst, without starving the other sources
+MAX_DATAGRAMS = 64
+
+
+class UdpSource(Source):
+    """A bound UDP socket; a read is every datagram waiting, concatenated."""
+
+    def __init__(self, url: str):
+        super().__init__(url)
+        self.address = host_port(url)
+        self._sock: socket.socket | None = None
+
+    def open(self) -> None:
+        """Bind the port (raises OSError when it is taken)."""
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)  # rides out a busy moment
+            sock.bind(self.address)
+        except OSError:
+            sock.close()
+            raise
+        sock.setblocking(False)
+        self._sock = sock
+
+    def fileno(self) -> int:
+        """The socket's descriptor."""
+        assert self._sock is not None
+        return self._sock.fileno()
+
+    def read(self) -> bytes:
+        """Every waiting datagram, concatenated (UDP never ends: no SourceClosed)."""
+        assert self._sock is not None
+        parts = []
+        for _ in range(MAX_DATAGRAMS):
+            try:
+                parts.append(self._sock.recv(READ_SIZE))
+            except (BlockingIOError, InterruptedError):
+                break
+        return b"".join(parts)
+
+    def close(self) -> None:
+        """Unbind."""
+        if self._sock is not None:
+            self._sock.close()
+            self._sock = None

@@ -1,0 +1,130 @@
+"""Record-time checks on every archive message: finite values in physical ranges, or a counted reject.
+
+Decoders parse what a line says; a checksum only proves the line is what the
+device (or someone) wrote. `nan`, `inf` and `1e400` parse as floats, and a
+range of 0 m, -5 m or 1e12 m is a number too, so before a message is
+archived its values are checked here, one rule per field, written once for
+every format: a value that is out of its range (or NaN where it must be
+given) turns the message into a Reject with the field, the value and the
+limit. NaN stays allowed where a field means "not given". Ranges must be
+above 0 and at most the log's `max_range_m` (default MAX_RANGE_M).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from .clock import TIME_MAX_NS, TIME_MIN_NS
+
+MAX_RANGE_M = 20_000.0
+# log times: 1970-01-01 .. 2200-01-01 (ns); anything else is a parse of garbage
+TIME_RANGE_NS = (TIME_MIN_NS, TIME_MAX_NS)
+RANGE_FIELDS = frozenset({"range_m"})
+_ABOVE_ZERO = 1e-9  # ranges must be above 0: the closed interval's low end
+
+# schema name -> (field, low, high, NaN allowed); the limits are physical, never tuned to a trial
+_RULES: dict[str, tuple[tuple[str, float, float, bool], ...]] = {
+    "foxglove.LocationFix": (
+        ("latitude", -90.0, 90.0, False), ("longitude", -180.0, 180.0, False), ("altitude", -1e5, 1e6, True),
+    ),
+    "auvreplay.GnssStatus": (
+        ("hdop", 0.0, 1e4, True), ("speed_over_ground_mps", 0.0, 3e3, True),
+        ("course_over_ground_deg", -720.0, 720.0, True), ("heading_deg", -720.0, 720.0, True),
+    ),
+    "auvreplay.InsState": (
+        ("latitude", -90.0, 90.0, True), ("longitude", -180.0, 180.0, True), ("depth_m", -1e5, 1.2e4, True),
+        ("roll_deg", -720.0, 720.0, True), ("pitch_deg", -720.0, 720.0, True), ("heading_deg", -720.0, 720.0, True),
+        ("velocity_north_mps", -3e3, 3e3, True), ("velocity_east_mps", -3e3, 3e3, True),
+        ("velocity_down_mps", -3e3, 3e3, True), ("heading_std_deg", 0.0, 1e4, True),
+        ("position_std_north_m", 0.0, 1e7, True), ("position_std_east_m", 0.0, 1e7, True),
+        ("roll_std_deg", 0.0, 1e4, True), ("pitch_std_deg", 0.0, 1e4, True), ("altitude_m", -1e5, 1e6, True),
+    ),
+    "auvreplay.DvlVelocity": (
+        ("velocity_x_mps", -100.0, 100.0, True), ("velocity_y_mps", -100.0, 100.0, True),
+        ("velocity_z_mps", -100.0, 100.0, True), ("error_velocity_mps", -100.0, 100.0, True),
+        ("altitude_m", 0.0, 1.2e4, True), ("figure_of_merit", -1e6, 1e6, True),
+        ("sound_speed_mps", 0.0, 1e4, True), ("temperature_c", -100.0, 200.0, True),
+    ),
+    "auvreplay.AcousticRange": (
+        ("travel_time_s", 0.0, 100.0, True), ("sound_speed_mps", 1000.0, 2000.0, True),
+    ),
+    "auvreplay.UsblObservation": (
+        ("travel_time_s", 0.0, 100.0, True), ("bearing_deg", -720.0, 720.0, True),
+        ("elevation_deg", -720.0, 720.0, True), ("phase_x_rad", -1e3, 1e3, True), ("phase_y_rad", -1e3, 1e3, True),
+        ("relative_east_m", -1e6, 1e6, True), ("relative_north_m", -1e6, 1e6, True),
+        ("relative_up_m", -1e6, 1e6, True), ("integrity", -1e9, 1e9, True), ("rssi_db", -1e4, 1e4, True),
+    ),
+}
+# range fields: NaN allowed for a USBL fix by angles only, never for an acoustic range
+_RANGE_NAN_OK = {"auvreplay.AcousticRange": False, "auvreplay.UsblObservation": True}
+
+
+def _covariance(message: Any) -> str | None:
+    """A LocationFix's covariance: finite (or NaN where not given), variances not negative."""
+    if not message.position_covariance_type:
+        return None
+    cov = message.position_covariance
+    if len(cov) == 9 and cov[0] >= 0.0 and cov[4] >= 0.0 and cov[8] >= 0.0 and -math.inf < sum(cov) < math.inf:
+        return None  # the usual case in one look: no infinity among them, variances not negative
+    for i, v in enumerate(cov):
+        if v in (math.inf, -math.inf) or (i % 4 == 0 and v < 0.0):
+            return f"position_covariance[{i}] = {v:g} is not a variance"
+    return None
+
+
+def _position_pair(message: Any) -> str | None:
+    """An INS position is both coordinates or neither: one NaN beside a number is a field that did not parse."""
+    if (message.latitude != message.latitude) != (message.longitude != message.longitude):
+        return f"latitude {message.latitude:g} with longitude {message.longitude:g}"
+    return None
+
+
+_EXTRA = {"foxglove.LocationFix": _covariance, "auvreplay.InsState": _position_pair}
+
+
+class ValueChecks:
+    """The checks of one log: its range limit, the rules by schema name, and counts of what they refused."""
+
+    def __init__(self, max_range_m: float = MAX_RANGE_M):
+        self.max_range_m = max_range_m
+        self.bad_ranges = 0
+        self.out_of_range = 0
+        self._by_class: dict[type, tuple[tuple[tuple[str, float, float, bool], ...], Any]] = {}
+
+    def _rules(self, cls: type) -> tuple[tuple[tuple[str, float, float, bool], ...], Any]:
+        name = cls.DESCRIPTOR.full_name  # type: ignore[attr-defined]
+        rules = _RULES.get(name, ())
+        if name in _RANGE_NAN_OK:
+            rules = (("range_m", _ABOVE_ZERO, self.max_range_m, _RANGE_NAN_OK[name]), *rules)
+        self._by_class[cls] = found = (rules, _EXTRA.get(name))
+        return found
+
+    def problem(self, message: Any, log_time_ns: int) -> str | None:
+        """Why a message cannot be archived (field, value, limits), or None when every value is in range."""
+        if not TIME_RANGE_NS[0] <= log_time_ns < TIME_RANGE_NS[1]:
+            self.out_of_range += 1
+            return f"time {log_time_ns} ns is outside 1970-2200"
+        cls = type(message)
+        found = self._by_class.get(cls)
+        rules, extra = found if found is not None else self._rules(cls)
+        for name, low, high, nan_ok in rules:
+            v = getattr(message, name)
+            if low <= v <= high:
+                continue
+            if v != v and nan_ok:
+                continue
+            self.out_of_range += 1
+            if name in RANGE_FIELDS:
+                self.bad_ranges += 1
+                if v == 0.0 or (v == v and v < 0.0):
+                    return f"range {v:g} m is not above 0"
+                if math.isfinite(v):
+                    return f"range {v:g} m is beyond max_range_m = {high:g}"
+            return f"{name} = {v:g} is outside [{low:g}, {high:g}]" if v == v else f"{name} is NaN"
+        if extra is not None:
+            why = extra(message)
+            if why is not None:
+                self.out_of_range += 1
+                return why
+        return None

@@ -1,0 +1,48 @@
+"""A shareable report of one replay run: one self-contained HTML file (nothing fetched when it is opened).
+
+The scoreboard (exactly the run's metrics.json), error CDFs and error over
+time for every method, the detection timeline per leader and method beside
+the truth labels, t_a and the anomaly intervals, what each detector caught per
+anomaly kind, and the run's configuration, package version and input hash.
+The run is re-run from its input archive (found as `view` finds it, or
+--archive) for the error series; kinds come from the simulator's
+anomalies.csv when given with --anomalies (the archive holds only labels).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of `auvreplay report`."""
+    parser.add_argument("results", help="a results archive (.mcap) from `auvreplay replay -o`")
+    parser.add_argument("-o", "--output", help="the HTML file to write (default: <results>.report.html)")
+    parser.add_argument("--archive", help="the run's input trial archive, if not found by itself")
+    parser.add_argument("--anomalies", metavar="CSV",
+                        help="the simulator's anomalies.csv (`auvreplay simulate` writes it): anomaly kinds")
+    parser.add_argument("--force", action="store_true", help="replace an existing output file")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Build and write the report; a file that is no results archive is bad input (exit 1)."""
+    from replay.errors import UserError
+    from replay.review.anomaly_kinds import load_intervals
+    from replay.review.rebuild import review_from_results, run_metadata
+    from replay.review.report import build_report
+    from replay.run.outputs import claim_output
+
+    results = Path(args.results)
+    if not results.is_file():
+        raise UserError(f"{results}: no such file")
+    meta = run_metadata(results)
+    if meta is None:
+        raise UserError(f"{results}: not a replay results archive (no 'run' metadata record)")
+    out = claim_output(args.output or results.with_suffix(".report.html"), args.force)
+    intervals = load_intervals(args.anomalies) if args.anomalies else None
+    review = review_from_results(results, args.archive)
+    text = build_report(meta, review, intervals)
+    out.write_text(text, encoding="utf-8")
+    print(f"wrote {out} ({len(text.encode()) / 1e6:.2f} MB)")
+    return 0

@@ -1,0 +1,29 @@
+"""A share of `make fuzz` (tests/fuzz/fuzz.py): every decoder entry point and archive-damage kind, no exception."""
+
+from __future__ import annotations
+
+import pytest
+
+from recorders.registry import converters
+from tests.fuzz.fuzz import DAMAGE_KINDS, archive_cases, decoder_cases, seeds
+
+SEEDS = seeds()
+
+
+@pytest.mark.parametrize("name", sorted(SEEDS))
+def test_decoder_entry_point_never_raises(name):
+    data, options = SEEDS[name]
+    counts = decoder_cases(name, data, options, 30, base_seed=7)
+    assert counts["exceptions"] == 0, "\n".join(counts["examples"])
+    assert counts["cases"] == 30 and counts["outputs"] + counts["rejects"] + counts["refused"] > 0
+
+
+def test_every_converter_has_a_seed():
+    assert {f"{s}/{f}" for s, f in converters()} == set(SEEDS)
+
+
+@pytest.mark.parametrize("kind", DAMAGE_KINDS)
+def test_archive_damage_never_raises(kind, tmp_path):
+    counts = archive_cases(kind, 80, base_seed=7, folder=tmp_path)
+    assert counts["exceptions"] == 0, "\n".join(counts["examples"])
+    assert counts["damaged"] > 0  # the damage was seen and said, not silently read
