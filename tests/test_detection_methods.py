@@ -230,6 +230,7 @@ def test_cusum_drift_detector_resets_after_an_alarm_and_explains(column: str, k:
     assert [x.flagged for x in d] == [False, False, True] and d[2].score == pytest.approx(15.0)
     why = det.explain(row)
     assert (why.up_m, why.threshold_m, why.allowance_m, why.flagged) == (pytest.approx(15.0), 10.0, k, True)
+    assert why.input == column
     det.reset()
     assert not det.decide(row).flagged and det.explain(row).up_m == pytest.approx(5.0)
     with pytest.raises(ValueError, match="cusum_input"):

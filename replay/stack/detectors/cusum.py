@@ -46,6 +46,7 @@ class CusumExplanation:
     down_m: float          # S- after the epoch
     threshold_m: float     # h
     flagged: bool
+    input: str = "drift_z"  # the feature summed: "drift_z" (sigmas, despite the _m names) or "drift_residual_m"
 
 
 class CusumDriftDetector:
@@ -114,4 +115,4 @@ class CusumDriftDetector:
         """The sums as they stand (after the last `decide`) beside this epoch's residual, k and h."""
         c = self._cusum
         return CusumExplanation(float(features[self._col]), self.k, c.up, c.down, self.threshold,
-                                max(c.up, c.down) > self.threshold)
+                                max(c.up, c.down) > self.threshold, self.input)
