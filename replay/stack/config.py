@@ -60,7 +60,7 @@ class FeatureConfig:
     cusum_h_sigma: float = 5.0          # cusum_drift's alarm level before calibration; its floor is half of it
     cusum_k_m: float = 4.0              # drift CUSUM allowance (m), feature and cusum_drift detector
     drift_source: str = "lag"           # without USBL the drift residual is lag_residual_m or exclusion_residual_m
-    exclusion_gate_m: float = math.inf  # ... and ranges whose own exclusion residual exceeds this (12, 25 m: worse, seeds 1-4)
+    exclusion_gate_m: float = math.inf  # ... and ranges whose exclusion residual exceeds this (12, 25 m: worse)
     exclusion_cap: int = 20             # an exclusion filter leaves out at most this many gated ranges in a row
     cusum_h_m: float = 15.0             # drift CUSUM alarm level (m) of the feature; the detector calibrates its own
 
