@@ -217,18 +217,24 @@ def test_cusum_ramp_delay_matches_its_closed_form(s: float, k: float, h: float) 
         assert abs(delay - want) == 1 and abs(s_n - h) < 1e-9 * h
 
 
-def test_cusum_drift_detector_resets_after_an_alarm_and_explains() -> None:
-    det = CusumDriftDetector(CONFIG)
+@pytest.mark.parametrize(("column", "k", "x"), [("drift_z", 0.5, 5.5), ("drift_residual_m", 4.0, 9.0)])
+def test_cusum_drift_detector_resets_after_an_alarm_and_explains(column: str, k: float, x: float) -> None:
+    """On either input (sigmas or metres, its own k), +5 per epoch: alarm at the third, restart after reset."""
+    cfg = replace(CONFIG, features=replace(CONFIG.features, cusum_input=column))
+    det = CusumDriftDetector(cfg)
     det.train(np.zeros((10, len(FEATURE_NAMES))), np.zeros(10), np.zeros(10))
     det.threshold = det._cusum.h = 10.0
     row = np.zeros(len(FEATURE_NAMES))
-    row[FEATURE_NAMES.index("drift_residual_m")] = 9.0          # +5 per epoch with k = 4
+    row[FEATURE_NAMES.index(column)] = x
     d = [det.decide(row) for _ in range(3)]
     assert [x.flagged for x in d] == [False, False, True] and d[2].score == pytest.approx(15.0)
     why = det.explain(row)
-    assert (why.up_m, why.threshold_m, why.allowance_m, why.flagged) == (15.0, 10.0, 4.0, True)
+    assert (why.up_m, why.threshold_m, why.allowance_m, why.flagged) == (pytest.approx(15.0), 10.0, k, True)
+    assert why.input == column
     det.reset()
-    assert not det.decide(row).flagged and det.explain(row).up_m == 5.0
+    assert not det.decide(row).flagged and det.explain(row).up_m == pytest.approx(5.0)
+    with pytest.raises(ValueError, match="cusum_input"):
+        CusumDriftDetector(replace(CONFIG, features=replace(CONFIG.features, cusum_input="f2")))
 
 
 def test_new_methods_run_closed_loop_and_report_thresholds() -> None:

@@ -260,3 +260,18 @@ def test_roles_guessed_from_topics_without_trial_metadata():
     assert any("roles guessed" in n for n in layout.notes)
     no_dvl = plan_trial(None, {"/a/modem/range": 3, "/b/gps": 4})
     assert no_dvl.roles == {"a": "follower", "b": "leader"}
+
+
+def test_detections_carry_the_filter_independent_features(full_run, tmp_path):
+    """Every Detection holds replay.stack.features' EXTRA_FEATURES, the same for every method of an epoch."""
+    from replay.stack.features import EXTRA_FEATURES
+
+    out = tmp_path / "det.csv"
+    assert main(["export", str(full_run.output), "--topic", f"/replay/{full_run.run_id}/follower/detections",
+                 "-o", str(out)]) == 0
+    df = pd.read_csv(out, index_col=0)
+    assert set(EXTRA_FEATURES) <= set(df.columns)
+    per_epoch = df.groupby(["timestamp", "leader"])[list(EXTRA_FEATURES)].nunique(dropna=False)
+    assert (per_epoch <= 1).all().all()
+    assert np.isfinite(df["lag_residual_m"]).mean() > 0.8 and (df["repeat_count"] >= 0).all()
+    assert np.isfinite(df["drift_z"]).mean() > 0.5

@@ -8,8 +8,17 @@ from typing import Any
 
 from formats import schemas as S
 from formats.mcap_writer import ArchiveWriter
-from replay.events import EpochResult, ErrorSample, Fix, Listener, RunResults, TrainedDetectors, UsblEpoch
+from replay.events import (
+    EpochResult,
+    ErrorSample,
+    Fix,
+    Listener,
+    RunResults,
+    TrainedDetectors,
+    UsblEpoch,
+)
 from replay.stack.config import DETECTING_METHODS
+from replay.stack.features import EXTRA_FEATURES
 from replay.stack.model import offset_to_latlon
 
 RAD = 180.0 / math.pi
@@ -49,7 +58,8 @@ class ResultsWriter(Listener):
             msg = S.Detection(timestamp=S.timestamp(t), follower=follower, leader=r.leader, method=r.method,
                               flagged=bool(r.flagged), score=r.score, threshold=r.threshold,
                               feature_innovation_m=r.f1, feature_mahalanobis2=r.f2, feature_r_adapted_m2=r.f3,
-                              label=int(r.label), isolation_capped=bool(r.capped))
+                              label=int(r.label), isolation_capped=bool(r.capped),
+                              **{name: float(getattr(r, name)) for name in EXTRA_FEATURES})
             self.w.write(f"/replay/{self.run}/{follower}/detections", msg, t)
 
     def errors(self, follower: str, samples: list[ErrorSample]) -> None:

@@ -6,6 +6,7 @@ local radii (STACK.md section 1).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 METHODS: tuple[str, ...] = (
@@ -51,7 +52,16 @@ class FeatureConfig:
     reference_cap: int = 20             # ... for at most this many consecutive epochs per leader
     usbl_max_age_s: float = 60.0        # a USBL-anchored position older than this gives no residual (NaN)
     usbl_blend: float = 0.3             # weight of a new fix in the anchor when the previous one is fresh
+    scale_window_s: float = 300.0       # drift_z: median and MAD of the drift residuals of this window ...
+    scale_min_samples: int = 8          # ... older than lag_s, at least this many
+    scale_floor_m: float = 1.0          # ... the MAD-scale never below this (m)
+    cusum_input: str = "drift_z"        # cusum_drift sums drift_z (sigmas) or drift_residual_m (metres, k/h in m)
+    cusum_k_sigma: float = 0.5          # cusum_drift's allowance on drift_z (detects shifts of 1 sigma and up)
+    cusum_h_sigma: float = 5.0          # cusum_drift's alarm level before calibration; its floor is half of it
     cusum_k_m: float = 4.0              # drift CUSUM allowance (m), feature and cusum_drift detector
+    drift_source: str = "lag"           # without USBL the drift residual is lag_residual_m or exclusion_residual_m
+    exclusion_gate_m: float = math.inf  # ... and ranges whose exclusion residual exceeds this (12, 25 m: worse)
+    exclusion_cap: int = 20             # an exclusion filter leaves out at most this many gated ranges in a row
     cusum_h_m: float = 15.0             # drift CUSUM alarm level (m) of the feature; the detector calibrates its own
 
 
@@ -102,3 +112,5 @@ class StackConfig:
     training_source: str = "own"                  # "own" window, a "given" TrainingSet, or "both"
     # anfis_hybrid's inputs, by name from replay.stack.features.FEATURE_NAMES
     hybrid_inputs: tuple[str, ...] = ("f2", "repeat_count", "lag_residual_m", "usbl_residual_m")
+    # ... of which these enter signed (the others that are signed residuals enter as magnitudes)
+    hybrid_signed_inputs: tuple[str, ...] = ()

@@ -19,7 +19,8 @@ filter, and are the same for every method of a run:
   dead reckoning), NaN without a fix younger than ``usbl_max_age_s``;
 - ``lag_residual_m``: the range minus the range from the reference
   filter's estimate of ``lag_s`` (60 s) ago carried forward by the
-  dead-reckoned displacement since (NaN for the first lag). The reference
+  dead-reckoned displacement since (NaN for the first lag, and always NaN
+  unless ``drift_source`` is "lag" or anfis_hybrid takes it). The reference
   is an ACKF run by the runner beside the methods, which leaves out epochs
   with a repeated range, f2 above the chi-square gate or
   |lag_residual_m| above ``reference_gate_m`` (capped at
@@ -29,8 +30,24 @@ filter, and are the same for every method of a run:
   reckoning drifts only metres, where its absolute error over the mission
   reaches tens of metres and rotates with the geometry (which is what
   makes ``dr_residual_m`` wander about ±10 m per 100 s);
+- ``exclusion_residual_m``: the range minus the range predicted by the
+  ACKF that uses dead reckoning and only the OTHER leaders' ranges
+  (replay.stack.exclusion; NaN with one leader or without the filters,
+  which run only when ``drift_source`` is "exclusion" or anfis_hybrid takes
+  an exclusion input: on held-out seeds they did not beat the lag residual);
 - ``drift_residual_m``: ``usbl_residual_m`` where finite, else
-  ``lag_residual_m``, else ``dr_residual_m`` (what the drift CUSUM sums);
+  ``exclusion_residual_m`` or ``lag_residual_m`` (``FeatureConfig.drift_source``),
+  else ``dr_residual_m`` (what the drift CUSUM sums);
+- ``drift_z``: the drift residual standardized by its own recent past:
+  (x - median) / (1.4826 MAD) over the leader's drift residuals of the
+  last ``scale_window_s`` (300 s) that are older than ``lag_s`` (60 s), NaN
+  with fewer than ``scale_min_samples`` of them. The residual's spread and
+  offset change along a mission (geometry, DR error): a scale taken from
+  the mission's own recent past, old enough not to hold a young drift,
+  keeps a CUSUM's false-alarm rate where its calibration put it;
+- ``exclusion_z``: ``exclusion_residual_m`` standardized the same way (its
+  offset is the follower's DR error across the other links' lines of
+  sight, which changes slowly along the mission);
 - ``drift_cusum_m``: max(S+, S-) of a two-sided CUSUM(k, h) of the drift
   residual per leader, restarting after each of its own alarms.
 
@@ -46,12 +63,13 @@ from collections import deque
 
 from replay.stack.config import FeatureConfig
 from replay.stack.cusum import Cusum
+from replay.stack.exclusion import LeaderExclusion
 from replay.stack.model import metric_scales_scalar
 
 PAPER_FEATURES: tuple[str, ...] = ("f1", "f2", "f3")
 EXTRA_FEATURES: tuple[str, ...] = (
     "repeat_count", "dr_residual_m", "leader_consistency_m", "usbl_residual_m", "lag_residual_m",
-    "drift_residual_m", "drift_cusum_m",
+    "drift_residual_m", "drift_cusum_m", "exclusion_residual_m", "drift_z", "exclusion_z",
 )
 FEATURE_NAMES: tuple[str, ...] = PAPER_FEATURES + EXTRA_FEATURES
 """Every feature of a range epoch, in the order of a feature vector and of ``TrainingSet.features``."""
@@ -68,9 +86,11 @@ def range_to(lat: float, lon: float, depth_m: float, leader_lat: float, leader_l
 class FeatureTracker:
     """Pure dead reckoning, the USBL anchor and per-leader memory: the EXTRA_FEATURES of each range epoch."""
 
-    def __init__(self, config: FeatureConfig, leaders: tuple[str, ...], lat_rad: float, lon_rad: float) -> None:
-        """Start dead reckoning at the initial position; no USBL anchor yet."""
+    def __init__(self, config: FeatureConfig, leaders: tuple[str, ...], lat_rad: float, lon_rad: float,
+                 exclusion: LeaderExclusion | None = None) -> None:
+        """Start dead reckoning at the initial position; no USBL anchor yet; ``exclusion``: its filters, or none."""
         self.config = config
+        self.exclusion = exclusion
         self.dr = [float(lat_rad), float(lon_rad)]
         self.anchor: list[float] | None = None
         self.anchor_t = -math.inf
@@ -79,11 +99,14 @@ class FeatureTracker:
         self._window: dict[str, deque[tuple[float, float]]] = {ld: deque() for ld in leaders}
         self._latest: dict[str, tuple[float, float]] = {}       # leader -> (t, dr_residual)
         self._cusum = {ld: Cusum(config.cusum_k_m, config.cusum_h_m) for ld in leaders}
+        self._history: dict[tuple[str, str], deque[tuple[float, float]]] = {}   # (series, leader) -> (t, x)
         self._lagged: deque[tuple[float, float, float, float, float]] = deque()   # t, reference, dr at t
 
     def propagate(self, dt_s: float, forward_mps: float, lateral_mps: float, heading_rad: float,
                   depth_m: float) -> None:
         """Carry dead reckoning and the anchor forward by one DR step (A.1, radii at the start of the step)."""
+        if self.exclusion is not None:
+            self.exclusion.propagate(dt_s, forward_mps, lateral_mps, heading_rad, depth_m)
         c, s = math.cos(heading_rad), math.sin(heading_rad)
         north = dt_s * (forward_mps * c - lateral_mps * s)
         east = dt_s * (forward_mps * s + lateral_mps * c)
@@ -93,8 +116,14 @@ class FeatureTracker:
                 p[0] += north / b
                 p[1] += east / a
 
-    def fix(self, t_s: float, lat_rad: float, lon_rad: float) -> None:
-        """A USBL fix of the follower: the anchor moves to it (blended with a fresh anchor, `usbl_blend`)."""
+    def fix(self, t_s: float, lat_rad: float, lon_rad: float,
+            cov_rad2: tuple[float, float, float] | None = None) -> None:
+        """A USBL fix of the follower: the anchor moves to it (blended with a fresh anchor, `usbl_blend`).
+
+        ``cov_rad2`` (p11, p12, p22 in rad²) also updates the exclusion filters.
+        """
+        if self.exclusion is not None and cov_rad2 is not None:
+            self.exclusion.fix(lat_rad, lon_rad, *cov_rad2)
         if self.anchor is None or t_s - self.anchor_t > self.config.usbl_max_age_s:
             self.anchor = [float(lat_rad), float(lon_rad)]
         else:
@@ -126,9 +155,31 @@ class FeatureTracker:
         usbl = NAN
         if self.anchor is not None and t_s - self.anchor_t <= cfg.usbl_max_age_s:
             usbl = z_m - range_to(self.anchor[0], self.anchor[1], depth_m, *geo)
-        drift = usbl if math.isfinite(usbl) else lag if math.isfinite(lag) else d
+        excl = NAN
+        if self.exclusion is not None:
+            excl = self.exclusion.epoch(leader, z_m, geo, depth_m, self._repeats[leader] > 0)
+        second = excl if cfg.drift_source == "exclusion" else lag
+        drift = usbl if math.isfinite(usbl) else second if math.isfinite(second) else d
         up, down, _ = self._cusum[leader].step(drift)
-        return (float(self._repeats[leader]), d, consistency, usbl, lag, drift, max(up, down))
+        return (float(self._repeats[leader]), d, consistency, usbl, lag, drift, max(up, down), excl,
+                self._standardized(t_s, ("drift", leader), drift),
+                self._standardized(t_s, ("excl", leader), excl) if self.exclusion is not None else NAN)
+
+    def _standardized(self, t_s: float, key: tuple[str, str], x: float) -> float:
+        """x against the median and MAD of its series' (key) values aged lag_s to scale_window_s; NaN if few."""
+        cfg = self.config
+        hist = self._history.setdefault(key, deque())
+        while hist and hist[0][0] < t_s - cfg.scale_window_s:
+            hist.popleft()
+        cutoff = t_s - cfg.lag_s
+        old = [v for t, v in hist if t <= cutoff]
+        if math.isfinite(x):
+            hist.append((t_s, x))
+        if len(old) < cfg.scale_min_samples or not math.isfinite(x):
+            return NAN
+        med = statistics.median(old)
+        mad = statistics.median(abs(v - med) for v in old)
+        return (x - med) / max(1.4826 * mad, cfg.scale_floor_m)
 
     def _lag_residual(self, t_s: float, z_m: float, depth_m: float, geo: tuple[float, float, float],
                       reference: tuple[float, float] | None) -> float:

@@ -47,7 +47,7 @@ import math
 import os
 from collections import Counter
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from itertools import chain
 
 import numpy as np
@@ -56,6 +56,7 @@ from replay.events import NAN, EpochResult, RunResults, Track
 from replay.stack.config import PAPER_METHODS, StackConfig
 from replay.stack.detectors.base import Decision, Detector
 from replay.stack.detectors.chi_square import chi_square_threshold
+from replay.stack.exclusion import LeaderExclusion
 from replay.stack.features import (
     EXTRA_FEATURES,
     FEATURE_NAMES,
@@ -192,13 +193,14 @@ class CooperativeRunner:
         self._needs_database = any(filter_kind(n) == "detect" and n not in PAPER_METHODS for n in names)
         # the gated ACKF the lagged residual starts from (replay.stack.features); never reported
         self._reference: _Method | None = None
-        if self._needs_database:
+        if self._needs_database and (config.features.drift_source == "lag"
+                                     or "lag_residual_m" in config.hybrid_inputs):
             self._reference = _Method("reference", "reference", s0)
             self._methods.append(self._reference)
         self._gate_f2 = chi_square_threshold(config.chi_square_alpha)
-        self._features = FeatureTracker(config.features, self.leaders, float(initial_lat_rad),
-                                        float(initial_lon_rad))
         self._initial = (float(initial_lat_rad), float(initial_lon_rad), float(initial_depth_m))
+        self._features = FeatureTracker(config.features, self.leaders, float(initial_lat_rad),
+                                        float(initial_lon_rad), self._exclusion())
         # (t, leader, features..., Z - Z_gps, label) of the ackf method inside the window, with GPS truth
         self._train_rows: list[tuple] = []
         # the window's inputs in order, replayed with injected anomalies for the hybrid database
@@ -211,6 +213,7 @@ class CooperativeRunner:
         self._depth = float(initial_depth_m)
         self._last_dr: tuple[float, float, float] = (0.0, 0.0, 0.0)   # forward, lateral, heading
         self._trained = False
+        self._updated: dict[tuple[State2, RangeInnovation, bool], State2] = {}   # this epoch's updates
         self.rejected: Counter = Counter()
         self.clamped_ranges = 0
         self.position_fixes = 0
@@ -265,8 +268,15 @@ class CooperativeRunner:
             self._propagate(t_s)     # the last DR sample's velocities carry to the ranging instant
         z, clamped = slant_to_horizontal(slant_range_m, self._depth, leader_depth_m)
         geo = (leader_lat_rad, leader_lon_rad, leader_depth_m)
-        innovations = [range_innovation(m.state, z, geo, self._depth, self._r_var) for m in self._methods]
-        if any(inn is None for inn in innovations):
+        seen: dict[State2, RangeInnovation | None] = {}
+        innovations = []
+        for m in self._methods:     # one innovation per distinct state (see _propagate)
+            if m.state not in seen:
+                seen[m.state] = range_innovation(m.state, z, geo, self._depth, self._r_var)
+            innovations.append(seen[m.state])
+        self._updated.clear()
+        usable = [inn for inn in innovations if inn is not None]
+        if len(usable) < len(innovations):
             self.rejected["degenerate_geometry"] += 1
             return []
         self.clamped_ranges += clamped
@@ -279,7 +289,7 @@ class CooperativeRunner:
         ref = (ref_m.state.lat, ref_m.state.lon) if ref_m is not None else None
         extra = self._features.epoch(t_s, leader, slant_range_m, z, self._depth, geo, ref)
         out = [self._method_epoch(m, inn, t_s, leader, z, geo, truth, label, extra)
-               for m, inn in zip(self._methods, innovations)]
+               for m, inn in zip(self._methods, usable)]
         self._record()
         if t_s > self.training_end_s:
             self._open_features.extend((r.time_s, r.leader, r.label, r.f1, r.f2, r.f3, *extra)
@@ -314,9 +324,9 @@ class CooperativeRunner:
             self._window.append(("fix", (t_s, lat_rad, lon_rad, nn, ne, ee)))
         if t_s > self._t:
             self._propagate(t_s)
-        self._features.fix(t_s, lat_rad, lon_rad)
         b, a = metric_scales_scalar(lat_rad, self._depth)
         r11, r12, r22 = nn / (b * b), ne / (b * a), ee / (a * a)
+        self._features.fix(t_s, lat_rad, lon_rad, (r11, r12, r22))
         for m in self._methods:
             if m.kind != "dr":
                 m.state = position_update(m.state, lat_rad, lon_rad, r11, r12, r22) or m.state
@@ -378,8 +388,14 @@ class CooperativeRunner:
         dt = t_s - self._t
         fwd, lat_v, hdg = self._last_dr
         q = self.config.q_m_per_s
+        # methods whose filters have not diverged (every ACKF inside the training window, a detector
+        # that has not isolated yet) hold equal states: each distinct state is predicted once
+        done: dict[State2, State2] = {}
         for m in self._methods:
-            m.state = dr_predict(m.state, dt, fwd, lat_v, hdg, self._depth, q)
+            nxt = done.get(m.state)
+            if nxt is None:
+                nxt = done[m.state] = dr_predict(m.state, dt, fwd, lat_v, hdg, self._depth, q)
+            m.state = nxt
         self._features.propagate(dt, fwd, lat_v, hdg, self._depth)
         self._t = t_s
 
@@ -416,7 +432,11 @@ class CooperativeRunner:
             decision = det.decide(np.array([f1, f2, f3, *extra] if m.wide else [f1, f2, f3]))
             action, used_inn, compensated = self._act(m, det, decision, inn, leader, z, geo)
         if action in ("update", "capped"):
-            m.state = range_update(m.state, used_inn, self._r_var, adaptive=m.kind != "ckf")
+            key = (m.state, used_inn, m.kind != "ckf")
+            nxt = self._updated.get(key)
+            if nxt is None:
+                nxt = self._updated[key] = range_update(m.state, used_inn, self._r_var, adaptive=m.kind != "ckf")
+            m.state = nxt
         nn, ne, ee = _cov_m2(m.state, self._depth)
         return EpochResult(
             t_s, leader, m.name, decision.flagged, decision.score, decision.threshold, f1, f2, f3, label,
@@ -512,7 +532,6 @@ class CooperativeRunner:
         t = np.array([r[0] for r in ranges], dtype=float)
         leaders = np.array([r[1] for r in ranges], dtype=object)
         slant = np.array([r[5] for r in ranges], dtype=float)
-        sub_config = replace(self.config, methods=("ackf",), training_source="own")
         parts: list[TrainingSet] = []
         counts: Counter[str] = Counter()
         for c in range(cfg.copies):
@@ -523,21 +542,9 @@ class CooperativeRunner:
                 rng = np.random.default_rng([cfg.seed, c, j])
                 new_slant[idx], replied[idx], kinds[idx] = inject_link(t[idx], slant[idx], cfg, rng)
             counts.update(kinds.tolist())
-            child = CooperativeRunner(sub_config, self.follower, self.leaders, self.start_time_s, *self._initial,
-                                      factories=self._factories, keep_history=False)
-            k = 0
-            for kind, args in self._window:
-                if kind == "dr":
-                    child.dead_reckon(*args)
-                elif kind == "fix":
-                    child.position_fix(*args)
-                else:
-                    if replied[k]:
-                        t_k, leader, lat, lon, depth, _, truth = args
-                        child.range_epoch(t_k, leader, lat, lon, depth, float(new_slant[k]), truth)
-                    k += 1
+            rows = self._open_loop_copy(new_slant, replied)
             by_epoch = dict(zip(zip(t.tolist(), leaders.tolist()), kinds.tolist()))
-            parts.append(_rows_to_set(child._train_rows, [by_epoch[(r[0], r[1])] for r in child._train_rows]))
+            parts.append(_rows_to_set(rows, [by_epoch[(r[0], r[1])] for r in rows]))
         total = sum(counts.values())
         self.training_notes["database"] = f"{cfg.copies} copies of {slant.size} epochs: " + ", ".join(
             f"{kind} {n} ({n / total:.1%})" for kind, n in sorted(counts.items()))
@@ -545,6 +552,75 @@ class CooperativeRunner:
         for p in parts[1:]:
             out = out.concat(p)
         return out
+
+    def _exclusion(self) -> LeaderExclusion | None:
+        """Fresh leader-exclusion filters at the initial position when a new method uses them, else None.
+
+        Used when the drift residual is the exclusion residual or anfis_hybrid
+        takes it; otherwise the features stay NaN and the two extra filters
+        cost nothing (held out, seeds 100-109 trained on 0, they did not help).
+        """
+        c = self.config
+        wanted = c.features.drift_source == "exclusion" or bool(
+            {"exclusion_residual_m", "exclusion_z"} & set(c.hybrid_inputs))
+        if not (self._needs_database and wanted):
+            return None
+        return LeaderExclusion(self.leaders, *self._initial, c.p0_m, c.q_m_per_s, c.r_m, self._gate_f2,
+                               c.features.exclusion_cap, c.features.exclusion_gate_m)
+
+    def _open_loop_copy(self, slant_m: np.ndarray, replied: np.ndarray) -> list[tuple]:
+        """The window's inputs replayed through one ACKF without isolation, with the given ranges: its rows.
+
+        The same arithmetic, in the same order, as a runner holding only the
+        ``ackf`` method (tests/test_detection_methods.py checks it against
+        one), without the per-method bookkeeping; epochs whose range was not
+        ``replied`` are left out. Rows as ``_train_rows``: (t, leader,
+        features..., Z - Z_gps, label) of the epochs with GPS truth.
+        """
+        cfg = self.config
+        lat0, lon0, depth = self._initial
+        b, a = metric_scales_scalar(lat0, depth)
+        state = State2(lat0, lon0, (cfg.p0_m[0] / b) ** 2, 0.0, (cfg.p0_m[1] / a) ** 2)
+        tracker = FeatureTracker(cfg.features, self.leaders, lat0, lon0, self._exclusion())
+        t_now, fwd, lat_v, hdg = self.start_time_s, 0.0, 0.0, 0.0
+        q, r_var, t1 = cfg.q_m_per_s, self._r_var, cfg.t1_m
+        rows: list[tuple] = []
+        k = 0
+        for kind, args in self._window:
+            if kind == "dr":
+                t_s, fwd, lat_v, hdg, depth = args
+            elif kind == "fix":
+                t_s = args[0]
+            else:
+                k += 1
+                if not replied[k - 1]:
+                    continue
+                t_s = args[0]
+            if t_s > t_now:
+                state = dr_predict(state, t_s - t_now, fwd, lat_v, hdg, depth, q)
+                tracker.propagate(t_s - t_now, fwd, lat_v, hdg, depth)
+                t_now = t_s
+            if kind == "fix":
+                _, lat, lon, nn, ne, ee = args
+                b, a = metric_scales_scalar(lat, depth)
+                cov = (nn / (b * b), ne / (b * a), ee / (a * a))
+                tracker.fix(t_s, lat, lon, cov)
+                state = position_update(state, lat, lon, *cov) or state
+            elif kind == "range":
+                _, leader, llat, llon, ldepth, _, truth = args
+                slant = float(slant_m[k - 1])
+                z, _ = slant_to_horizontal(slant, depth, ldepth)
+                geo = (llat, llon, ldepth)
+                inn = range_innovation(state, z, geo, depth, r_var)
+                if inn is None:
+                    continue
+                truth = truth if math.isfinite(truth) else NAN
+                label = label_one(z, truth, t1)
+                extra = tracker.epoch(t_s, leader, slant, z, depth, geo, None)
+                if label != UNKNOWN:
+                    rows.append((t_s, leader, *inn.features, *extra, z - truth, label))
+                state = range_update(state, inn, r_var, adaptive=True)
+        return rows
 
     def _training_sets(self, m: _Method, ts: TrainingSet) -> list[tuple[str, TrainingSet]]:
         """(leader or "all", its rows) to train for one method (see module doc).
