@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -101,7 +102,7 @@ def _f(v: Any) -> str:
     return "-" if v is None else f"{v:.3f}" if abs(v) < 100 else f"{v:.1f}"
 
 
-def reproduce(trial: str | Path | None = None, overrides: list[str] = ()) -> dict[str, dict[str, Any]]:
+def reproduce(trial: str | Path | None = None, overrides: Sequence[str] = ()) -> dict[str, dict[str, Any]]:
     """Record (if needed) and replay the trial in both model modes."""
     base = load_config(None, list(overrides))
     with tempfile.TemporaryDirectory(prefix="auvreplay-") as tmp:

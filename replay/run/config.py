@@ -85,7 +85,8 @@ def _coerce(value: Any, hint: Any, key: str) -> Any:
             return bool(value)
         if hint is str:
             return str(value)
-        if origin is tuple or (origin in (typing.Union, types.UnionType) and any(typing.get_origin(a) is tuple for a in args)):
+        optional_tuple = origin in (typing.Union, types.UnionType) and any(typing.get_origin(a) is tuple for a in args)
+        if origin is tuple or optional_tuple:
             if value is None:
                 return None
             if isinstance(value, str):
@@ -142,8 +143,8 @@ def _route(key: str) -> str:
     return f"stack.{key}"
 
 
-def load_config(path: str | Path | None = None, overrides: Sequence[str] = (), window: tuple[float, float] | None = None,
-                rate: float | None = None) -> RunConfig:
+def load_config(path: str | Path | None = None, overrides: Sequence[str] = (),
+                window: tuple[float, float] | None = None, rate: float | None = None) -> RunConfig:
     """Defaults, then the TOML file, then each `key=value` override, then the window and rate options."""
     cfg = RunConfig()
     if path is not None:
@@ -166,7 +167,8 @@ def load_config(path: str | Path | None = None, overrides: Sequence[str] = (), w
             raise UserError(f"--set {item!r}: expected key=value")
         cfg = _apply(cfg, _nest(_route(key.strip()), value.strip()), "")
     if window is not None:
-        cfg = dataclasses.replace(cfg, engine=dataclasses.replace(cfg.engine, window_s=(float(window[0]), float(window[1]))))
+        window_s = (float(window[0]), float(window[1]))
+        cfg = dataclasses.replace(cfg, engine=dataclasses.replace(cfg.engine, window_s=window_s))
     if rate is not None:
         cfg = dataclasses.replace(cfg, engine=dataclasses.replace(cfg.engine, rate=rate))
     w = cfg.engine.window_s

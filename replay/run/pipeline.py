@@ -202,7 +202,7 @@ def write_run_metadata(writer: ArchiveWriter, config: RunConfig, rid: str, sha: 
                         archive: Any, wall: float, metrics: dict[str, Any], t0_ns: int, engine: Engine) -> None:
     """The run's notes as events and its `run` metadata record (parameters, version, input hash, metrics)."""
     for note in engine.notes:
-        writer.write(f"/replay/{rid}/events", S.Log(timestamp=S.timestamp(t0_ns), level=3, message=note,
+        writer.write(f"/replay/{rid}/events", S.Log(timestamp=S.timestamp(t0_ns), level=S.Log.WARNING, message=note,
                                                     name="engine"), t0_ns)
     writer.add_metadata("run", {
         "run_id": rid, "configuration": canonical_json(config), "package_version": version,

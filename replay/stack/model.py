@@ -108,7 +108,8 @@ def cov_metres_to_radians(cov_m2: np.ndarray, lat_rad: np.ndarray | float, depth
     return cov_m2 * d[..., :, None] * d[..., None, :]
 
 
-def cov_radians_to_metres(cov_rad2: np.ndarray, lat_rad: np.ndarray | float, depth_m: float = 0.0) -> np.ndarray:
+def cov_radians_to_metres(cov_rad2: np.ndarray, lat_rad: np.ndarray | float,
+                          depth_m: np.ndarray | float = 0.0) -> np.ndarray:
     """Convert [L, λ] covariances (..., 2, 2) in rad² back to north-east m² (D⁻¹ C D⁻¹)."""
     d = radian_scaling(lat_rad, depth_m)
     return cov_rad2 / (d[..., :, None] * d[..., None, :])

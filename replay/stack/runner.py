@@ -427,8 +427,7 @@ class CooperativeRunner:
             action, m.streak[leader] = isolation_action(gate, m.streak[leader], self.config.features.reference_cap)
         elif m is self._ackf and t_s <= self.training_end_s and label != UNKNOWN:
             self._train_rows.append((t_s, leader, f1, f2, f3, *extra, z - truth, label))
-        elif m.kind == "detect" and t_s > self.training_end_s and m.detectors.get(leader) is not None:
-            det = m.detectors[leader]
+        elif m.kind == "detect" and t_s > self.training_end_s and (det := m.detectors.get(leader)) is not None:
             decision = det.decide(np.array([f1, f2, f3, *extra] if m.wide else [f1, f2, f3]))
             action, used_inn, compensated = self._act(m, det, decision, inn, leader, z, geo)
         if action in ("update", "capped"):
@@ -482,7 +481,8 @@ class CooperativeRunner:
         for i, (m, _, data) in enumerate(jobs):
             if outcomes[i] is None:
                 outcomes[i] = self._train_one(m, data)
-        for (m, key, _), (det, error) in zip(jobs, outcomes):
+        done = [o for o in outcomes if o is not None]     # every job has its outcome by now
+        for (m, key, _), (det, error) in zip(jobs, done, strict=True):
             if error:
                 self.training_errors[f"{m.name}/{key}"] = error
             if key == "all":        # shared: one model, a copy per leader (memory per acoustic link)

@@ -289,7 +289,8 @@ def _log_surface(rec: rr.RecordingStream, run: Run, model: str, x: np.ndarray, o
     path = run.path("anfis", model, "training", "surface")
     rec.log(path, rr.Mesh3D.from_fields(triangle_indices=grid_triangles(SURFACE_GRID)), static=True)
     cols = rr.Mesh3D.columns(vertex_positions=verts.reshape(-1, 3),
-                             vertex_colors=surface_colors(np.clip(out, None, frame.z_top), frame.threshold).reshape(-1, 3))
+                             vertex_colors=surface_colors(np.clip(out, None, frame.z_top),
+                                                          frame.threshold).reshape(-1, 3))
     rec.send_columns(path, indexes=index, columns=cols.partition(np.full(e, n)))
 
 
@@ -335,9 +336,11 @@ def _log_firing(rec: rr.RecordingStream, run: Run, model: str, w: np.ndarray, ti
     top = (w == w.max(axis=1, keepdims=True)).ravel()
     colors = np.where(top[:, None], CLUSTER_COLORS[1], [120, 120, 160]).astype(np.uint8)
     labels = (pd.Series(np.tile([f"R{k + 1} " for k in range(r)], n)) + pd.Series(w.ravel()).round(2).astype(str))
-    cols = rr.LineStrips2D.columns(strips=np.ascontiguousarray(bars.reshape(n * r, 2, 2)), colors=colors, labels=labels.to_numpy(),
+    cols = rr.LineStrips2D.columns(strips=np.ascontiguousarray(bars.reshape(n * r, 2, 2)), colors=colors,
+                                   labels=labels.to_numpy(),
                                    radii=np.full(n * r, 0.3 / max(r, 1), dtype=np.float32))
-    rec.send_columns(run.path("anfis", model, "explain", "firing"), indexes=times, columns=cols.partition(np.full(n, r)))
+    rec.send_columns(run.path("anfis", model, "explain", "firing"), indexes=times,
+                     columns=cols.partition(np.full(n, r)))
 
 
 def verdicts(rows: pd.DataFrame, w: np.ndarray, rule_names: list[str]) -> list[str]:

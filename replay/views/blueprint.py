@@ -218,7 +218,8 @@ def build_blueprint(runs: list[Run], error_top: float, active_tab: int | str = 0
     log = rrb.TextLogView(name="Events", contents=_contents(runs, "events"),
                           columns=rrb.archetypes.TextLogColumns(
                               timeline_columns=[rrb.encodings.TimelineColumn("mission_s")],
-                              text_log_columns=[rrb.encodings.TextLogColumn("LogLevel"), rrb.encodings.TextLogColumn("Body")]))
+                              text_log_columns=[rrb.encodings.TextLogColumn("LogLevel"),
+                                                rrb.encodings.TextLogColumn("Body")]))
     return rrb.Blueprint(
         rrb.Horizontal(main, log, column_shares=[3, 1.1]),
         rrb.BlueprintPanel(state="collapsed"),

@@ -122,7 +122,7 @@ class UsblEpochBuilder:
         for emitted, node, msg, t_s in group:
             by_node.setdefault(node, (emitted, msg, t_s))   # a node heard twice keeps its first
         rows = []
-        for node, (emitted, msg, t_s) in by_node.items():
+        for node, (_, msg, t_s) in by_node.items():
             pos = self.tracks.get(node, VehicleTracks()).gps.at(t_s, self.max_gap_s)
             if pos is None:
                 self.counts["usbl_node_without_position"] += 1

@@ -276,7 +276,7 @@ class PointPredictor:
 def output_surface(model: AnfisModel, pair: tuple[int, int] = (0, 1), fixed: float | np.ndarray = 0.5,
                    resolution: int = 25, lo: float = 0.0, hi: float = 1.0
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Output over a grid of two inputs, the others held at ``fixed``: u (K,), v (K,), z (K, K) with z[i, j] at (u[i], v[j]).
+    """Output over a grid of two inputs, the others held at ``fixed``: u (K,), v (K,), z (K, K), z[i, j] at u[i], v[j].
 
     The ANFIS input-output surface of A Fig. 12, for the mesh view.
     """

@@ -3,7 +3,8 @@
 Each follows its published algorithm as seed 003 cites it, with the
 constants seed 003 gives; everything is vectorized over a leading trial axis
 T. Inputs are ranges `c t_i` in metres (T, N) and node positions (N, 2), or
-per trial (T, N, 2) when the nodes move between epochs; each returns a `BaselineResult` with the delay states (True = judged normal).
+per trial (T, N, 2) when the nodes move between epochs; each returns a `BaselineResult` with the
+delay states (True = judged normal).
 
 - GAR: greedy attack-resistant MMSE, Liu, Ning, Du, IPSN 2005 (seed 003 ref. [5]).
 - EAR: voting-based location estimation with iterative refinement, Liu, Ning,
@@ -104,7 +105,7 @@ def gar(node_xy: FloatArray, ranges: FloatArray, threshold_m2: float, min_refere
     xy = toa_mmse(node_xy, ranges, mask.astype(float))
     mse = _mean_square(node_xy, ranges, xy, mask)
     todo = ~(mse <= threshold_m2)
-    for size in range(n, min_references, -1):
+    for _ in range(n, min_references, -1):   # at most one removal per node
         idx = np.nonzero(todo)[0]
         if idx.size == 0:
             break
