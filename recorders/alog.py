@@ -129,9 +129,11 @@ def _range_report(p: alog.Posting, ctx: LogContext) -> Output | Reject:
     t = p.time_ns + ctx.clock_offset_ns
     if "time" in fields:
         try:
-            t = round(float(fields["time"]) * 1e9) + ctx.clock_offset_ns
+            own = float(fields["time"])
         except ValueError:
-            pass
+            own = NAN
+        if math.isfinite(own) and abs(own) < 1e11:    # the report's own Unix time; anything else is not one
+            t = round(own * 1e9) + ctx.clock_offset_ns
     measured_by = fields.get("vname") or ctx.vehicle
     book = {name: address for address, name in ctx.address_book.items()}
     msg = S.AcousticRange(

@@ -18,9 +18,11 @@ raise. Cases are reproducible from (entry, seed, case number).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import random
 import re
+import shutil
 import struct
 import sys
 import tempfile
@@ -183,12 +185,19 @@ def decoder_cases(key: str, seed: bytes, options: dict, n: int, base_seed: int =
     conv = converters()[(sensor, fmt)]
     ctx = LogContext(vehicle="follower", role="follower", path=f"fuzz/{fmt}", trial_date=date(2016, 10, 12),
                      options=options, address_book=BOOK, sound_speed_mps=1450.0)
+    # container formats (no sensor key) are opened by their library from a file: each case is written to one
+    suffix = {"rosbag": ".bag", "mavlink": ".tlog"}.get(fmt, f".{fmt}")
+    spool = Path(tempfile.mkdtemp(prefix="fuzz-container-")) / f"case{suffix}" if not sensor else None
+    if spool is not None:
+        ctx = dataclasses.replace(ctx, files=(spool,))
     counts = {"cases": 0, "outputs": 0, "rejects": 0, "refused": 0, "exceptions": 0}
     examples: list[str] = []
     for case in range(n):
         rng = random.Random(f"{key}/{base_seed}/{case}")
         data = mutate(seed, rng)
         counts["cases"] += 1
+        if spool is not None:
+            spool.write_bytes(data)
         try:
             for item in conv(data, ctx):
                 if isinstance(item, Reject):
@@ -201,6 +210,8 @@ def decoder_cases(key: str, seed: bytes, options: dict, n: int, base_seed: int =
             counts["exceptions"] += 1
             if len(examples) < 3:
                 examples.append(f"case {case}: {traceback.format_exc(limit=-2).strip()}\n  input {data[:300]!r}")
+    if spool is not None:
+        shutil.rmtree(spool.parent, ignore_errors=True)
     counts["examples"] = examples  # type: ignore[assignment]
     return counts
 
