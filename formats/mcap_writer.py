@@ -164,7 +164,8 @@ class ArchiveWriter:
         if schema_id is None:
             schema_id = len(self._schemas) + 1  # 0 means "no schema"
             data = build_file_descriptor_set(message_class).SerializeToString()
-            rec = record(OP_SCHEMA, _U16.pack(schema_id) + _string(name) + _string("protobuf") + _U32.pack(len(data)) + data)
+            rec = record(OP_SCHEMA,
+                         _U16.pack(schema_id) + _string(name) + _string("protobuf") + _U32.pack(len(data)) + data)
             self._chunk += rec
             self._summary_schemas.append(rec)
             self._schemas[name] = schema_id
@@ -268,13 +269,15 @@ class ArchiveWriter:
         log_time_ns: int = 0, create_time_ns: int = 0,
     ) -> None:
         """An attachment, byte for byte (the record carries its own CRC)."""
-        head = struct.pack("<QQ", log_time_ns, create_time_ns) + _string(name) + _string(media_type) + _U64.pack(len(data))
+        head = (struct.pack("<QQ", log_time_ns, create_time_ns) + _string(name) + _string(media_type)
+                + _U64.pack(len(data)))
         crc = _U32.pack(zlib.crc32(data, zlib.crc32(head)))
         length = len(head) + len(data) + 4
         at = self._emit(_RECORD.pack(OP_ATTACHMENT, length), head, data, crc)
         self._attachment_indexes.append(record(
             OP_ATTACHMENT_INDEX,
-            struct.pack("<QQQQQ", at, 9 + length, log_time_ns, create_time_ns, len(data)) + _string(name) + _string(media_type),
+            struct.pack("<QQQQQ", at, 9 + length, log_time_ns, create_time_ns, len(data))
+            + _string(name) + _string(media_type),
         ))
 
     # -- summary -------------------------------------------------------------------
@@ -302,7 +305,8 @@ class ArchiveWriter:
         for opcode, records in groups:
             if records:
                 group = b"".join(records)
-                offsets += record(OP_SUMMARY_OFFSET, struct.pack("<BQQ", opcode, summary_start + len(summary), len(group)))
+                offsets += record(OP_SUMMARY_OFFSET,
+                                  struct.pack("<BQQ", opcode, summary_start + len(summary), len(group)))
                 summary += group
         offset_start = summary_start + len(summary)
         summary += offsets

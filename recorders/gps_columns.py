@@ -152,7 +152,8 @@ def convert_columns(cols: NmeaColumns, ctx: LogContext, no_date: str) -> Iterato
     silent = (alone & (z >= 0)).tolist() if len(cols.rows["ZDA"]) else [False] * n
     times = _times(cols.tod[first_timed].tolist(), dates, date_tods, silent, _clock(ctx))
     speed, course, heading = _motion(v, m, valid)
-    status = zip(quality.tolist(), np.where(has_g, _pick(gv["satellites"], g, 0), -1).astype(np.int64).tolist(), hdop.tolist(),
+    satellites = np.where(has_g, _pick(gv["satellites"], g, 0), -1).astype(np.int64)
+    status = zip(quality.tolist(), satellites.tolist(), hdop.tolist(),
                  _sources(cols.kind, starts), speed.tolist(), course.tolist(), heading.tolist())
     fix = zip((gga_pos | gll_pos | rmc_pos).tolist(), lat.tolist(), lon.tolist(), alt.tolist(), cov, cov_kind)
     where = zip(cols.offsets[source].tolist(), cols.numbers[source].tolist())
