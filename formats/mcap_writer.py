@@ -40,6 +40,7 @@ from pathlib import Path
 from typing import Any
 
 import zstandard
+from google.protobuf.message import Message
 from mcap_protobuf.schema import build_file_descriptor_set
 
 PROFILE = ""  # protobuf-encoded MCAP has no well-known profile
@@ -98,7 +99,7 @@ class _Channel:
 
     __slots__ = ("id", "cls", "count", "index")
 
-    def __init__(self, channel_id: int, cls: type):
+    def __init__(self, channel_id: int, cls: type[Message]):
         self.id = channel_id
         self.cls = cls
         self.count = 0
@@ -144,11 +145,11 @@ class ArchiveWriter:
             self._pos += len(part)
         return start
 
-    def channel(self, topic: str, message_class: type) -> int:
+    def channel(self, topic: str, message_class: type[Message]) -> int:
         """The channel id for a topic, registering it (and its schema) on first use."""
         return self._channel(topic, message_class).id
 
-    def _channel(self, topic: str, message_class: type) -> _Channel:
+    def _channel(self, topic: str, message_class: type[Message]) -> _Channel:
         if self._closed:
             raise ValueError(f"{self.path}: the archive is closed")
         known = self._topics.get(topic)
@@ -197,7 +198,8 @@ class ArchiveWriter:
             self._finish_chunk()
 
     def write_serialized(
-        self, topic_or_channel: str | int, data: bytes, log_time_ns: int, publish_time_ns: int | None = None,
+        self, topic_or_channel: str | int, data: bytes | memoryview, log_time_ns: int,
+        publish_time_ns: int | None = None,
     ) -> None:
         """Append one already-serialized message on a channel registered with `channel()` (topic or id)."""
         if type(topic_or_channel) is str:

@@ -109,7 +109,7 @@ def _sources(kind: np.ndarray, starts: np.ndarray) -> list[str]:
     return [names[s] for s in sig.tolist()]
 
 
-def _pick(values: list | np.ndarray, member: np.ndarray, empty: object) -> np.ndarray:
+def _pick(values: list | np.ndarray, member: np.ndarray, empty: float | str) -> np.ndarray:
     """values[member] per epoch, `empty` where the epoch has no sentence of that type (member -1)."""
     return np.append(np.asarray(values), empty)[member]
 

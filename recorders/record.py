@@ -34,7 +34,6 @@ from .record_parallel import (
 from .registry import converters
 from .value_checks import MAX_RANGE_M, TIME_RANGE_NS, ValueChecks
 
-LOG_LEVEL_WARNING = 3  # foxglove.Log.Level.WARNING
 Progress = Callable[[str, int, int], None]  # (file, bytes done, bytes total)
 # automatic mode decodes in-process below this much input: forking workers and
 # shipping results back costs more than it saves on a small trial (see bench/bench_record.py)
@@ -138,7 +137,7 @@ def _order_parts(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]
 
 
 def _diagnostic(log: LogSpec, reject: Reject, t_ns: int) -> S.Log:
-    return S.Log(timestamp=S.timestamp(t_ns), level=LOG_LEVEL_WARNING, name=log.vehicle, file=log.path,
+    return S.Log(timestamp=S.timestamp(t_ns), level=S.Log.WARNING, name=log.vehicle, file=log.path,
                  line=reject.where.line or 0,
                  message=f"{log.path} {reject.where.describe()}: {reject.reason}")
 
