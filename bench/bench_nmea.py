@@ -63,7 +63,8 @@ def receiver_mix(epochs: int) -> bytes:
             nmea.encode_rmc(t, lat, lon, speed_knots=3.1, course_deg=45.0),
             nmea.encode_vtg(45.0, 3.1),
             nmea.encode_gga(t, lat, lon, hdop=0.9, altitude_msl_m=120.0, geoid_separation_m=-10.0, satellites=9),
-            build("GPGSA", ["A", "3", "04", "05", "09", "12", "24", "25", "29", "", "", "", "", "", "1.6", "0.9", "1.3"]),
+            build("GPGSA", ["A", "3", "04", "05", "09", "12", "24", "25", "29", "", "", "", "", "",
+                            "1.6", "0.9", "1.3"]),
             *(build("GPGSV", ["3", str(i), "11", "03", "03", "111", "00", "04", "15", "270", "00",
                               "06", "01", "010", "00", "13", "06", "292", "00"]) for i in (1, 2, 3)),
             nmea.encode_gll(t, lat, lon),
@@ -151,7 +152,8 @@ def stage_table(tmp: Path, log: bytes) -> list[tuple[str, float]]:
             ("ours: nmea.scan, per line", per_line_us(lambda d: sum(1 for _ in nmea.scan(d)), log)),
             ("  of which GGA field values", per_call_us(lambda: nmea.VALUES["GGA"](fields))),
             ("ours: schemas.location_fix", per_call_us(lambda: S.location_fix(T0, "boat", 45.7, 126.6, 0.0, cov, 1))),
-            ("ours: gps.gnss_status", per_call_us(lambda: gnss_status(T0, "boat", 1, 8, 0.9, "nmea:GGA", 0.0, 0.0, 0.0))),
+            ("ours: gps.gnss_status",
+             per_call_us(lambda: gnss_status(T0, "boat", 1, 8, 0.9, "nmea:GGA", 0.0, 0.0, 0.0))),
             ("ours: Where + Output x 2", per_call_us(lambda: (Where(0, 1), Output("/b/gps", fix, T0, T0, where),
                                                               Output("/b/gps/status", status, T0, T0, where)))),
             ("ours: ArchiveWriter.write x 2", per_call_us(lambda: (writer.write("/b/gps", fix, T0),
@@ -180,7 +182,8 @@ def main(argv: list[str] | None = None) -> int:
     for name, lines, py, dec, ref, conv, mcap, ratio, ratio_dec in rows:
         print(f"{name:<14}{lines:>8}{py:>15.2f}{dec:>13.2f}{ref:>14.2f}{conv:>14.2f}{mcap:>14.2f}"
               f"{ratio:>11.2f}x{ratio_dec:>13.2f}x")
-    print("  (ref. convert: tests.reference_converters.convert_nmea_reference, the record-based path the fast one is tested against)")
+    print("  (ref. convert: tests.reference_converters.convert_nmea_reference, the record-based path the fast one"
+          " is tested against)")
     print("\nOne GGA-only epoch by stage, median microseconds (per GGA line of the log, or per call)")
     for name, us in stages:
         print(f"  {name:<38}{us:>8.2f}")

@@ -112,7 +112,8 @@ def main(argv: list[str] | None = None) -> int:
                      ("formats.pd0 (+ water profile)", lambda: ours(data, True)),
                      ("formats.pd0_blocks.scan", lambda: ours_blocks(data)),
                      ("recorders.dvl convert_pd0", lambda: ours_recorder(data)),
-                     ("tests.reference_converters convert_pd0_reference", lambda: ours_recorder(data, convert_pd0_reference))):
+                     ("tests.reference_converters convert_pd0_reference",
+                      lambda: ours_recorder(data, convert_pd0_reference))):
         assert fn() == args.n
         rows.append([name, args.n / median_time(fn, args.repeats)])
     with tempfile.TemporaryDirectory() as tmp:

@@ -75,7 +75,7 @@ def main() -> None:
     parser.add_argument("--hours", type=float, default=24.0, help="length of the long mission (default 24)")
     parser.add_argument("--skip-mission", action="store_true")
     args = parser.parse_args()
-    print_table("Replay of the sample trial (median of %d)" % args.repeats, ["what", "wall", "speed", "goal"],
+    print_table(f"Replay of the sample trial (median of {args.repeats})", ["what", "wall", "speed", "goal"],
                 sample_trial(args.repeats))
     if args.skip_mission:
         return

@@ -40,6 +40,7 @@ from pathlib import Path
 from typing import Any
 
 import zstandard
+from google.protobuf.message import Message
 from mcap_protobuf.schema import build_file_descriptor_set
 
 PROFILE = ""  # protobuf-encoded MCAP has no well-known profile
@@ -98,7 +99,7 @@ class _Channel:
 
     __slots__ = ("id", "cls", "count", "index")
 
-    def __init__(self, channel_id: int, cls: type):
+    def __init__(self, channel_id: int, cls: type[Message]):
         self.id = channel_id
         self.cls = cls
         self.count = 0
@@ -144,11 +145,11 @@ class ArchiveWriter:
             self._pos += len(part)
         return start
 
-    def channel(self, topic: str, message_class: type) -> int:
+    def channel(self, topic: str, message_class: type[Message]) -> int:
         """The channel id for a topic, registering it (and its schema) on first use."""
         return self._channel(topic, message_class).id
 
-    def _channel(self, topic: str, message_class: type) -> _Channel:
+    def _channel(self, topic: str, message_class: type[Message]) -> _Channel:
         if self._closed:
             raise ValueError(f"{self.path}: the archive is closed")
         known = self._topics.get(topic)
@@ -164,7 +165,8 @@ class ArchiveWriter:
         if schema_id is None:
             schema_id = len(self._schemas) + 1  # 0 means "no schema"
             data = build_file_descriptor_set(message_class).SerializeToString()
-            rec = record(OP_SCHEMA, _U16.pack(schema_id) + _string(name) + _string("protobuf") + _U32.pack(len(data)) + data)
+            rec = record(OP_SCHEMA,
+                         _U16.pack(schema_id) + _string(name) + _string("protobuf") + _U32.pack(len(data)) + data)
             self._chunk += rec
             self._summary_schemas.append(rec)
             self._schemas[name] = schema_id
@@ -196,7 +198,8 @@ class ArchiveWriter:
             self._finish_chunk()
 
     def write_serialized(
-        self, topic_or_channel: str | int, data: bytes, log_time_ns: int, publish_time_ns: int | None = None,
+        self, topic_or_channel: str | int, data: bytes | memoryview, log_time_ns: int,
+        publish_time_ns: int | None = None,
     ) -> None:
         """Append one already-serialized message on a channel registered with `channel()` (topic or id)."""
         if type(topic_or_channel) is str:
@@ -268,13 +271,15 @@ class ArchiveWriter:
         log_time_ns: int = 0, create_time_ns: int = 0,
     ) -> None:
         """An attachment, byte for byte (the record carries its own CRC)."""
-        head = struct.pack("<QQ", log_time_ns, create_time_ns) + _string(name) + _string(media_type) + _U64.pack(len(data))
+        head = (struct.pack("<QQ", log_time_ns, create_time_ns) + _string(name) + _string(media_type)
+                + _U64.pack(len(data)))
         crc = _U32.pack(zlib.crc32(data, zlib.crc32(head)))
         length = len(head) + len(data) + 4
         at = self._emit(_RECORD.pack(OP_ATTACHMENT, length), head, data, crc)
         self._attachment_indexes.append(record(
             OP_ATTACHMENT_INDEX,
-            struct.pack("<QQQQQ", at, 9 + length, log_time_ns, create_time_ns, len(data)) + _string(name) + _string(media_type),
+            struct.pack("<QQQQQ", at, 9 + length, log_time_ns, create_time_ns, len(data))
+            + _string(name) + _string(media_type),
         ))
 
     # -- summary -------------------------------------------------------------------
@@ -302,7 +307,8 @@ class ArchiveWriter:
         for opcode, records in groups:
             if records:
                 group = b"".join(records)
-                offsets += record(OP_SUMMARY_OFFSET, struct.pack("<BQQ", opcode, summary_start + len(summary), len(group)))
+                offsets += record(OP_SUMMARY_OFFSET,
+                                  struct.pack("<BQQ", opcode, summary_start + len(summary), len(group)))
                 summary += group
         offset_start = summary_start + len(summary)
         summary += offsets

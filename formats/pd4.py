@@ -92,7 +92,7 @@ def _parse(buf: bytes, i: int, nbytes: int) -> DvlOutput:
                    roll_deg=p[3] / 100, heading_deg=p[4] / 100,
                    dmg_bottom_m=tuple(d / 10 for d in p[5:9]),
                    dmg_reference_m=tuple(d / 10 for d in p[9:13]))
-    return DvlOutput(**rec)  # type: ignore[arg-type]  # fields gathered by name in a dict: their types are the dataclass's
+    return DvlOutput(**rec)
 
 
 def _candidate(buf: bytes, i: int) -> tuple[str | None, int]:
@@ -112,7 +112,8 @@ def _candidate(buf: bytes, i: int) -> tuple[str | None, int]:
 def decode(data: bytes) -> Iterator[DvlOutput | Reject]:
     """Yield every PD4/PD5 record, resyncing on 0x7D; noise gaps are one Reject each."""
     buf = bytes(data)
-    pos, gap_start = 0, 0  # gap_start: first byte not yet accounted for (None: none)
+    pos = 0
+    gap_start: int | None = 0  # the first byte not yet accounted for (None: none)
     while True:
         i = buf.find(b"\x7d", pos)
         if i < 0:

@@ -30,7 +30,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Union
 
 from .lines import PREFIX_STYLES
 from .nmea.fields import NAN, parse_tod
@@ -157,7 +156,8 @@ class Phtro:
     roll_port_up_deg: float
 
 
-PhinsRecord = Union[Heading, Atitud, Positi, Speed, Utmwgs, Heave, Time, StdHrp, StdPos, StdSpd, StatusWords, Phtro]
+PhinsRecord = (Heading | Atitud | Positi | Speed | Utmwgs | Heave | Time | StdHrp | StdPos | StdSpd | StatusWords
+               | Phtro)
 
 
 def _f(s: str) -> float:
@@ -313,8 +313,8 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
             continue
         computed = pxor[line_start + star - 1] ^ pxor[line_start]
         if given != computed:
-            yield Reject(Where(line_start, number), f"bad checksum {raw[star + 1 : star + 3]!r}, computed {computed:02X}",
-                         bad_checksum=True)
+            yield Reject(Where(line_start, number),
+                         f"bad checksum {raw[star + 1 : star + 3]!r}, computed {computed:02X}", bad_checksum=True)
             continue
         fields = raw[1:star].split(",")
         address = fields[0]

@@ -33,10 +33,10 @@ MESSAGE_CLASSES: dict[str, Any] = {
 }
 
 # foxglove.LocationFix.position_covariance_type values, from the generated enum
-COVARIANCE_UNKNOWN: int = LocationFix.UNKNOWN
-COVARIANCE_APPROXIMATED: int = LocationFix.APPROXIMATED
-COVARIANCE_DIAGONAL_KNOWN: int = LocationFix.DIAGONAL_KNOWN
-COVARIANCE_KNOWN: int = LocationFix.KNOWN
+COVARIANCE_UNKNOWN = LocationFix.UNKNOWN
+COVARIANCE_APPROXIMATED = LocationFix.APPROXIMATED
+COVARIANCE_DIAGONAL_KNOWN = LocationFix.DIAGONAL_KNOWN
+COVARIANCE_KNOWN = LocationFix.KNOWN
 
 
 def timestamp(ns: int) -> Timestamp:
@@ -77,8 +77,10 @@ def location_fix(
         fix = LocationFix.FromString(_FIX_PACK(
             k0, latitude, k1, longitude, k2, altitude, k3, *covariance_enu_m2, k4, covariance_type))
     else:
+        # proto3 enums are open: a type outside the named four (read from someone's bag) is kept as it came
+        kind = LocationFix.PositionCovarianceType.ValueType(covariance_type)
         fix = LocationFix(latitude=latitude, longitude=longitude, altitude=altitude,
-                          position_covariance=covariance_enu_m2, position_covariance_type=covariance_type)
+                          position_covariance=covariance_enu_m2, position_covariance_type=kind)
     fix.frame_id = frame_id
     ts = fix.timestamp
     ts.seconds, ts.nanos = divmod(int(t_ns), NS)

@@ -139,7 +139,8 @@ def _serial(kind: str, p: list[str], where: Where) -> WaterLinkedRecord:
         return TransducerReport(where, int(p[0]), _f(p[1]), _pos(_f(p[2])), _f(p[3]), _f(p[4]),
                                 _f(p[2]) >= 0)
     if kind == "wrp":
-        return PositionReport(where, *(_f(x) for x in p[:8]), _int(p[8]) or 0)
+        return PositionReport(where, _f(p[0]), _f(p[1]), _f(p[2]), _f(p[3]), _f(p[4]), _f(p[5]), _f(p[6]), _f(p[7]),
+                              _int(p[8]) or 0)
     if kind == "wrx":
         return VelocityReport(where, "wrx", (_f(p[1]), _f(p[2]), _f(p[3])), p[6].strip() == "y",
                               _pos(_f(p[5])), _f(p[4]), (), None, None, _f(p[0]), _int(p[7]) or 0)
@@ -210,8 +211,8 @@ def parse_json(text: str, where: Where) -> WaterLinkedRecord | Reject:
                 _us(obj.get("time_of_transmission")), _f(obj.get("time", "nan")),
                 int(obj.get("status", 0)), trans)
         if kind == "position_local":
-            return PositionReport(where, *(_f(obj[k]) for k in ("ts", "x", "y", "z", "std")),
-                                  *(_f(obj.get(k, "nan")) for k in ("roll", "pitch", "yaw")),
+            return PositionReport(where, _f(obj["ts"]), _f(obj["x"]), _f(obj["y"]), _f(obj["z"]), _f(obj["std"]),
+                                  _f(obj.get("roll", "nan")), _f(obj.get("pitch", "nan")), _f(obj.get("yaw", "nan")),
                                   int(obj.get("status", 0)))
     except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as exc:
         return Reject(where, f"JSON {kind} report: bad or missing field {exc}")

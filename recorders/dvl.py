@@ -161,7 +161,8 @@ def _pd0_block_outputs(block: pd0_blocks.Block, fixed: pd0.FixedLeader | None, c
     """`convert_pd0_reference`'s items for the ensembles of one block."""
     offsets, times, numbers = block.offsets, block.time_ns, block.numbers
     sounds, temps = block.sound_speed_mps, block.temperature_c  # None only with `times` (no variable leader)
-    if times is None or numbers is None or sounds is None or temps is None or block.velocity_mps is None or fixed is None:
+    if (times is None or numbers is None or sounds is None or temps is None or block.velocity_mps is None
+            or fixed is None):
         for k, off in enumerate(offsets):
             number = numbers[k] if numbers is not None else "?"
             if times is None or times[k] is None:
@@ -174,7 +175,8 @@ def _pd0_block_outputs(block: pd0_blocks.Block, fixed: pd0.FixedLeader | None, c
     frame, xs, ys, zs, errs, slants, alts, valids = _pd0_motion(block, fixed, ctx)
     head = DvlVelocity(frame_id=ctx.vehicle, frame=FRAMES[frame], figure_of_merit=NAN,
                        source_format="pd0").SerializeToString()
-    pack, parse, topic, offset_ns = DVL_VELOCITY.struct.pack, DvlVelocity.FromString, f"/{ctx.vehicle}/dvl", ctx.clock_offset_ns
+    pack, parse = DVL_VELOCITY.struct.pack, DvlVelocity.FromString
+    topic, offset_ns = f"/{ctx.vehicle}/dvl", ctx.clock_offset_ns
     k0, k1, k2, k3, k4, k5, k6, k7, k8 = DVL_VELOCITY.keys
     for off, t, number, x, y, z, err, r, alt, valid, sound, temp in zip(
             offsets, times, numbers, xs, ys, zs, errs, slants, alts, valids, sounds, temps):

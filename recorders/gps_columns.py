@@ -109,7 +109,7 @@ def _sources(kind: np.ndarray, starts: np.ndarray) -> list[str]:
     return [names[s] for s in sig.tolist()]
 
 
-def _pick(values: list | np.ndarray, member: np.ndarray, empty: object) -> np.ndarray:
+def _pick(values: list | np.ndarray, member: np.ndarray, empty: float | str) -> np.ndarray:
     """values[member] per epoch, `empty` where the epoch has no sentence of that type (member -1)."""
     return np.append(np.asarray(values), empty)[member]
 
@@ -152,7 +152,8 @@ def convert_columns(cols: NmeaColumns, ctx: LogContext, no_date: str) -> Iterato
     silent = (alone & (z >= 0)).tolist() if len(cols.rows["ZDA"]) else [False] * n
     times = _times(cols.tod[first_timed].tolist(), dates, date_tods, silent, _clock(ctx))
     speed, course, heading = _motion(v, m, valid)
-    status = zip(quality.tolist(), np.where(has_g, _pick(gv["satellites"], g, 0), -1).astype(np.int64).tolist(), hdop.tolist(),
+    satellites = np.where(has_g, _pick(gv["satellites"], g, 0), -1).astype(np.int64)
+    status = zip(quality.tolist(), satellites.tolist(), hdop.tolist(),
                  _sources(cols.kind, starts), speed.tolist(), course.tolist(), heading.tolist())
     fix = zip((gga_pos | gll_pos | rmc_pos).tolist(), lat.tolist(), lon.tolist(), alt.tolist(), cov, cov_kind)
     where = zip(cols.offsets[source].tolist(), cols.numbers[source].tolist())

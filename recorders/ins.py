@@ -207,7 +207,8 @@ def _span_scan_fields(epoch: dict[str, novatel_scan.Scanned]) -> tuple:
             depth = NAN if math.isnan(u) else -(x.height_m - u)
             hstd, rstd, pstd, pn, pe = x.azimuth_std_deg, x.roll_std_deg, x.pitch_std_deg, x.lat_std_m, x.lon_std_m
             status += (x.status, x.position_type)
-    return " ".join(dict.fromkeys(status)), lat, lon, depth, roll, pitch, heading, vn, ve, vd, hstd, pn, pe, rstd, pstd, alt
+    return (" ".join(dict.fromkeys(status)), lat, lon, depth, roll, pitch, heading, vn, ve, vd,
+            hstd, pn, pe, rstd, pstd, alt)
 
 
 def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:

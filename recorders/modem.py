@@ -167,7 +167,8 @@ def micromodem_options(ctx: LogContext) -> MicromodemOptions:
     return MicromodemOptions(round_trip, option_float(ctx, "owtt_period_s", None), offset or 0.0, sound_speed(ctx))
 
 
-def toa_range(ctx: LogContext, where: Where, arrival: int | None, src: int | None, opts: MicromodemOptions) -> Output | Reject:
+def toa_range(ctx: LogContext, where: Where, arrival: int | None, src: int | None,
+              opts: MicromodemOptions) -> Output | Reject:
     if arrival is None:
         return Reject(where, "no date: time of arrival without a trial date or a modem date")
     if src is None:
@@ -238,12 +239,14 @@ class _ScanPings:
         publish = None if host is None else host + self.offset_ns
         arrival = utc + self.offset_ns if utc is not None else publish
         if arrival is None:
-            return Reject(Where(offset, line, host), "no time: the ping reply carries none and the line has no host timestamp")
+            return Reject(Where(offset, line, host),
+                          "no time: the ping reply carries none and the line has no host timestamp")
         t = arrival - round(owtt * NS)
         name = self.names.get(heard)
         if name is None:
             name = self.names[heard] = self.ctx.vehicle_for_address(heard)
-        msg = AM.acoustic_range(t, name, self.ctx.vehicle, heard, measurer, owtt, owtt * self.c, self.c, "ping", "micromodem")
+        msg = AM.acoustic_range(t, name, self.ctx.vehicle, heard, measurer, owtt, owtt * self.c, self.c, "ping",
+                                "micromodem")
         return Output(self.topic, msg, t, t if publish is None else publish, Where(offset, line, host))
 
 
@@ -324,7 +327,8 @@ def _evologics_scan(data: bytes, ctx: LogContext, c: float) -> Iterator[Output |
         if keyword == "AT?T":
             us, heard = v
             if heard is None:
-                yield Reject(Where(offset, line, host), "propagation time before any delivery or reception names the peer")
+                yield Reject(Where(offset, line, host),
+                             "propagation time before any delivery or reception names the peer")
                 continue
             kind = "ping"
         elif keyword == "USBLLONG":

@@ -34,7 +34,6 @@ from .record_parallel import (
 from .registry import converters
 from .value_checks import MAX_RANGE_M, TIME_RANGE_NS, ValueChecks
 
-LOG_LEVEL_WARNING = 3  # foxglove.Log.Level.WARNING
 Progress = Callable[[str, int, int], None]  # (file, bytes done, bytes total)
 # automatic mode decodes in-process below this much input: forking workers and
 # shipping results back costs more than it saves on a small trial (see bench/bench_record.py)
@@ -103,7 +102,8 @@ class RecordingSummary:
         return sum(f.skipped for f in self.files)
 
 
-def _context(manifest: Manifest, log: LogSpec, files: tuple[str, ...] | None = None) -> LogContext:
+def log_context(manifest: Manifest, log: LogSpec, files: tuple[str, ...] | None = None) -> LogContext:
+    """What a converter knows of one log: its vehicle, clock offset, options and files (default: all of them)."""
     options = dict(log.options)
     return LogContext(
         vehicle=log.vehicle, role=manifest.role_of(log.vehicle), path=log.path, trial_date=manifest.date,
@@ -133,17 +133,17 @@ def _order_parts(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]
     """The parts in log order: as given, or (order = "time") by the first message time of each decoded alone."""
     if log.order != "time" or len(parts) < 2:
         return parts
-    firsts = [_first_time(convert, data, _context(manifest, log, (name,))) for name, data in parts]
+    firsts = [_first_time(convert, data, log_context(manifest, log, (name,))) for name, data in parts]
     return [p for _, _, p in sorted(zip(firsts, range(len(parts)), parts))]
 
 
 def _diagnostic(log: LogSpec, reject: Reject, t_ns: int) -> S.Log:
-    return S.Log(timestamp=S.timestamp(t_ns), level=LOG_LEVEL_WARNING, name=log.vehicle, file=log.path,
+    return S.Log(timestamp=S.timestamp(t_ns), level=S.Log.WARNING, name=log.vehicle, file=log.path,
                  line=reject.where.line or 0,
                  message=f"{log.path} {reject.where.describe()}: {reject.reason}")
 
 
-class _LogRecorder:
+class LogRecorder:
     """Writes one log's outputs and diagnostics, keeping its statistics."""
 
     def __init__(self, writer: MessageSink, log: LogSpec, stats: FileStats, fallback_ns: int,
@@ -256,7 +256,8 @@ class _LogRecorder:
                 previous = span
 
 
-def _trial_metadata(manifest: Manifest) -> dict:
+def trial_metadata(manifest: Manifest) -> dict:
+    """The archive's "trial" metadata record: name, date, vehicles, modem addresses and the manifest itself."""
     return {
         "name": manifest.name,
         "date": manifest.date.isoformat() if manifest.date else "",
@@ -274,7 +275,8 @@ def _iter_outputs(convert, data: bytes, ctx: LogContext, log: LogSpec) -> Iterat
         raise ManifestError(f"{log.path}: {exc}") from exc
 
 
-def _check_formats(manifest: Manifest, table: dict) -> None:
+def check_formats(manifest: Manifest, table: dict) -> None:
+    """Raise ManifestError naming the known formats when a log's (sensor, format) has no converter in `table`."""
     for log in manifest.logs():
         if (log.sensor, log.format) not in table:
             known = sorted(f for s, f in table if s == log.sensor)
@@ -323,10 +325,10 @@ def _decode_log(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]]
             stats.parts.append({"path": name, "size": len(part), "sha256": hashlib.sha256(part).hexdigest()})
             starts.append(offset)
             offset += len(part)
-    rec = _LogRecorder(sink, log, stats, fallback, starts)
+    rec = LogRecorder(sink, log, stats, fallback, starts)
     step = max(len(data) // 50, 1 << 16)
     next_report = step
-    for item in _iter_outputs(convert, data, _context(manifest, log, tuple(n for n, _ in parts)), log):
+    for item in _iter_outputs(convert, data, log_context(manifest, log, tuple(n for n, _ in parts)), log):
         rec.add(item)
         if progress is not None and item.where is not None and item.where.offset >= next_report:
             progress(log.path, item.where.offset, len(data))
@@ -449,7 +451,7 @@ def record(manifest: Manifest, output_path, progress: Progress | None = None,
     except OutputProblem as exc:
         raise ManifestError(str(exc)) from None
     table = converters()
-    _check_formats(manifest, table)
+    check_formats(manifest, table)
     live = next((log for log in manifest.logs() if log.source), None)
     if live is not None:
         raise ManifestError(f"{manifest.path}: log {live.path} is a live source ({live.source}): "
@@ -468,7 +470,7 @@ def record(manifest: Manifest, output_path, progress: Progress | None = None,
                                                       len(manifest.logs()), summary.workers - 1, caller_first=True))
             writer = stack.enter_context(ArchiveWriter(output))
             # first, so that an archive cut off mid-write still says who is who
-            writer.add_metadata("trial", _trial_metadata(manifest))
+            writer.add_metadata("trial", trial_metadata(manifest))
             if pool is None:
                 _record_serial(manifest, writer, table, fallback, summary, progress)
             else:
@@ -481,9 +483,3 @@ def record(manifest: Manifest, output_path, progress: Progress | None = None,
         raise
     return summary
 
-
-# what `recorders.capture` shares with file recording: the same statistics, diagnostics and metadata
-LogRecorder = _LogRecorder
-log_context = _context
-trial_metadata = _trial_metadata
-check_formats = _check_formats

@@ -38,8 +38,11 @@ from array import array
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection, wait
+from multiprocessing.process import BaseProcess
 from multiprocessing.reduction import recv_handle, send_handle
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, TypeVar, cast
+
+from google.protobuf.message import Message
 
 from formats.mcap_writer import ArchiveWriter
 from formats.schemas import MESSAGE_CLASSES
@@ -82,7 +85,7 @@ class Capture:
     """A stand-in for ArchiveWriter.write that keeps serialized messages instead of writing them."""
 
     def __init__(self) -> None:
-        self._numbers: dict[tuple[str, type], int] = {}
+        self._numbers: dict[tuple[str, type[Message]], int] = {}
         self._parts: list[bytes] = []
         self._size = 0
         self.captured = Captured()
@@ -99,7 +102,7 @@ class Capture:
         self.captured.index.extend(
             (number, self._size, log_time_ns, log_time_ns if publish_time_ns is None else publish_time_ns))
 
-    def _register(self, topic: str, cls: type) -> int:
+    def _register(self, topic: str, cls: type[Message]) -> int:
         name = cls.DESCRIPTOR.full_name
         # the main process finds the class again by name (foxglove's classes do not pickle)
         if MESSAGE_CLASSES.get(name) is not cls:
@@ -244,12 +247,13 @@ class WorkerPool(Generic[T]):
         # [0]: the next task; [1 + t]: who took task t (0 nobody, _CALLER, or worker number from 1)
         self._claims = ctx.RawArray("i", 1 + tasks)
         self._reserved: list[int] = []  # taken for the caller before the forks, handed out by claim()
-        if caller_first and tasks:
-            self._reserved.append(_take_next(self._claims, _CALLER))
+        first = _take_next(self._claims, _CALLER) if caller_first and tasks else None
+        if first is not None:  # always, with a task to take
+            self._reserved.append(first)
         self._results: dict[int, int] = {}  # task -> descriptor of the file holding its answer
         self._received: set[int] = set()
-        self._live: dict[Connection, tuple[multiprocessing.Process, int]] = {}
-        self._all: list[tuple[multiprocessing.Process, Connection]] = []
+        self._live: dict[Connection, tuple[BaseProcess, int]] = {}
+        self._all: list[tuple[BaseProcess, Connection]] = []
         sys.stdout.flush()  # else a child could flush the parent's pending output a second time
         sys.stderr.flush()
         try:
@@ -305,8 +309,10 @@ class WorkerPool(Generic[T]):
             return
         sentinels = {proc.sentinel: conn for conn, (proc, _) in self._live.items()}
         gone = set()
-        for conn in wait([*self._live, *sentinels], timeout):
-            conn = sentinels.get(conn, conn)  # an ended worker: take in what it sent before it went
+        for ready in wait([*self._live, *sentinels], timeout):
+            # wait() hands back what it was given: a pipe end of ours, or the sentinel (an int) of an ended
+            # worker, whose pipe end we read to take in what it sent before it went
+            conn = sentinels[ready] if isinstance(ready, int) else cast(Connection, ready)
             if conn in gone:
                 continue
             while conn.poll():

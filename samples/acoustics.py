@@ -63,7 +63,8 @@ class Pings:
     replied: np.ndarray
 
 
-def ping_schedule(scenario: Scenario, followers: list[str], leaders: list[str]) -> list[tuple[str, np.ndarray, np.ndarray]]:
+def ping_schedule(scenario: Scenario, followers: list[str],
+                  leaders: list[str]) -> list[tuple[str, np.ndarray, np.ndarray]]:
     """Per follower: ping times and the leader index pinged (leaders in turn)."""
     r = scenario.ranging
     out = []
@@ -81,14 +82,14 @@ def _interp_fix(gps: GpsSeries, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _link(scenario: Scenario, follower: Track, leader: Track, t: np.ndarray, seed: int,
           events: list[AnomalyEvent]) -> dict[str, np.ndarray]:
-    f, l = interp_track(follower, t), interp_track(leader, t)
-    true = np.sqrt((f["east_m"] - l["east_m"]) ** 2 + (f["north_m"] - l["north_m"]) ** 2
-                   + (f["depth_m"] - l["depth_m"]) ** 2)
+    f, ld = interp_track(follower, t), interp_track(leader, t)
+    true = np.sqrt((f["east_m"] - ld["east_m"]) ** 2 + (f["north_m"] - ld["north_m"]) ** 2
+                   + (f["depth_m"] - ld["depth_m"]) ** 2)
     rng = stream(seed, "range", follower.name, leader.name)
     noisy = true + rng.standard_normal(len(t)) * scenario.ranging.range_sigma_m
     measured, replied, kinds = an.apply_events(t, noisy, events)
     return {"true": true, "measured": measured, "replied": replied, "kinds": kinds,
-            "f_depth": f["depth_m"], "l_depth": l["depth_m"]}
+            "f_depth": f["depth_m"], "l_depth": ld["depth_m"]}
 
 
 def simulate_ranging(scenario: Scenario, tracks: dict[str, Track], ins: dict[str, InsSeries],
@@ -105,11 +106,14 @@ def simulate_ranging(scenario: Scenario, tracks: dict[str, Track], ins: dict[str
         for j, lname in enumerate(leaders):
             t = t_all[lidx == j]
             fixed = [e for e in scenario.anomalies if e.leader == lname and e.follower == fname]
-            drawn = an.natural_events(nat[lname], fname, t, scenario.trial.duration_s, seed, fixed) if lname in nat else []
+            drawn = (an.natural_events(nat[lname], fname, t, scenario.trial.duration_s, seed, fixed)
+                     if lname in nat else [])
             intervals += an.intervals_for(fixed, "scenario") + an.intervals_for(drawn, "natural")
             link = _link(scenario, tracks[fname], tracks[lname], t, seed, fixed + drawn)
-            pings["t"].append(t), pings["f"].append(np.full(len(t), fname)), pings["l"].append(
-                np.full(len(t), lname)), pings["r"].append(link["replied"])
+            pings["t"].append(t)
+            pings["f"].append(np.full(len(t), fname))
+            pings["l"].append(np.full(len(t), lname))
+            pings["r"].append(link["replied"])
             keep = link["replied"]
             te = t[keep]
             part = {
@@ -124,9 +128,9 @@ def simulate_ranging(scenario: Scenario, tracks: dict[str, Track], ins: dict[str
     return _finish(scenario, cols), _pings(pings), intervals
 
 
-def _positions(f: Track, l: Track, l_ins: InsSeries, f_gps: GpsSeries, l_gps: GpsSeries,
-               t: np.ndarray, frame: LocalFrame) -> dict[str, np.ndarray]:
-    fi, li = interp_track(f, t), interp_track(l, t)
+def _positions(follower: Track, leader: Track, l_ins: InsSeries, f_gps: GpsSeries, l_gps: GpsSeries, t: np.ndarray,
+               frame: LocalFrame) -> dict[str, np.ndarray]:
+    fi, li = interp_track(follower, t), interp_track(leader, t)
     flat, flon = frame.to_geodetic(fi["east_m"], fi["north_m"])
     llat, llon = frame.to_geodetic(li["east_m"], li["north_m"])
     fg, lg = _interp_fix(f_gps, t), _interp_fix(l_gps, t)

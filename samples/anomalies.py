@@ -74,7 +74,8 @@ def _inside(t: np.ndarray, ev: AnomalyEvent) -> np.ndarray:
     return (t >= ev.start_s - 1e-9) & (t <= ev.end_s + 1e-9)
 
 
-def apply_events(t: np.ndarray, noisy_m: np.ndarray, events: list[AnomalyEvent]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def apply_events(t: np.ndarray, noisy_m: np.ndarray,
+                 events: list[AnomalyEvent]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Measured ranges of ONE link after its events: (measured, replied mask, kind codes).
 
     Order: dropouts remove epochs; drift and outliers add to the noisy range;

@@ -89,8 +89,9 @@ def phins_ins(trial: SimulatedTrial, name: str) -> bytes:
     t_ns = trial.t_ns(s.t_s)
     cols = np.column_stack([s.lat_deg, s.lon_deg, s.depth_m, s.heading_deg, s.roll_deg, s.pitch_deg,
                             s.vel_north_mps, s.vel_east_mps, s.vel_down_mps, s.position_std_m])
-    out = [_phins_burst(int(t_ns[i]), *(float(x) for x in row[:9]), s.heading_std_deg, att, float(row[9]))
-           for i, row in enumerate(cols)]
+    out = [_phins_burst(int(t_ns[i]), lat, lon, depth, heading, roll, pitch, vn, ve, vd, s.heading_std_deg, att,
+                        std_pos)
+           for i, (lat, lon, depth, heading, roll, pitch, vn, ve, vd, std_pos) in enumerate(cols.tolist())]
     return "".join(out).encode("ascii")
 
 

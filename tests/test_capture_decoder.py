@@ -10,7 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from formats.lines import strip_prefix
-from recorders.base import Output
+from formats.records import Where
+from recorders.base import Ignored, Output
 from recorders.capture.base import SourceError
 from recorders.capture.decoder import StreamDecoder, stamp_prefix
 from recorders.capture.sources import make_source
@@ -105,3 +106,26 @@ def test_manifest_source_instead_of_path(tmp_path):
 def test_bad_source_addresses_say_why(url, message):
     with pytest.raises(SourceError, match=message):
         make_source(url)
+
+
+def _ignore_lines(data: bytes, ctx):
+    """A converter that reads every line whole and archives none (an unmapped topic, say)."""
+    pos = 0
+    for number, line in enumerate(data.splitlines(keepends=True), 1):
+        yield Ignored(Where(pos, number), "unmapped")
+        pos += len(line)
+
+
+def test_ignored_items_are_counted_over_the_whole_stream():
+    """Ignored is frozen like Reject: a later window rebases a copy instead of assigning to it."""
+    log = LOGS["leader1/gps.log"]
+    d = StreamDecoder(_ignore_lines, log_context(MANIFEST, log), log.sensor, log.format)
+    d.stamp = False
+    data = b"".join(b"line %05d\n" % k for k in range(2000))  # 22 kB: well past HOLD_BYTES, so the window moves
+    out = []
+    for at in range(0, len(data), 1100):
+        d.feed(data[at:at + 1100], 1_800_000_000 * 10**9 + at)
+        out += d.decode()
+    out += d.decode(final=True)
+    assert [(i.where.offset, i.where.line) for i in out] == [(11 * k, k + 1) for k in range(2000)]
+    assert all(type(i) is Ignored and i.reason == "unmapped" for i in out)

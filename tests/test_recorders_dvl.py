@@ -97,14 +97,14 @@ def test_nortek_velocity_speed_and_beams() -> None:
     assert m.figure_of_merit == 0.004 and m.altitude_m == 10.0 and m.valid
     (o,), _ = _run("nortek", bt7)
     assert o.message.frame == DvlVelocity.INSTRUMENT
-    bt4 = "$PNORBT4,0,0,2.0,90.0,0.01,12.3*" + "%02X" % _xor("PNORBT4,0,0,2.0,90.0,0.01,12.3")
+    bt4 = f"$PNORBT4,0,0,2.0,90.0,0.01,12.3*{_xor('PNORBT4,0,0,2.0,90.0,0.01,12.3'):02X}"
     outs, (rej,) = _run("nortek", bt4 + "\n2016-10-12T08:00:05Z " + bt4 + "\n")
     assert "no time" in rej.reason
     (o,) = outs
     assert o.message.frame == DvlVelocity.EARTH_NED and o.message.velocity_y_mps == pytest.approx(2.0)
     assert o.message.valid and math.isnan(o.message.velocity_z_mps) and o.message.altitude_m == 12.3
     beams = "".join(f"$PNORBT,{b},101216,080001.25,0,0,0.1,1.0,{9 + b},0,00*" +
-                    "%02X" % _xor(f"PNORBT,{b},101216,080001.25,0,0,0.1,1.0,{9 + b},0,00") + "\n"
+                    f"{_xor(f'PNORBT,{b},101216,080001.25,0,0,0.1,1.0,{9 + b},0,00'):02X}\n"
                     for b in (1, 2, 3, 4))
     (o,), _ = _run("nortek", beams)
     assert o.log_time_ns == T0 + OFFSET and not o.message.valid

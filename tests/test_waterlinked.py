@@ -57,8 +57,9 @@ def test_json_velocity_and_position() -> None:
 
 
 def test_damage() -> None:
-    lines = [DOC.splitlines()[1][:-2] + "00", "wru,0,0.070,1.10", "wru,0,0.070,1.10,-40*" + "%02x" % wl.crc8(b"wru,0,0.070,1.10,-40"),
-             "wrz,a,b,c,y,1,1,,1,2,3,0*" + "%02x" % wl.crc8(b"wrz,a,b,c,y,1,1,,1,2,3,0"), "\x00\xffnoise"]
+    lines = [DOC.splitlines()[1][:-2] + "00", "wru,0,0.070,1.10",
+             f"wru,0,0.070,1.10,-40*{wl.crc8(b'wru,0,0.070,1.10,-40'):02x}",
+             f"wrz,a,b,c,y,1,1,,1,2,3,0*{wl.crc8(b'wrz,a,b,c,y,1,1,,1,2,3,0'):02x}", "\x00\xffnoise"]
     out = list(wl.decode("\r\n".join(lines).encode()))
     assert out[0].bad_checksum and "no CRC-8" in out[1].reason
     assert "needs 5" in out[2].reason and "not a number" in out[3].reason

@@ -276,8 +276,10 @@ def _recv_record(w: Where, kind: str, h: list[str], payload: str, old: bool) -> 
         raise ValueError(f"ack flag is neither ack nor noack: {flag!r}")
     rest = [_num(x) for x in h[4 if kind == "RECVIM" else 3:]]
     if old:  # bitrate, rssi, integrity, propagation time, velocity
-        return ReceivedIM(w, kind, src, dest, flag == "ack", nan, rest[1], rest[2], rest[4], nan, rest[3], payload.encode("latin-1"))
-    return ReceivedIM(w, kind, src, dest, flag == "ack", rest[0], rest[1], rest[2], rest[3], nan, nan, payload.encode("latin-1"))
+        return ReceivedIM(w, kind, src, dest, flag == "ack", nan, rest[1], rest[2], rest[4], nan, rest[3],
+                          payload.encode("latin-1"))
+    return ReceivedIM(w, kind, src, dest, flag == "ack", rest[0], rest[1], rest[2], rest[3], nan, nan,
+                      payload.encode("latin-1"))
 
 
 def _delivery(w: Where, kind: str, p: Sequence[str]) -> Record:
@@ -545,5 +547,6 @@ def encode_recvim(src: int, dest: int, payload: bytes, *, ack: bool = False, dur
                   rssi_db: int = -50, integrity: int = 100, velocity_mps: float = 0.0, framed: bool = False) -> str:
     """RECVIM line (current firmware layout); payload bytes as latin-1 text: write the line as latin-1."""
     body = payload.decode("latin-1")
-    head = f"RECVIM,{len(body)},{src},{dest},{'ack' if ack else 'noack'},{duration_us},{rssi_db},{integrity},{velocity_mps:.4f},"
+    head = (f"RECVIM,{len(body)},{src},{dest},{'ack' if ack else 'noack'},"
+            f"{duration_us},{rssi_db},{integrity},{velocity_mps:.4f},")
     return _frame(head + body, framed)

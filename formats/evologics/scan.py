@@ -60,7 +60,8 @@ def _scanned(rec: ev.Record | Reject | None) -> Scanned | Reject | None:
         values = [getattr(rec, name) for name in type(rec).__slots__[1:]]
         return _KEYWORDS[type(rec)], values, *_where(rec)
     if isinstance(rec, ev.UsblPhaseDelays):
-        return "USBLPHYD", [rec.current_time_s, rec.measurement_time_s, rec.address, rec.fix_type, *rec.delays_ns], *_where(rec)
+        values = [rec.current_time_s, rec.measurement_time_s, rec.address, rec.fix_type, *rec.delays_ns]
+        return "USBLPHYD", values, *_where(rec)
     if isinstance(rec, ev.PropagationTime):
         return "AT?T", [rec.propagation_time_us, rec.peer], *_where(rec)
     return None

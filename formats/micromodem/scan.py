@@ -100,7 +100,8 @@ def scan(data: bytes, prefix: str = "auto", campr_round_trip: bool = False) -> I
             body = text[1:].rstrip("\r\n ")
             star = body.rfind("*")
             # `nmea.framing.frame`'s checksum: the XOR of the payload's bytes in `data` is pxor's two ends
-            if star >= 0 and len(body) - star - 1 >= 2 and HEX.get(body[star + 1 : star + 3]) == pxor[at + star] ^ pxor[at]:
+            if (star >= 0 and len(body) - star - 1 >= 2
+                    and HEX.get(body[star + 1 : star + 3]) == pxor[at + star] ^ pxor[at]):
                 found = _fast(body[:star].split(","), campr_round_trip)
                 if found is not False and len(seen) < _SEEN_MAX:
                     seen[text] = found

@@ -279,7 +279,8 @@ def _rxd(w: Where, f: Sequence[str]) -> Record:
     frame_no = _int(f[3], "frame")
     if frame_no < 1:
         raise ValueError(f"frame numbers start at 1, got {frame_no}")
-    return ReceivedData(w, _int(f[0], "source"), _int(f[1], "destination"), bool(_int(f[2], "ack")), frame_no, _hex(f[4]))
+    return ReceivedData(w, _int(f[0], "source"), _int(f[1], "destination"), bool(_int(f[2], "ack")), frame_no,
+                        _hex(f[4]))
 
 
 def _mua(w: Where, f: Sequence[str]) -> Record:
@@ -428,7 +429,8 @@ def encode_carxd(src: int, dest: int, payload: bytes, frame_no: int = 1, ack: bo
 def encode_caclk(t_ns: int) -> str:
     """$CACLK: the modem clock (whole seconds)."""
     d = datetime.fromtimestamp(int(t_ns) // NS, tz=UTC)
-    return build("CACLK", [f"{d.year}", f"{d.month:02d}", f"{d.day:02d}", f"{d.hour:02d}", f"{d.minute:02d}", f"{d.second:02d}"])
+    return build("CACLK", [f"{d.year}", f"{d.month:02d}", f"{d.day:02d}",
+                           f"{d.hour:02d}", f"{d.minute:02d}", f"{d.second:02d}"])
 
 
 def ping_exchange_lines(

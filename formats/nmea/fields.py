@@ -69,7 +69,8 @@ def _codes(column: list[str]) -> tuple[np.ndarray, np.ndarray]:
     lengths = np.fromiter(map(len, column), dtype=np.int64, count=len(column))
     arr = np.array(column)
     width = max(arr.dtype.itemsize // 4, 1)
-    codes = arr.view(np.uint32).reshape(len(column), -1) if arr.dtype.itemsize else np.zeros((len(column), 1), np.uint32)
+    codes = (arr.view(np.uint32).reshape(len(column), -1) if arr.dtype.itemsize
+             else np.zeros((len(column), 1), np.uint32))
     return codes[:, :width], lengths
 
 

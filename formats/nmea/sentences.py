@@ -31,7 +31,6 @@ import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from datetime import UTC, date, datetime
-from typing import Union
 
 from ..lines import PREFIX_STYLES, strip_prefix
 from ..records import Reject, Where
@@ -158,7 +157,7 @@ class Gll:
     mode: str
 
 
-NmeaRecord = Union[Gga, Rmc, Zda, Vtg, Gst, Hdt, Ths, Gll]
+NmeaRecord = Gga | Rmc | Zda | Vtg | Gst | Hdt | Ths | Gll
 TIMED = (Gga, Rmc, Zda, Gst, Gll)
 
 
@@ -417,8 +416,8 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
         given = hexes.get(raw[star + 1 : star + 3])
         computed = pxor[line_start + star - 1] ^ pxor[line_start]
         if given != computed:
-            yield Reject(Where(line_start, number), f"bad checksum {raw[star + 1 : star + 3]!r}, computed {computed:02X}",
-                         bad_checksum=True)
+            yield Reject(Where(line_start, number),
+                         f"bad checksum {raw[star + 1 : star + 3]!r}, computed {computed:02X}", bad_checksum=True)
             continue
         try:
             yield kind, raw[1:3], parser(raw[7:star].split(",")), line_start, number, None

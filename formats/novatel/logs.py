@@ -26,9 +26,8 @@ from __future__ import annotations
 import math
 import struct
 import zlib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
-from typing import Union
 
 from ..gpstime import gps_to_unix_ns, unix_ns_to_gps
 from ..lines import PREFIX_STYLES, strip_prefix
@@ -201,7 +200,7 @@ class InsPvax:
     time_since_update_s: int
 
 
-NovatelRecord = Union[BestPos, BestVel, InsPva, InsPvax]
+NovatelRecord = BestPos | BestVel | InsPva | InsPvax
 
 
 def record_time_ns(rec: NovatelRecord) -> int | None:
@@ -251,25 +250,31 @@ def _bestvel_ascii(f: list[str], w: Where, h: Header) -> BestVel:
     _need(f, 7, "BESTVEL")
     return BestVel(
         w, h, _enum(f[0], SOLUTION_STATUS), _enum(f[1], POSITION_TYPE),
-        *(_float(x) for x in f[2:7]),
+        _float(f[2]), _float(f[3]), _float(f[4]), _float(f[5]), _float(f[6]),
     )
 
 
 def _inspva_ascii(f: list[str], w: Where, h: Header) -> InsPva:
     _need(f, 12, "INSPVA")
-    return InsPva(w, h, int(f[0]), float(f[1]), *(_float(x) for x in f[2:11]), _enum(f[11], INS_STATUS))
+    return InsPva(
+        w, h, int(f[0]), float(f[1]), _float(f[2]), _float(f[3]), _float(f[4]), _float(f[5]), _float(f[6]),
+        _float(f[7]), _float(f[8]), _float(f[9]), _float(f[10]), _enum(f[11], INS_STATUS),
+    )
 
 
 def _inspvax_ascii(f: list[str], w: Where, h: Header) -> InsPvax:
     _need(f, 21, "INSPVAX")
     opt = f + [""] * (23 - len(f))
     return InsPvax(
-        w, h, _enum(f[0], INS_STATUS), _enum(f[1], POSITION_TYPE), *(_float(x) for x in f[2:21]),
+        w, h, _enum(f[0], INS_STATUS), _enum(f[1], POSITION_TYPE),
+        _float(f[2]), _float(f[3]), _float(f[4]), _float(f[5]), _float(f[6]), _float(f[7]), _float(f[8]),
+        _float(f[9]), _float(f[10]), _float(f[11]), _float(f[12]), _float(f[13]), _float(f[14]), _float(f[15]),
+        _float(f[16]), _float(f[17]), _float(f[18]), _float(f[19]), _float(f[20]),
         _hex(opt[21]), _int(opt[22]),
     )
 
 
-_ASCII = {
+_ASCII: dict[str, Callable[[list[str], Where, Header], NovatelRecord]] = {
     "BESTPOS": _bestpos_ascii, "BESTVEL": _bestvel_ascii, "INSPVA": _inspva_ascii,
     "INSPVAS": _inspva_ascii, "INSPVAX": _inspvax_ascii,
 }
@@ -333,17 +338,21 @@ def parse_ascii(text: str, where: Where) -> NovatelRecord | Reject | None:
 def _binary_record(name: str, values: tuple, w: Where, h: Header) -> NovatelRecord:
     if name == "BESTPOS":
         v = list(values)
-        v[0], v[1], v[6] = SOLUTION_STATUS.get(v[0], str(v[0])), POSITION_TYPE.get(v[1], str(v[1])), DATUM.get(v[6], str(v[6]))
+        v[0], v[1] = SOLUTION_STATUS.get(v[0], str(v[0])), POSITION_TYPE.get(v[1], str(v[1]))
+        v[6] = DATUM.get(v[6], str(v[6]))
         v[10] = v[10].rstrip(b"\0").decode("latin-1")
         del v[17]  # reserved byte
         return BestPos(w, h, *v)
     if name == "BESTVEL":
+        status, velocity_type, latency, age, speed, track, vertical, _ = values  # the last is a reserved float
         return BestVel(
-            w, h, SOLUTION_STATUS.get(values[0], str(values[0])),
-            POSITION_TYPE.get(values[1], str(values[1])), *values[2:6], values[6],
+            w, h, SOLUTION_STATUS.get(status, str(status)), POSITION_TYPE.get(velocity_type, str(velocity_type)),
+            latency, age, speed, track, vertical,
         )
     if name in ("INSPVA", "INSPVAS"):
-        return InsPva(w, h, *values[:11], INS_STATUS.get(values[11], str(values[11])))
+        week, seconds, lat, lon, height, north, east, up, roll, pitch, azimuth, ins_status = values
+        return InsPva(w, h, week, seconds, lat, lon, height, north, east, up, roll, pitch, azimuth,
+                      INS_STATUS.get(ins_status, str(ins_status)))
     return InsPvax(
         w, h, INS_STATUS.get(values[0], str(values[0])), POSITION_TYPE.get(values[1], str(values[1])),
         *values[2:],
@@ -373,7 +382,8 @@ def parse_binary(data: bytes, pos: int) -> tuple[NovatelRecord | Reject | None, 
     else:
         if hdr_len < _HDR_LONG.size:
             return Reject(where, f"NovAtel binary header length {hdr_len}"), _resync(data, pos)
-        (_, _, msg_id, _, port_id, length, seq, idle_raw, ts, week, ms, rx, reserved, sw) = _HDR_LONG.unpack_from(data, pos)
+        (_, _, msg_id, _, port_id, length, seq, idle_raw, ts, week, ms, rx, reserved,
+         sw) = _HDR_LONG.unpack_from(data, pos)
         status, port, idle = TIME_STATUS.get(ts, str(ts)), PORTS.get(port_id, str(port_id)), idle_raw / 2.0
     end = pos + hdr_len + length
     if end + 4 > len(data):
@@ -388,7 +398,8 @@ def parse_binary(data: bytes, pos: int) -> tuple[NovatelRecord | Reject | None, 
     body = _BODY[name]
     if length < body.size:
         return Reject(where, f"{name} body of {length} bytes, {body.size} needed"), end + 4
-    header = Header(name, "binary-short" if short else "binary", week, ms / 1000.0, port, seq, idle, status, rx, reserved, sw)
+    header = Header(name, "binary-short" if short else "binary", week, ms / 1000.0, port, seq, idle, status,
+                    rx, reserved, sw)
     return _binary_record(name, body.unpack_from(data, pos + hdr_len), where, header), end + 4
 
 
@@ -467,7 +478,8 @@ def _ascii_body(rec: NovatelRecord) -> list[str]:
     if isinstance(rec, BestVel):
         return [
             rec.solution_status, rec.velocity_type, _fmt(rec.latency_s, ".3f"), _fmt(rec.age_s, ".3f"),
-            _fmt(rec.horizontal_speed_mps, ".4f"), _fmt(rec.track_deg, ".6f"), _fmt(rec.vertical_speed_mps, ".4f"), "0.0",
+            _fmt(rec.horizontal_speed_mps, ".4f"), _fmt(rec.track_deg, ".6f"), _fmt(rec.vertical_speed_mps, ".4f"),
+            "0.0",
         ]
     if isinstance(rec, InsPva):
         return [

@@ -32,14 +32,14 @@ from collections.abc import Iterable
 from formats.lines import strip_prefix
 from formats.records import Reject, Where
 
-from ..base import NS, Converter, LogContext, Output
+from ..base import NS, Converter, Ignored, LogContext, Output
 
 # formats that are (or may be) binary: no line cutting and no stamping
 BINARY_FORMATS = frozenset({("dvl", "pd0"), ("dvl", "pd4"), ("dvl", "pd5"), ("gps", "novatel"), ("ins", "novatel")})
 MIN_WARMUP = 256
 HOLD_BYTES = 4096  # kept back while a window gives no output at all (noise, or a record still arriving)
 
-Item = Output | Reject
+Item = Output | Reject | Ignored
 
 
 def stamp_prefix(t_ns: int, style: str) -> bytes:
@@ -155,6 +155,8 @@ def _rebase(item: Item, base: int, lines: int) -> Item:
     moved = Where(where.offset + base, None if where.line is None else where.line + lines, where.host_time_ns)
     if isinstance(item, Reject):
         return Reject(moved, item.reason, item.bad_checksum)
+    if isinstance(item, Ignored):  # frozen, like Reject
+        return Ignored(moved, item.reason)
     item.where = moved
     return item
 
