@@ -8,7 +8,7 @@ BENCH_STAMP := $(VENV)/.installed-bench
 # the headless viewer test renders with software Vulkan: Debian's packages, installed by `make test` when root
 SYSTEM_PACKAGES := mesa-vulkan-drivers libvulkan1
 
-.PHONY: demo test fuzz system-packages bench clean
+.PHONY: demo test lint fuzz system-packages bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -28,7 +28,10 @@ system-packages:
 		fi; \
 	fi
 
+# the linter and the type checker first (configured in pyproject.toml), then the whole suite
 test: $(STAMP) system-packages
+	$(BIN)/ruff check .
+	$(BIN)/mypy
 	WGPU_BACKEND=vulkan $(BIN)/python -m pytest -q
 
 # every decoder entry point and archive-damage kind, 100,000 cases each (a share runs in make test)

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from formats import schemas as S
 from formats.mcap_writer import ArchiveWriter
+from formats.records import Reject
 
 from ..attachments import RAW_PREFIX
 from ..base import Output
@@ -227,7 +228,7 @@ class CaptureSession:
                 outputs.append(item)
         st = live.status
         st.records += len(outputs)
-        st.rejects += len(items) - len(outputs)
+        st.rejects += sum(1 for item in items if type(item) is Reject)   # Ignored records are not rejects
         if outputs:
             st.last_record_s = now
             if self.listener is not None:
