@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import socket
 from abc import ABC, abstractmethod
 from urllib.parse import urlsplit
 
@@ -50,6 +51,26 @@ class Source(ABC):
     def streaming(self) -> bool:
         """True when bytes can arrive (a listener without a client is open but not streaming)."""
         return True
+
+
+class SocketSource(Source):
+    """A source on one socket of our own (UDP bound, TCP connected): its descriptor and its closing."""
+
+    def __init__(self, url: str):
+        super().__init__(url)
+        self.address = host_port(url)
+        self._sock: socket.socket | None = None
+
+    def fileno(self) -> int:
+        """The socket's descriptor."""
+        assert self._sock is not None
+        return self._sock.fileno()
+
+    def close(self) -> None:
+        """Unbind or disconnect; `open` may be called again."""
+        if self._sock is not None:
+            self._sock.close()
+            self._sock = None
 
 
 def host_port(url: str) -> tuple[str, int]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import socket
 
-from .base import READ_SIZE, Source, SourceClosed, host_port
+from .base import READ_SIZE, SocketSource, SourceClosed
 
 CONNECT_TIMEOUT_S = 0.5
 
@@ -22,13 +22,9 @@ def read_stream(sock: socket.socket) -> bytes:
     return data
 
 
-class TcpSource(Source):
+class TcpSource(SocketSource):
     """A TCP client; the loop calls `open` again after SourceClosed or a refused connection."""
 
-    def __init__(self, url: str):
-        super().__init__(url)
-        self.address = host_port(url)
-        self._sock: socket.socket | None = None
 
     def open(self) -> None:
         """Connect (raises OSError when refused or unreachable)."""
@@ -36,18 +32,7 @@ class TcpSource(Source):
         sock.setblocking(False)
         self._sock = sock
 
-    def fileno(self) -> int:
-        """The socket's descriptor."""
-        assert self._sock is not None
-        return self._sock.fileno()
-
     def read(self) -> bytes:
         """The bytes waiting; SourceClosed when the server hung up."""
         assert self._sock is not None
         return read_stream(self._sock)
-
-    def close(self) -> None:
-        """Disconnect."""
-        if self._sock is not None:
-            self._sock.close()
-            self._sock = None

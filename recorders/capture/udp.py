@@ -4,19 +4,15 @@ from __future__ import annotations
 
 import socket
 
-from .base import READ_SIZE, Source, host_port
+from .base import READ_SIZE, SocketSource
 
 # datagrams drained per read: one archive message for a burst, without starving the other sources
 MAX_DATAGRAMS = 64
 
 
-class UdpSource(Source):
+class UdpSource(SocketSource):
     """A bound UDP socket; a read is every datagram waiting, concatenated."""
 
-    def __init__(self, url: str):
-        super().__init__(url)
-        self.address = host_port(url)
-        self._sock: socket.socket | None = None
 
     def open(self) -> None:
         """Bind the port (raises OSError when it is taken)."""
@@ -30,11 +26,6 @@ class UdpSource(Source):
         sock.setblocking(False)
         self._sock = sock
 
-    def fileno(self) -> int:
-        """The socket's descriptor."""
-        assert self._sock is not None
-        return self._sock.fileno()
-
     def read(self) -> bytes:
         """Every waiting datagram, concatenated (UDP never ends: no SourceClosed)."""
         assert self._sock is not None
@@ -45,9 +36,3 @@ class UdpSource(Source):
             except (BlockingIOError, InterruptedError):
                 break
         return b"".join(parts)
-
-    def close(self) -> None:
-        """Unbind."""
-        if self._sock is not None:
-            self._sock.close()
-            self._sock = None

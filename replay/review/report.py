@@ -38,6 +38,7 @@ from replay.review.scoreboard import (
     scoreboard,
     window_text,
 )
+from replay.run.compare import flatten
 from replay.stack.config import DETECTING_METHODS
 
 KIND_ORDER = ("stale", "drift", "outlier", "dropout", "usbl_delay")
@@ -75,16 +76,6 @@ class DetectionTally:
 
 def _esc(value: Any) -> str:
     return html.escape(str(value), quote=True)
-
-
-def _flatten(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for k, v in d.items():
-        if isinstance(v, dict):
-            out.update(_flatten(v, f"{prefix}{k}."))
-        else:
-            out[f"{prefix}{k}"] = v
-    return out
 
 
 def detection_tallies(review: ReviewData, t_a: float) -> list[DetectionTally]:
@@ -240,7 +231,7 @@ def _config_section(meta: dict[str, Any]) -> str:
     top = "".join(f"<tr><th>{_esc(k)}</th><td>{_esc(v)}</td></tr>" for k, v in facts)
     params = meta.get("parameters") or {}
     rows = "".join(f"<tr><td>{_esc(k)}</td><td>{_esc(json.dumps(v))}</td></tr>"
-                   for k, v in sorted(_flatten(params).items()))
+                   for k, v in sorted(flatten(params).items()))
     return (f'<table id="run-table">{top}</table><h3>Configuration</h3>'
             f'<table class="config" id="config-table"><tr><th>parameter</th><th>value</th></tr>{rows}</table>')
 

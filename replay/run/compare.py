@@ -42,11 +42,12 @@ def load_run(path: str | Path) -> tuple[dict[str, Any], dict[DetectionKey, tuple
     return meta, detections
 
 
-def _flatten(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+def flatten(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Nested parameters as one level of dotted keys ('stack.anfis.model')."""
     out = {}
     for k, v in d.items():
         if isinstance(v, dict):
-            out.update(_flatten(v, f"{prefix}{k}."))
+            out.update(flatten(v, f"{prefix}{k}."))
         else:
             out[f"{prefix}{k}"] = v
     return out
@@ -58,7 +59,7 @@ def run_labels(parameters: list[dict[str, Any]]) -> list[str]:
     Keys are the flattened parameter names without their section ("stack.r_m" reads "r_m") unless another
     section has a key of that name; runs with equal configurations get "#2", "#3" after their name.
     """
-    flat = [_flatten(p) for p in parameters]
+    flat = [flatten(p) for p in parameters]
     keys = sorted({k for f in flat for k in f if len({repr(g.get(k)) for g in flat}) > 1})
     every_leaf = [k.rsplit(".", 1)[-1] for k in {k for f in flat for k in f}]
     short = {k: (leaf if every_leaf.count(leaf) == 1 else k) for k in keys for leaf in [k.rsplit(".", 1)[-1]]}
@@ -83,7 +84,7 @@ def compare_runs(a: str | Path, b: str | Path) -> dict[str, Any]:
     """Parameter changes, metric differences (B - A) and epochs whose detections differ."""
     meta_a, det_a = load_run(a)
     meta_b, det_b = load_run(b)
-    pa, pb = _flatten(meta_a["parameters"]), _flatten(meta_b["parameters"])
+    pa, pb = flatten(meta_a["parameters"]), flatten(meta_b["parameters"])
     params = {k: [pa.get(k), pb.get(k)] for k in sorted(set(pa) | set(pb)) if pa.get(k) != pb.get(k)}
     ma, mb = meta_a["metrics"]["methods"], meta_b["metrics"]["methods"]
     metrics: dict[str, dict[str, Any]] = {}
