@@ -335,6 +335,7 @@ class ArchiveReader:
 
     def to_dataframe(self, topic: str, start_ns: int | None = None, end_ns: int | None = None) -> Any:
         """A pandas DataFrame of one topic: UTC DatetimeIndex (log time), one column per field."""
+        # pandas (through formats.dataframe) costs half a second to import: only for those who ask a frame
         from .dataframe import messages_to_dataframe
 
         return messages_to_dataframe(self.messages([topic], start_ns, end_ns))

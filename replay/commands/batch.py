@@ -18,6 +18,10 @@ import sys
 import time
 from typing import TYPE_CHECKING
 
+from replay.errors import UserError
+from replay.run.batch import batch, parse_seeds, parse_sweeps, summary_table, table_paths
+from replay.run.outputs import claim_outputs
+
 if TYPE_CHECKING:
     import pandas as pd
 
@@ -49,7 +53,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 class _Progress:
     """A one-line progress bar on stderr: runs done, failed, elapsed; drawn only on a terminal."""
-
     def __init__(self, enabled: bool) -> None:
         self.enabled = enabled and sys.stderr.isatty()
         self.t0 = time.monotonic()
@@ -81,16 +84,6 @@ def _text(df: pd.DataFrame) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Run the batch, write the tables, print a summary; 1 when any run failed."""
-    from replay.errors import UserError
-    from replay.run.batch import (
-        batch,
-        parse_seeds,
-        parse_sweeps,
-        summary_table,
-        table_paths,
-    )
-    from replay.run.outputs import claim_outputs
-
     if not args.archives and not args.simulate_seeds:
         raise UserError("give archives, or --simulate-seeds")
     if args.duration is not None and not args.simulate_seeds:

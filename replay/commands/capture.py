@@ -56,7 +56,6 @@ def _positive(text: str) -> float:
 
 class _StatusLines:
     """The status block on a terminal, redrawn in place; elsewhere only the notes and the final block."""
-
     def __init__(self, every_s: float) -> None:
         self.live = sys.stderr.isatty()
         self.every_s = every_s
@@ -86,7 +85,6 @@ class _StatusLines:
 
 class _Online:
     """The capture's decoded messages into the online engine and the live view."""
-
     def __init__(self, args: argparse.Namespace, manifest: Manifest) -> None:
         viewing = bool(args.view or args.connect or args.rrd)
         topics = sorted({f"/{log.vehicle}/{'modem/range' if log.sensor == 'modem' else log.sensor}"

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 
+from replay.run.compare import compare_runs, format_comparison
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `auvreplay compare`."""
@@ -16,8 +18,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print the comparison; exit 0 (differences are information, not failure)."""
-    from replay.run.compare import compare_runs, format_comparison
-
     result = compare_runs(args.a, args.b)
     if args.json:
         print(json.dumps(result, indent=2, sort_keys=True))

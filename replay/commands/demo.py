@@ -13,6 +13,18 @@ import shlex
 import sys
 from pathlib import Path
 
+from recorders.manifest import load_manifest
+from recorders.record import record
+from replay.commands.record import print_summary
+from replay.commands.view import has_display
+from replay.reproduce.anfis import sample_trial_dir
+from replay.run.metrics import format_table
+from replay.run.outputs import claim_directory, claim_outputs
+from replay.run.pipeline import replay_archive, results_paths
+from samples.scenario import Scenario
+from samples.simulator import simulate_trial
+from samples.writer import write_trial
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `auvreplay demo`."""
@@ -26,13 +38,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _trial_dir(args: argparse.Namespace, out: Path) -> Path:
     if not args.simulate:
-        from replay.reproduce.anfis import sample_trial_dir
 
         return sample_trial_dir()
-    from replay.run.outputs import claim_directory
-    from samples.scenario import Scenario
-    from samples.simulator import simulate_trial
-    from samples.writer import write_trial
 
     trial_dir = claim_directory(out / f"trial-seed{args.seed}", args.force)
     print(f"simulating the lake trial (seed {args.seed}) into {trial_dir}")
@@ -42,13 +49,6 @@ def _trial_dir(args: argparse.Namespace, out: Path) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     """Record, replay, print, save, open."""
-    from recorders.manifest import load_manifest
-    from recorders.record import record
-    from replay.commands.record import print_summary
-    from replay.commands.view import has_display
-    from replay.run.metrics import format_table
-    from replay.run.outputs import claim_outputs
-    from replay.run.pipeline import replay_archive, results_paths
     from replay.views.recording import open_viewer, save_rrd, viewer_command
 
     out = Path(args.out)

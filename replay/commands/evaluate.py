@@ -25,6 +25,12 @@ import sys
 import time
 from typing import TYPE_CHECKING, Any
 
+from replay.errors import UserError
+from replay.run.batch import dask_client, parse_seeds
+from replay.run.config import load_config
+from replay.run.evaluate import DEFAULT_DRIFT_RATES, evaluate
+from samples.scenario import ScenarioError, load_scenario
+
 if TYPE_CHECKING:
     from replay.run.evaluate import Evaluation
     from samples.scenario import Scenario
@@ -55,9 +61,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _rates(text: str | None) -> list[float]:
     """The sweep's drift rates from `--drift-rate`."""
-    from replay.errors import UserError
-    from replay.run.evaluate import DEFAULT_DRIFT_RATES
-
     if text is None:
         return list(DEFAULT_DRIFT_RATES)
     if text.strip().lower() == "none":
@@ -75,9 +78,6 @@ TRAINING_TEXT = {"given": "every test trial on the train seed's training set",
 
 def _scenario(path: str | None) -> Scenario | None:
     """The `--scenario` file, read and checked here (a bad file is one line, before any trial runs)."""
-    from replay.errors import UserError
-    from samples.scenario import ScenarioError, load_scenario
-
     if path is None:
         return None
     try:
@@ -131,7 +131,6 @@ def _table(head: list[str], rows: list[list[str]]) -> list[str]:
 
 class _Progress:
     """`evaluate: 12/54 trials, 40 s` on stderr, redrawn on a terminal only."""
-
     def __init__(self, enabled: bool) -> None:
         self.enabled = enabled and sys.stderr.isatty()
         self.t0 = time.monotonic()
@@ -146,11 +145,6 @@ class _Progress:
 
 def run(args: argparse.Namespace) -> int:
     """Run the evaluation and print its tables (or the JSON object); 0 on success."""
-    from replay.errors import UserError
-    from replay.run.batch import dask_client, parse_seeds
-    from replay.run.config import load_config
-    from replay.run.evaluate import evaluate
-
     try:
         seeds = parse_seeds(args.seeds)
     except UserError:

@@ -13,6 +13,13 @@ import argparse
 import sys
 from pathlib import Path
 
+from formats.dataframe import with_mission_seconds
+from formats.mcap_reader import ArchiveReader
+from replay.errors import UserError
+from replay.run.mission_time import trial_start_ns
+from replay.run.outputs import claim_output
+from replay.run.track_export import archive_tracks, tracks_bytes
+
 TABLE_FORMATS = ("csv", "parquet")
 TRACK_FORMATS = ("geojson", "kml")
 
@@ -30,11 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Write the topic or tracks; an unknown topic is bad input (exit 1) naming the topics there are."""
-    from replay.errors import UserError
-    from replay.run.outputs import claim_output
-
     if args.format in TRACK_FORMATS:
-        from replay.run.track_export import archive_tracks, tracks_bytes
 
         out = claim_output(args.output, args.force)
         tracks = archive_tracks(args.file, args.topic or None)
@@ -44,9 +47,6 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if len(args.topic) != 1:
         raise UserError(f"--format {args.format} exports one topic: give --topic once")
-    from formats.dataframe import with_mission_seconds
-    from formats.mcap_reader import ArchiveReader
-    from replay.run.mission_time import trial_start_ns
 
     topic = args.topic[0]
     with ArchiveReader(args.file) as reader:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from recorders.registry import converters, describe, manifest_examples
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `auvreplay formats`."""
@@ -14,7 +16,6 @@ def run(args: argparse.Namespace) -> int:
     """Print the (sensor, format) table with a line of description each."""
     import json
 
-    from recorders.registry import converters, describe, manifest_examples
 
     table = converters()
     if args.json:

@@ -7,6 +7,7 @@ import json
 import sys
 from typing import Any
 
+from formats.mcap_reader import ArchiveReader
 from recorders.clock import iso_utc as iso
 
 
@@ -22,7 +23,6 @@ def describe(path: str) -> dict[str, Any]:
     Metadata comes from other people's machines: a value of the wrong shape
     is left out and counted in the warning, never trusted.
     """
-    from formats.mcap_reader import ArchiveReader
 
     with ArchiveReader(path) as reader:
         summary = reader.summary()

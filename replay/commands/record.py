@@ -6,6 +6,11 @@ import argparse
 import sys
 import time
 
+from recorders.clock import iso_utc
+from recorders.manifest import ManifestError, load_manifest
+from recorders.record import record
+from replay.errors import UserError
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `auvreplay record`."""
@@ -32,7 +37,6 @@ def _worker_count(text: str) -> int:
 
 class _ProgressBar:
     """A one-line progress bar on stderr, drawn only on a terminal and at most 10 times a second."""
-
     def __init__(self) -> None:
         self.enabled = sys.stderr.isatty()
         self.last = 0.0
@@ -52,8 +56,6 @@ class _ProgressBar:
 
 def print_summary(summary, out=None) -> None:
     """The per-file table: parsed, skipped, bad checksum, time span."""
-    from recorders.clock import iso_utc
-
     out = out or sys.stdout
     rows = [("file", "vehicle", "sensor/format", "parsed", "skipped", "bad crc", "ignored", "start", "end")]
     for f in summary.files:
@@ -79,10 +81,6 @@ def print_summary(summary, out=None) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Record the trial; exit 0 even when records were skipped (they are counted and reported)."""
-    from recorders.manifest import ManifestError, load_manifest
-    from recorders.record import record
-    from replay.errors import UserError
-
     try:
         manifest = load_manifest(args.manifest, allow_outside=args.allow_outside)
         summary = record(manifest, args.output, progress=None if args.quiet else _ProgressBar(),

@@ -6,6 +6,13 @@ import argparse
 import json
 import sys
 
+from replay.errors import UserError
+from replay.review.rebuild import review_from_results
+from replay.run.config import load_config
+from replay.run.metrics import format_table
+from replay.run.outputs import claim_outputs
+from replay.run.pipeline import replay_archive
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `auvreplay replay`."""
@@ -27,12 +34,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the replay and print the metrics table (or JSON)."""
-    from replay.errors import UserError
-    from replay.run.config import load_config
-    from replay.run.metrics import format_table
-    from replay.run.outputs import claim_outputs
-    from replay.run.pipeline import replay_archive
-
     if args.compare and not args.rrd:
         raise UserError("--compare needs --rrd (the comparison is a recording)")
     config = load_config(args.config, args.set, tuple(args.window) if args.window else None, args.rate)
@@ -44,7 +45,6 @@ def run(args: argparse.Namespace) -> int:
 
         reviews = [outcome.review]
         if args.compare:
-            from replay.review.rebuild import review_from_results
 
             reviews.append(review_from_results(args.compare))
         save_rrd(reviews, args.rrd)

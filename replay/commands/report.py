@@ -14,6 +14,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from replay.errors import UserError
+from replay.review.anomaly_kinds import load_intervals
+from replay.review.rebuild import review_from_results, run_metadata
+from replay.review.report import build_report
+from replay.run.outputs import claim_output
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `auvreplay report`."""
@@ -27,12 +33,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Build and write the report; a file that is no results archive is bad input (exit 1)."""
-    from replay.errors import UserError
-    from replay.review.anomaly_kinds import load_intervals
-    from replay.review.rebuild import review_from_results, run_metadata
-    from replay.review.report import build_report
-    from replay.run.outputs import claim_output
-
     results = Path(args.results)
     if not results.is_file():
         raise UserError(f"{results}: no such file")

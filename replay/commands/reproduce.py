@@ -15,6 +15,19 @@ from contextlib import AbstractContextManager, nullcontext
 from typing import Any
 
 from replay.errors import UserError
+from replay.reproduce import anfis
+from replay.reproduce.kmcdf import (
+    format_claims,
+    format_curves,
+    format_sensitivity,
+    reproduce,  # seed 003's figure; paper A's table is anfis.reproduce
+    save_png,
+    save_rrd,
+    sensitivity,
+)
+from replay.run.batch import dask_client
+from replay.run.outputs import claim_outputs
+from replay.stack.positioning.kmcdf import KmcdfParams
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -49,17 +62,6 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--trials must be at least 1")
     if args.phase_noise <= 0:
         raise UserError("--phase-noise must be positive")
-    from replay.reproduce.kmcdf import (
-        format_claims,
-        format_curves,
-        format_sensitivity,
-        reproduce,
-        save_png,
-        save_rrd,
-        sensitivity,
-    )
-    from replay.run.outputs import claim_outputs
-    from replay.stack.positioning.kmcdf import KmcdfParams
 
     claim_outputs([args.png, args.rrd], args.force)
     params = KmcdfParams(sigma_phase_rad=args.phase_noise)
@@ -94,19 +96,15 @@ def _dask(scheduler: str | None, workers: int) -> AbstractContextManager[Any]:
     """A Dask client when --scheduler is given (see replay.run.batch.dask_client), else None."""
     if scheduler is None:
         return nullcontext(None)
-    from replay.run.batch import dask_client
-
     return dask_client(scheduler, workers)
 
 
 def _run_anfis(args: argparse.Namespace) -> int:
     """Paper A's table: record (if needed) and replay the trial in both ANFIS model modes."""
-    from replay.reproduce.anfis import format_report, json_object, reproduce
-
-    modes = reproduce(args.trial, args.set)
+    modes = anfis.reproduce(args.trial, args.set)
     if args.json:
-        json.dump(json_object(modes), sys.stdout, indent=2, sort_keys=True)
+        json.dump(anfis.json_object(modes), sys.stdout, indent=2, sort_keys=True)
         print()
     else:
-        print(format_report(modes))
+        print(anfis.format_report(modes))
     return 0

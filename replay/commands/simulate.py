@@ -15,6 +15,10 @@ import argparse
 import sys
 
 from replay.errors import UserError
+from replay.run.outputs import claim_directory
+from samples.scenario import Scenario, ScenarioError, load_scenario
+from samples.simulator import simulate_trial
+from samples.writer import write_trial
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -32,7 +36,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _scenario(args: argparse.Namespace):
-    from samples.scenario import Scenario, ScenarioError, load_scenario
 
     try:
         base = load_scenario(args.scenario) if args.scenario else Scenario()
@@ -51,10 +54,6 @@ def _scenario(args: argparse.Namespace):
 
 def run(args: argparse.Namespace) -> int:
     """Simulate and write the trial directory; exit 0 on success."""
-    from replay.run.outputs import claim_directory
-    from samples.simulator import simulate_trial
-    from samples.writer import write_trial
-
     scenario = _scenario(args)
     out = claim_directory(args.output, args.force)
     trial = simulate_trial(scenario, args.seed)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from recorders.attachments import unpack
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `auvreplay unpack`."""
@@ -14,8 +16,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Unpack; exit 1 if any attachment was refused, repeated a name or failed its recorded checksum."""
-    from recorders.attachments import unpack
-
     result = unpack(args.file, args.directory)
     for path in result.written:
         print(path)

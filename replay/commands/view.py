@@ -19,6 +19,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from replay.errors import UserError
+from replay.review.rebuild import review_from_results, run_metadata
 from replay.run.outputs import claim_output
 
 SUFFIXES = (".rrd", ".mcap")
@@ -53,8 +54,6 @@ def check_file(name: str) -> Path:
 
 def _recording_of_results(args: argparse.Namespace) -> Path | None:
     """Results archives become one recording (re-run from their inputs); None for a plain file."""
-    from replay.review.rebuild import review_from_results, run_metadata
-
     paths = [check_file(f) for f in args.file]
     metas = [run_metadata(p) if p.suffix.lower() == ".mcap" else None for p in paths]
     if len(paths) == 1 and metas[0] is None:

@@ -14,8 +14,11 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from recorders.manifest import ManifestError, load_manifest
+from recorders.record import record
 from replay.errors import UserError
 from replay.run.config import RunConfig, load_config
+from replay.run.pipeline import replay_archive
 
 # Paper A, section 4 table, 600-1700 s, 462 epochs of which 57 anomalous
 PAPER_A: dict[str, dict[str, int]] = {
@@ -35,9 +38,6 @@ def sample_trial_dir() -> Path:
 
 def archive_for(trial: str | Path | None, workdir: Path) -> Path:
     """An archive for the trial: an .mcap as given, or a trial directory (or its manifest) recorded."""
-    from recorders.manifest import ManifestError, load_manifest
-    from recorders.record import record
-
     path = Path(trial) if trial is not None else sample_trial_dir()
     if path.is_file() and path.suffix == ".mcap":
         return path
@@ -55,8 +55,6 @@ def archive_for(trial: str | Path | None, workdir: Path) -> Path:
 
 def run_modes(archive: Path, base: RunConfig) -> dict[str, dict[str, Any]]:
     """Metrics of the per-leader and the shared ANFIS model mode on one archive."""
-    from replay.run.pipeline import replay_archive
-
     out = {}
     for mode in ("per_leader", "shared"):
         stack = dataclasses.replace(base.stack, anfis=dataclasses.replace(base.stack.anfis, model=mode))

@@ -33,7 +33,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from recorders.manifest import load_manifest
+from recorders.record import record
 from replay.errors import UserError
+from replay.run.config import canonical_json, load_config, run_id
+from replay.run.pipeline import file_sha256, package_version, replay_archive
+from replay.stack.scoring import RESULT_KEYS
+from samples.scenario import Scenario
+from samples.simulator import simulate_trial
+from samples.writer import write_trial
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -55,7 +63,6 @@ Progress = Callable[[int, int, int], None]          # (done, total, failed)
 @dataclass(frozen=True)
 class Configuration:
     """One point of a sweep: the swept key=value pairs, in the order the sweeps were given."""
-
     values: tuple[tuple[str, str], ...] = ()
 
     @property
@@ -71,7 +78,6 @@ class Configuration:
 @dataclass(frozen=True)
 class BatchTask:
     """One run: an archive under one configuration, and where its results go."""
-
     trial: str
     archive: str
     configuration: Configuration
@@ -83,7 +89,6 @@ class BatchTask:
 @dataclass(frozen=True)
 class SimulatedSeed:
     """A trial the batch simulates and records before replaying it."""
-
     seed: int
     duration_s: float | None
     trials_dir: str
@@ -159,8 +164,6 @@ def trial_names(archives: Sequence[str | Path], taken: Sequence[str] = ()) -> li
 def _check_configurations(config_path: str | None, base: Sequence[str],
                           configs: Sequence[Configuration]) -> None:
     """Load every configuration once here, so a bad key or value stops the batch before any run."""
-    from replay.run.config import canonical_json, load_config
-
     seen: dict[str, Configuration] = {}
     for c in configs:
         text = canonical_json(load_config(config_path, [*base, *c.overrides()]))
@@ -201,9 +204,6 @@ def plan_simulated(seeds: Sequence[int], duration_s: float | None, out_dir: str 
 def replay_task(archive: str, overrides: Sequence[str], out_dir: str, trial: str,
                 config_path: str | None = None) -> dict[str, Any]:
     """Worker entry: replay one archive into out_dir/runs/<trial>-<run>.mcap; metrics, or the error text."""
-    from replay.run.config import load_config, run_id
-    from replay.run.pipeline import file_sha256, package_version, replay_archive
-
     record: dict[str, Any] = {"trial": trial, "archive": archive, "run_id": "", "output": None,
                               "metrics": None, "error": None, "notes": []}
     try:
@@ -222,12 +222,6 @@ def replay_task(archive: str, overrides: Sequence[str], out_dir: str, trial: str
 
 def simulate_task(seed: int, duration_s: float | None, trials_dir: str) -> str:
     """Worker entry: simulate one seed into trials_dir/seed-N, record it; the archive's path."""
-    from recorders.manifest import load_manifest
-    from recorders.record import record
-    from samples.scenario import Scenario
-    from samples.simulator import simulate_trial
-    from samples.writer import write_trial
-
     trial_dir = Path(trials_dir) / f"seed-{seed}"
     write_trial(simulate_trial(Scenario().with_options(duration_s, None), seed), trial_dir)
     archive = Path(trials_dir) / f"seed-{seed}.mcap"
@@ -306,7 +300,6 @@ def batch_table(records: Sequence[Mapping[str, Any]]) -> pd.DataFrame:
     """The combined table: one row per run and method (one row with the error for a failed run)."""
     import pandas as pd
 
-    from replay.stack.scoring import RESULT_KEYS
 
     keys = list(dict.fromkeys(k for r in records for k, _ in r["configuration"].values))
     rows: list[dict[str, Any]] = []
@@ -332,7 +325,6 @@ def _typed(df: pd.DataFrame, swept: Sequence[str]) -> pd.DataFrame:
     """Nullable integer counts, float figures, strings elsewhere; swept columns numeric when every value is."""
     import pandas as pd
 
-    from replay.stack.scoring import RESULT_KEYS
 
     for c in COUNT_COLUMNS:
         df[c] = pd.to_numeric(df[c]).astype("Int64")

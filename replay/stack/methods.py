@@ -1,7 +1,6 @@
 """The cooperative-localization methods by name: what filter each runs and which detector it uses.
 
-A plain typed mapping (STYLE.md convention 3). ANFIS detectors are imported
-only when such a method is built, so the rest of the stack works without them.
+A plain typed mapping (STYLE.md convention 3) of a factory per detecting method.
 """
 
 from __future__ import annotations
@@ -10,6 +9,8 @@ from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
 from replay.stack.config import DETECTING_METHODS, METHODS, StackConfig
+from replay.stack.detectors.anfis_detector import AnfisDetector
+from replay.stack.detectors.anfis_hybrid import HybridAnfisDetector
 from replay.stack.detectors.base import Detector
 from replay.stack.detectors.chi_square import ChiSquareDetector
 from replay.stack.detectors.cusum import CusumDriftDetector
@@ -27,16 +28,14 @@ FILTER_KINDS: Mapping[str, str] = MappingProxyType({
 
 
 def _anfis_hybrid(config: StackConfig) -> Detector:
-    """A fresh HybridAnfisDetector, imported on first use like the other ANFIS detectors."""
-    from replay.stack.detectors.anfis_hybrid import HybridAnfisDetector
+    """A fresh HybridAnfisDetector."""
     return HybridAnfisDetector(config)
 
 
 def _anfis(trainer: str, compensation: bool) -> DetectorFactory:
-    """A factory building an AnfisDetector, imported on first use."""
+    """A factory building an AnfisDetector for one trainer and mode."""
     def build(config: StackConfig) -> Detector:
         """A fresh AnfisDetector for this trainer and mode."""
-        from replay.stack.detectors.anfis_detector import AnfisDetector
         return AnfisDetector(config, trainer=trainer, compensation=compensation)
     return build
 
