@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from replay.stack import labels
-from replay.stack.config import DETECTING_METHODS, METHODS, StackConfig
+from replay.stack.config import ALL_METHODS, DETECTING_METHODS, StackConfig
 from replay.stack.detectors.chi_square import ChiSquareDetector, chi_square_threshold
 from replay.stack.detectors.dual_threshold import DualThresholdDetector, cusum, train_bp
 from replay.stack.methods import DETECTOR_FACTORIES, FILTER_KINDS, filter_kind
@@ -142,7 +142,7 @@ def test_detectors_never_raise(values: list[float]) -> None:
 
 
 def test_method_mapping_covers_every_method() -> None:
-    assert set(FILTER_KINDS) == set(METHODS)
+    assert set(FILTER_KINDS) == set(ALL_METHODS)
     assert set(DETECTOR_FACTORIES) == set(DETECTING_METHODS)
     assert [filter_kind(m) for m in ("dead_reckoning", "ckf", "ackf", "anfis")] == ["dr", "ckf", "ackf", "detect"]
     with pytest.raises(ValueError):

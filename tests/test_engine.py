@@ -16,7 +16,7 @@ from recorders.record import record
 from replay.cli import main
 from replay.run.config import load_config
 from replay.run.pipeline import replay_archive
-from replay.stack.config import DETECTING_METHODS
+from replay.stack.config import ALL_METHODS, DETECTING_METHODS
 
 SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"
 FAST = ["methods=dead_reckoning,ckf,ackf,chi_square,anfis"]
@@ -32,7 +32,7 @@ def archive(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def full_run(archive, tmp_path_factory):
     out = tmp_path_factory.mktemp("run") / "results.mcap"
-    return replay_archive(archive, load_config(), out, review=True)
+    return replay_archive(archive, load_config(default_methods=ALL_METHODS), out, review=True)   # every method
 
 
 def test_replay_scores_every_method_on_the_test_window(full_run):

@@ -17,7 +17,6 @@ from hypothesis import strategies as st
 from replay import cli
 from replay.errors import UserError
 from replay.run import evaluate as ev
-from replay.run.config import RunConfig
 from replay.run.evaluate import (
     NO_KIND,
     TrialScores,
@@ -26,6 +25,7 @@ from replay.run.evaluate import (
     method_figures,
     split_seeds,
 )
+from replay.stack.config import ALL_METHODS
 from samples.anomalies import KIND_CODES
 from samples.scenario import ANOMALY_KINDS, Scenario, ScenarioError, scenario_to_toml
 from samples.simulator import simulate_trial
@@ -96,8 +96,8 @@ def test_json_has_the_documented_shape(evaluated: Spied) -> None:
     obj = evaluated.obj
     assert set(obj) == {"seeds", "train_seed", "methods", "drift_sweep"}
     assert obj["seeds"] == [1, 2] and obj["train_seed"] == 0
-    # every method of the default configuration, in its order, with every figure
-    assert list(obj["methods"]) == list(RunConfig().stack.methods)
+    # every method (evaluate judges the new detectors too), in its order, with every figure
+    assert list(obj["methods"]) == list(ALL_METHODS)
     for name, fig in obj["methods"].items():
         assert set(fig) == FIGURES, name
         assert set(fig["recall_by_kind"]) == set(ANOMALY_KINDS)

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from replay.errors import UserError
-from replay.stack.config import METHODS, AnfisConfig, StackConfig
+from replay.stack.config import ALL_METHODS, AnfisConfig, StackConfig
 
 # the positioning methods the engine runs on archived USBL epochs (replay.engine.usbl.positioning)
 USBL_UPDATE_METHODS: tuple[str, ...] = ("kmcdf2", "gar", "ear", "lms", "lhc")
@@ -144,9 +144,16 @@ def _route(key: str) -> str:
 
 
 def load_config(path: str | Path | None = None, overrides: Sequence[str] = (),
-                window: tuple[float, float] | None = None, rate: float | None = None) -> RunConfig:
-    """Defaults, then the TOML file, then each `key=value` override, then the window and rate options."""
+                window: tuple[float, float] | None = None, rate: float | None = None,
+                default_methods: Sequence[str] | None = None) -> RunConfig:
+    """Defaults, then the TOML file, then each `key=value` override, then the window and rate options.
+
+    `default_methods` replaces the default method list (`evaluate` and `demo` run every method); a
+    `methods` key in the file or an override still decides.
+    """
     cfg = RunConfig()
+    if default_methods is not None:
+        cfg = dataclasses.replace(cfg, stack=dataclasses.replace(cfg.stack, methods=tuple(default_methods)))
     if path is not None:
         try:
             data = tomllib.loads(Path(path).read_text())
@@ -176,9 +183,9 @@ def load_config(path: str | Path | None = None, overrides: Sequence[str] = (),
         raise UserError(f"window {list(w)}: expected two finite times T0 < T1 (seconds from the trial start)")
     if not (math.isfinite(cfg.engine.rate) and cfg.engine.rate >= 0):
         raise UserError(f"rate {cfg.engine.rate}: expected >= 0 (0 = as fast as possible)")
-    bad = [m for m in cfg.stack.methods if m not in METHODS]
+    bad = [m for m in cfg.stack.methods if m not in ALL_METHODS]
     if bad:
-        raise UserError(f"configuration methods: unknown {', '.join(bad)} (known: {', '.join(METHODS)})")
+        raise UserError(f"configuration methods: unknown {', '.join(bad)} (known: {', '.join(ALL_METHODS)})")
     if cfg.engine.usbl_update not in ("",) + USBL_UPDATE_METHODS:
         raise UserError(f"configuration engine.usbl_update: unknown {cfg.engine.usbl_update!r} "
                         f"(known: {', '.join(USBL_UPDATE_METHODS)}, or empty for none)")
