@@ -14,7 +14,9 @@ from __future__ import annotations
 import heapq
 import struct
 import zlib
+from bisect import bisect_left
 from collections.abc import Callable, Iterable, Iterator
+from operator import itemgetter
 from typing import BinaryIO
 
 import lz4.frame
@@ -32,6 +34,7 @@ _MESSAGE_MIN = _MESSAGE_HEAD.size
 
 # (log_time, publish_time, channel_id, data)
 RawMessage = tuple[int, int, int, bytes]
+_log_time = itemgetter(0)   # a RawMessage's log time: the sort key of a chunk's messages
 # (chunk offset, reason): how a damaged chunk is reported while the read goes on
 OnDamage = Callable[[int, str], None]
 
@@ -171,10 +174,6 @@ def _overrun(offset: int, on_damage: OnDamage | None, what: str) -> None:
     on_damage(offset, f"byte {offset}: {what}; the rest of the chunk skipped")
 
 
-def _log_time(m: RawMessage) -> int:
-    return m[0]
-
-
 def ordered_messages(f: BinaryIO, chunk_indexes: Iterable, channels: set[int] | None, validate_crc: bool,
                      start_ns: int | None = None, end_ns: int | None = None,
                      on_damage: OnDamage | None = None, limit: int = MAX_CHUNK_BYTES,
@@ -216,6 +215,17 @@ def ordered_messages(f: BinaryIO, chunk_indexes: Iterable, channels: set[int] | 
         if not heap:
             continue
         _, order, i, msg, msgs = heap[0]
+        if len(heap) == 1:
+            # one run open (chunks that do not overlap, the usual case): every message before the next
+            # chunk's start comes first, in the run's order, without a heap step per message
+            j = len(msgs) if nxt == len(todo) else bisect_left(msgs, todo[nxt].message_start_time, i + 1,
+                                                                 key=_log_time)
+            yield from msgs[i:j] if i or j < len(msgs) else msgs
+            if j < len(msgs):
+                heap[0] = (msgs[j][0], order, j, msgs[j], msgs)
+            else:
+                heap.pop()
+            continue
         yield msg
         if i + 1 < len(msgs):
             heapq.heapreplace(heap, (msgs[i + 1][0], order, i + 1, msgs[i + 1], msgs))

@@ -22,7 +22,7 @@ from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from google.protobuf.message import DecodeError
 from mcap.exceptions import McapError
@@ -42,10 +42,10 @@ _DECODE_ERRORS = (DecodeError, ValueError, TypeError, KeyError, IndexError, stru
 _KEEP = 20  # damage texts kept in full; the rest are counted
 
 
-@dataclass(frozen=True, slots=True)
-class ArchiveMessage:
+class ArchiveMessage(NamedTuple):
     """One message: topic, schema name, times (ns, UTC) and the decoded protobuf message."""
 
+    # a NamedTuple, not a frozen dataclass: one per message read, built in less than half the time
     topic: str
     schema: str
     log_time_ns: int

@@ -234,3 +234,23 @@ def test_fast_ordered_read_equals_the_mcap_library(tmp_path_factory, items, a, b
             slow = [(c.topic, m.log_time, S.GnssStatus.FromString(m.data).satellites)
                     for _, c, m in r.raw_messages(topics, *window)]
             assert fast == slow
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 3), st.integers(-1, 3)), min_size=1, max_size=400),
+       st.integers(0, 300), st.integers(0, 300), st.sampled_from([200, 2000]))
+def test_fast_ordered_read_of_mostly_ordered_writes(tmp_path_factory, items, a, b, chunk_size):
+    """Writes in time order with ties and steps back: chunks that follow, touch or overlap; the mcap reader's order."""
+    path = tmp_path_factory.mktemp("m") / "m.mcap"
+    t = 0
+    with ArchiveWriter(path, chunk_size=chunk_size) as w:
+        for k, (topic, step) in enumerate(items):
+            t = max(0, t + step)
+            w.write(f"/v{topic}/gps/status", S.GnssStatus(satellites=k), T0 + t)
+    lo, hi = T0 + min(a, b), T0 + max(a, b)
+    with ArchiveReader(path) as r:
+        for topics, window in ((None, (None, None)), (["/v0/gps/status", "/v2/gps/status"], (lo, hi))):
+            fast = [(m.topic, m.log_time_ns, m.message.satellites) for m in r.messages(topics, *window)]
+            slow = [(c.topic, m.log_time, S.GnssStatus.FromString(m.data).satellites)
+                    for _, c, m in r.raw_messages(topics, *window)]
+            assert fast == slow

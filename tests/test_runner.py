@@ -311,3 +311,26 @@ def test_training_on_threads_gives_the_same_run() -> None:
         np.testing.assert_array_equal(one.epochs[key], four.epochs[key], err_msg=key)
     for name in one.open_loop:
         np.testing.assert_array_equal(one.open_loop[name]["score"], four.open_loop[name]["score"])
+
+
+def test_features_only_run_for_a_method_that_uses_them() -> None:
+    """Without a new method the feature tracker is off: EXTRA_FEATURES NaN, every other field as with one."""
+    from replay.stack.features import EXTRA_FEATURES
+
+    trial = make_trial(seed=3)
+    paper, _ = run_trial(trial, CONFIG)
+    wide, _ = run_trial(trial, replace(CONFIG, methods=OWN + ("cusum_drift",)))
+    a, b = paper.finish(), wide.finish()
+    assert a.trained and b.trained and not a.training_errors
+    keep = np.isin(b.epochs["method"], OWN)
+    assert keep.sum() == a.epochs["method"].size > 200
+    for key in a.epochs:
+        if key in EXTRA_FEATURES:
+            assert np.isnan(a.epochs[key].astype(float)).all(), key
+        else:
+            np.testing.assert_array_equal(a.epochs[key], b.epochs[key][keep], err_msg=key)
+    assert np.isfinite(b.epochs["dr_residual_m"].astype(float)).mean() > 0.9
+    assert np.isfinite(b.epochs["drift_z"].astype(float)).any()
+    for name in a.open_loop:
+        np.testing.assert_array_equal(a.open_loop[name]["score"], b.open_loop[name]["score"], err_msg=name)
+    assert np.isnan(a.training_set.columns(EXTRA_FEATURES)).all()

@@ -168,7 +168,7 @@ class Engine:
             for listener in self.listeners:
                 listener.trained(name, runner, runner.training_end_s)
 
-    def _on_epoch(self, follower: str, results: list[EpochResult]) -> None:
+    def _on_epoch(self, follower: str, results: list[EpochResult], leader_fix: Fix) -> None:
         # the runner trains inside the release that delivers its first epoch past t_a: say so before that epoch
         self._check_trained(follower, self.followers[follower])
         sc = self._scores[follower]
@@ -182,10 +182,9 @@ class Engine:
                 if r.label >= 0:
                     sc.flagged.setdefault(r.method, array("b")).append(bool(r.flagged))
                     sc.labels.setdefault(r.method, array("b")).append(int(r.label))
-        if self.listeners:
-            leader_fix = self.tracks[results[0].leader].position(t, self.config.engine.max_gap_s)
-            for listener in self.listeners:
-                listener.epoch(follower, results, leader_fix)
+        # the leader's position the follower ranged against at t (VehicleTracks.position), not looked up again
+        for listener in self.listeners:
+            listener.epoch(follower, results, leader_fix)
 
     def _on_estimates(self, follower: str, t_s: float, est: Mapping[str, tuple[float, ...]]) -> None:
         for listener in self.listeners:

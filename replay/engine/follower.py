@@ -43,10 +43,13 @@ class FollowerPipeline:
     """Queues one follower's samples and drives its CooperativeRunner in time order."""
 
     def __init__(self, plan: FollowerPlan, config: RunConfig, tracks: dict[str, VehicleTracks],
-                 on_epoch: Callable[[str, list[EpochResult]], None],
+                 on_epoch: Callable[[str, list[EpochResult], Fix], None],
                  on_estimates: Callable[[str, float, Mapping[str, tuple[float, ...]]], None],
                  on_error: Callable[[str, list[ErrorSample]], None], training_set: TrainingSet | None = None):
-        """One follower's queue; `training_set` is handed to its runner (StackConfig.training_source)."""
+        """One follower's queue; `training_set` is handed to its runner (StackConfig.training_source).
+
+        `on_epoch` hears each epoch's results with the ranged leader's position the epoch used.
+        """
         self.plan, self.config, self.tracks = plan, config, tracks
         self.training_set = training_set
         self.on_epoch, self.on_estimates, self.on_error = on_epoch, on_estimates, on_error
@@ -163,7 +166,7 @@ class FollowerPipeline:
             truth = horizontal_distance_scalar(own.lat_rad, own.lon_rad, other.lat_rad, other.lon_rad)
         results = runner.range_epoch(t_s, leader, pos.lat_rad, pos.lon_rad, pos.depth_m, slant_m, truth)
         if results:
-            self.on_epoch(self.plan.name, results)
+            self.on_epoch(self.plan.name, results, pos)
             self._after_step(runner, t_s, force=True)
 
     def _after_step(self, runner: CooperativeRunner, t_s: float, force: bool = False) -> None:

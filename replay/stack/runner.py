@@ -38,6 +38,11 @@ Open-loop ROC scores: every trained detector also scores, after the run,
 the features of the ``ackf`` method (no isolation, so the same features for
 every detector) with ``Detector.scores``; ``ackf`` runs internally even when
 not requested.
+
+The filter-independent features (``replay.stack.features``) are computed
+only when a configured method decides on them (a method outside
+``PAPER_METHODS``, e.g. ``cusum_drift``, ``anfis_hybrid``): otherwise every
+epoch's EXTRA_FEATURES, and those columns of ``training_set``, are NaN.
 """
 
 from __future__ import annotations
@@ -199,8 +204,12 @@ class CooperativeRunner:
             self._methods.append(self._reference)
         self._gate_f2 = chi_square_threshold(config.chi_square_alpha)
         self._initial = (float(initial_lat_rad), float(initial_lon_rad), float(initial_depth_m))
-        self._features = FeatureTracker(config.features, self.leaders, float(initial_lat_rad),
-                                        float(initial_lon_rad), self._exclusion())
+        # the filter-independent features are an input of the new methods only: without one of them
+        # configured the tracker is not run and an epoch's EXTRA_FEATURES are NaN (it cost ~5 % of a replay)
+        self._features: FeatureTracker | None = None
+        if self._needs_database:
+            self._features = FeatureTracker(config.features, self.leaders, float(initial_lat_rad),
+                                            float(initial_lon_rad), self._exclusion())
         # (t, leader, features..., Z - Z_gps, label) of the ackf method inside the window, with GPS truth
         self._train_rows: list[tuple] = []
         # the window's inputs in order, replayed with injected anomalies for the hybrid database
@@ -287,7 +296,8 @@ class CooperativeRunner:
         label = label_one(z, truth, self.config.t1_m)
         ref_m = self._reference
         ref = (ref_m.state.lat, ref_m.state.lon) if ref_m is not None else None
-        extra = self._features.epoch(t_s, leader, slant_range_m, z, self._depth, geo, ref)
+        extra = (self._features.epoch(t_s, leader, slant_range_m, z, self._depth, geo, ref)
+                 if self._features is not None else _NO_EXTRA)
         out = [self._method_epoch(m, inn, t_s, leader, z, geo, truth, label, extra)
                for m, inn in zip(self._methods, usable)]
         self._record()
@@ -326,7 +336,8 @@ class CooperativeRunner:
             self._propagate(t_s)
         b, a = metric_scales_scalar(lat_rad, self._depth)
         r11, r12, r22 = nn / (b * b), ne / (b * a), ee / (a * a)
-        self._features.fix(t_s, lat_rad, lon_rad, (r11, r12, r22))
+        if self._features is not None:
+            self._features.fix(t_s, lat_rad, lon_rad, (r11, r12, r22))
         for m in self._methods:
             if m.kind != "dr":
                 m.state = position_update(m.state, lat_rad, lon_rad, r11, r12, r22) or m.state
@@ -396,7 +407,8 @@ class CooperativeRunner:
             if nxt is None:
                 nxt = done[m.state] = dr_predict(m.state, dt, fwd, lat_v, hdg, self._depth, q)
             m.state = nxt
-        self._features.propagate(dt, fwd, lat_v, hdg, self._depth)
+        if self._features is not None:
+            self._features.propagate(dt, fwd, lat_v, hdg, self._depth)
         self._t = t_s
 
     def _record(self) -> None:
