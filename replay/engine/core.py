@@ -40,6 +40,11 @@ class Engine:
         """The engine of one trial; `training_set` (another run's) goes to every follower's runner."""
         self.layout, self.config, self.t0_ns = layout, config, t0_ns
         self.listeners = list(listeners)
+        # the per-message hooks go only to the listeners that override them (Listener's own do nothing):
+        # a results writer, which ignores positions, then costs nothing per INS or GPS message
+        self._hear_position = _overriding(self.listeners, "position")
+        self._hear_estimates = _overriding(self.listeners, "estimates")
+        self._hear_errors = _overriding(self.listeners, "errors")
         self.notes: list[str] = list(layout.notes)
         self.counts: Counter = Counter()
         self.tracks: dict[str, VehicleTracks] = {v: VehicleTracks() for v in layout.roles}
@@ -61,6 +66,8 @@ class Engine:
         self.last_s = -math.inf
         self._routes: dict[str, tuple[str | None, Callable[[Engine, str, float, Any], None] | None]] = {}
         self._lag_s = config.engine.lag_s
+        self._feeding = bool(config.engine.usbl_update)     # USBL fixes go to the followers' filters
+        self._pipes = list(self.followers.items())
 
     # -- intake ----------------------------------------------------------------
     def push(self, topic: str, log_time_ns: int, msg: Any) -> None:
@@ -99,7 +106,7 @@ class Engine:
             return
         fix = Fix(t_s, msg.latitude * DEG, msg.longitude * DEG, 0.0)
         self.tracks[vehicle].gps.add(fix)
-        for listener in self.listeners:
+        for listener in self._hear_position:
             listener.position(vehicle, "gps", fix)
         if self._origin is None:
             self._origin = (fix.lat_rad, fix.lon_rad)
@@ -113,7 +120,7 @@ class Engine:
             depth = msg.depth_m if math.isfinite(msg.depth_m) else 0.0
             fix = Fix(t_s, msg.latitude * DEG, msg.longitude * DEG, depth)
             self.tracks[vehicle].ins.add(fix)
-            for listener in self.listeners:
+            for listener in self._hear_position:
                 listener.position(vehicle, "ins", fix)
         if vehicle in self.followers:
             self.followers[vehicle].on_ins(t_s, msg)
@@ -143,19 +150,19 @@ class Engine:
 
     # -- release and callbacks ---------------------------------------------------
     def _release(self, until_s: float) -> None:
-        feeding = self._usbl is not None and bool(self.config.engine.usbl_update)
-        if feeding and self._usbl is not None:
+        usbl = self._usbl
+        if usbl is not None and self._feeding:
             # fixes go to the followers' queues before they are released past them; an epoch is
             # complete once the stream is usbl_group_s past its first observation
-            self._usbl.flush(min(until_s, self.last_s - self.config.engine.usbl_group_s))
-            self._usbl.position_due(until_s)
-        for name, pipe in self.followers.items():
+            usbl.flush(min(until_s, self.last_s - self.config.engine.usbl_group_s))
+            usbl.position_due(until_s)
+        for name, pipe in self._pipes:
             # most messages release nothing; training only happens while events are released
             if pipe.due(until_s):
                 pipe.release(until_s)
                 self._check_trained(name, pipe)
-        if self._usbl is not None and not feeding:
-            self._usbl.flush(until_s - 1.0)
+        if usbl is not None and not self._feeding:
+            usbl.flush(until_s - 1.0)
 
     def _check_trained(self, name: str, pipe: FollowerPipeline) -> None:
         runner = pipe.runner
@@ -187,7 +194,7 @@ class Engine:
             listener.epoch(follower, results, leader_fix)
 
     def _on_estimates(self, follower: str, t_s: float, est: Mapping[str, tuple[float, ...]]) -> None:
-        for listener in self.listeners:
+        for listener in self._hear_estimates:
             listener.estimates(follower, t_s, est)
 
     def _on_errors(self, follower: str, samples: list[ErrorSample]) -> None:
@@ -195,7 +202,7 @@ class Engine:
         for s in samples:
             if s.t_s >= self.training_end_s:
                 sc.errors.setdefault(s.method, array("d")).append(s.error_m)
-        for listener in self.listeners:
+        for listener in self._hear_errors:
             listener.errors(follower, samples)
 
     def _usbl_truth(self, target: str, t_s: float) -> tuple[float, float] | None:
@@ -279,6 +286,12 @@ class Engine:
     def origin(self) -> tuple[float, float] | None:
         """The local frame's origin (lat, lon rad): the first GPS fix of the trial."""
         return self._origin
+
+
+def _overriding(listeners: Sequence[Listener], hook: str) -> list[Listener]:
+    """The listeners whose class overrides Listener's (empty) `hook`, in their order."""
+    base = getattr(Listener, hook)
+    return [listener for listener in listeners if getattr(type(listener), hook, base) is not base]
 
 
 _HANDLERS: dict[str, Callable[[Engine, str, float, Any], None]] = {

@@ -88,6 +88,7 @@ from replay.stack.model import (
 from replay.stack.training import RECORDED, TRAINING_SOURCES, TrainingSet
 
 _NO_EXTRA: tuple[float, ...] = (NAN,) * len(EXTRA_FEATURES)
+_NO_DECISION = Decision(False, NAN, NAN)     # what a method that does not decide reports (frozen: shared)
 _REPEAT, _LAG = EXTRA_FEATURES.index("repeat_count"), EXTRA_FEATURES.index("lag_residual_m")
 
 @dataclass
@@ -428,7 +429,7 @@ class CooperativeRunner:
         every feature of `FEATURE_NAMES`.
         """
         f1, f2, f3 = inn.features
-        decision = Decision(False, NAN, NAN)
+        decision = _NO_DECISION
         action, used_inn, compensated = "update", inn, False
         if m.kind == "dr":
             f1 = f2 = f3 = NAN

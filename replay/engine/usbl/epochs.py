@@ -123,7 +123,8 @@ class UsblEpochBuilder:
             by_node.setdefault(node, (emitted, msg, t_s))   # a node heard twice keeps its first
         rows = []
         for node, (_, msg, t_s) in by_node.items():
-            pos = self.tracks.get(node, VehicleTracks()).gps.at(t_s, self.max_gap_s)
+            known = self.tracks.get(node)
+            pos = known.gps.at(t_s, self.max_gap_s) if known is not None else None
             if pos is None:
                 self.counts["usbl_node_without_position"] += 1
                 continue
