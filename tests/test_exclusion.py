@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from replay.stack.config import StackConfig
 from replay.stack.exclusion import LeaderExclusion
-from replay.stack.features import EXTRA_FEATURES
+from replay.stack.features import EXTRA_FEATURES, FeatureTracker
 from replay.stack.runner import CooperativeRunner
 from replay.stack.training import RECORDED
 from tests.test_runner import A0, B0, LAT, LON, make_trial, run_trial
@@ -95,7 +95,8 @@ def test_lean_open_loop_copy_equals_an_ackf_only_runner() -> None:
     lean = runner._open_loop_copy(slant, replied)
     child = CooperativeRunner(replace(cfg, methods=("ackf",)), "follower", ["leader1", "leader2"], 0.0,
                               *runner._initial, keep_history=False)
-    child._features.exclusion = runner._exclusion()   # the child runs no new method, so it has none
+    # the child runs no new method, so it has no feature tracker: it gets the one the lean pass builds
+    child._features = FeatureTracker(cfg.features, child.leaders, *runner._initial[:2], runner._exclusion())
     k = 0
     for kind, args in window:
         if kind == "dr":
