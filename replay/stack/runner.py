@@ -200,7 +200,7 @@ class CooperativeRunner:
         self._gate_f2 = chi_square_threshold(config.chi_square_alpha)
         self._initial = (float(initial_lat_rad), float(initial_lon_rad), float(initial_depth_m))
         self._features = FeatureTracker(config.features, self.leaders, float(initial_lat_rad),
-                                        float(initial_lon_rad), self._exclusion())
+                                        float(initial_lon_rad), self._exclusion(), config.r_m, config.p0_m)
         # (t, leader, features..., Z - Z_gps, label) of the ackf method inside the window, with GPS truth
         self._train_rows: list[tuple] = []
         # the window's inputs in order, replayed with injected anomalies for the hybrid database
@@ -581,7 +581,7 @@ class CooperativeRunner:
         lat0, lon0, depth = self._initial
         b, a = metric_scales_scalar(lat0, depth)
         state = State2(lat0, lon0, (cfg.p0_m[0] / b) ** 2, 0.0, (cfg.p0_m[1] / a) ** 2)
-        tracker = FeatureTracker(cfg.features, self.leaders, lat0, lon0, self._exclusion())
+        tracker = FeatureTracker(cfg.features, self.leaders, lat0, lon0, self._exclusion(), cfg.r_m, cfg.p0_m)
         t_now, fwd, lat_v, hdg = self.start_time_s, 0.0, 0.0, 0.0
         q, r_var, t1 = cfg.q_m_per_s, self._r_var, cfg.t1_m
         rows: list[tuple] = []
