@@ -123,6 +123,6 @@ class StackConfig:
     detection_fpr_target: float = 0.02           # the new methods' threshold: this false-alarm rate on training
     training_source: str = "own"                  # "own" window, a "given" TrainingSet, or "both"
     # anfis_hybrid's inputs, by name from replay.stack.features.FEATURE_NAMES
-    hybrid_inputs: tuple[str, ...] = ("f2", "repeat_count", "lag_residual_m", "usbl_residual_m")
+    hybrid_inputs: tuple[str, ...] = ("f2", "repeat_count", "drift_residual_m", "usbl_residual_m")
     # ... of which these enter signed (the others that are signed residuals enter as magnitudes)
     hybrid_signed_inputs: tuple[str, ...] = ()

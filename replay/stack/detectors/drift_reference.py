@@ -20,11 +20,13 @@ a ramp residual rate·t its detection delay is h / rate (tests check it).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from replay.stack.config import StackConfig
+from replay.stack.detectors.anfis_hybrid import fpr_threshold
 from replay.stack.detectors.base import Decision
 from replay.stack.features import FEATURE_NAMES
 from replay.stack.training import TrainingSet
@@ -40,16 +42,6 @@ class DriftReferenceExplanation:
     residual_m: float      # drift_residual_m: the range minus the stiff reference's prediction
     threshold_m: float     # h
     flagged: bool
-
-
-def threshold_for_fpr(normal_scores: np.ndarray, fpr_target: float, floor: float) -> float:
-    """The smallest h >= floor with at most fpr_target of the finite normal scores above it (floor when none)."""
-    x = np.sort(np.asarray(normal_scores, dtype=float)[np.isfinite(normal_scores)])
-    if x.size == 0:
-        return float(floor)
-    allowed = int(np.floor(fpr_target * x.size))   # scores strictly above h
-    h = float(x[x.size - 1 - allowed]) if allowed < x.size else float(x[0])
-    return max(h, float(floor))
 
 
 class DriftReferenceDetector:
@@ -74,7 +66,9 @@ class DriftReferenceDetector:
         """Set h so that at most the target share of the rows labelled normal score above it."""
         x = np.abs(np.asarray(features, dtype=float).reshape(-1, len(FEATURE_NAMES))[:, _COLUMN])
         normal = x[np.asarray(labels).ravel() == 0]
-        h = threshold_for_fpr(normal, self.config.detection_fpr_target, self.config.t1_m)
+        h = max(fpr_threshold(normal, self.config.detection_fpr_target), float(self.config.t1_m))
+        if not math.isfinite(h):        # no finite normal score: the floor
+            h = float(self.config.t1_m)
         finite = normal[np.isfinite(normal)]
         self.threshold = h
         self.thresholds = {"fpr_target": h, "configured": float(self.config.t1_m), "used": h,
