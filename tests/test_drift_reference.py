@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from recorders.manifest import load_manifest
 from recorders.record import record
 from replay.run.config import load_config
+from replay.run.evaluate import TrialScores, TrialSpec, closed_loop_fpr
 from replay.run.pipeline import replay_archive
 from replay.stack.config import ALL_METHODS, NEW_METHODS, StackConfig
 from replay.stack.detectors.drift_reference import DriftReferenceDetector
@@ -195,3 +196,16 @@ def test_a_given_training_set_is_part_of_the_run_id(tmp_path: Path) -> None:
     b = replay_archive(archive, given, write_output=False, training_set=ts.select(np.arange(len(ts)) % 2 == 0))
     assert a.run_id == again.run_id
     assert len({own.run_id, a.run_id, b.run_id}) == 3
+
+
+def test_closed_loop_fpr_is_the_share_of_normal_epochs_flagged() -> None:
+    def trial(flagged: list[bool], labels: list[int]) -> TrialScores:
+        f, lab = np.array(flagged), np.array(labels, dtype=np.int8)
+        kinds = np.zeros(lab.size, dtype=np.int16)
+        return TrialScores(TrialSpec(0), ("ackf", "drift_reference"), ("drift_reference",),
+                           {"drift_reference": f, "ackf": np.zeros(f.size, bool)},
+                           {"drift_reference": lab, "ackf": lab}, {"drift_reference": kinds, "ackf": kinds},
+                           {}, {}, {})
+    trials = [trial([True, False, True, False], [0, 0, 1, 0]), trial([True, True], [0, 1])]
+    assert closed_loop_fpr(trials, "drift_reference") == pytest.approx(2 / 4)
+    assert closed_loop_fpr(trials, "ackf") is None
