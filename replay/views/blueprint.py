@@ -143,7 +143,7 @@ def _scoreboard(runs: list[Run], error_top: float) -> rrb.Container:
     return rrb.Horizontal(
         left,
         rrb.Vertical(*cdfs, row_shares=[1.4, 1] * len(followers)) if cdfs else rrb.Vertical(),
-        column_shares=[1.45, 1], name="Scoreboard",
+        column_shares=[1.75, 1], name="Scoreboard",
     )
 
 
