@@ -245,7 +245,7 @@ def test_blueprint_saved_with_every_view(rrd: Rrd) -> None:
     assert any(n.startswith("Error CDF of follower") for n in names)
     assert any(n.startswith("Error vs GPS (m), whole mission") for n in names)
     assert any(n.startswith("Detection lanes") for n in names)
-    assert sum(n.startswith("KMCDF follower:") and "preliminary fixes of kmcdf1, kmcdf2" in n for n in names) == 1
+    assert sum(n.startswith("KMCDF follower:") and "prelim. fixes of kmcdf1, kmcdf2" in n for n in names) == 1
     assert {"Map", "2D", "3D", "TimeSeries", "TextLog", "TextDocument", "StateTimeline", "BarChart"} <= set(
         rrd.view_classes)
 

@@ -125,8 +125,9 @@ def test_why_document_per_epoch_after_t_a_one_line_per_detector(featured: tuple[
         rows = det[(det.leader == leader) & (det.t_s > t_a)].sort_values(["t_s"], kind="stable")
         docs = rrd.cells(f"/run-a/why/{FOLLOWER}/{leader}", "TextDocument:text")
         epochs = sorted(rows.t_s.unique())
-        assert len(docs) == len(epochs)
-        for doc, t in zip(docs, epochs, strict=True):
+        assert len(docs) == len(epochs) + 1
+        assert docs[0][0].startswith(f"**{leader}**: the detectors train until t_a = {t_a:.0f} s")
+        for doc, t in zip(docs[1:], epochs, strict=True):
             at = rows[rows.t_s == t]
             label = int(at.label.iloc[0])
             truth = "anomaly" if label == 1 else "normal" if label == 0 else "no label"

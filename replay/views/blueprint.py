@@ -171,8 +171,9 @@ def _detection(runs: list[Run]) -> rrb.Container:
 def _scores(runs: list[Run]) -> rrb.Container:
     """Every detector's statistic against its threshold over the whole mission, the residual, and a colour key."""
     methods = {str(m) for r in runs if "method" in r.review.detections for m in r.review.detections["method"].unique()}
-    plots = [_series(f"{ld}: ANFIS vs T2 (m)", [f"+ {r.path('series', 'anfis', f, ld)}/**" for r in runs],
-                     anfis_top(runs), legend=False) for f, ld in _pairs(runs)]
+    plots: list[rrb.View] = [_series(f"{ld}: ANFIS vs T2 (m)", [f"+ {r.path('series', 'anfis', f, ld)}/**"
+                                                               for r in runs], anfis_top(runs), legend=False)
+                             for f, ld in _pairs(runs)]
     plots += [_series(title, _contents(runs, "scores", m), score_top(runs, m), legend=False)
               for m, title in SCORED.items() if m in methods]
     plots.append(_series("Range residual (m)", _contents(runs, "series", "residual"), legend=False))
@@ -266,7 +267,7 @@ def _kmcdf(runs: list[Run]) -> rrb.Container | None:
             methods = sorted(rows["method"].astype(str).unique())
             prelim = ", ".join(with_fixes) if with_fixes else "none"
             views.append(rrb.Spatial2DView(
-                name=f"KMCDF {t}{tag}: fixes minus GPS (m); preliminary fixes of {prelim}: green kept, red C2",
+                name=f"KMCDF {t}{tag}: fix - GPS (m); prelim. fixes of {prelim}: green kept, red C2",
                 contents=[f"+ {run.path('kmcdf', t, m)}/final" for m in methods]
                 + [f"+ {run.path('kmcdf', t, m)}/fixes" for m in with_fixes]
                 + [f"+ {run.path('kmcdf', t, 'truth')}/**"],

@@ -14,7 +14,8 @@ Entities under a run prefix P, on `time` and `mission_s`:
   dual_threshold's max(f2/gate, S/h) against 1, cusum_drift's max(S+, S-) against h,
   anfis_hybrid's output against its false-alarm-rate threshold;
 - ``P/why/<follower>/<leader>``: a TextDocument per epoch after t_a, one line per detector with
-  its outcome ("hit", "false alarm", "miss", "quiet") and what it compared (`replay.review.why`).
+  its outcome ("hit", "false alarm", "miss", "quiet") and what it compared (`replay.review.why`),
+  and one at t = 0 saying that nothing is judged before t_a.
 """
 
 from __future__ import annotations
@@ -166,5 +167,8 @@ def log_why(rec: rr.RecordingStream, run: Run) -> None:
     for (follower, leader), rows in groups(run.review.detections, ["follower", "leader"]):
         t, docs = why_documents(rows, t_a)
         if docs:
+            # before t_a the view would say "(empty)": say why instead
+            t = np.r_[0.0, t]
+            docs = [f"**{leader}**: the detectors train until t_a = {t_a:.0f} s; no epoch is judged before.", *docs]
             rec.send_columns(run.path("why", str(follower), str(leader)), indexes=run.times(t),
                              columns=rr.TextDocument.columns(text=docs, media_type=["text/markdown"] * len(docs)))
