@@ -33,7 +33,14 @@ from replay.review.data import ReviewData
 from replay.review.why import ANFIS_FAMILY
 from replay.views.cdf import HEIGHT, WIDTH
 from replay.views.common import Run, floats, groups, part
-from replay.views.features import FEATURE_GROUPS, SCORED, feature_note, present_features, score_top
+from replay.views.features import (
+    FEATURE_GROUPS,
+    SCORED,
+    feature_note,
+    group_title,
+    present_features,
+    score_top,
+)
 from replay.views.lanes import LANES_ROOT, training_end_s
 from replay.views.positioning import fix_methods, kmcdf_half_width
 from replay.views.tracks import KEY, KEY_STEP, geo_bounds, key_rows, track_bounds
@@ -199,7 +206,8 @@ def _features(runs: list[Run]) -> rrb.Container:
                 continue
             mine = [d[(d["follower"].astype(str) == f) & (d["leader"].astype(str) == ld)] for d in det]
             v = np.concatenate([floats(d, n) for d in mine for n in shown] or [np.zeros(0)])
-            plots.append(_series(f"{ld}: {title}", [f"+ {r.path('features', f, ld, key)}/**" for r in runs],
+            plots.append(_series(f"{ld}: {group_title(title, shown)}", [f"+ {r.path('features', f, ld, key)}/**"
+                                                                        for r in runs],
                                  y_range=robust_range(v)))
         grid = rrb.Grid(*plots, grid_columns=3)
         notes = [r for r in runs if feature_note(r.review.detections)]

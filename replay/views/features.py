@@ -28,10 +28,11 @@ from replay.stack.features import EXTRA_FEATURES
 from replay.views.common import Run, floats, groups
 from replay.views.lanes import epoch_states, training_end_s
 
-# (key, title, features): one plot per group and leader; units never mix within a group
+# (key, title, features): one plot per group and leader; units never mix within a group; "{}" in a title
+# takes the names of the group's features a run computed (REFERENCE_NAMES), so a short title fits
 FEATURE_GROUPS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ("dr", "range - dead-reckoned range (m)", ("dr_residual_m", "leader_consistency_m")),
-    ("anchored", "vs USBL / lagged ACKF / others (m)", ("usbl_residual_m", "lag_residual_m", "exclusion_residual_m")),
+    ("anchored", "vs {} (m)", ("usbl_residual_m", "lag_residual_m", "exclusion_residual_m")),
     ("drift", "drift residual and its CUSUM (m)", ("drift_residual_m", "drift_cusum_m")),
     ("z", "standardized residuals (sd)", ("drift_z", "exclusion_z")),
     ("repeats", "identical ranges in a row (count)", ("repeat_count",)),
@@ -49,7 +50,14 @@ SCORED: dict[str, str] = {
     "cusum_drift": "cusum_drift S vs h (sd)",
     "anfis_hybrid": "anfis_hybrid vs thr (m)",
 }
+REFERENCE_NAMES: dict[str, str] = {"usbl_residual_m": "USBL fix", "lag_residual_m": "lagged ACKF",
+                                   "exclusion_residual_m": "other leaders"}
 SCORE_RGB = ((255, 200, 80), (110, 200, 255), (230, 130, 255), (160, 230, 120))
+
+
+def group_title(title: str, shown: list[str]) -> str:
+    """A group's plot title, "{}" filled with the names of the features shown."""
+    return title.format(" / ".join(REFERENCE_NAMES.get(f, f) for f in shown)) if "{}" in title else title
 
 
 def present_features(detections: pd.DataFrame) -> list[str]:
