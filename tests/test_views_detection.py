@@ -147,7 +147,7 @@ def test_detector_scores_against_thresholds_and_colour_key(featured: tuple[Revie
         np.testing.assert_allclose([c[0] for c in rrd.cells(f"{base}/threshold", "Scalars:scalars")], rows.threshold)
         assert not [e for e in rrd.temporal if e.startswith("/run-a/scores/anfis")]   # the ANFIS plot has those
     key = rrd.static["/run-a/scores/key"][0].column("TextDocument:text").to_pylist()[0][0]
-    assert "yellow: leader1" in key and "blue: leader2" in key
+    assert "orange: leader1" in key and "blue: leader2" in key
     assert {"chi_square: f2 vs gate", "dual_threshold vs 1", "Colours"} <= rrd.view_names
 
 

@@ -27,6 +27,7 @@ import rerun as rr
 from replay.stack.features import EXTRA_FEATURES
 from replay.views.common import Run, floats, groups
 from replay.views.lanes import epoch_states, training_end_s
+from replay.views.series import LEADER_RGB
 
 # (key, title, features): one plot per group and leader; units never mix within a group; "{}" in a title
 # takes the names of the group's features a run computed (REFERENCE_NAMES), so a short title fits
@@ -39,9 +40,9 @@ FEATURE_GROUPS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
 )
 FEATURE_RGB: dict[str, tuple[int, int, int]] = {
     "dr_residual_m": (90, 160, 255), "leader_consistency_m": (250, 170, 60),
-    "usbl_residual_m": (60, 200, 120), "lag_residual_m": (235, 90, 200), "exclusion_residual_m": (250, 220, 60),
+    "usbl_residual_m": (60, 200, 120), "lag_residual_m": (235, 90, 200), "exclusion_residual_m": (200, 160, 0),
     "drift_residual_m": (90, 160, 255), "drift_cusum_m": (240, 80, 60),
-    "drift_z": (90, 160, 255), "exclusion_z": (250, 220, 60), "repeat_count": (200, 200, 210),
+    "drift_z": (90, 160, 255), "exclusion_z": (200, 160, 0), "repeat_count": (128, 128, 140),
 }
 # detectors whose score is drawn against its threshold here, with the plot's title
 SCORED: dict[str, str] = {
@@ -52,7 +53,6 @@ SCORED: dict[str, str] = {
 }
 REFERENCE_NAMES: dict[str, str] = {"usbl_residual_m": "USBL fix", "lag_residual_m": "lagged ACKF",
                                    "exclusion_residual_m": "other leaders"}
-SCORE_RGB = ((255, 200, 80), (110, 200, 255), (230, 130, 255), (160, 230, 120))
 
 
 def group_title(title: str, shown: list[str]) -> str:
@@ -116,13 +116,13 @@ def log_features(rec: rr.RecordingStream, run: Run) -> None:
                                    floats(epochs, f), run.name(f), FEATURE_RGB[f])
 
 
-SCORE_COLOUR_NAMES = ("yellow", "blue", "violet", "green")
+LEADER_COLOUR_NAMES = ("orange", "blue", "violet", "green")     # of LEADER_RGB, for the colour key
 
 
 def log_detector_scores(rec: rr.RecordingStream, run: Run) -> None:
     """Each detector of SCORED: its statistic per leader as a line, its threshold as a grey step line; a colour key."""
     pairs = groups(run.review.detections, ["follower", "leader"])
-    key = [f"- {SCORE_COLOUR_NAMES[k % len(SCORE_RGB)]}: {leader}" for k, ((_, leader), _) in enumerate(pairs)]
+    key = [f"- {LEADER_COLOUR_NAMES[k % len(LEADER_RGB)]}: {leader}" for k, ((_, leader), _) in enumerate(pairs)]
     titles = "".join(f"\n- {t}: {d}" for t, d in (
         ("chi_square", "f2 against its chi-square gate"), ("dual_threshold", "max(f2/gate, CUSUM S/h) against 1"),
         ("cusum_drift", "max(S+, S-) of drift_z against h, in sd"),
@@ -133,7 +133,7 @@ def log_detector_scores(rec: rr.RecordingStream, run: Run) -> None:
         "above the threshold = flagged. Hover a line for its name and value.\n" + titles, media_type="text/markdown"),
         static=True)
     for k, ((follower, leader), rows) in enumerate(pairs):
-        rgb = SCORE_RGB[k % len(SCORE_RGB)]
+        rgb = LEADER_RGB[k % len(LEADER_RGB)]
         for (method,), m_rows in groups(rows, ["method"]):
             m = str(method)
             if m not in SCORED:

@@ -36,7 +36,7 @@ def _scalars(rec: rr.RecordingStream, path: str, run: Run, t_s: pd.Series, value
     rec.send_columns(path, indexes=run.times(t_s), columns=rr.Scalars.columns(scalars=values))
 
 
-LEADER_RGB = ((255, 200, 80), (110, 200, 255), (230, 130, 255), (160, 230, 120))
+LEADER_RGB = ((235, 150, 30), (60, 150, 235), (200, 100, 240), (90, 190, 80))
 
 
 def log_ranges(rec: rr.RecordingStream, run: Run) -> None:
