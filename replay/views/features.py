@@ -154,19 +154,26 @@ def score_top(runs: list[Run], method: str) -> float | None:
 
 
 def why_documents(rows: pd.DataFrame, t_a: float) -> tuple[np.ndarray, list[str]]:
-    """Per epoch after t_a of one follower and leader: its time and a markdown list, one line per detector."""
-    rows = rows[(floats(rows, "t_s") > t_a) & (rows["why"].astype(str) != "")] if "why" in rows else rows.iloc[:0]
-    if rows.empty:
+    """Per epoch after t_a of one follower and leader: its time and a markdown list, one line per detector.
+
+    `rows` in time order (as `groups` gives them); one join per epoch over contiguous slices.
+    """
+    keep = (floats(rows, "t_s") > t_a) & (rows["why"].astype(str) != "").to_numpy() if "why" in rows else None
+    if keep is None or not keep.any():
         return np.zeros(0), []
+    rows = rows[keep]
+    t = floats(rows, "t_s")
     label = pd.to_numeric(rows["label"], errors="coerce").fillna(-1).to_numpy(dtype=int)
     state = epoch_states(rows["flagged"].to_numpy(dtype=bool), label, np.ones(len(rows), dtype=bool))
-    line = "- **" + pd.Series(state, index=rows.index) + "** " + rows["method"].astype(str) + ": " + rows["why"]
-    by_t = line.groupby(rows["t_s"], sort=True).agg("\n".join)
-    first = rows.drop_duplicates("t_s").set_index("t_s").loc[by_t.index]
-    truth = np.where(first["label"] == 1, "anomaly", np.where(first["label"] == 0, "normal", "no label"))
-    heads = [f"**{ld} at {t:.1f} s: truth {tr}**\n\n" for ld, t, tr in zip(first["leader"].astype(str), by_t.index,
-                                                                           truth, strict=True)]
-    return by_t.index.to_numpy(dtype=float), [h + body for h, body in zip(heads, by_t.to_list(), strict=True)]
+    lines = [f"- **{st}** {m}: {w}" for st, m, w in zip(state, rows["method"].astype(str), rows["why"].astype(str),
+                                                        strict=True)]
+    starts = np.flatnonzero(np.r_[True, t[1:] != t[:-1]])
+    ends = np.r_[starts[1:], t.size]
+    leaders = rows["leader"].astype(str).to_numpy()
+    truth = np.where(label == 1, "anomaly", np.where(label == 0, "normal", "no label"))
+    docs = [f"**{leaders[a]} at {t[a]:.1f} s: truth {truth[a]}**\n\n" + "\n".join(lines[a:b])
+            for a, b in zip(starts, ends, strict=True)]
+    return t[starts], docs
 
 
 def log_why(rec: rr.RecordingStream, run: Run) -> None:
