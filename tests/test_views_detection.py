@@ -16,6 +16,7 @@ from replay.review.why import why_line, wide_features
 from replay.stack.config import StackConfig
 from replay.stack.detectors.chi_square import ChiSquareDetector
 from replay.stack.detectors.cusum import CusumDriftDetector
+from replay.stack.detectors.drift_reference import DriftReferenceDetector
 from replay.stack.detectors.dual_threshold import DualThresholdDetector
 from replay.stack.features import EXTRA_FEATURES, FEATURE_NAMES
 from replay.views import recording as views
@@ -59,6 +60,12 @@ def test_why_lines_name_each_detectors_statistic_and_threshold() -> None:
     assert f"({cusum.input} +{1.7 if cusum.input == 'drift_z' else 4.0:.2f}, k {cusum.k:.2f})" in line
 
     assert why_line(_result("anfis_hybrid", True, 12.0, 10.4)) == "output 12.00 m > thr 10.40 m"
+
+    dref = DriftReferenceDetector(cfg)              # untrained: h = T1 = 9 m
+    r = _result("drift_reference", False, 0.0, 0.0, drift_residual_m=-14.5)
+    d = dref.decide(wide_features(r))
+    assert why_line(r._replace(flagged=d.flagged, score=d.score, threshold=d.threshold)) == \
+        "|drift residual| 14.50 m > h 9.00 m"
     assert why_line(_result("dual_threshold", False, math.nan, 1.0)) == "not judged (a feature is missing at this epoch)"
 
 

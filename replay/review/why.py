@@ -5,7 +5,8 @@ outcome, in the statistic's own unit: chi_square's f2 against its chi-square gat
 dual_threshold's two tests (f2 over the gate, the CUSUM of the predicted error over h,
 flagged when either exceeds 1); the ANFIS family's output against T2 (metres);
 cusum_drift's max(S+, S-) against h, with the residual summed and its allowance k;
-anfis_hybrid's output against its false-alarm-rate threshold, with its named inputs.
+anfis_hybrid's output against its false-alarm-rate threshold, with its named inputs;
+drift_reference's |drift_residual_m| (the range against the stiff reference) against h.
 Lines are plain ASCII: the Rerun viewer aborts on a glyph its font lacks.
 """
 
@@ -22,7 +23,8 @@ from replay.stack.features import EXTRA_FEATURES
 ANFIS_FAMILY: frozenset[str] = frozenset({"anfis", "anfis_aqpso", "anfis_compensation"})
 # the detectors' short names in one-line events, so a line fits the viewer's event panel
 SHORT_NAMES: dict[str, str] = {"chi_square": "chi2", "dual_threshold": "dual", "anfis": "anfis", "anfis_aqpso": "aqpso",
-                               "anfis_compensation": "comp", "cusum_drift": "cusum", "anfis_hybrid": "hybrid"}
+                               "anfis_compensation": "comp", "cusum_drift": "cusum", "anfis_hybrid": "hybrid",
+                               "drift_reference": "dref"}
 
 
 def short_names(methods: list[str]) -> str:
@@ -87,6 +89,10 @@ def _anfis_hybrid(r: EpochResult, det: Any) -> str:
     return text
 
 
+def _drift_reference(r: EpochResult) -> str:
+    return f"|drift residual| {_num(r.score)} m {_cmp(r.flagged)} h {_num(r.threshold)} m"
+
+
 def why_line(r: EpochResult, detector: Any | None = None) -> str:
     """One line: the statistic `r.method` compared at this epoch, its threshold and the outcome.
 
@@ -106,4 +112,6 @@ def why_line(r: EpochResult, detector: Any | None = None) -> str:
         return _cusum_drift(r, detector)
     if m == "anfis_hybrid":
         return _anfis_hybrid(r, detector)
+    if m == "drift_reference":
+        return _drift_reference(r)
     return f"score {r.score:.3g} {_cmp(r.flagged)} threshold {r.threshold:.3g}"

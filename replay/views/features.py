@@ -50,6 +50,7 @@ SCORED: dict[str, str] = {
     "dual_threshold": "dual_threshold vs 1",
     "cusum_drift": "cusum_drift S vs h (sd)",
     "anfis_hybrid": "anfis_hybrid vs thr (m)",
+    "drift_reference": "drift_reference |residual| vs h (m)",
 }
 REFERENCE_NAMES: dict[str, str] = {"usbl_residual_m": "USBL fix", "lag_residual_m": "lagged ACKF",
                                    "exclusion_residual_m": "other leaders"}
@@ -70,8 +71,8 @@ def feature_note(detections: pd.DataFrame) -> str:
     have = present_features(detections)
     if not have:
         return ("The filter-independent features (repeat_count, residuals, drift_z, ...) were not computed in "
-                "this run: a replay of paper A's methods need not compute them. Name cusum_drift or "
-                "anfis_hybrid (`--set methods=...,cusum_drift,anfis_hybrid`), or run `make demo`, to see them here.")
+                "this run: a replay of paper A's methods need not compute them. Name a new method (cusum_drift, "
+                "anfis_hybrid, drift_reference: `--set methods=...`), or run `make demo`, to see them here.")
     missing = [f for f in EXTRA_FEATURES if f not in have]
     if not missing:
         return ""
@@ -126,7 +127,8 @@ def log_detector_scores(rec: rr.RecordingStream, run: Run) -> None:
     titles = "".join(f"\n- {t}: {d}" for t, d in (
         ("chi_square", "f2 against its chi-square gate"), ("dual_threshold", "max(f2/gate, CUSUM S/h) against 1"),
         ("cusum_drift", "max(S+, S-) of drift_z against h, in sd"),
-        ("anfis_hybrid", "output against the threshold of its 2 % training FPR, in m")))
+        ("anfis_hybrid", "output against the threshold of its 2 % training FPR, in m"),
+        ("drift_reference", "|range - stiff reference| against h, in m")))
     rec.log(run.path("scores", "key"), rr.TextDocument(
         "Detector plots, one line per leader:\n\n" + "\n".join(key) + "\n- grey: the detector's threshold\n\n"
         "ANFIS plots: each method in its Scoreboard colour, its T2 as a step line of the same colour; "
