@@ -380,8 +380,11 @@ def parse_frame(frame: Frame) -> NmeaRecord | Reject | None:
 Scanned = tuple[str, str, tuple, int, int | None, int | None]
 
 
-def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
+def scan(data: bytes, prefix: str = "auto", base: int = 0, lines: int = 0) -> Iterator[Scanned | Reject]:
     """What `decode` yields, as plain tuples instead of records (for converters on the hot path).
+
+    `data` may be a block of a longer log (`formats.log_blocks`) starting at
+    byte `base` after `lines` line ends: positions are then the log's.
 
     The common line (``$TTSSS,...*HH`` with nothing before it) takes a fast
     path: the sentence type is looked up before anything else, so the
@@ -394,13 +397,13 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
     pxor = prefix_xor(data)
     parsers, hexes = VALUES, HEX
     skipped: set[str] = set()  # well-formed addresses of other sentence types
-    offset = 0
-    for number, raw in enumerate(data.decode("latin-1").split("\n"), start=1):
+    offset = 0  # in `data`; positions given out are `base` + it
+    for number, raw in enumerate(data.decode("latin-1").split("\n"), start=lines + 1):
         line_start = offset
         offset += len(raw) + 1
         star = raw.find("*", 6)
         if raw[:1] != "$" or raw[6:7] != "," or star < 0 or raw.count("$") != 1:
-            yield from _scan_general(raw, line_start, number, prefix)
+            yield from _scan_general(raw, base + line_start, number, prefix)
             continue
         kind = raw[3:6]
         parser = parsers.get(kind)
@@ -409,20 +412,20 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
             if address in skipped:
                 continue  # a sentence of another family seen before ($GPGSV...): one set lookup
             if not (address.isascii() and address.isalnum() and address.isupper()):
-                yield Reject(Where(line_start, number), f"malformed sentence address {address!r}")
+                yield Reject(Where(base + line_start, number), f"malformed sentence address {address!r}")
             else:
                 skipped.add(address)
             continue
         given = hexes.get(raw[star + 1 : star + 3])
         computed = pxor[line_start + star - 1] ^ pxor[line_start]
         if given != computed:
-            yield Reject(Where(line_start, number),
+            yield Reject(Where(base + line_start, number),
                          f"bad checksum {raw[star + 1 : star + 3]!r}, computed {computed:02X}", bad_checksum=True)
             continue
         try:
-            yield kind, raw[1:3], parser(raw[7:star].split(",")), line_start, number, None
+            yield kind, raw[1:3], parser(raw[7:star].split(",")), base + line_start, number, None
         except (ValueError, IndexError, OverflowError) as exc:
-            yield Reject(Where(line_start, number), f"bad {kind} sentence: {exc}")
+            yield Reject(Where(base + line_start, number), f"bad {kind} sentence: {exc}")
 
 
 def _scan_general(raw: str, line_start: int, number: int, prefix: str) -> Iterator[Scanned | Reject]:
