@@ -287,7 +287,9 @@ def _nmea_lines(items: Iterator[nmea.Scanned | Reject], ctx: LogContext, state: 
             epoch, epoch_time = {}, None
             if until_closed:
                 state.epoch, state.epoch_time = epoch, epoch_time
-                return item[3], item[4]
+                number = item[4]
+                assert number is not None  # `nmea.scan` numbers every line
+                return item[3], number
         epoch[kind] = item
         if epoch_time is None:
             epoch_time = t
