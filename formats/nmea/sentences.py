@@ -38,6 +38,7 @@ from .fields import (
     NAN,
     parse_ddmmyy,
     parse_float,
+    parse_int,
     parse_lat,
     parse_lon,
     parse_tod,
@@ -183,9 +184,9 @@ def _gga(f: list[str]) -> tuple:
         f = f + [""] * (14 - len(f))
     # inline conversions: GGA is the hot sentence of every log
     return (
-        parse_tod(f[0]), parse_lat(f[1], f[2]), parse_lon(f[3], f[4]), int(f[5]) if f[5] else -1,
-        int(f[6]) if f[6] else -1, float(f[7]) if f[7] else NAN, float(f[8]) if f[8] else NAN,
-        float(f[10]) if f[10] else NAN, float(f[12]) if f[12] else NAN, f[13],
+        parse_tod(f[0]), parse_lat(f[1], f[2]), parse_lon(f[3], f[4]), parse_int(f[5]),
+        parse_int(f[6]), parse_float(f[7]), parse_float(f[8]),
+        parse_float(f[10]), parse_float(f[12]), f[13],
     )
 
 
@@ -194,10 +195,10 @@ def _rmc(f: list[str]) -> tuple:
         _need(f, 9, "RMC")
     if len(f) < 12:
         f = f + [""] * (12 - len(f))
-    var = float(f[9]) if f[9] else NAN
+    var = parse_float(f[9])
     return (
-        parse_tod(f[0]), f[1] == "A", parse_lat(f[2], f[3]), parse_lon(f[4], f[5]), float(f[6]) if f[6] else NAN,
-        float(f[7]) if f[7] else NAN, parse_ddmmyy(f[8]), -var if f[10] == "W" else var, f[11],
+        parse_tod(f[0]), f[1] == "A", parse_lat(f[2], f[3]), parse_lon(f[4], f[5]), parse_float(f[6]),
+        parse_float(f[7]), parse_ddmmyy(f[8]), -var if f[10] == "W" else var, f[11],
     )
 
 
@@ -207,7 +208,7 @@ def _zda(f: list[str]) -> tuple:
     if len(f) < 6:
         f = f + [""] * (6 - len(f))
     day = parse_zda_date(f[3], f[2], f[1]) if f[1] and f[2] and f[3] else None
-    return parse_tod(f[0]), day, int(f[4]) if f[4] else -1, int(f[5]) if f[5] else -1
+    return parse_tod(f[0]), day, parse_int(f[4]), parse_int(f[5])
 
 
 def _vtg(f: list[str]) -> tuple:
@@ -224,9 +225,8 @@ def _gst(f: list[str]) -> tuple:
     if len(f) < 8:
         _need(f, 8, "GST")
     return (
-        parse_tod(f[0]), float(f[1]) if f[1] else NAN, float(f[2]) if f[2] else NAN, float(f[3]) if f[3] else NAN,
-        float(f[4]) if f[4] else NAN, float(f[5]) if f[5] else NAN, float(f[6]) if f[6] else NAN,
-        float(f[7]) if f[7] else NAN,
+        parse_tod(f[0]), parse_float(f[1]), parse_float(f[2]), parse_float(f[3]),
+        parse_float(f[4]), parse_float(f[5]), parse_float(f[6]), parse_float(f[7]),
     )
 
 
