@@ -44,14 +44,16 @@ def optional(text: str, name: str = "field") -> float:
 
 def integer(text: str, name: str = "field", base: int = 10) -> int:
     """int(text, base) of at most MAX_INT_DIGITS digits; ValueError naming `name` for any other text."""
-    if len(text.strip().lstrip("+-")) > MAX_INT_DIGITS:
+    if len(text) > MAX_INT_DIGITS and len(text.strip().lstrip("+-")) > MAX_INT_DIGITS:  # the short text at once
         raise ValueError(f"{name} has more than {MAX_INT_DIGITS} digits: {text[:40]!r}")
     return int(text, base)
 
 
 def optional_integer(text: str, name: str = "field", empty: int = -1) -> int:
     """`integer`, with an empty field `empty` (not given)."""
-    return integer(text, name) if text else empty
+    if not text:
+        return empty
+    return int(text) if len(text) <= MAX_INT_DIGITS else integer(text, name)  # a count field: one call, inline
 
 
 def texts_integer(texts: Collection[str]) -> bool:
