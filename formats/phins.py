@@ -169,7 +169,12 @@ def _three(f: list[str], n: int = 3) -> tuple[float, ...]:
         raise IndexError(f"{len(f)} fields, {n} needed")
     if n == 3:  # the common case unrolled: no generator per sentence
         a, b, c = f[0], f[1], f[2]
-        return _f(a), _f(b), _f(c)
+        if a and b and c:  # three given: plain float(), and one look at their sum for a NaN or an infinity
+            x, y, z = float(a), float(b), float(c)
+            total = x + y + z
+            if total - total == 0.0:
+                return x, y, z
+        return _f(a), _f(b), _f(c)  # the number rule names the field (an overflowing sum passes it)
     return tuple(_f(x) for x in f[:n])
 
 

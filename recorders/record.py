@@ -202,6 +202,7 @@ class LogRecorder:
         self.last_ns: dict[str, int] = {}
         self.records: set[int] = set()
         self.fallback_ns = fallback_ns
+        self.hint_ns: int | None = None  # the earliest own time of a message refused at record time
         self.checks = ValueChecks(float(log.options.get("max_range_m", MAX_RANGE_M)))
         self.kinds: dict[tuple[bool, str], int] = {}  # rejects per kind, listed or not
         self.ignored: Counter[str] = Counter()
@@ -257,6 +258,8 @@ class LogRecorder:
         n = self.kinds[key] = self.kinds.get(key, 0) + 1
         if n > DIAGNOSTICS_PER_KIND:
             return
+        if t_hint is not None and (self.hint_ns is None or t_hint < self.hint_ns):
+            self.hint_ns = t_hint
         t = self.stats.end_ns if self.stats.end_ns is not None else t_hint
         if t is None:
             self.pending.append(item)
@@ -269,7 +272,10 @@ class LogRecorder:
         self.pending.clear()
 
     def finish(self) -> None:
-        t = self.stats.start_ns if self.stats.start_ns is not None else self.fallback_ns
+        # rejects without a time go at the log's first message, else at its earliest refused message's own time
+        # (a log whose every message is refused), and only without either at the fallback (the trial date)
+        t = self.stats.start_ns if self.stats.start_ns is not None else \
+            self.hint_ns if self.hint_ns is not None else self.fallback_ns
         for (bad_checksum, kind), n in self.kinds.items():
             if n > DIAGNOSTICS_PER_KIND:
                 what = "bad checksums" if bad_checksum else f"rejects of kind {kind!r}"
