@@ -95,8 +95,9 @@ def tod_column(column: list[str]) -> np.ndarray | None:
     if values is None:
         return None
     v = np.array(values, dtype=np.float64)
-    h, rest = np.divmod(v, 10000.0)
-    m, sec = np.divmod(rest, 100.0)
+    with np.errstate(invalid="ignore"):  # an overflow to inf gives NaN, refused below
+        h, rest = np.divmod(v, 10000.0)
+        m, sec = np.divmod(rest, 100.0)
     if not ((h <= 23) & (m <= 59) & (sec < 61.0)).all():
         return None
     return h * 3600.0 + m * 60.0 + sec
@@ -155,9 +156,10 @@ def angle_column(column: list[str], hemis: list[str], neg: str, limit: float) ->
     if values is None:
         return None
     v = np.array(values, dtype=np.float64)
-    deg = np.floor_divide(v, 100.0)
-    minutes = v - deg * 100.0
-    value = deg + minutes / 60.0
+    with np.errstate(invalid="ignore"):  # an overflow to inf gives NaN, refused below
+        deg = np.floor_divide(v, 100.0)
+        minutes = v - deg * 100.0
+        value = deg + minutes / 60.0
     if (has & ~((minutes < 60.0) & (value <= limit))).any():
         return None
     south = np.array([h == neg for h in hemis], dtype=bool)
