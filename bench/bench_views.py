@@ -1,6 +1,6 @@
 """Time to log the sample trial to Rerun: columnar (`send_columns`) against row-by-row `log`.
 
-The bundled sample trial is recorded and replayed with every method, and its
+The bundled sample trial is recorded and replayed with every method (ALL_METHODS, as `demo`), and its
 ReviewData (what `auvreplay demo` logs) is logged both ways and saved whole;
 a synthetic ReviewData of the same size is timed too:
 
@@ -8,7 +8,8 @@ Sample-trial size: 1700 s at 1 Hz tracks (7 vehicles, 8 follower filters and 5
 positioning methods), 700 ranging epochs, 5 detectors, 2 ANFIS models x 100 training
 epochs, 340 USBL epochs. The row-by-row comparison covers the bulk per-sample series
 (track positions and trails on the map and the local plot, range circles,
-range/residual/feature/ANFIS/error scalars, detection-lane states), logged once each
+range/residual/feature/ANFIS/error scalars, detection-lane states, the new features where finite,
+every detector's score and threshold, the why-documents per epoch), logged once each
 way into an in-memory sink; the full recording (CDFs, ANFIS, KMCDF, scoreboard,
 blueprint) is timed columnar only, in memory and saved to .rrd (wall and CPU time:
 the CPU time says what the logging costs when other work shares the machine).
@@ -29,8 +30,22 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from bench.common import median_time, print_table
+from recorders.manifest import load_manifest
+from recorders.record import record
+from replay.run.config import load_config
+from replay.run.pipeline import replay_archive
+from replay.stack.config import ALL_METHODS
 from replay.views import recording as views
 from replay.views.common import Run, class_id, floats, groups, make_runs
+from replay.views.features import (
+    FEATURE_GROUPS,
+    SCORED,
+    log_detector_scores,
+    log_features,
+    log_why,
+    present_features,
+    why_documents,
+)
 from replay.views.lanes import (
     epoch_states,
     lane_paths,
@@ -66,6 +81,9 @@ def bulk_columnar(run: Run) -> None:
     log_ranges(rec, run)
     log_detections(rec, run)
     log_lanes(rec, run)
+    log_features(rec, run)
+    log_detector_scores(rec, run)
+    log_why(rec, run)
     log_errors(rec, run, 100.0)
     _finish(rec)
 
@@ -79,8 +97,13 @@ def bulk_rows(run: Run) -> int:
     rv = run.review
     n_det_epochs = len(rv.detections.drop_duplicates(["t_s", "follower", "leader"]))
     n_anfis = int(rv.detections.method.str.startswith("anfis").sum())
+    epochs = rv.detections.drop_duplicates(["t_s", "follower", "leader"])
+    n_features = sum(int(np.isfinite(floats(epochs, f)).sum()) for f in present_features(rv.detections))
+    n_scores = 2 * int(rv.detections.method.isin(list(SCORED)).sum())
+    n_why = sum(len(why_documents(rows, training_end_s(run))[1]) for _, rows in groups(rv.detections,
+                                                                                      ["follower", "leader"]))
     return (2 * len(rv.tracks) + 2 * _trail_rows(run) + 4 * len(rv.ranges) + 3 * n_det_epochs + n_det_epochs
-            + len(rv.detections) + 2 * n_anfis + len(rv.errors))
+            + len(rv.detections) + 2 * n_anfis + len(rv.errors) + n_features + n_scores + n_why)
 
 
 def _set(rec: rr.RecordingStream, run: Run, t: float) -> None:
@@ -110,14 +133,22 @@ def bulk_row_by_row(run: Run) -> None:
             for name, v in (("measured", r.measured_m), ("true", r.true_m), ("residual", r.residual_m)):
                 rec.log(run.path("series", "range", follower, leader, name), rr.Scalars(v))
     t_a = training_end_s(run)
+    have = present_features(run.review.detections)
+    group_of = {f: key for key, _, names in FEATURE_GROUPS for f in names}
     for (follower, leader), rows in groups(run.review.detections, ["follower", "leader"]):
         methods = sorted(rows["method"].unique())
-        paths = dict(zip(["truth", *methods], lane_paths(run, follower, leader, methods), strict=True))
+        paths = dict(zip(["truth", *methods], lane_paths(run, (), leader, methods), strict=True))
         for r in rows.drop_duplicates("t_s").itertuples():
             _set(rec, run, r.t_s)
             for f in FEATURES:
                 rec.log(run.path("series", f, follower, leader), rr.Scalars(getattr(r, f)))
+            for f in have:
+                if np.isfinite(v := getattr(r, f)):
+                    rec.log(run.path("features", follower, leader, group_of[f], f), rr.Scalars(v))
             rec.log(paths["truth"], rr.StateChange(state=truth_states(np.array([r.label]))[0]))
+        for t, doc in zip(*why_documents(rows, t_a), strict=True):
+            _set(rec, run, t)
+            rec.log(run.path("why", follower, leader), rr.TextDocument(doc, media_type="text/markdown"))
         for r in rows.itertuples():
             _set(rec, run, r.t_s)
             state = epoch_states(np.array([r.flagged]), np.array([r.label]), np.array([r.t_s > t_a]))[0]
@@ -125,6 +156,10 @@ def bulk_row_by_row(run: Run) -> None:
             if r.method.startswith("anfis"):
                 rec.log(run.path("series", "anfis", follower, leader, r.method, "output"), rr.Scalars(r.score))
                 rec.log(run.path("series", "anfis", follower, leader, r.method, "T2"), rr.Scalars(r.threshold))
+            if r.method in SCORED:
+                base = run.path("scores", r.method, follower, leader)
+                rec.log(base + "/score", rr.Scalars(r.score))
+                rec.log(base + "/threshold", rr.Scalars(r.threshold))
     for r in run.review.errors.itertuples():
         _set(rec, run, r.t_s)
         rec.log(run.path("series", "error", r.follower, r.method), rr.Scalars(r.error_m))
@@ -152,13 +187,9 @@ def full_in_memory(review: object) -> None:
 
 def sample_trial_review(workdir: Path) -> object:
     """The bundled sample trial recorded and replayed with every method: the ReviewData `demo` logs."""
-    from recorders.manifest import load_manifest
-    from recorders.record import record
-    from replay.run.pipeline import replay_archive
-
     archive = workdir / "lake.mcap"
     record(load_manifest(ROOT / "samples/lake_trial/trial.toml"), archive)
-    return replay_archive(archive, write_output=False, review=True).review
+    return replay_archive(archive, load_config(default_methods=ALL_METHODS), write_output=False, review=True).review
 
 
 def describe(name: str, review: object) -> str:

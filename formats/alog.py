@@ -18,6 +18,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 from .lines import iter_lines
+from .numbers import finite
 from .records import Reject, Where
 
 NS = 1_000_000_000
@@ -71,8 +72,8 @@ def decode(data: bytes) -> Iterator[Posting | Reject]:
             yield Reject(line.where, "posting before the %% LOGSTART header line")
             continue
         value = parts[3].strip() if len(parts) > 3 else ""
-        try:
-            number = float(value)
+        try:  # a value that is no finite number is a text posting (NaN number)
+            number = finite(value)
         except ValueError:
             number = math.nan
         yield Posting(line.where, epoch + offset, parts[1], parts[2], value, number)

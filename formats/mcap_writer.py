@@ -34,7 +34,7 @@ import json
 import os
 import struct
 import zlib
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from itertools import chain
 from pathlib import Path
 from typing import Any
@@ -271,14 +271,31 @@ class ArchiveWriter:
         log_time_ns: int = 0, create_time_ns: int = 0,
     ) -> None:
         """An attachment, byte for byte (the record carries its own CRC)."""
+        self.add_attachment_stream(name, len(data), (data,), media_type, log_time_ns, create_time_ns)
+
+    def add_attachment_stream(
+        self, name: str, size: int, pieces: Iterable[bytes], media_type: str = "application/octet-stream",
+        log_time_ns: int = 0, create_time_ns: int = 0,
+    ) -> None:
+        """`add_attachment` of `size` bytes given in pieces, so that a large file is never held whole.
+
+        Raises ValueError when the pieces add up to another size (the record would be corrupt).
+        """
         head = (struct.pack("<QQ", log_time_ns, create_time_ns) + _string(name) + _string(media_type)
-                + _U64.pack(len(data)))
-        crc = _U32.pack(zlib.crc32(data, zlib.crc32(head)))
-        length = len(head) + len(data) + 4
-        at = self._emit(_RECORD.pack(OP_ATTACHMENT, length), head, data, crc)
+                + _U64.pack(size))
+        length = len(head) + size + 4
+        at = self._emit(_RECORD.pack(OP_ATTACHMENT, length), head)
+        crc, written = zlib.crc32(head), 0
+        for piece in pieces:
+            self._emit(piece)
+            crc = zlib.crc32(piece, crc)
+            written += len(piece)
+        if written != size:
+            raise ValueError(f"attachment {name}: {written} bytes given, {size} declared")
+        self._emit(_U32.pack(crc))
         self._attachment_indexes.append(record(
             OP_ATTACHMENT_INDEX,
-            struct.pack("<QQQQQ", at, 9 + length, log_time_ns, create_time_ns, len(data))
+            struct.pack("<QQQQQ", at, 9 + length, log_time_ns, create_time_ns, size)
             + _string(name) + _string(media_type),
         ))
 

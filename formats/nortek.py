@@ -29,6 +29,7 @@ from datetime import UTC, datetime
 
 from .lines import iter_lines
 from .nmea.framing import build, frame
+from .numbers import optional
 from .records import Reject, Where
 
 BAD_VELOCITY = -32.768
@@ -90,8 +91,7 @@ NortekRecord = BeamReport | SpeedReport | VelocityReport
 
 
 def _f(text: str) -> float:
-    text = text.strip()
-    return float(text) if text else math.nan
+    return optional(text.strip())
 
 
 def _vel(text: str) -> float:

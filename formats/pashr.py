@@ -18,9 +18,10 @@ import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-from .nmea.fields import NAN, parse_tod
+from .nmea.fields import parse_tod
 from .nmea.framing import build
 from .nmea.sentences import iter_frames
+from .numbers import optional, optional_integer
 from .records import Reject, Where
 
 
@@ -42,12 +43,8 @@ class Pashr:
     ins_status: int
 
 
-def _f(s: str) -> float:
-    return float(s) if s else NAN
-
-
-def _i(s: str) -> int:
-    return int(s) if s else -1
+_f = optional  # number fields: finite, NaN when empty (formats.numbers)
+_i = optional_integer
 
 
 def parse_fields(f: list[str], where: Where) -> Pashr | Reject | None:

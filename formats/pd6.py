@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 
 from .lines import iter_lines
+from .numbers import optional
 from .records import Reject, Where
 
 BAD = -32768
@@ -117,8 +118,7 @@ class Pd6Ensemble:
 
 
 def _num(text: str) -> float:
-    text = text.strip()
-    return float(text) if text else math.nan
+    return optional(text.strip())
 
 
 def _ts_time(stamp: str) -> int | None:

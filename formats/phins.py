@@ -32,9 +32,10 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 from .lines import PREFIX_STYLES
-from .nmea.fields import NAN, parse_tod
+from .nmea.fields import parse_tod
 from .nmea.framing import HEX, build, prefix_xor
 from .nmea.sentences import iter_frames
+from .numbers import integer, optional, optional_integer
 from .records import Reject, Where
 
 
@@ -160,8 +161,7 @@ PhinsRecord = (Heading | Atitud | Positi | Speed | Utmwgs | Heave | Time | StdHr
                | Phtro)
 
 
-def _f(s: str) -> float:
-    return float(s) if s else NAN
+_f = optional  # every number field: finite, NaN when empty (formats.numbers)
 
 
 def _three(f: list[str], n: int = 3) -> tuple[float, ...]:
@@ -169,7 +169,12 @@ def _three(f: list[str], n: int = 3) -> tuple[float, ...]:
         raise IndexError(f"{len(f)} fields, {n} needed")
     if n == 3:  # the common case unrolled: no generator per sentence
         a, b, c = f[0], f[1], f[2]
-        return float(a) if a else NAN, float(b) if b else NAN, float(c) if c else NAN
+        if a and b and c:  # three given: plain float(), and one look at their sum for a NaN or an infinity
+            x, y, z = float(a), float(b), float(c)
+            total = x + y + z
+            if total - total == 0.0:
+                return x, y, z
+        return _f(a), _f(b), _f(c)  # the number rule names the field (an overflowing sum passes it)
     return tuple(_f(x) for x in f[:n])
 
 
@@ -192,7 +197,7 @@ def _words(kind: str) -> Callable[[list[str]], tuple]:
     def parse(f: list[str]) -> tuple:
         if not f or not f[0]:
             raise IndexError("no status word")
-        return kind, int(f[0], 16), int(f[1], 16) if len(f) > 1 and f[1] else 0
+        return kind, integer(f[0], "status word", 16), integer(f[1], "status word", 16) if len(f) > 1 and f[1] else 0
 
     return parse
 
@@ -207,7 +212,7 @@ def _positi(f: list[str]) -> tuple:
 def _utmwgs(f: list[str]) -> tuple:
     if len(f) < 5:
         raise IndexError(f"{len(f)} fields, 5 needed")
-    return f[0], int(f[1]) if f[1] else -1, _f(f[2]), _f(f[3]), _f(f[4])
+    return f[0], optional_integer(f[1], "zone"), _f(f[2]), _f(f[3]), _f(f[4])
 
 
 def _time(f: list[str]) -> tuple:

@@ -48,6 +48,7 @@ from typing import Any
 import regex
 
 from .lines import PREFIX_STYLES, iter_lines, strip_prefix
+from .numbers import finite
 from .records import FormatError, Reject, Where
 
 NS = 1_000_000_000
@@ -146,10 +147,7 @@ def _unix_ns(text: str) -> int:
 
 
 def _finite(name: str, text: str) -> float:
-    value = float(text)
-    if not math.isfinite(value):
-        raise ValueError(f"group {name} is not finite: {text!r}")
-    return value
+    return finite(text, f"group {name}")
 
 
 def _times(g: Mapping[str, str], time_format: str) -> tuple[int | None, float | None, date | None]:

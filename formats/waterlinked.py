@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .lines import iter_lines
+from .numbers import integer, optional
 from .records import Reject, Where
 
 
@@ -115,8 +116,7 @@ _FIELDS = {"wrz": 11, "wru": 5, "wrp": 9, "wrx": 8, "wrt": 4}
 
 
 def _f(text: str) -> float:
-    text = str(text).strip()
-    return float(text) if text else math.nan
+    return optional(str(text).strip())  # a JSON 1e400 or NaN comes as a float: str() gives 'inf', 'nan'
 
 
 def _pos(v: float) -> float:
@@ -126,7 +126,7 @@ def _pos(v: float) -> float:
 
 def _int(text: str) -> int | None:
     text = str(text).strip()
-    return int(text) if text.lstrip("-").isdigit() else None
+    return integer(text) if text.lstrip("-").isdigit() else None
 
 
 def _serial(kind: str, p: list[str], where: Where) -> WaterLinkedRecord:

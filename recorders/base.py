@@ -9,12 +9,13 @@ bad records: they yield a `formats.records.Reject` and go on.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from datetime import date
 from pathlib import Path
 from typing import Any
 
+from formats.log_blocks import Block
 from formats.records import Reject, Where
 
 NS = 1_000_000_000
@@ -68,6 +69,9 @@ class Ignored:
 
 
 Converter = Callable[[bytes, LogContext], Iterator["Output | Reject | Ignored"]]
+# the same conversion over the log read in blocks (`formats.log_blocks`), for formats whose family module lists
+# it in BLOCK_CONVERTERS: the recording then holds one block of the log, not all of it
+BlockConverter = Callable[[Iterable[Block], LogContext], Iterator["Output | Reject | Ignored"]]
 
 
 def output(ctx: LogContext, suffix: str, message: Any, t_ns: int, where: Where | None) -> Output:

@@ -22,6 +22,7 @@ from google.protobuf.descriptor import FieldDescriptor
 
 from formats import csv_table
 from formats import schemas as S
+from formats.numbers import finite, integer, optional, optional_integer
 from formats.records import FormatError, Reject
 
 from .base import NS, LogContext, Output, output
@@ -39,9 +40,9 @@ FAMILY_MESSAGES: dict[str, tuple[Any, str]] = {
 
 def _time_parser(kind: str, ctx: LogContext) -> Callable[[str], int | None]:
     if kind == "unix":
-        return lambda s: round(float(s) * NS)
+        return lambda s: round(finite(s, "time") * NS)
     if kind == "unix_ms":
-        return lambda s: round(float(s) * 1_000_000)
+        return lambda s: round(finite(s, "time") * 1_000_000)
     if kind == "iso8601":
         def iso(s: str) -> int:
             dt = datetime.fromisoformat(s.replace("Z", "+00:00"))
@@ -53,7 +54,7 @@ def _time_parser(kind: str, ctx: LogContext) -> Callable[[str], int | None]:
 
         def tod(s: str) -> int | None:
             h, m, sec = s.split(":")
-            return clock.resolve(int(h) * 3600 + int(m) * 60 + float(sec))
+            return clock.resolve(integer(h, "hours") * 3600 + integer(m, "minutes") * 60 + finite(sec, "seconds"))
         return tod
     raise FormatError(f"{ctx.path}: time_format {kind!r} unknown; use unix, unix_ms, iso8601 or tod")
 
@@ -65,14 +66,14 @@ def _setter(cls: Any, name: str, path: str) -> Callable[[Any, str], None]:
         raise FormatError(f"{path}: column mapping names {name!r}, not a field of {cls.DESCRIPTOR.full_name} "
                           f"(fields: time, {', '.join(known)})")
     if field.type in (FieldDescriptor.TYPE_DOUBLE, FieldDescriptor.TYPE_FLOAT):
-        return lambda msg, v: setattr(msg, name, float(v) if v else math.nan)
+        return lambda msg, v: setattr(msg, name, optional(v, name))
     if field.type == FieldDescriptor.TYPE_BOOL:
         return lambda msg, v: setattr(msg, name, v.strip().lower() in ("1", "true", "yes", "y"))
     if field.type == FieldDescriptor.TYPE_STRING:
         return lambda msg, v: setattr(msg, name, v)
     if field.type == FieldDescriptor.TYPE_ENUM:
         return lambda msg, v: setattr(msg, name, field.enum_type.values_by_name[v].number if v else 0)
-    return lambda msg, v: setattr(msg, name, int(v) if v else -1)
+    return lambda msg, v: setattr(msg, name, optional_integer(v, name))
 
 
 def _new_message(cls: Any, ctx: LogContext) -> Any:

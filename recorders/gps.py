@@ -27,11 +27,12 @@ added to all of them. A time of day without any date is rejected.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Generator, Iterable, Iterator
 from math import isnan
 
 from formats import schemas as S
 from formats.lines import PREFIX_STYLES
+from formats.log_blocks import Block, blocks_of
 from formats.nmea import columns as nmea_columns
 from formats.nmea import sentences as nmea
 from formats.nmea.sentences import KNOT_MPS
@@ -39,7 +40,7 @@ from formats.novatel import scan as novatel_scan
 from formats.records import Reject, Where
 
 from . import gps_columns
-from .base import Converter, LogContext, Output
+from .base import BlockConverter, Converter, LogContext, Output
 from .clock import DayClock
 from .gnss_covariance import Covariance, fix_covariance, sigma_covariance
 from .gnss_velocity import SUFFIX as VELOCITY
@@ -192,25 +193,82 @@ def _scan_outputs(
 
 def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
     """NMEA 0183 GNSS sentences (GGA, RMC, GLL, GST, VTG, ZDA, HDT, THS; any talker)."""
-    if ctx.prefix in PREFIX_STYLES:  # an unknown style raises in `nmea.scan`, as before
-        cols = nmea_columns.decode_columns(data)
-        outputs = gps_columns.convert_columns(cols, ctx, NO_DATE) if cols is not None else None
-        if outputs is not None:
-            yield from outputs  # a clean log of the types `nmea_columns` takes: whole-log columns (gps_columns)
+    return convert_nmea_blocks(blocks_of(data), ctx)
+
+
+class _NmeaState:
+    """What goes on from one block of an NMEA log to the next: the day clock and the epoch still open."""
+
+    __slots__ = ("clock", "topics", "epoch", "epoch_time")
+
+    def __init__(self, ctx: LogContext):
+        self.clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
+        self.topics = (f"/{ctx.vehicle}/gps", f"/{ctx.vehicle}/gps/status")
+        self.epoch: dict[str, nmea.Scanned] = {}  # {sentence type: scanned tuple} in arrival order
+        self.epoch_time: int | None = None
+
+
+def convert_nmea_blocks(blocks: Iterable[Block], ctx: LogContext) -> Iterator[Output | Reject]:
+    """`convert_nmea` over a log read in blocks (`formats.log_blocks`): the same outputs, one block in memory.
+
+    A clean block takes the whole-block columns (`gps_columns`), any other the
+    per-line path; the epoch that may go on in the next block is held open
+    (as scanned sentences) and the clock's date carried, so the epochs are
+    the whole log's wherever the blocks are cut.
+    """
+    state = _NmeaState(ctx)
+    columns = ctx.prefix in PREFIX_STYLES  # an unknown style raises in `nmea.scan`, as before
+    blocks = iter(blocks)
+    block = next(blocks, None)
+    while block is not None:
+        following = next(blocks, None)
+        yield from _nmea_block(block, following is None, ctx, state, columns)
+        block = following
+    if state.epoch:
+        yield from _scan_outputs(state.epoch, ctx, state.clock, state.topics)
+
+
+def _nmea_block(block: Block, last: bool, ctx: LogContext, state: _NmeaState, columns: bool
+                ) -> Iterator[Output | Reject]:
+    """One block's outputs; the epoch still open at its end (unless `last`) is left in `state`."""
+    data, base, lines = block.data, block.offset, block.lines
+    if state.epoch:  # the previous block's last epoch: line by line until a sentence closes it
+        closed = yield from _nmea_lines(nmea.scan(data, ctx.prefix, base, lines), ctx, state, until_closed=True)
+        if closed is None:
             return
-    yield from _convert_nmea_lines(data, ctx)
+        start = closed[0] - base
+        data, base, lines = data[start:], closed[0], closed[1] - 1
+    cols = nmea_columns.decode_columns(data) if columns else None
+    k = None if cols is None or last else gps_columns.last_epoch_start(cols)
+    if cols is not None and last:  # a clean log of the types `nmea_columns` takes: columns to its end
+        outputs = gps_columns.convert_columns(cols, ctx, NO_DATE, state.clock, base, lines)
+        if outputs is not None:
+            yield from outputs
+            return
+    elif cols is not None and k is not None:  # columns up to the last epoch, which the next block may go on
+        if k:
+            outputs = gps_columns.convert_columns(nmea_columns.head(cols, k), ctx, NO_DATE, state.clock, base, lines)
+            assert outputs is not None  # a head of columns that have epochs has them too
+            yield from outputs
+        tail, number = int(cols.offsets[k]), int(cols.numbers[k])
+        data, base, lines = data[tail:], base + tail, lines + number - 1
+    yield from _nmea_lines(nmea.scan(data, ctx.prefix, base, lines), ctx, state)
 
 
-def _convert_nmea_lines(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
-    """`convert_nmea` line by line over `nmea.scan`: any log, damaged ones included."""
-    clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
-    topics = (f"/{ctx.vehicle}/gps", f"/{ctx.vehicle}/gps/status")
+def _nmea_lines(items: Iterator[nmea.Scanned | Reject], ctx: LogContext, state: _NmeaState,
+                until_closed: bool = False) -> Generator[Output | Reject, None, tuple[int, int] | None]:
+    """`convert_nmea` line by line over `nmea.scan` items: any log, damaged ones included.
+
+    The epoch still open at the end is left in `state`. With `until_closed`, it
+    stops at the sentence that closes the epoch open at the start, and returns
+    that sentence's (offset, line), not taken: the caller goes on from there.
+    """
+    clock, topics = state.clock, state.topics
     # `group_epochs` over `nmea.scan`, inline: epochs as {sentence type: scanned tuple} in arrival order
     time_index = nmea.TIME_INDEX
-    epoch: dict[str, nmea.Scanned] = {}
-    epoch_time: int | None = None
+    epoch, epoch_time = state.epoch, state.epoch_time
     last_tod, last_ms = NAN, None  # an epoch's sentences repeat its time: one round() per epoch
-    for item in nmea.scan(data, ctx.prefix):
+    for item in items:
         if isinstance(item, Reject):
             yield item
             continue
@@ -227,11 +285,16 @@ def _convert_nmea_lines(data: bytes, ctx: LogContext) -> Iterator[Output | Rejec
         if epoch and (kind in epoch or (t is not None and epoch_time is not None and t != epoch_time)):
             yield from _scan_outputs(epoch, ctx, clock, topics)
             epoch, epoch_time = {}, None
+            if until_closed:
+                state.epoch, state.epoch_time = epoch, epoch_time
+                number = item[4]
+                assert number is not None  # `nmea.scan` numbers every line
+                return item[3], number
         epoch[kind] = item
         if epoch_time is None:
             epoch_time = t
-    if epoch:
-        yield from _scan_outputs(epoch, ctx, clock, topics)
+    state.epoch, state.epoch_time = epoch, epoch_time
+    return None
 
 
 # ---------------------------------------------------------------- NovAtel, fast path
@@ -295,3 +358,5 @@ def convert_novatel(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
 
 
 CONVERTERS: dict[str, Converter] = {"nmea": convert_nmea, "novatel": convert_novatel}
+# the formats whose logs are converted block by block, in bounded memory (`recorders.base.BlockConverter`)
+BLOCK_CONVERTERS: dict[str, BlockConverter] = {"nmea": convert_nmea_blocks}

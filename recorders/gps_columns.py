@@ -70,7 +70,8 @@ def _times(first_tod: list[float], dates: list, date_tods: list[float], silent: 
            ) -> list[int | None]:
     """`DayClock.set_date` (where an epoch has a date) then `resolve` of each epoch's first time, inline.
 
-    A silent epoch (a ZDA alone) sets the date and resolves nothing, as `gps._scan_outputs` does.
+    A silent epoch (a ZDA alone) sets the date and resolves nothing, as `gps._scan_outputs` does. The clock
+    is left as those calls would leave it, for the next block of the log.
     """
     day, last, offset, half = clock.day_ns, clock._last_tod_ns, clock.offset_ns, DAY_NS // 2
     out: list[int | None] = []
@@ -87,6 +88,7 @@ def _times(first_tod: list[float], dates: list, date_tods: list[float], silent: 
             day -= DAY_NS
         last = tod_ns
         out.append(day + tod_ns + offset)
+    clock.day_ns, clock._last_tod_ns = day, last
     return out
 
 
@@ -119,8 +121,19 @@ def _present(values: list | np.ndarray, member: np.ndarray) -> np.ndarray:
     return _pick(values, member, False).astype(bool)
 
 
-def convert_columns(cols: NmeaColumns, ctx: LogContext, no_date: str) -> Iterator[Output | Reject] | None:
-    """The outputs of `convert_nmea` for a clean log's columns; None when the per-line path must run."""
+def last_epoch_start(cols: NmeaColumns) -> int | None:
+    """The first sentence of the last epoch of a clean block's columns, or None when the per-line path must run."""
+    found = _epochs(cols)
+    return None if found is None else int(found[0][-1])
+
+
+def convert_columns(cols: NmeaColumns, ctx: LogContext, no_date: str, clock: DayClock | None = None,
+                    base: int = 0, lines: int = 0) -> Iterator[Output | Reject] | None:
+    """The outputs of `convert_nmea` for a clean log's columns; None when the per-line path must run.
+
+    `clock` carries the date from earlier blocks of the log (default: a new one) and is left for the next;
+    `base` and `lines` place a block in its log (`formats.log_blocks.Block`).
+    """
     found = _epochs(cols)
     if found is None:
         return None
@@ -150,14 +163,15 @@ def convert_columns(cols: NmeaColumns, ctx: LogContext, no_date: str) -> Iterato
     dates, date_tods = _dates(cols, z, r, valid)
     alone = np.diff(np.append(starts, len(cols.kind))) == 1
     silent = (alone & (z >= 0)).tolist() if len(cols.rows["ZDA"]) else [False] * n
-    times = _times(cols.tod[first_timed].tolist(), dates, date_tods, silent, _clock(ctx))
+    times = _times(cols.tod[first_timed].tolist(), dates, date_tods, silent, clock or _clock(ctx))
     speed, course, heading = _motion(v, m, valid)
     satellites = np.where(has_g, _pick(gv["satellites"], g, 0), -1).astype(np.int64)
     status = zip(quality.tolist(), satellites.tolist(), hdop.tolist(),
                  _sources(cols.kind, starts), speed.tolist(), course.tolist(), heading.tolist())
     fix = zip((gga_pos | gll_pos | rmc_pos).tolist(), lat.tolist(), lon.tolist(), alt.tolist(), cov, cov_kind)
-    where = zip(cols.offsets[source].tolist(), cols.numbers[source].tolist())
-    first = zip(cols.offsets[first_timed].tolist(), cols.numbers[first_timed].tolist(), cols.tod[first_timed].tolist())
+    offsets, numbers = (cols.offsets + base, cols.numbers + lines) if base or lines else (cols.offsets, cols.numbers)
+    where = zip(offsets[source].tolist(), numbers[source].tolist())
+    first = zip(offsets[first_timed].tolist(), numbers[first_timed].tolist(), cols.tod[first_timed].tolist())
     return _emit(ctx, times, silent, fix, status, where, first, no_date)
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import bisect
 import hashlib
 import mimetypes
+import re
 from collections import Counter
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack
@@ -14,10 +15,11 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from formats import schemas as S
+from formats.log_blocks import ChangedWhileRead, LogFiles
 from formats.mcap_writer import ArchiveWriter
 from formats.records import FormatError, Reject, Where
 
-from .base import NS, Ignored, LogContext, Output
+from .base import NS, BlockConverter, Ignored, LogContext, Output
 from .clock import date_to_ns, iso_utc
 from .manifest import LogSpec, Manifest, ManifestError
 from .output_checks import OutputProblem, check_output, remove_stale_parts
@@ -31,7 +33,7 @@ from .record_parallel import (
     only_thread,
     write_captured,
 )
-from .registry import converters
+from .registry import block_converters, converters
 from .value_checks import MAX_RANGE_M, TIME_RANGE_NS, ValueChecks
 
 Progress = Callable[[str, int, int], None]  # (file, bytes done, bytes total)
@@ -45,6 +47,7 @@ DIAGNOSTICS_PER_KIND = 100
 # logs that write in bursts) is reported: a file is probably missing
 SEAM_GAP_SPACINGS = 10
 SEAM_GAP_MIN_NS = NS
+_KIND = re.compile(r"[^'\":\d(]*")
 
 
 class MessageSink(Protocol):
@@ -114,6 +117,18 @@ def log_context(manifest: Manifest, log: LogSpec, files: tuple[str, ...] | None 
     )
 
 
+@dataclass(frozen=True)
+class Converters:
+    """Every (sensor, format)'s converter, and those that also take the log in blocks (bounded memory)."""
+
+    whole: dict
+    blocks: dict[tuple[str, str], BlockConverter]
+
+    def streamed(self, log: LogSpec) -> BlockConverter | None:
+        """The log's block converter, or None when its converter needs the whole log in memory."""
+        return self.blocks.get((log.sensor, log.format))
+
+
 def read_parts(manifest: Manifest, log: LogSpec) -> list[tuple[str, bytes]]:
     """A log's files and their bytes, in manifest order (one file, or the parts of a rotated log)."""
     return [(name, (manifest.root / name).read_bytes()) for name in log.files()]
@@ -137,6 +152,40 @@ def _order_parts(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]
     return [p for _, _, p in sorted(zip(firsts, range(len(parts)), parts))]
 
 
+def _log_files(manifest: Manifest, names: list[str] | tuple[str, ...]) -> LogFiles:
+    paths = [manifest.root / name for name in names]
+    return LogFiles(paths, [path.stat().st_size for path in paths])
+
+
+def _first_time_streamed(convert: BlockConverter, manifest: Manifest, log: LogSpec, name: str) -> float:
+    """`_first_time` of one file read in blocks."""
+    try:
+        return min((item.log_time_ns for item in convert(_log_files(manifest, [name]).blocks(),
+                                                         log_context(manifest, log, (name,)))
+                    if type(item) is Output), default=float("inf"))
+    except FormatError:
+        return float("inf")
+
+
+def _ordered_names(manifest: Manifest, log: LogSpec, convert: BlockConverter) -> list[str]:
+    """`_order_parts` for a log read in blocks: its file names in log order."""
+    names = list(log.files())
+    if log.order != "time" or len(names) < 2:
+        return names
+    firsts = [_first_time_streamed(convert, manifest, log, name) for name in names]
+    return [name for _, _, name in sorted(zip(firsts, range(len(names)), names))]
+
+
+def reject_kind(reason: str) -> str:
+    """The kind of a reject, for counting: its reason up to the first quote, colon, digit or parenthesis.
+
+    "bad checksum '00', computed 4A" and "malformed sentence address '..'" are one kind each whatever the
+    bytes quoted, so that a log of garbage gives a bounded number of kinds (and of diagnostics listed).
+    """
+    match = _KIND.match(reason)
+    return (match.group() if match else "").strip()[:40]
+
+
 def _diagnostic(log: LogSpec, reject: Reject, t_ns: int) -> S.Log:
     return S.Log(timestamp=S.timestamp(t_ns), level=S.Log.WARNING, name=log.vehicle, file=log.path,
                  line=reject.where.line or 0,
@@ -153,6 +202,7 @@ class LogRecorder:
         self.last_ns: dict[str, int] = {}
         self.records: set[int] = set()
         self.fallback_ns = fallback_ns
+        self.hint_ns: int | None = None  # the earliest own time of a message refused at record time
         self.checks = ValueChecks(float(log.options.get("max_range_m", MAX_RANGE_M)))
         self.kinds: dict[tuple[bool, str], int] = {}  # rejects per kind, listed or not
         self.ignored: Counter[str] = Counter()
@@ -204,12 +254,12 @@ class LogRecorder:
     def _reject(self, item: Reject, t_hint: int | None = None) -> None:
         self.stats.skipped += 1
         self.stats.bad_checksum += item.bad_checksum
-        reason = item.reason
-        cut = reason.find(":")
-        key = (item.bad_checksum, reason[:cut] if 0 < cut < 40 else reason[:40])
+        key = (item.bad_checksum, reject_kind(item.reason))
         n = self.kinds[key] = self.kinds.get(key, 0) + 1
         if n > DIAGNOSTICS_PER_KIND:
             return
+        if t_hint is not None and (self.hint_ns is None or t_hint < self.hint_ns):
+            self.hint_ns = t_hint
         t = self.stats.end_ns if self.stats.end_ns is not None else t_hint
         if t is None:
             self.pending.append(item)
@@ -222,7 +272,10 @@ class LogRecorder:
         self.pending.clear()
 
     def finish(self) -> None:
-        t = self.stats.start_ns if self.stats.start_ns is not None else self.fallback_ns
+        # rejects without a time go at the log's first message, else at its earliest refused message's own time
+        # (a log whose every message is refused), and only without either at the fallback (the trial date)
+        t = self.stats.start_ns if self.stats.start_ns is not None else \
+            self.hint_ns if self.hint_ns is not None else self.fallback_ns
         for (bad_checksum, kind), n in self.kinds.items():
             if n > DIAGNOSTICS_PER_KIND:
                 what = "bad checksums" if bad_checksum else f"rejects of kind {kind!r}"
@@ -268,7 +321,7 @@ def trial_metadata(manifest: Manifest) -> dict:
     }
 
 
-def _iter_outputs(convert, data: bytes, ctx: LogContext, log: LogSpec) -> Iterator[Output | Reject]:
+def _iter_outputs(convert, data: Any, ctx: LogContext, log: LogSpec) -> Iterator[Output | Reject]:
     try:
         yield from convert(data, ctx)
     except FormatError as exc:
@@ -337,23 +390,99 @@ def _decode_log(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]]
     return stats, data
 
 
-def _capture(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]], table: dict,
-             fallback: int) -> Captured:
+def _decode_streamed(manifest: Manifest, log: LogSpec, names: list[str], convert: BlockConverter, fallback: int,
+                     sink: MessageSink, progress: Progress | None) -> FileStats:
+    """`_decode_log` of a log read from its files in blocks: one block of it in memory at a time."""
+    files = _log_files(manifest, names)
+    stats = FileStats(log.path, log.vehicle, log.sensor, log.format, files.size)
+    starts: list[int] = []
+    if log.parts:
+        offset = 0
+        for size in files.sizes:
+            starts.append(offset)
+            offset += size
+    rec = LogRecorder(sink, log, stats, fallback, starts)
+    step = max(files.size // 50, 1 << 16)
+    next_report = step
+    try:
+        for item in _iter_outputs(convert, files.blocks(), log_context(manifest, log, tuple(names)), log):
+            rec.add(item)
+            if progress is not None and item.where is not None and item.where.offset >= next_report:
+                progress(log.path, item.where.offset, files.size)
+                next_report = item.where.offset + step
+    except ChangedWhileRead as exc:
+        raise ManifestError(f"{log.path}: changed while it was recorded ({exc})") from None
+    stats.sha256 = files.sha256
+    if log.parts:
+        stats.parts = [{"path": name, "size": d.size, "sha256": d.sha256} for name, d in zip(names, files.digests)]
+    rec.finish()
+    return stats
+
+
+def _decoded_names(log: LogSpec, stats: FileStats) -> list[str]:
+    """The files of a decoded log, in the order decoded."""
+    return [part["path"] for part in stats.parts] if stats.parts else [log.path]
+
+
+def _attach_streamed(writer: ArchiveWriter, manifest: Manifest, log: LogSpec, names: list[str],
+                     fallback: int) -> list[str]:
+    """`_attach` of a log's files read from disk in pieces; their SHA-256s, to check against those decoded."""
+    digests = []
+    for name in names:
+        files = _log_files(manifest, [name])
+        media = mimetypes.guess_type(name)[0] or "application/octet-stream"
+        try:
+            writer.add_attachment_stream(name, files.size, files.pieces(), media, fallback, fallback)
+        except ChangedWhileRead as exc:
+            raise ManifestError(f"{log.path}: changed while it was recorded ({exc})") from None
+        digests.append(files.sha256)
+    return digests
+
+
+def _same_bytes(log: LogSpec, stats: FileStats, attached: list[str]) -> None:
+    """Raise ManifestError when the files attached are not the bytes decoded (one changed in between)."""
+    decoded = [part["sha256"] for part in stats.parts] if stats.parts else [stats.sha256]
+    if decoded != attached:
+        raise ManifestError(f"{log.path}: changed while it was recorded (the bytes attached are not those decoded)")
+
+
+def _record_here(manifest: Manifest, writer: ArchiveWriter, log: LogSpec, tables: Converters, fallback: int,
+                 progress: Progress | None) -> FileStats:
+    """One log decoded in this process straight into the archive, after its attachment."""
+    streamed = tables.streamed(log)
+    if streamed is not None:
+        names = _ordered_names(manifest, log, streamed)
+        attached = _attach_streamed(writer, manifest, log, names, fallback)
+        stats = _decode_streamed(manifest, log, names, streamed, fallback, writer, progress)
+        _same_bytes(log, stats, attached)
+        return stats
+    convert = tables.whole[(log.sensor, log.format)]
+    parts = _order_parts(manifest, log, read_parts(manifest, log), convert)
+    _attach(writer, parts, fallback)
+    return _decode_log(manifest, log, parts, convert, fallback, writer, progress)[0]
+
+
+def _capture(manifest: Manifest, log: LogSpec, tables: Converters, fallback: int) -> Captured:
     """One log decoded and converted, its messages serialized for writing later."""
     sink = Capture()
-    stats, data = _decode_log(manifest, log, parts, table[(log.sensor, log.format)], fallback, sink, None)
+    streamed = tables.streamed(log)
+    if streamed is not None:  # read again for its attachment by the main process, and checked the same
+        stats = _decode_streamed(manifest, log, _ordered_names(manifest, log, streamed), streamed, fallback, sink,
+                                 None)
+        return sink.finish(stats)
+    convert = tables.whole[(log.sensor, log.format)]
+    parts = _order_parts(manifest, log, read_parts(manifest, log), convert)
+    stats, data = _decode_log(manifest, log, parts, convert, fallback, sink, None)
     captured = sink.finish(stats)
+    # the log's bytes go back with its messages: the attachment is then the very bytes decoded, and the
+    # main process neither reads the file again nor hashes it to make sure (one copy each side is cheaper)
     captured.data = data
     return captured
 
 
-def _capture_log(manifest: Manifest, table: dict, fallback: int, index: int) -> Captured:
+def _capture_log(manifest: Manifest, tables: Converters, fallback: int, index: int) -> Captured:
     """In a worker: one log decoded and converted, its messages serialized for the main process."""
-    log = manifest.logs()[index]
-    # the log's bytes go back with its messages: the attachment is then the very bytes decoded, and the
-    # main process neither reads the file again nor hashes it to make sure (one copy each side is cheaper)
-    convert = table[(log.sensor, log.format)]
-    return _capture(manifest, log, _order_parts(manifest, log, read_parts(manifest, log), convert), table, fallback)
+    return _capture(manifest, manifest.logs()[index], tables, fallback)
 
 
 def _attach(writer: ArchiveWriter, parts: list[tuple[str, bytes]], fallback: int) -> None:
@@ -363,9 +492,19 @@ def _attach(writer: ArchiveWriter, parts: list[tuple[str, bytes]], fallback: int
         writer.add_attachment(name, data, media, fallback, fallback)
 
 
+def _attach_captured(writer: ArchiveWriter, manifest: Manifest, log: LogSpec, captured: Captured,
+                     fallback: int) -> None:
+    """A captured log's attachment: the bytes it came back with, or its files read again and checked the same."""
+    if captured.data is None:
+        _same_bytes(log, captured.stats, _attach_streamed(writer, manifest, log, _decoded_names(log, captured.stats),
+                                                          fallback))
+    else:
+        _attach(writer, _captured_parts(log, captured), fallback)
+
+
 def _captured_parts(log: LogSpec, captured: Captured) -> list[tuple[str, bytes]]:
     """A worker's log bytes cut back into its files, by the sizes its statistics give."""
-    stats, data = captured.stats, captured.data
+    stats, data = captured.stats, captured.data or b""
     if not stats.parts:
         return [(log.path, data)]
     out, start = [], 0
@@ -375,19 +514,16 @@ def _captured_parts(log: LogSpec, captured: Captured) -> list[tuple[str, bytes]]
     return out
 
 
-def _record_serial(manifest: Manifest, writer: ArchiveWriter, table: dict, fallback: int,
+def _record_serial(manifest: Manifest, writer: ArchiveWriter, tables: Converters, fallback: int,
                    summary: RecordingSummary, progress: Progress | None) -> None:
     for log in manifest.logs():
-        convert = table[(log.sensor, log.format)]
-        parts = _order_parts(manifest, log, read_parts(manifest, log), convert)
-        _attach(writer, parts, fallback)
-        stats, data = _decode_log(manifest, log, parts, convert, fallback, writer, progress)
+        stats = _record_here(manifest, writer, log, tables, fallback, progress)
         summary.files.append(stats)
         if progress is not None:
-            progress(log.path, len(data), len(data))
+            progress(log.path, stats.size, stats.size)
 
 
-def _record_parallel(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[Captured], table: dict,
+def _record_parallel(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[Captured], tables: Converters,
                      fallback: int, summary: RecordingSummary, progress: Progress | None) -> None:
     logs = manifest.logs()
     # later logs this process captured while a worker still held an earlier one, or the error that gave
@@ -398,13 +534,13 @@ def _record_parallel(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool
             raise captured  # at its log's turn, so that an earlier log's error comes first, as in the serial path
         if captured is None:
             try:
-                captured = _next_captured(manifest, writer, pool, table, fallback, summary, progress, own, i)
+                captured = _next_captured(manifest, writer, pool, tables, fallback, summary, progress, own, i)
             except WorkerDied as exc:
                 what = f"{logs[exc.task].path}: the worker process decoding it" if exc.task is not None \
                     else "a worker process decoding the logs"
                 raise ManifestError(f"{what} {exc.how}") from None
         if captured is not None:
-            _attach(writer, _captured_parts(log, captured), fallback)
+            _attach_captured(writer, manifest, log, captured, fallback)
             write_captured(writer, captured)
             summary.files.append(captured.stats)
         if progress is not None:
@@ -412,7 +548,7 @@ def _record_parallel(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool
             progress(log.path, size, size)
 
 
-def _next_captured(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[Captured], table: dict,
+def _next_captured(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[Captured], tables: Converters,
                    fallback: int, summary: RecordingSummary, progress: Progress | None,
                    own: dict[int, Captured | Exception], i: int) -> Captured | None:
     """Log `i` as a worker captured it, or None once this process has recorded it straight into the archive."""
@@ -421,14 +557,11 @@ def _next_captured(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[C
         if task is None:  # every log is taken: log i is a worker's, wait for it
             break
         log = manifest.logs()[task]
-        convert = table[(log.sensor, log.format)]
-        parts = _order_parts(manifest, log, read_parts(manifest, log), convert)
         if task == i:  # nobody had it: decode it here as the serial path does, no copy, no replay
-            _attach(writer, parts, fallback)
-            summary.files.append(_decode_log(manifest, log, parts, convert, fallback, writer, progress)[0])
+            summary.files.append(_record_here(manifest, writer, log, tables, fallback, progress))
             return None
         try:  # a later log, while a worker holds log i
-            own[task] = _capture(manifest, log, parts, table, fallback)
+            own[task] = _capture(manifest, log, tables, fallback)
         except Exception as exc:  # noqa: BLE001 - raised at its turn
             own[task] = exc
     return pool.result(i)
@@ -450,8 +583,8 @@ def record(manifest: Manifest, output_path, progress: Progress | None = None,
         check_output(output, [manifest.path, *(manifest.root / log.path for log in manifest.logs())], replace)
     except OutputProblem as exc:
         raise ManifestError(str(exc)) from None
-    table = converters()
-    check_formats(manifest, table)
+    tables = Converters(converters(), block_converters())
+    check_formats(manifest, tables.whole)
     live = next((log for log in manifest.logs() if log.source), None)
     if live is not None:
         raise ManifestError(f"{manifest.path}: log {live.path} is a live source ({live.source}): "
@@ -466,15 +599,15 @@ def record(manifest: Manifest, output_path, progress: Progress | None = None,
             if summary.workers > 1:
                 # forked before the writer opens its file, so no worker holds it; this process is one of the
                 # decoding processes and starts on the first log while the workers start
-                pool = stack.enter_context(WorkerPool(partial(_capture_log, manifest, table, fallback),
+                pool = stack.enter_context(WorkerPool(partial(_capture_log, manifest, tables, fallback),
                                                       len(manifest.logs()), summary.workers - 1, caller_first=True))
             writer = stack.enter_context(ArchiveWriter(output))
             # first, so that an archive cut off mid-write still says who is who
             writer.add_metadata("trial", trial_metadata(manifest))
             if pool is None:
-                _record_serial(manifest, writer, table, fallback, summary, progress)
+                _record_serial(manifest, writer, tables, fallback, summary, progress)
             else:
-                _record_parallel(manifest, writer, pool, table, fallback, summary, progress)
+                _record_parallel(manifest, writer, pool, tables, fallback, summary, progress)
             writer.add_metadata("recording", {"files": [f.as_json() for f in summary.files]})
     except BaseException:
         # the writer drops its part file on an error inside; this also covers a failed final rename

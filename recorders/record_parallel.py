@@ -78,7 +78,7 @@ class Captured:
     index: array = field(default_factory=lambda: array("q"))
     blob: bytes = b""
     stats: Any = None  # the log's FileStats, filled by the recorder
-    data: bytes = b""  # the log itself, for its attachment
+    data: bytes | None = None  # the log itself, for its attachment (None: a log decoded in blocks, read again)
 
 
 class Capture:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import importlib
 
 from . import csvlog
-from .base import Converter
+from .base import BlockConverter, Converter
 from .manifest import SENSORS
 
 # sensor family -> module with a CONVERTERS mapping
@@ -34,6 +34,16 @@ def converters() -> dict[tuple[str, str], Converter]:
         table[(family, "csv")] = csvlog.converter_for(family)
     for fmt, name in CONTAINER_MODULES.items():
         table[("", fmt)] = importlib.import_module(name).CONVERTERS[fmt]
+    return table
+
+
+def block_converters() -> dict[tuple[str, str], BlockConverter]:
+    """The (sensor, format)s whose converters also take the log in blocks (their modules' BLOCK_CONVERTERS)."""
+    table: dict[tuple[str, str], BlockConverter] = {}
+    for family in SENSORS:
+        module = importlib.import_module(FAMILY_MODULES[family])
+        for fmt, fn in getattr(module, "BLOCK_CONVERTERS", {}).items():
+            table[(family, fmt)] = fn
     return table
 
 

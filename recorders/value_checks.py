@@ -1,13 +1,15 @@
-"""Record-time checks on every archive message: finite values in physical ranges, or a counted reject.
+"""Record-time checks on every archive message: values in physical ranges, or a counted reject.
 
-Decoders parse what a line says; a checksum only proves the line is what the
-device (or someone) wrote. `nan`, `inf` and `1e400` parse as floats, and a
-range of 0 m, -5 m or 1e12 m is a number too, so before a message is
-archived its values are checked here, one rule per field, written once for
-every format: a value that is out of its range (or NaN where it must be
-given) turns the message into a Reject with the field, the value and the
-limit. NaN stays allowed where a field means "not given". Ranges must be
-above 0 and at most the log's `max_range_m` (default MAX_RANGE_M).
+Text decoders refuse number text that is no finite number ("nan", "inf",
+"1e400", 400 digits) themselves (`formats.numbers`); what they give is a
+number, but a range of 0 m, -5 m or 1e12 m is a number too, and binary
+formats carry IEEE infinities and NaNs as they are. So before a message is
+archived its values are checked here against what is physically possible,
+one rule per field, written once for every format: a value outside its
+range (or NaN where it must be given) turns the message into a Reject with
+the field, the value and the limit. NaN stays allowed where a field means
+"not given". Ranges must be above 0 and at most the log's `max_range_m`
+(default MAX_RANGE_M, configurable per log).
 """
 
 from __future__ import annotations

@@ -91,7 +91,7 @@ def rewrite(src: Path, dst: Path, message: Callable[[str, bytes, random.Random],
                 data = raw if message is None else message(names[cid], raw, rng)
                 if data is not None:
                     w.write_serialized(names[cid], data, log_time, publish_time)
-            for name in ("trial", "recording"):
+            for name in dict.fromkeys(r.summary().metadata_names):  # trial, recording; run of a results archive
                 meta = r.metadata(name)
                 if meta is not None:
                     w.add_metadata(name, meta)

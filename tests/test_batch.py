@@ -39,6 +39,7 @@ from replay.run.pipeline import replay_archive
 from samples.scenario import Scenario
 from samples.simulator import simulate_trial
 from samples.writer import render, write_trial
+from tests.hostile import rewrite
 
 SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"
 # short runs: four methods and 200 s scored after the 600 s training window
@@ -197,6 +198,21 @@ def test_failed_run_gives_exit_code_1(cli_batch: None, client: Any, archives: di
     err = capsys.readouterr().err
     assert err.startswith("failed: corrupt: ") and "corrupt.mcap" in err
     assert pd.read_csv(tmp_path / "metrics.csv")["error"].notna().all()
+
+
+def test_a_damaged_archive_gives_one_warning_line(cli_batch: None, client: Any, archives: dict[str, Path],
+                                                  tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    def garbage(topic: str, data: bytes, rng: Any) -> bytes:
+        return rng.randbytes(len(data) + 1) if rng.random() < 1 / 97 else data
+
+    damaged = rewrite(archives["lake"], tmp_path / "damaged.mcap", message=garbage, seed=5)
+    code = cli.main(["batch", str(damaged), "--scheduler", client.scheduler.address, "-o", str(tmp_path / "out"),
+                     "--quiet", "--set", "methods=dead_reckoning", "--window", "0", "700", "--sweep", "r_m=3,5"])
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if "warning" in ln]
+    assert code == 0 and len(lines) == 1, lines
+    # two runs of the one archive: it is named once
+    assert lines[0].startswith("auvreplay batch: warning: ") and lines[0].count(str(damaged)) == 1
+    assert "do not decode" in lines[0]
 
 
 def test_user_errors_stop_the_batch_before_any_run(cli_batch: None, archives: dict[str, Path], tmp_path: Path,

@@ -140,7 +140,7 @@ def test_standardized_residual_matches_its_definition(steps: list[tuple[float, f
 
 
 def test_exclusion_filters_run_only_when_a_method_uses_them() -> None:
-    """Default (lag residual, lag input): no exclusion filters and NaN features; either switch turns them on."""
+    """Default (stiff drift residual): no exclusion filters and NaN features; either switch turns them on."""
     base = StackConfig(methods=("ackf", "cusum_drift"), training_window_s=300.0)
     on = [replace(base, features=EXCLUSION), replace(base, hybrid_inputs=("f2", "exclusion_z"))]
     off_runner = CooperativeRunner(base, "f", ["leader1", "leader2"], 0.0, LAT, LON)
@@ -150,4 +150,4 @@ def test_exclusion_filters_run_only_when_a_method_uses_them() -> None:
     _, out = run_trial(make_trial(6), base)
     rows = [r[0] for r in out if r]
     assert all(math.isnan(r.exclusion_residual_m) and math.isnan(r.exclusion_z) for r in rows)
-    assert np.isfinite([r.lag_residual_m for r in rows if r.time_s > 100.0]).mean() > 0.9
+    assert np.isfinite([r.drift_residual_m for r in rows if r.time_s > 100.0]).mean() > 0.9

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from recorders.registry import converters
-from tests.fuzz.fuzz import DAMAGE_KINDS, archive_cases, decoder_cases, seeds
+from tests.fuzz.fuzz import DAMAGE_KINDS, PAYLOAD_TARGETS, archive_cases, decoder_cases, payload_cases, seeds
 
 SEEDS = seeds()
 
@@ -16,6 +16,14 @@ def test_decoder_entry_point_never_raises(name):
     counts = decoder_cases(name, data, options, 30, base_seed=7)
     assert counts["exceptions"] == 0, "\n".join(counts["examples"])
     assert counts["cases"] == 30 and counts["outputs"] + counts["rejects"] + counts["refused"] > 0
+
+
+@pytest.mark.parametrize("name", PAYLOAD_TARGETS)
+def test_damaged_payloads_in_a_valid_container_never_raise(name):
+    counts = payload_cases(name, 300, base_seed=7)
+    assert counts["exceptions"] == 0, "\n".join(counts["examples"])
+    # the container opens: the damaged messages reach their decoders (decoded or rejected one by one)
+    assert counts["refused"] == 0 and counts["outputs"] > 0 and counts["cases"] >= 300  # whole files of damaged payloads
 
 
 def test_every_converter_has_a_seed():

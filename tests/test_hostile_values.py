@@ -98,7 +98,9 @@ def test_nan_inf_1e400_under_valid_checksums_are_counted_rejects(tmp_path):
                                  "ins.log": ("ins", "phins", ins.encode(), "")})
     summary = record(load_manifest(manifest), tmp_path / "v.mcap")
     stats = {f.path: f for f in summary.files}
-    assert stats["gps.log"].out_of_range >= 3 and stats["ins.log"].out_of_range == 2
+    # the decoders refuse the text (formats.numbers): rejects with their reason, before any record-time check
+    assert stats["gps.log"].skipped == 4 and stats["ins.log"].skipped == 2
+    assert stats["gps.log"].out_of_range == stats["ins.log"].out_of_range == 0
     with ArchiveReader(tmp_path / "v.mcap") as r:
         msgs = list(r.messages())
     data = [m for m in msgs if m.topic != "/diagnostics"]
@@ -106,8 +108,11 @@ def test_nan_inf_1e400_under_valid_checksums_are_counted_rejects(tmp_path):
     assert all(math.isfinite(v) or math.isnan(v) for m in data if m.topic.endswith("/gps")
                for v in m.message.position_covariance)
     reasons = " | ".join(m.message.message for m in msgs if m.topic == "/diagnostics")
-    for words in ("position_covariance", "speed_over_ground_mps = -inf", "latitude nan with longitude 126.597",
-                  "depth_m = -inf"):
+    for words in ("bad GST sentence: field is not finite: '-inf'",
+                  "bad RMC sentence: field is not finite: '-inf'", "bad GGA sentence: angle 'nan'",
+                  "bad GGA sentence: field is not finite: '1e400'",
+                  "bad PIXSE POSITI sentence: field is not finite: 'NaN'",
+                  "bad PIXSE POSITI sentence: field is not finite: 'inf'"):
         assert words in reasons, reasons
 
 
@@ -126,11 +131,16 @@ def test_impossible_ranges_are_refused_at_record_time_and_the_replay_says_so(tmp
     out = tmp_path / "t.mcap"
     summary = record(load_manifest(trial / "trial.toml"), out)
     (f,) = [f for f in summary.files if f.path.endswith("bad_ranges.csv")]
-    assert (f.parsed, f.skipped, f.bad_ranges) == (0, 6, 6)
+    # "nan" and "inf" are no numbers: the CSV decoder refuses them (formats.numbers); 0, -5, 1e12 and 25 km are
+    # numbers, and impossible ranges: refused at record time
+    assert (f.parsed, f.skipped, f.bad_ranges) == (0, 6, 4)
+    with ArchiveReader(out) as r:
+        reasons = [m.message.message for m in r.messages(["/diagnostics"]) if "bad_ranges" in m.message.message]
+    assert sum("range_m is not finite" in x for x in reasons) == 2, reasons
     rc = main(["replay", str(out), "--set", "methods=dead_reckoning,ckf", "--window", "0", "700",
                "-o", str(tmp_path / "r.mcap")])
     err = capsys.readouterr().err
-    assert rc == 0 and "record time: 6 ranges refused" in err, err
+    assert rc == 0 and "record time: 4 ranges refused" in err, err
 
 
 def test_a_log_of_bad_checksums_costs_bounded_memory_and_diagnostics(tmp_path):

@@ -80,8 +80,9 @@ def test_round_trip(sec, fwd, stbd, down, alt) -> None:
     (ens,) = list(pd6.ensembles(pd6.encode_ensemble(t, fwd, stbd, down, alt).encode()))
     frame, x, y, z, _, good = pd6.vehicle_velocity(ens)
     assert ens.time_ns == t and frame == "BODY_FRD" and good
-    assert abs(x - fwd) <= 5e-4 and abs(y - stbd) <= 5e-4 and abs(z - down) <= 5e-4
-    assert abs(ens.distances["BD"].range_m - alt) <= 0.005
+    # the format's resolution is 1 mm/s and 1 cm: half a step of rounding, plus the float error of the step itself
+    assert abs(x - fwd) <= 5e-4 + 1e-12 and abs(y - stbd) <= 5e-4 + 1e-12 and abs(z - down) <= 5e-4 + 1e-12
+    assert abs(ens.distances["BD"].range_m - alt) <= 0.005 + 1e-12
 
 
 @settings(max_examples=200, deadline=None)

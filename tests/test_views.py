@@ -136,26 +136,26 @@ def _expected_state(t: float, t_a: float, flagged: bool, label: int) -> str:
 
 
 def test_detection_lanes_are_named_and_tell_hits_false_alarms_and_misses_apart(rrd: Rrd, review: ReviewData) -> None:
-    """Lanes moved from numeric series (/series/lanes/...) to state-timeline lanes (/lanes/...)."""
+    """Lanes are state-timeline lanes whose path is their label: /lanes/<leader>/<method>, the truth first."""
     det, t_a = review.detections, review.metrics["window"][0]
     detectors = [m for m in review.methods if m in set(det.method.unique())]
     assert detectors == ["chi_square", "dual_threshold", "anfis", "anfis_aqpso"]
     seen: set[str] = set()
     for leader in LEADERS:
         truth_rows = det[(det.leader == leader) & (det.method == detectors[0])].sort_values("t_s")
-        truth = [s[0] for s in rrd.cells(f"/run-a/lanes/{FOLLOWER}/{leader}/1_truth", "StateChange:state")]
+        truth = [s[0] for s in rrd.cells(f"/lanes/{leader}/_truth", "StateChange:state")]
         assert truth == ["anomaly" if v == 1 else "normal" if v == 0 else "no label" for v in truth_rows.label]
-        for k, method in enumerate(detectors):
+        for method in detectors:
             rows = det[(det.leader == leader) & (det.method == method)].sort_values("t_s")
-            states = [s[0] for s in rrd.cells(f"/run-a/lanes/{FOLLOWER}/{leader}/{k + 2}_{method}",
+            states = [s[0] for s in rrd.cells(f"/lanes/{leader}/{method}",
                                               "StateChange:state")]
             assert states == [_expected_state(t, t_a, f, lab) for t, f, lab in zip(rows.t_s, rows.flagged,
                                                                                    rows.label, strict=True)]
             seen |= set(states)
     assert {"hit", "quiet", "training"} <= seen
-    window = [s[0] for s in rrd.cells(f"/run-a/lanes/{FOLLOWER}/0_scoring_window", "StateChange:state")]
+    window = [s[0] for s in rrd.cells("/lanes/_scoring_window", "StateChange:state")]
     assert window == ["training", "scored", "scored"]
-    config = rrd.static[f"/run-a/lanes/{FOLLOWER}/{leader}/2_chi_square"][0]
+    config = rrd.static[f"/lanes/{leader}/chi_square"][0]
     assert {"hit", "false alarm", "miss", "quiet"} <= set(config.column("StateConfiguration:values").to_pylist()[0])
 
 
@@ -238,14 +238,14 @@ def test_kmcdf_epochs_and_events(rrd: Rrd, review: ReviewData) -> None:
 def test_blueprint_saved_with_every_view(rrd: Rrd) -> None:
     names = rrd.view_names
     for expected in ("Map: GPS truth and every track", "Local east/north (m), range circles", "Events",
-                     "Ranges measured / true (m)", "ANFIS output vs T2 (m); above T2 = flagged",
+                     "leader1: range measured / true (m)", "leader1: ANFIS vs T2 (m)", "Colours",
                      "Rule firing strengths", "Why (not) flagged", "Output surface (f3 at median)", "Scoreboard",
                      "Colour key", "Training RMSE (m) per epoch"):
         assert expected in names
     assert any(n.startswith("Error CDF of follower") for n in names)
     assert any(n.startswith("Error vs GPS (m), whole mission") for n in names)
     assert any(n.startswith("Detection lanes") for n in names)
-    assert sum(n.startswith("KMCDF follower:") and "preliminary fixes of kmcdf1, kmcdf2" in n for n in names) == 1
+    assert sum(n.startswith("KMCDF follower:") and "prelim. fixes of kmcdf1, kmcdf2" in n for n in names) == 1
     assert {"Map", "2D", "3D", "TimeSeries", "TextLog", "TextDocument", "StateTimeline", "BarChart"} <= set(
         rrd.view_classes)
 
@@ -371,9 +371,9 @@ def test_comparison_names_runs_by_what_differs_and_says_what_changed(review: Rev
     assert sum(n.startswith("Scoreboard") for n in out.view_names) == 2
     assert sum(n.startswith("Detection lanes") for n in out.view_names) == 1     # both runs in one view
     # a detector's lanes of both runs are neighbours: one root, the run last
-    assert out.rows("/lanes/follower/leader1/2_chi_square/1_r_m_2") == (
+    assert out.rows("/lanes/leader1/chi_square/1_r_m_2") == (
         (a.detections.leader == "leader1") & (a.detections.method == "chi_square")).sum()
-    assert out.rows("/lanes/follower/leader1/2_chi_square/2_r_m_2.5") == (
+    assert out.rows("/lanes/leader1/chi_square/2_r_m_2.5") == (
         (b.detections.leader == "leader1") & (b.detections.method == "chi_square")).sum()
 
 
@@ -446,7 +446,7 @@ def test_sample_every_method_has_a_track_an_error_series_and_a_cdf(sample: tuple
                                    [metrics["methods"][method]["error_p50_m"],
                                     min(metrics["methods"][method]["error_p90_m"], axis.hi)], rtol=1e-4)
     for leader in ("leader1", "leader2"):
-        lanes = [e for e in rrd.temporal if e.startswith(f"{p}/lanes/follower/{leader}/")]
+        lanes = [e for e in rrd.temporal if e.startswith(f"/lanes/{leader}/")]
         assert len(lanes) == 1 + sum(r.kind == "detector" for r in scoreboard(metrics))
 
 

@@ -45,6 +45,7 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 
 from ..lines import Line, iter_lines
+from ..numbers import finite, integer
 from ..records import Reject, Where
 
 INVALID_DELAY = 16777215
@@ -199,17 +200,14 @@ def _num(text: str, name: str = "field") -> float:
     t = text.strip()
     if not t:
         raise ValueError(f"empty {name}")
-    value = float(t)
-    if not math.isfinite(value):
-        raise ValueError(f"{name} is not finite: {t!r}")
-    return value
+    return finite(t, name)
 
 
 def _addr(text: str) -> int:
     t = text.strip()
     if not t.isdigit():
         raise ValueError(f"address is not a non-negative integer: {t!r}")
-    return int(t)
+    return integer(t, "address")
 
 
 def _fields(parts: Sequence[str], n: int, keyword: str) -> list[float]:

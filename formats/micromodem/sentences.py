@@ -38,6 +38,7 @@ from datetime import UTC, date, datetime
 
 from ..lines import iter_lines
 from ..nmea.framing import build, frame
+from ..numbers import finite, integer
 from ..records import Reject, Where
 from ..regex_lines import parse_iso8601_ns, parse_tod_s
 
@@ -173,16 +174,13 @@ def _int(text: str, name: str) -> int:
     text = text.strip()
     if not text or not text.lstrip("+-").isdigit():
         raise ValueError(f"{name} is not an integer: {text!r}" if text else f"empty {name}")
-    return int(text)
+    return integer(text, name)
 
 
 def _float(text: str, name: str) -> float:
     if not text.strip():
         raise ValueError(f"empty {name}")
-    value = float(text)
-    if not math.isfinite(value):
-        raise ValueError(f"{name} is not finite: {text!r}")
-    return value
+    return finite(text, name)
 
 
 def _opt_float(f: Sequence[str], i: int) -> float:

@@ -169,3 +169,13 @@ def decode_columns(data: bytes) -> NmeaColumns | None:
             tod[pos] = times
         rows[name], values[name] = pos, cols
     return NmeaColumns(kind, tod, clean.offsets[kept], clean.numbers[kept], rows, values)
+
+
+def head(cols: NmeaColumns, k: int) -> NmeaColumns:
+    """The first `k` sentences of `cols` (a block's columns without the epoch that may go on in the next block)."""
+    rows, values = {}, {}
+    for name, pos in cols.rows.items():
+        n = int(np.searchsorted(pos, k))
+        rows[name] = pos[:n]
+        values[name] = {field: column[:n] for field, column in cols.values[name].items()}
+    return NmeaColumns(cols.kind[:k], cols.tod[:k], cols.offsets[:k], cols.numbers[:k], rows, values)

@@ -19,22 +19,29 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..numbers import optional, optional_integer, texts_finite, texts_integer
+
 NAN = float("nan")
 
 
-def parse_float(s: str) -> float:
-    """A float field; NaN when empty."""
-    return float(s) if s else NAN
-
-
-def parse_int(s: str) -> int:
-    """A count field; -1 when empty."""
-    return int(s) if s else -1
+# the number rule of every field: finite, of a size a field holds (formats.numbers); NaN or -1 when empty
+parse_float = optional
+parse_int = optional_integer
 
 
 def number_column(convert: Callable[[str], object], column: list[str], empty: object) -> list | None:
-    """convert() of every string, `empty` for empty ones (`parse_float`'s and `parse_int`'s rule); None if one fails."""
+    """convert() of every string, `empty` for empty ones (`parse_float`'s and `parse_int`'s rule); None if one fails.
+
+    `convert` is float or int; a string the number rule (`formats.numbers`) might refuse gives None too.
+    """
     distinct = set(column)
+    if not (texts_finite(distinct) if convert is float else texts_integer(distinct)):
+        return None
+    return _convert(convert, column, empty, distinct)
+
+
+def _convert(convert: Callable[[str], object], column: list[str], empty: object, distinct: set[str]) -> list | None:
+    """`number_column` for strings already known to be plain numbers (digits and a dot)."""
     try:
         if len(distinct) * 4 < len(column):  # status fields, sigmas, empty ones: convert each string once
             table = {x: convert(x) if x else empty for x in distinct}
@@ -59,8 +66,8 @@ def parse_tod(s: str) -> float:
     v = float(s)  # one float() and arithmetic: much cheaper than three slices and conversions
     h, rest = divmod(v, 10000.0)
     m, sec = divmod(rest, 100.0)
-    if h > 23 or m > 59 or sec >= 61.0:
-        raise ValueError(f"time {s!r} out of range")
+    if not (h <= 23 and m <= 59 and sec < 61.0):  # so written, an overflow to NaN is out of range too
+        raise ValueError(f"time {s[:40]!r} out of range")
     return h * 3600.0 + m * 60.0 + sec
 
 
@@ -84,12 +91,13 @@ def tod_column(column: list[str]) -> np.ndarray | None:
     head = codes[:, :6]
     if ((head < 48) | (head > 57)).any():
         return None
-    values = number_column(float, column, NAN)
+    values = _convert(float, column, NAN, set(column))  # digits checked above: the number rule holds
     if values is None:
         return None
     v = np.array(values, dtype=np.float64)
-    h, rest = np.divmod(v, 10000.0)
-    m, sec = np.divmod(rest, 100.0)
+    with np.errstate(invalid="ignore"):  # an overflow to inf gives NaN, refused below
+        h, rest = np.divmod(v, 10000.0)
+        m, sec = np.divmod(rest, 100.0)
     if not ((h <= 23) & (m <= 59) & (sec < 61.0)).all():
         return None
     return h * 3600.0 + m * 60.0 + sec
@@ -110,8 +118,8 @@ def parse_angle(s: str, hemi: str, neg: str, limit: float) -> float:
     deg = v // 100.0
     minutes = v - deg * 100.0  # exact: both terms are within a factor of two (Sterbenz)
     value = deg + minutes / 60.0
-    if minutes >= 60.0 or value > limit:
-        raise ValueError(f"angle {s!r} out of range")
+    if not (minutes < 60.0 and value <= limit):  # NaN (400 digits overflow to inf, then NaN) is out of range
+        raise ValueError(f"angle {s[:40]!r} out of range")
     if hemi == neg:
         return -value
     if hemi and hemi not in "NE":
@@ -144,13 +152,14 @@ def angle_column(column: list[str], hemis: list[str], neg: str, limit: float) ->
     dot_at = np.where(dot.any(axis=1), dot.argmax(axis=1), lengths)
     if (has & (dot_at < 3)).any():
         return None
-    values = number_column(float, column, NAN)
+    values = _convert(float, column, NAN, set(column))  # digits and one dot checked above
     if values is None:
         return None
     v = np.array(values, dtype=np.float64)
-    deg = np.floor_divide(v, 100.0)
-    minutes = v - deg * 100.0
-    value = deg + minutes / 60.0
+    with np.errstate(invalid="ignore"):  # an overflow to inf gives NaN, refused below
+        deg = np.floor_divide(v, 100.0)
+        minutes = v - deg * 100.0
+        value = deg + minutes / 60.0
     if (has & ~((minutes < 60.0) & (value <= limit))).any():
         return None
     south = np.array([h == neg for h in hemis], dtype=bool)

@@ -38,6 +38,7 @@ from .fields import (
     NAN,
     parse_ddmmyy,
     parse_float,
+    parse_int,
     parse_lat,
     parse_lon,
     parse_tod,
@@ -183,9 +184,9 @@ def _gga(f: list[str]) -> tuple:
         f = f + [""] * (14 - len(f))
     # inline conversions: GGA is the hot sentence of every log
     return (
-        parse_tod(f[0]), parse_lat(f[1], f[2]), parse_lon(f[3], f[4]), int(f[5]) if f[5] else -1,
-        int(f[6]) if f[6] else -1, float(f[7]) if f[7] else NAN, float(f[8]) if f[8] else NAN,
-        float(f[10]) if f[10] else NAN, float(f[12]) if f[12] else NAN, f[13],
+        parse_tod(f[0]), parse_lat(f[1], f[2]), parse_lon(f[3], f[4]), parse_int(f[5]),
+        parse_int(f[6]), parse_float(f[7]), parse_float(f[8]),
+        parse_float(f[10]), parse_float(f[12]), f[13],
     )
 
 
@@ -194,10 +195,10 @@ def _rmc(f: list[str]) -> tuple:
         _need(f, 9, "RMC")
     if len(f) < 12:
         f = f + [""] * (12 - len(f))
-    var = float(f[9]) if f[9] else NAN
+    var = parse_float(f[9])
     return (
-        parse_tod(f[0]), f[1] == "A", parse_lat(f[2], f[3]), parse_lon(f[4], f[5]), float(f[6]) if f[6] else NAN,
-        float(f[7]) if f[7] else NAN, parse_ddmmyy(f[8]), -var if f[10] == "W" else var, f[11],
+        parse_tod(f[0]), f[1] == "A", parse_lat(f[2], f[3]), parse_lon(f[4], f[5]), parse_float(f[6]),
+        parse_float(f[7]), parse_ddmmyy(f[8]), -var if f[10] == "W" else var, f[11],
     )
 
 
@@ -207,7 +208,7 @@ def _zda(f: list[str]) -> tuple:
     if len(f) < 6:
         f = f + [""] * (6 - len(f))
     day = parse_zda_date(f[3], f[2], f[1]) if f[1] and f[2] and f[3] else None
-    return parse_tod(f[0]), day, int(f[4]) if f[4] else -1, int(f[5]) if f[5] else -1
+    return parse_tod(f[0]), day, parse_int(f[4]), parse_int(f[5])
 
 
 def _vtg(f: list[str]) -> tuple:
@@ -224,9 +225,8 @@ def _gst(f: list[str]) -> tuple:
     if len(f) < 8:
         _need(f, 8, "GST")
     return (
-        parse_tod(f[0]), float(f[1]) if f[1] else NAN, float(f[2]) if f[2] else NAN, float(f[3]) if f[3] else NAN,
-        float(f[4]) if f[4] else NAN, float(f[5]) if f[5] else NAN, float(f[6]) if f[6] else NAN,
-        float(f[7]) if f[7] else NAN,
+        parse_tod(f[0]), parse_float(f[1]), parse_float(f[2]), parse_float(f[3]),
+        parse_float(f[4]), parse_float(f[5]), parse_float(f[6]), parse_float(f[7]),
     )
 
 
@@ -380,8 +380,11 @@ def parse_frame(frame: Frame) -> NmeaRecord | Reject | None:
 Scanned = tuple[str, str, tuple, int, int | None, int | None]
 
 
-def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
+def scan(data: bytes, prefix: str = "auto", base: int = 0, lines: int = 0) -> Iterator[Scanned | Reject]:
     """What `decode` yields, as plain tuples instead of records (for converters on the hot path).
+
+    `data` may be a block of a longer log (`formats.log_blocks`) starting at
+    byte `base` after `lines` line ends: positions are then the log's.
 
     The common line (``$TTSSS,...*HH`` with nothing before it) takes a fast
     path: the sentence type is looked up before anything else, so the
@@ -394,13 +397,13 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
     pxor = prefix_xor(data)
     parsers, hexes = VALUES, HEX
     skipped: set[str] = set()  # well-formed addresses of other sentence types
-    offset = 0
-    for number, raw in enumerate(data.decode("latin-1").split("\n"), start=1):
+    offset = 0  # in `data`; positions given out are `base` + it
+    for number, raw in enumerate(data.decode("latin-1").split("\n"), start=lines + 1):
         line_start = offset
         offset += len(raw) + 1
         star = raw.find("*", 6)
         if raw[:1] != "$" or raw[6:7] != "," or star < 0 or raw.count("$") != 1:
-            yield from _scan_general(raw, line_start, number, prefix)
+            yield from _scan_general(raw, base + line_start, number, prefix)
             continue
         kind = raw[3:6]
         parser = parsers.get(kind)
@@ -409,20 +412,20 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
             if address in skipped:
                 continue  # a sentence of another family seen before ($GPGSV...): one set lookup
             if not (address.isascii() and address.isalnum() and address.isupper()):
-                yield Reject(Where(line_start, number), f"malformed sentence address {address!r}")
+                yield Reject(Where(base + line_start, number), f"malformed sentence address {address!r}")
             else:
                 skipped.add(address)
             continue
         given = hexes.get(raw[star + 1 : star + 3])
         computed = pxor[line_start + star - 1] ^ pxor[line_start]
         if given != computed:
-            yield Reject(Where(line_start, number),
+            yield Reject(Where(base + line_start, number),
                          f"bad checksum {raw[star + 1 : star + 3]!r}, computed {computed:02X}", bad_checksum=True)
             continue
         try:
-            yield kind, raw[1:3], parser(raw[7:star].split(",")), line_start, number, None
+            yield kind, raw[1:3], parser(raw[7:star].split(",")), base + line_start, number, None
         except (ValueError, IndexError, OverflowError) as exc:
-            yield Reject(Where(line_start, number), f"bad {kind} sentence: {exc}")
+            yield Reject(Where(base + line_start, number), f"bad {kind} sentence: {exc}")
 
 
 def _scan_general(raw: str, line_start: int, number: int, prefix: str) -> Iterator[Scanned | Reject]:

@@ -31,6 +31,7 @@ from dataclasses import dataclass, replace
 
 from ..gpstime import gps_to_unix_ns, unix_ns_to_gps
 from ..lines import PREFIX_STYLES, strip_prefix
+from ..numbers import finite, integer, optional, optional_integer
 from ..records import Reject, Where
 
 NAN = float("nan")
@@ -214,16 +215,12 @@ def record_time_ns(rec: NovatelRecord) -> int | None:
 # ---------------------------------------------------------------- ASCII bodies
 
 
-def _float(s: str) -> float:
-    return float(s) if s else NAN
-
-
-def _int(s: str) -> int:
-    return int(s) if s else -1
+_float = optional  # number fields: finite, NaN or -1 when empty (formats.numbers)
+_int = optional_integer
 
 
 def _hex(s: str) -> int:
-    return int(s, 16) if s else 0
+    return integer(s, "field", 16) if s else 0
 
 
 def _enum(s: str, table: dict[int, str]) -> str:
@@ -257,8 +254,8 @@ def _bestvel_ascii(f: list[str], w: Where, h: Header) -> BestVel:
 def _inspva_ascii(f: list[str], w: Where, h: Header) -> InsPva:
     _need(f, 12, "INSPVA")
     return InsPva(
-        w, h, int(f[0]), float(f[1]), _float(f[2]), _float(f[3]), _float(f[4]), _float(f[5]), _float(f[6]),
-        _float(f[7]), _float(f[8]), _float(f[9]), _float(f[10]), _enum(f[11], INS_STATUS),
+        w, h, integer(f[0], "week"), finite(f[1], "seconds"), _float(f[2]), _float(f[3]), _float(f[4]),
+        _float(f[5]), _float(f[6]), _float(f[7]), _float(f[8]), _float(f[9]), _float(f[10]), _enum(f[11], INS_STATUS),
     )
 
 
@@ -285,10 +282,10 @@ def _ascii_header(text: str, short: bool) -> Header:
     name = h[0][:-1] if h[0].endswith("A") else h[0]
     if short:
         _need(h, 3, "short header")
-        return Header(name, "ascii-short", int(h[1]), float(h[2]))
+        return Header(name, "ascii-short", integer(h[1], "week"), finite(h[2], "seconds"))
     _need(h, 10, "header")
     return Header(
-        name, "ascii", int(h[5]), float(h[6]), h[1], int(h[2]), _float(h[3]), h[4],
+        name, "ascii", integer(h[5], "week"), finite(h[6], "seconds"), h[1], int(h[2]), _float(h[3]), h[4],
         _hex(h[7]), _hex(h[8]), int(h[9]) if h[9] else 0,
     )
 

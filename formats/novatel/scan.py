@@ -16,6 +16,7 @@ from dataclasses import fields
 from typing import Literal
 
 from ..lines import PREFIX_STYLES, strip_prefix
+from ..numbers import finite, integer, optional, optional_integer
 from ..records import Reject, Where
 from ..scanned import values_view
 from . import logs as N
@@ -40,8 +41,11 @@ def where_of(item: Scanned) -> Where:
 KINDS = {"BESTPOS": "BestPos", "BESTVEL": "BestVel", "INSPVA": "InsPva", "INSPVAS": "InsPva", "INSPVAX": "InsPvax"}
 
 
-def _f(s: str) -> float:
-    return float(s) if s else NAN
+_f = optional  # number fields: finite, NaN when empty (formats.numbers)
+
+
+def _hex(s: str) -> int:
+    return integer(s, "field", 16) if s else 0
 
 
 def _enum(s: str, table: dict[int, str]) -> str:
@@ -54,12 +58,12 @@ def _bestpos(f: list[str]) -> tuple:
     opt = f + [""] * (21 - len(f))
     # inline conversions: BESTPOS is the hot log of a GNSS file
     return (
-        _enum(f[0], N.SOLUTION_STATUS), _enum(f[1], N.POSITION_TYPE), float(f[2]) if f[2] else NAN,
-        float(f[3]) if f[3] else NAN, float(f[4]) if f[4] else NAN, float(f[5]) if f[5] else NAN, f[6],
-        float(f[7]) if f[7] else NAN, float(f[8]) if f[8] else NAN, float(f[9]) if f[9] else NAN, f[10].strip('"'),
-        float(f[11]) if f[11] else NAN, float(f[12]) if f[12] else NAN, int(f[13]) if f[13] else -1,
-        int(f[14]) if f[14] else -1, int(opt[15]) if opt[15] else -1, int(opt[16]) if opt[16] else -1,
-        int(opt[18], 16) if opt[18] else 0, int(opt[19], 16) if opt[19] else 0, int(opt[20], 16) if opt[20] else 0,
+        _enum(f[0], N.SOLUTION_STATUS), _enum(f[1], N.POSITION_TYPE), _f(f[2]),
+        _f(f[3]), _f(f[4]), _f(f[5]), f[6],
+        _f(f[7]), _f(f[8]), _f(f[9]), f[10].strip('"'),
+        _f(f[11]), _f(f[12]), optional_integer(f[13]),
+        optional_integer(f[14]), optional_integer(opt[15]), optional_integer(opt[16]),
+        _hex(opt[18]), _hex(opt[19]), _hex(opt[20]),
     )
 
 
@@ -73,15 +77,15 @@ def _bestvel(f: list[str]) -> tuple:
 def _inspva(f: list[str]) -> tuple:
     if len(f) < 12:
         raise IndexError("short")
-    return (int(f[0]), float(f[1]), *[float(x) if x else NAN for x in f[2:11]], _enum(f[11], N.INS_STATUS))
+    return (integer(f[0], "week"), finite(f[1], "seconds"), *map(_f, f[2:11]), _enum(f[11], N.INS_STATUS))
 
 
 def _inspvax(f: list[str]) -> tuple:
     if len(f) < 21:
         raise IndexError("short")
     opt = f + [""] * (23 - len(f))
-    return (_enum(f[0], N.INS_STATUS), _enum(f[1], N.POSITION_TYPE), *[float(x) if x else NAN for x in f[2:21]],
-            int(opt[21], 16) if opt[21] else 0, int(opt[22]) if opt[22] else -1)
+    return (_enum(f[0], N.INS_STATUS), _enum(f[1], N.POSITION_TYPE), *map(_f, f[2:21]),
+            _hex(opt[21]), optional_integer(opt[22]))
 
 
 VALUES: dict[str, Callable[[list[str]], tuple]] = {
@@ -104,8 +108,8 @@ def _fast_line(text: str, where: tuple[int, int | None]) -> Scanned | None | Lit
         if len(h) != 10:
             return _SLOW
         # every header field converted as `novatel._ascii_header` does: a field it rejects, we leave to it
-        week, seconds = int(h[5]), float(h[6])
-        int(h[2]), h[3] and float(h[3]), h[7] and int(h[7], 16), h[8] and int(h[8], 16), h[9] and int(h[9])
+        week, seconds = integer(h[5], "week"), finite(h[6], "seconds")
+        int(h[2]), h[3] and finite(h[3]), h[7] and int(h[7], 16), h[8] and int(h[8], 16), h[9] and int(h[9])
         name = h[0][:-1] if h[0][-1:] == "A" else h[0]
         parser = VALUES.get(name)
         if parser is None:

@@ -18,7 +18,7 @@ import sys
 import time
 from typing import TYPE_CHECKING
 
-from replay.errors import UserError
+from replay.errors import UserError, warn_damage
 from replay.run.batch import batch, parse_seeds, parse_sweeps, summary_table, table_paths
 from replay.run.outputs import claim_outputs
 
@@ -111,4 +111,7 @@ def run(args: argparse.Namespace) -> int:
     for r in failed:
         conf = r["configuration"].text
         print(f"failed: {r['trial']}" + (f" [{conf}]" if conf else "") + f": {r['error']}", file=sys.stderr)
+    # one line for the batch: each damaged archive once, however many configurations replayed it
+    damaged = {r["archive"]: r["warning"] for r in records if r.get("warning")}
+    warn_damage("batch", "; ".join(f"{archive}: {w}" for archive, w in damaged.items()) or None)
     return 1 if failed else 0

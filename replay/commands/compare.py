@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from replay.errors import warn_damage
 from replay.run.compare import compare_runs, format_comparison
 
 
@@ -23,4 +24,5 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(result, indent=2, sort_keys=True))
     else:
         print(format_comparison(result, args.limit))
+    warn_damage("compare", result["warning"])
     return 0

@@ -96,9 +96,11 @@ def _cell(v: Any) -> str:
 def text_report(ev: Evaluation) -> str:
     """The figures as two terminal tables and a summary line with the wall time."""
     kinds = ("stale", "drift", "outlier", "dropout")
-    head = ["method", "auc", "fnr@1%", "fnr@2%", "fnr@5%", *(f"rec_{k}" for k in kinds), "err_p50_m", "err_p90_m"]
+    head = ["method", "auc", "fnr@1%", "fnr@2%", "fnr@5%", *(f"rec_{k}" for k in kinds), "fpr_closed",
+            "err_p50_m", "err_p90_m"]
     rows = [[m, _cell(f["auc"]), _cell(f["fnr_at_fpr_1"]), _cell(f["fnr_at_fpr_2"]), _cell(f["fnr_at_fpr_5"]),
-             *(_cell(f["recall_by_kind"][k]) for k in kinds), _cell(f["error_p50_m"]), _cell(f["error_p90_m"])]
+             *(_cell(f["recall_by_kind"][k]) for k in kinds), _cell(ev.closed_loop_fpr.get(m)),
+             _cell(f["error_p50_m"]), _cell(f["error_p90_m"])]
             for m, f in ev.methods.items()]
     lines = _table(head, rows)
     if ev.sweep:

@@ -10,12 +10,11 @@ with UTC times and mission seconds.
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from formats.dataframe import with_mission_seconds
 from formats.mcap_reader import ArchiveReader
-from replay.errors import UserError
+from replay.errors import UserError, warn_damage
 from replay.run.mission_time import trial_start_ns
 from replay.run.outputs import claim_output
 from replay.run.track_export import archive_tracks, tracks_bytes
@@ -64,6 +63,5 @@ def run(args: argparse.Namespace) -> int:
     else:
         df.to_parquet(out)
     print(f"wrote {len(df)} rows of {topic} to {out}")
-    if warning:
-        print(f"auvreplay export: warning: {warning}", file=sys.stderr)
+    warn_damage("export", warning)
     return 0

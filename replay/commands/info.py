@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from typing import Any
 
 from formats.mcap_reader import ArchiveReader
 from recorders.clock import iso_utc as iso
+from replay.errors import warn_damage
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -98,8 +98,7 @@ def _print_text(info: dict[str, Any]) -> None:
         for path, d in info["diagnostics"].items():
             print(f"  {path:<34} {_count(d['parsed']):>7}  {_count(d['skipped']):>7}  {_count(d['bad_checksum']):>12}"
                   f"  {_count(d['ignored'] or 0):>7}")
-    if info["warning"]:
-        print(f"auvreplay info: warning: {info['warning']}", file=sys.stderr)
+    warn_damage("info", info["warning"])
 
 
 def run(args: argparse.Namespace) -> int:
@@ -107,8 +106,7 @@ def run(args: argparse.Namespace) -> int:
     info = describe(args.file)
     if args.json:
         print(json.dumps(info, indent=2))
-        if info["warning"]:
-            print(f"auvreplay info: warning: {info['warning']}", file=sys.stderr)
+        warn_damage("info", info["warning"])
     else:
         _print_text(info)
     return 0

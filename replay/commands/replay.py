@@ -6,7 +6,7 @@ import argparse
 import json
 import sys
 
-from replay.errors import UserError
+from replay.errors import UserError, warn_damage
 from replay.review.rebuild import review_from_results
 from replay.run.config import load_config
 from replay.run.metrics import format_table
@@ -57,6 +57,5 @@ def run(args: argparse.Namespace) -> int:
               f"({outcome.metrics['anomalous']} anomalous), {outcome.messages} messages in {outcome.wall_s:.2f} s")
         print(format_table(outcome.metrics))
         print(f"results: {outcome.output}" + (f"; recording: {args.rrd}" if args.rrd else ""))
-    if outcome.warning:
-        print(f"auvreplay replay: warning: {outcome.warning}", file=sys.stderr)
+    warn_damage("replay", outcome.warning)
     return 0

@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from recorders.attachments import unpack
+from replay.errors import warn_damage
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -30,6 +31,5 @@ def run(args: argparse.Namespace) -> int:
     for name in result.repeated:
         print(f"auvreplay unpack: a second attachment named {name!r}: not written over the first",
               file=sys.stderr)
-    if result.warning:
-        print(f"auvreplay unpack: warning: {result.warning}", file=sys.stderr)
+    warn_damage("unpack", result.warning)
     return 1 if result.refused or result.mismatched or result.incomplete or result.repeated else 0

@@ -18,7 +18,8 @@ import shlex
 from collections.abc import Mapping
 from pathlib import Path
 
-from replay.errors import UserError
+from formats.mcap_reader import ArchiveReader
+from replay.errors import UserError, warn_damage
 from replay.review.rebuild import review_from_results, run_metadata
 from replay.run.outputs import claim_output
 
@@ -91,10 +92,30 @@ def recording_path(paths: list[Path], save: str | None, force: bool) -> Path:
     return candidate
 
 
+def archive_damage(paths: list[Path]) -> str | None:
+    """What reading each .mcap given skips, read through once: Rerun reads archives itself and says nothing."""
+    found = []
+    for path in paths:
+        if path.suffix.lower() != ".mcap":
+            continue
+        with ArchiveReader(path) as reader:
+            for _ in reader.messages():
+                pass
+            warning = reader.warning()
+        if warning:
+            found.append(f"{path}: {warning}")
+    return "; ".join(found) or None
+
+
 def run(args: argparse.Namespace) -> int:
-    """Open the file in Rerun and wait for it; print the command instead when there is no display."""
+    """Open the file in Rerun and wait for it; print the command instead when there is no display.
+
+    The damage warning line comes before the viewer opens (it runs until closed).
+    """
+    damage = archive_damage([check_file(f) for f in args.file])
     built = _recording_of_results(args)
     path = built if built is not None else check_file(args.file[0])
+    warn_damage("view", damage)
     from replay.views.recording import open_viewer, viewer_command
 
     if not args.web and not has_display(os.environ):

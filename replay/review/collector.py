@@ -20,7 +20,9 @@ from replay.events import (
     UsblEpoch,
 )
 from replay.review.data import ReviewData
+from replay.review.why import short_names, why_line
 from replay.stack.config import DETECTING_METHODS
+from replay.stack.features import EXTRA_FEATURES
 from replay.stack.model import horizontal_offset_m, offset_to_latlon
 
 RAD = 180.0 / math.pi
@@ -42,6 +44,7 @@ class ReviewCollector(Listener):
             "tracks", "ranges", "detections", "errors", "anfis_epochs", "anfis_explain", "kmcdf", "events")}
         self._last_ins: dict[str, float] = {}
         self._models: dict[str, TrainedDetectors] = {}
+        self._detectors: dict[str, dict[str, dict[str, Any]]] = {}     # follower -> method -> leader -> detector
 
     def origin(self, lat_rad: float, lon_rad: float) -> None:
         self._origin = (lat_rad, lon_rad)
@@ -82,6 +85,8 @@ class ReviewCollector(Listener):
         self._interval(follower, r0)
         if models is not None and r0.time_s > models.training_end_s:
             self._verdict_event(follower, [r for r in results if r.method in DETECTING_METHODS])
+        dets = self._detectors.get(follower, {}) if models is not None and r0.time_s > models.training_end_s else None
+        extra = {n: getattr(r0, n) for n in EXTRA_FEATURES}        # the same for every method of an epoch
         for r in results:
             if r.method not in DETECTING_METHODS:
                 continue
@@ -89,7 +94,8 @@ class ReviewCollector(Listener):
                 "t_s": r.time_s, "follower": follower, "leader": r.leader, "method": r.method,
                 "flagged": bool(r.flagged), "score": r.score, "threshold": r.threshold, "f1_innovation_m": r.f1,
                 "f2_mahalanobis2": r.f2, "f3_r_adapted_m2": r.f3, "label": int(r.label),
-                "isolated": bool(r.isolated), "capped": bool(r.capped)})
+                "isolated": bool(r.isolated), "capped": bool(r.capped), **extra,
+                "why": why_line(r, dets.get(r.method, {}).get(r.leader)) if dets is not None else ""})
             if r.method == "anfis" and models is not None and r.time_s > models.training_end_s:
                 self._explain(models, r)
 
@@ -102,11 +108,11 @@ class ReviewCollector(Listener):
         last, since, n = self._label.get(key, (0, r.time_s, 0))
         label = int(r.label)
         if label == 1 and last != 1:
-            self.event(r.time_s, "INFO", f"ANOMALY STARTS {self._who(follower, r.leader)} (truth label 1)")
+            self.event(r.time_s, "INFO", f"ANOMALY STARTS {self._who(follower, r.leader)}")
             since, n = r.time_s, 0
         elif label != 1 and last == 1:
-            self.event(r.time_s, "INFO", f"ANOMALY ENDS {self._who(follower, r.leader)}: {n} epochs, {since:.1f} s to "
-                                         f"{r.time_s:.1f} s")
+            self.event(r.time_s, "INFO", f"ANOMALY ENDS {self._who(follower, r.leader)}: {n} epochs, "
+                                         f"{since:.0f}-{r.time_s:.0f} s")
         self._label[key] = (label, since, n + (label == 1))
 
     def _verdict_event(self, follower: str, results: list[EpochResult]) -> None:
@@ -118,22 +124,26 @@ class ReviewCollector(Listener):
         flagged = [r for r in results if r.flagged]
         if r0.label != 1 and not flagged:
             return
-        why = f"|innovation| {r0.f1:.1f} m, range error {r0.range_m - r0.truth_range_m:+.1f} m"
+        err = f"err {r0.range_m - r0.truth_range_m:+.1f} m"
+        hit = [r.method for r in flagged]
+        quiet = [r.method for r in results if not r.flagged]
+        n = len(results)
+        # name the shorter list (short names), so that a line fits the event panel; the why view has the scores
         if r0.label == 1:
-            missed = [r for r in results if not r.flagged]
-            hits = ", ".join(r.method for r in flagged) or "none"
-            if missed:
-                self.event(r0.time_s, "WARN", f"MISS {who}: " + ", ".join(
-                    f"{r.method} ({r.score:.2f} <= T {r.threshold:.2f})" for r in missed)
-                    + f"; anomalous range, {why}; hit by {hits}")
+            if not quiet:
+                self.event(r0.time_s, "INFO", f"HIT {who} by all {n}; {err}")
+            elif not hit:
+                self.event(r0.time_s, "WARN", f"MISS {who}: all {n}; {err}")
+            elif len(quiet) <= len(hit):
+                self.event(r0.time_s, "WARN", f"MISS {who}: {short_names(quiet)}; {err}")
             else:
-                self.event(r0.time_s, "INFO", f"HIT {who} by every detector; anomalous range, {why}")
+                self.event(r0.time_s, "WARN", f"MISS {who}: {len(quiet)} of {n} (hit: {short_names(hit)}); {err}")
         elif r0.label == 0:
-            self.event(r0.time_s, "WARN", f"FALSE ALARM {who}: " + ", ".join(
-                f"{r.method} ({r.score:.2f} > T {r.threshold:.2f})" for r in flagged) + f"; normal range, {why}")
+            text = short_names(hit) if len(hit) <= len(quiet) or not quiet else \
+                f"{len(hit)} of {n} (quiet: {short_names(quiet)})"
+            self.event(r0.time_s, "WARN", f"FALSE ALARM {who}: {text}; {err}")
         else:
-            self.event(r0.time_s, "INFO", f"FLAGGED {who} (no truth label): "
-                       + ", ".join(r.method for r in flagged))
+            self.event(r0.time_s, "INFO", f"FLAGGED {who} (no truth label): {short_names(hit)}")
 
     def _explain(self, models: TrainedDetectors, r: EpochResult) -> None:
         det = models.detectors("anfis").get(r.leader)
@@ -151,6 +161,7 @@ class ReviewCollector(Listener):
 
     def trained(self, follower: str, models: TrainedDetectors, t_s: float) -> None:
         self._models[follower] = models
+        self._detectors[follower] = {m: dict(models.detectors(m)) for m in DETECTING_METHODS}
         for method in DETECTING_METHODS:
             per_leader = models.detectors(method)
             if method != "anfis":

@@ -24,7 +24,11 @@ TRACK_COLUMNS = ["t_s", "vehicle", "source", "lat_deg", "lon_deg", "east_m", "no
 RANGE_COLUMNS = ["t_s", "follower", "leader", "measured_m", "true_m", "residual_m", "leader_east_m", "leader_north_m",
                  "horizontal_m"]
 DETECTION_COLUMNS = ["t_s", "follower", "leader", "method", "flagged", "score", "threshold", "f1_innovation_m",
-                     "f2_mahalanobis2", "f3_r_adapted_m2", "label", "isolated", "capped"]
+                     "f2_mahalanobis2", "f3_r_adapted_m2", "label", "isolated", "capped",
+                     # the filter-independent features (replay.stack.features.EXTRA_FEATURES), NaN where a run
+                     # did not compute them, and why the detector did (not) flag ('' before t_a)
+                     "repeat_count", "dr_residual_m", "leader_consistency_m", "usbl_residual_m", "lag_residual_m",
+                     "drift_residual_m", "drift_cusum_m", "exclusion_residual_m", "drift_z", "exclusion_z", "why"]
 ERROR_COLUMNS = ["t_s", "follower", "method", "error_m"]
 ANFIS_EPOCH_COLUMNS = ["model", "epoch", "rmse", "params"]          # params: dict (see AnfisSnapshot)
 ANFIS_EXPLAIN_COLUMNS = ["t_s", "model", "inputs", "memberships", "firing", "output", "threshold", "flagged"]
@@ -41,7 +45,8 @@ class ReviewData:
       (dead_reckoning, ckf, ackf, chi_square, dual_threshold, anfis, anfis_aqpso,
       anfis_compensation, kmcdf1, kmcdf2, gar, ear, lms, lhc).
     - ranges: every ranging epoch with measured and GPS-true slant range.
-    - detections: one row per (epoch, detecting method).
+    - detections: one row per (epoch, detecting method): outcome, score and threshold, every feature,
+      and `why`, one line saying what the detector compared (`replay.review.why`).
     - errors: horizontal error of each method's follower estimate against GPS.
     - anfis_epochs: the model after every training epoch (params as a dict:
       membership [input][mf] -> (a, b, c), consequents, input_min, input_max).

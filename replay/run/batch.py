@@ -205,7 +205,7 @@ def replay_task(archive: str, overrides: Sequence[str], out_dir: str, trial: str
                 config_path: str | None = None) -> dict[str, Any]:
     """Worker entry: replay one archive into out_dir/runs/<trial>-<run>.mcap; metrics, or the error text."""
     record: dict[str, Any] = {"trial": trial, "archive": archive, "run_id": "", "output": None,
-                              "metrics": None, "error": None, "notes": []}
+                              "metrics": None, "error": None, "notes": [], "warning": None}
     try:
         config = load_config(config_path, list(overrides))
         rid = run_id(config, file_sha256(archive), package_version())
@@ -214,7 +214,7 @@ def replay_task(archive: str, overrides: Sequence[str], out_dir: str, trial: str
         output.parent.mkdir(parents=True, exist_ok=True)
         # the command claimed DIR's tables, so an earlier batch's runs here are replaced only under --force
         outcome = replay_archive(archive, config, output, force=True)
-        record.update(output=str(output), metrics=outcome.metrics, notes=list(outcome.notes))
+        record.update(output=str(output), metrics=outcome.metrics, notes=list(outcome.notes), warning=outcome.warning)
     except Exception as exc:        # a failed run is data for the table; the batch goes on
         record["error"] = describe_error(exc)
     return record

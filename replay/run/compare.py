@@ -35,6 +35,7 @@ def load_run(path: str | Path) -> tuple[dict[str, Any], dict[DetectionKey, tuple
         for m in reader.messages(topics):
             d = m.message
             detections[(m.log_time_ns - start, d.follower, d.leader, d.method)] = (bool(d.flagged), int(d.label))
+        meta["damage"] = reader.warning()  # what reading it skipped, for the command's warning line
     meta["trial_start_ns"] = start
     for key in ("configuration", "metrics", "parameters"):
         if isinstance(meta.get(key), str):
@@ -114,7 +115,9 @@ def compare_runs(a: str | Path, b: str | Path) -> dict[str, Any]:
     return {"a": {"run_id": meta_a["run_id"], "file": str(a), "label": label_a},
             "b": {"run_id": meta_b["run_id"], "file": str(b), "label": label_b},
             "same_input": meta_a.get("input_sha256") == meta_b.get("input_sha256"),
-            "parameters": params, "metrics": metrics, "differing_epochs": differing, "right": right}
+            "parameters": params, "metrics": metrics, "differing_epochs": differing, "right": right,
+            "warning": "; ".join(f"{path}: {m['damage']}" for path, m in ((a, meta_a), (b, meta_b)) if m["damage"])
+            or None}
 
 
 def _decision(flagged: bool | None) -> str:

@@ -31,6 +31,9 @@ epoch, one error distribution over every GPS fix after t_a):
   epoch to flag or miss (the next reply is an ordinary range). A kind with no
   anomalous epoch gets None too.
 * `error_p50_m`, `error_p90_m`: horizontal error against the follower's GPS.
+* `Evaluation.closed_loop_fpr` (the text table's `fpr_closed`, not in the
+  JSON, whose shape is fixed): the share flagged of the epochs labelled
+  normal, closed loop: what the recalls per kind cost.
 
 Detecting methods are the ones whose run has open-loop scores; the others
 (dead reckoning, CKF, ACKF) get errors only. Method names come from the run
@@ -270,6 +273,15 @@ def method_figures(trials: Sequence[TrialScores], method: str) -> dict[str, Any]
     return row
 
 
+def closed_loop_fpr(trials: Sequence[TrialScores], method: str) -> float | None:
+    """The share of a detecting method's scored epochs labelled normal that it flagged (None: not detecting)."""
+    if not any(method in t.detecting for t in trials):
+        return None
+    flagged = _pool([t.flagged[method] for t in trials], bool)
+    normal = _pool([t.labels[method] for t in trials], np.int8) == 0
+    return float(flagged[normal].mean()) if normal.any() else None
+
+
 def drift_sweep(trials_by_rate: Mapping[float, Sequence[TrialScores]]) -> list[dict[str, Any]]:
     """Per drift rate and detecting method: closed-loop drift recall and the anomalous drift epochs behind it."""
     out: list[dict[str, Any]] = []
@@ -302,6 +314,7 @@ class Evaluation:
     cpu_s: float                        # CPU time summed over the scored trials
     workers: str
     notes: list[str] = field(default_factory=list)
+    closed_loop_fpr: dict[str, float | None] = field(default_factory=dict)   # per method; not in to_json
 
     def to_json(self) -> dict[str, Any]:
         """The `evaluate --json` object (module docstring; None for what is undefined)."""
@@ -402,9 +415,10 @@ def evaluate(seeds: Sequence[int], config: RunConfig, train_seed: int | None = N
         f"Dask, {len(client.scheduler_info().get('workers', {}))} workers"
     return Evaluation(tuple(test), train, training, methods, drift_sweep(by_rate),
                       len(trials) + (train_spec is not None), unmatched,
-                      time.monotonic() - wall0, sum(t.cpu_s for t in trials), where, notes)
+                      time.monotonic() - wall0, sum(t.cpu_s for t in trials), where, notes,
+                      {m: closed_loop_fpr(main, m) for m in config.stack.methods})
 
 
 __all__ = ["DEFAULT_DRIFT_RATES", "FPR_TARGETS", "TRAINING_MODES", "Evaluation", "TrialScores", "TrialSpec",
-           "drift_sweep", "epoch_kinds", "evaluate", "evaluate_trial", "method_figures", "recall_by_kind",
-           "split_seeds", "training_set_of"]
+           "closed_loop_fpr", "drift_sweep", "epoch_kinds", "evaluate", "evaluate_trial", "method_figures",
+           "recall_by_kind", "split_seeds", "training_set_of"]

@@ -114,7 +114,11 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
     config = config or RunConfig()
     sha = file_sha256(archive)
     version = package_version()
-    rid = run_id(config, sha, version)
+    id_input = sha
+    if training_set is not None and config.stack.training_source != "own":
+        # the detectors trained on the given set: another set is another run (the archive's purity rule)
+        id_input = hashlib.sha256(f"{sha}\ntraining set {training_set.digest()}".encode()).hexdigest()
+    rid = run_id(config, id_input, version)
     out_path = Path(output) if output is not None else (default_output(archive, rid) if write_output else None)
     if out_path is not None:
         claim_outputs(results_paths(out_path), force)

@@ -16,10 +16,11 @@ METHODS: tuple[str, ...] = (
 )
 # detectors on filter-independent features (issue 16): their hybrid database and extra ANFIS training cost
 # about half again a replay's time, so they run when named (`--set methods=...`), in `evaluate` and in `demo`
-NEW_METHODS: tuple[str, ...] = ("cusum_drift", "anfis_hybrid")
+NEW_METHODS: tuple[str, ...] = ("cusum_drift", "anfis_hybrid", "drift_reference")
 ALL_METHODS: tuple[str, ...] = METHODS + NEW_METHODS
 DETECTING_METHODS: tuple[str, ...] = (
     "chi_square", "dual_threshold", "anfis", "anfis_aqpso", "anfis_compensation", "cusum_drift", "anfis_hybrid",
+    "drift_reference",
 )
 # paper A's detectors and baselines: trained on the recorded window's (f1, f2, f3) only, as published
 PAPER_METHODS: tuple[str, ...] = ("chi_square", "dual_threshold", "anfis", "anfis_aqpso", "anfis_compensation")
@@ -64,7 +65,13 @@ class FeatureConfig:
     cusum_k_sigma: float = 0.5          # cusum_drift's allowance on drift_z (detects shifts of 1 sigma and up)
     cusum_h_sigma: float = 5.0          # cusum_drift's alarm level before calibration; its floor is half of it
     cusum_k_m: float = 4.0              # drift CUSUM allowance (m), feature and cusum_drift detector
-    drift_source: str = "lag"           # without USBL the drift residual is lag_residual_m or exclusion_residual_m
+    # the drift residual: "stiff" (the stiff reference's innovation, fed USBL fixes too), else without USBL
+    # lag_residual_m ("lag") or exclusion_residual_m ("exclusion"), with usbl_residual_m where finite
+    drift_source: str = "stiff"
+    # the stiff reference (features.StiffReference): DR error as a 2-D random walk of this intensity (m²/s),
+    # about the follower's DR error growth over minutes (0.05 m/s Gauss-Markov, tau 300 s, plus heading bias)
+    stiff_q_m2_per_s: float = 3e-4
+    stiff_cap: int = 20                 # it leaves out at most this many repeated ranges in a row per leader
     exclusion_gate_m: float = math.inf  # ... and ranges whose exclusion residual exceeds this (12, 25 m: worse)
     exclusion_cap: int = 20             # an exclusion filter leaves out at most this many gated ranges in a row
     cusum_h_m: float = 15.0             # drift CUSUM alarm level (m) of the feature; the detector calibrates its own
@@ -116,6 +123,6 @@ class StackConfig:
     detection_fpr_target: float = 0.02           # the new methods' threshold: this false-alarm rate on training
     training_source: str = "own"                  # "own" window, a "given" TrainingSet, or "both"
     # anfis_hybrid's inputs, by name from replay.stack.features.FEATURE_NAMES
-    hybrid_inputs: tuple[str, ...] = ("f2", "repeat_count", "lag_residual_m", "usbl_residual_m")
+    hybrid_inputs: tuple[str, ...] = ("f2", "repeat_count", "drift_residual_m", "usbl_residual_m")
     # ... of which these enter signed (the others that are signed residuals enter as magnitudes)
     hybrid_signed_inputs: tuple[str, ...] = ()

@@ -35,9 +35,12 @@ filter, and are the same for every method of a run:
   (replay.stack.exclusion; NaN with one leader or without the filters,
   which run only when ``drift_source`` is "exclusion" or anfis_hybrid takes
   an exclusion input: on held-out seeds they did not beat the lag residual);
-- ``drift_residual_m``: ``usbl_residual_m`` where finite, else
-  ``exclusion_residual_m`` or ``lag_residual_m`` (``FeatureConfig.drift_source``),
-  else ``dr_residual_m`` (what the drift CUSUM sums);
+- ``drift_residual_m``: with ``FeatureConfig.drift_source`` "stiff" (the
+  default) the innovation of the `StiffReference` (the range against a
+  deliberately stiff filter of the follower's dead-reckoning error, which
+  takes the USBL fixes too); otherwise ``usbl_residual_m`` where finite, else
+  ``exclusion_residual_m`` or ``lag_residual_m`` (``drift_source``), else
+  ``dr_residual_m``. What the drift CUSUM sums and ``drift_reference`` tests;
 - ``drift_z``: the drift residual standardized by its own recent past:
   (x - median) / (1.4826 MAD) over the leader's drift residuals of the
   last ``scale_window_s`` (300 s) that are older than ``lag_s`` (60 s), NaN
@@ -50,6 +53,22 @@ filter, and are the same for every method of a run:
   sight, which changes slowly along the mission);
 - ``drift_cusum_m``: max(S+, S-) of a two-sided CUSUM(k, h) of the drift
   residual per leader, restarting after each of its own alarms.
+
+Why a stiff reference sees a slow drift (issue 16): the ACKF's process
+noise (1 m/sqrt(s)) lets it move ~2 m between two ranges of a leader, so
+it takes a 0.3 m/s drift (1.4 m per 4.8 s) as motion and its innovation
+stays at the range noise. The follower's DR error (dead reckoning minus
+truth) grows much more slowly: 0.05 m/s Gauss-Markov (tau 300 s) and a
+1.5 deg heading bias, a few cm/s. A filter of that 2-D error as a random
+walk of intensity ``stiff_q_m2_per_s`` (3e-4 m²/s: sqrt(q*R*dt) gives a gain
+of ~1 % per range, a memory of minutes) follows the DR error and the
+rotating geometry (the error's projection on a line of sight changes as
+the follower passes a leader, the wander of ``dr_residual_m``) but only a
+small part of a drift of a minute: over seeds 0-19 the innovation of a
+0.3 m/s ramp averages 13.2 m at 30-45 s and 16.8 m at 45-60 s against a
+spread of 5.9 m (MAD-sigma of the normal epochs), where the ACKF's stays at
+~3 m. Its own prediction is worse than the ACKF's (error sd 6.0 m against
+3.8 m against the GPS ranges): it gives up tracking for not following.
 
 `FeatureTracker` keeps O(1) state per leader: each call costs the same
 whatever the mission length.
@@ -83,14 +102,86 @@ def range_to(lat: float, lon: float, depth_m: float, leader_lat: float, leader_l
     return math.hypot(b * (lat - leader_lat), a * (lon - leader_lon))
 
 
+class StiffReference:
+    """A 2-D Kalman filter of the follower's DR error (DR minus truth, north-east metres) on ranges and fixes.
+
+    State d with covariance P; between epochs P grows by q·dt (a random
+    walk). A range z to a leader at horizontal distance r from the dead
+    reckoned position, along the unit vector u from the leader, predicts
+    z ≈ r - u·d: the innovation v = z - r + u·d with variance u P uᵀ + R.
+    A repeated range is not used (at most ``cap`` in a row per leader); a
+    USBL fix measures d directly. No gate on the innovation: a gate that
+    leaves out normal ranges lets the filter fall behind the DR error.
+    """
+
+    def __init__(self, q_m2_per_s: float, range_sigma_m: float, p0_m: tuple[float, float], cap: int) -> None:
+        """Start at d = 0 with P = diag(p0_m)²."""
+        self.q = float(q_m2_per_s)
+        self.r_var = float(range_sigma_m) ** 2
+        self.cap = int(cap)
+        self.d = [0.0, 0.0]
+        self.p = [float(p0_m[0]) ** 2, 0.0, float(p0_m[1]) ** 2]     # nn, ne, ee
+        self._skipped: dict[str, int] = {}
+
+    def propagate(self, dt_s: float) -> None:
+        """The random walk over dt_s seconds."""
+        self.p[0] += self.q * dt_s
+        self.p[2] += self.q * dt_s
+
+    def range(self, leader: str, z_m: float, north_m: float, east_m: float, repeated: bool) -> float:
+        """The innovation (m) of range z from DR, the follower minus the leader at (north_m, east_m); then update."""
+        r = math.hypot(north_m, east_m)
+        if not r > 0.0:
+            return NAN
+        un, ue = north_m / r, east_m / r
+        pnn, pne, pee = self.p
+        v = z_m - r + un * self.d[0] + ue * self.d[1]
+        skipped = self._skipped.get(leader, 0)
+        if repeated and skipped < self.cap:
+            self._skipped[leader] = skipped + 1
+            return v
+        self._skipped[leader] = 0
+        # H = -u: P Hᵀ = -(P u), S = u P uᵀ + R
+        pun, pue = pnn * un + pne * ue, pne * un + pee * ue
+        s = un * pun + ue * pue + self.r_var
+        kn, ke = -pun / s, -pue / s
+        self.d[0] += kn * v
+        self.d[1] += ke * v
+        # P - K (H P) with H P = -(u P)
+        self.p = [pnn + kn * pun, pne + kn * pue, pee + ke * pue]
+        return v
+
+    def fix(self, north_m: float, east_m: float, cov_m2: tuple[float, float, float]) -> None:
+        """A position fix: d measured as (north_m, east_m), DR minus the fix, with covariance (nn, ne, ee) m²."""
+        pnn, pne, pee = self.p
+        snn, sne, see = pnn + cov_m2[0], pne + cov_m2[1], pee + cov_m2[2]
+        det = snn * see - sne * sne
+        if not det > 0.0:
+            return
+        inn, ine, iee = see / det, -sne / det, snn / det
+        # K = P S⁻¹
+        k11, k12 = pnn * inn + pne * ine, pnn * ine + pne * iee
+        k21, k22 = pne * inn + pee * ine, pne * ine + pee * iee
+        rn, re = north_m - self.d[0], east_m - self.d[1]
+        self.d[0] += k11 * rn + k12 * re
+        self.d[1] += k21 * rn + k22 * re
+        # (I - K) P, symmetric
+        self.p = [pnn - (k11 * pnn + k12 * pne), pne - (k11 * pne + k12 * pee), pee - (k21 * pne + k22 * pee)]
+
+
 class FeatureTracker:
     """Pure dead reckoning, the USBL anchor and per-leader memory: the EXTRA_FEATURES of each range epoch."""
 
     def __init__(self, config: FeatureConfig, leaders: tuple[str, ...], lat_rad: float, lon_rad: float,
-                 exclusion: LeaderExclusion | None = None) -> None:
-        """Start dead reckoning at the initial position; no USBL anchor yet; ``exclusion``: its filters, or none."""
+                 exclusion: LeaderExclusion | None = None, range_sigma_m: float = 3.0,
+                 p0_m: tuple[float, float] = (1.0, 1.0)) -> None:
+        """Start dead reckoning at the initial position; no USBL anchor yet; ``exclusion``: its filters, or none.
+
+        ``range_sigma_m`` and ``p0_m`` (the stack's r_m and p0_m) set the stiff reference's R and P0.
+        """
         self.config = config
         self.exclusion = exclusion
+        self.stiff = StiffReference(config.stiff_q_m2_per_s, range_sigma_m, p0_m, config.stiff_cap)
         self.dr = [float(lat_rad), float(lon_rad)]
         self.anchor: list[float] | None = None
         self.anchor_t = -math.inf
@@ -107,6 +198,7 @@ class FeatureTracker:
         """Carry dead reckoning and the anchor forward by one DR step (A.1, radii at the start of the step)."""
         if self.exclusion is not None:
             self.exclusion.propagate(dt_s, forward_mps, lateral_mps, heading_rad, depth_m)
+        self.stiff.propagate(dt_s)
         c, s = math.cos(heading_rad), math.sin(heading_rad)
         north = dt_s * (forward_mps * c - lateral_mps * s)
         east = dt_s * (forward_mps * s + lateral_mps * c)
@@ -124,6 +216,10 @@ class FeatureTracker:
         """
         if self.exclusion is not None and cov_rad2 is not None:
             self.exclusion.fix(lat_rad, lon_rad, *cov_rad2)
+        if cov_rad2 is not None:
+            b, a = metric_scales_scalar(lat_rad, 0.0)
+            self.stiff.fix(b * (self.dr[0] - lat_rad), a * (self.dr[1] - lon_rad),
+                           (cov_rad2[0] * b * b, cov_rad2[1] * b * a, cov_rad2[2] * a * a))
         if self.anchor is None or t_s - self.anchor_t > self.config.usbl_max_age_s:
             self.anchor = [float(lat_rad), float(lon_rad)]
         else:
@@ -158,8 +254,15 @@ class FeatureTracker:
         excl = NAN
         if self.exclusion is not None:
             excl = self.exclusion.epoch(leader, z_m, geo, depth_m, self._repeats[leader] > 0)
-        second = excl if cfg.drift_source == "exclusion" else lag
-        drift = usbl if math.isfinite(usbl) else second if math.isfinite(second) else d
+        lat, lon, ldepth = geo
+        b, a = metric_scales_scalar(0.5 * (self.dr[0] + lat), 0.5 * (depth_m + ldepth))
+        stiff = self.stiff.range(leader, z_m, b * (self.dr[0] - lat), a * (self.dr[1] - lon),
+                                 self._repeats[leader] > 0)
+        if cfg.drift_source == "stiff":
+            drift = stiff
+        else:
+            second = excl if cfg.drift_source == "exclusion" else lag
+            drift = usbl if math.isfinite(usbl) else second if math.isfinite(second) else d
         up, down, _ = self._cusum[leader].step(drift)
         return (float(self._repeats[leader]), d, consistency, usbl, lag, drift, max(up, down), excl,
                 self._standardized(t_s, ("drift", leader), drift),

@@ -14,6 +14,7 @@ from replay.stack.detectors.anfis_hybrid import HybridAnfisDetector
 from replay.stack.detectors.base import Detector
 from replay.stack.detectors.chi_square import ChiSquareDetector
 from replay.stack.detectors.cusum import CusumDriftDetector
+from replay.stack.detectors.drift_reference import DriftReferenceDetector
 from replay.stack.detectors.dual_threshold import DualThresholdDetector
 
 DetectorFactory = Callable[[StackConfig], Detector]
@@ -48,6 +49,7 @@ DETECTOR_FACTORIES: Mapping[str, DetectorFactory] = MappingProxyType({
     "anfis_compensation": _anfis("hybrid", True),
     "cusum_drift": CusumDriftDetector,
     "anfis_hybrid": _anfis_hybrid,
+    "drift_reference": DriftReferenceDetector,
 })
 """Detecting method name -> factory(config) -> a fresh, untrained Detector."""
 

@@ -11,6 +11,7 @@ per-leader model takes its own rows and a shared model takes them all.
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -87,6 +88,23 @@ class TrainingSet:
         if missing:
             raise KeyError(f"TrainingSet has no feature {missing[0]!r}; it has {', '.join(self.feature_names)}")
         return self.features[:, [self.feature_names.index(n) for n in names]]
+
+    def digest(self) -> str:
+        """SHA-256 (hex) of every row's content and the feature names: equal sets give equal digests.
+
+        A run trained on a given set depends on it as much as on its input
+        archive, so the run id folds it in (replay.run.pipeline).
+        """
+        h = hashlib.sha256()
+        h.update("\n".join(self.feature_names).encode())
+        for arr in (self.features, self.range_error, self.labels):
+            a = np.ascontiguousarray(arr)
+            h.update(f"{a.dtype.str}{a.shape}".encode())
+            h.update(a.tobytes())
+        for arr in (self.leaders, self.kinds):
+            h.update("\x00".join(str(v) for v in arr.tolist()).encode())
+            h.update(b"\x01")
+        return h.hexdigest()
 
     def concat(self, other: TrainingSet) -> TrainingSet:
         """Both sets' rows; ValueError when their features differ."""

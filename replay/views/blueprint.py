@@ -4,14 +4,21 @@ Tabs, each answering one question (the event log sits on the right of every tab)
 - Scoreboard: which method is best after t_a, by error and by detection (the ranked table with
   metrics.json's figures, the error CDFs, every method's error over the whole mission);
 - Detection: where each detector hit, missed or false-alarmed (a state-timeline lane per leader
-  and detector under the truth), and the ANFIS outputs against T2 and the features behind them;
+  and detector under the truth, the whole mission) and, beside the lanes, why each detector did
+  (not) flag at the cursor, one line per detector and leader;
+- Scores: every detector's statistic against its threshold (ANFIS outputs vs T2, chi_square's f2
+  vs its gate, dual_threshold, cusum_drift's sums vs h, anfis_hybrid vs its FPR threshold);
+- Features (one sub-tab per leader): paper A's features, the ranges, and the filter-independent
+  features grouped by unit (or a note saying which the run did not compute);
 - Navigation: the map and the local east/north plot, every track, trails ending at the cursor,
   bounds holding every vehicle and buoy, a colour key;
 - ANFIS (one tab per model): what the model learned and where this epoch sits in it;
 - KMCDF (one view pair per target): the fixes around the GPS truth, and the nodes by name.
 With two runs, the scoreboards sit side by side with what changed, and the other views overlay
 both runs (every name tagged with the run's label) instead of repeating per run.
-The recording opens paused, on the `mission_s` timeline, with the time series on the whole mission.
+The recording opens on the `mission_s` timeline with the cursor on the mission's last sample (Rerun
+0.41's blueprint cannot place it; "following" does, for a loaded file) and every time series and
+lane on the whole mission.
 """
 
 from __future__ import annotations
@@ -23,9 +30,18 @@ from rerun.blueprint.api import VisualizerLike
 from rerun.encodings import EntityPathLike
 
 from replay.review.data import ReviewData
+from replay.review.why import ANFIS_FAMILY
 from replay.views.cdf import HEIGHT, WIDTH
 from replay.views.common import Run, floats, groups, part
-from replay.views.lanes import COMPARED_ROOT, training_end_s
+from replay.views.features import (
+    FEATURE_GROUPS,
+    SCORED,
+    feature_note,
+    group_title,
+    present_features,
+    score_top,
+)
+from replay.views.lanes import LANES_ROOT, training_end_s
 from replay.views.positioning import fix_methods, kmcdf_half_width
 from replay.views.tracks import KEY, KEY_STEP, geo_bounds, key_rows, track_bounds
 
@@ -42,10 +58,25 @@ def _whole_mission() -> rrb.archetypes.TimeAxis:
         start=rr.TimeRangeBoundary.infinite(), end=rr.TimeRangeBoundary.infinite()))
 
 
-def _series(name: str, contents: list[str], y_max: float | None = None, legend: bool = True) -> rrb.TimeSeriesView:
+def _series(name: str, contents: list[str], y_max: float | None = None, legend: bool = True,
+            y_range: tuple[float, float] | None = None) -> rrb.TimeSeriesView:
+    """A time series over the whole mission; y from 0 to `y_max`, or over `y_range`, else fitted to the data."""
+    y = y_range if y_range is not None else (0.0, y_max) if y_max else None
     return rrb.TimeSeriesView(name=name, contents=contents, axis_x=_whole_mission(),
-                              axis_y=rrb.ScalarAxis(range=(0.0, y_max), zoom_lock=False) if y_max else None,
+                              axis_y=rrb.ScalarAxis(range=y, zoom_lock=False) if y else None,
                               plot_legend=rrb.PlotLegend(corner="RightTop", visible=legend))
+
+
+def robust_range(values: np.ndarray, pad: float = 0.1) -> tuple[float, float] | None:
+    """A y range holding the middle 99 % of the finite values, with room around (heavy tails would flatten the rest)."""
+    v = values[np.isfinite(values)]
+    if v.size == 0:
+        return None
+    lo, hi = (float(x) for x in np.quantile(v, [0.005, 0.995]))
+    if hi <= lo:
+        lo, hi = lo - 1.0, hi + 1.0
+    span = hi - lo
+    return lo - pad * span, hi + pad * span
 
 
 def _up_to_cursor() -> rrb.VisibleTimeRanges:
@@ -119,31 +150,77 @@ def _scoreboard(runs: list[Run], error_top: float) -> rrb.Container:
     return rrb.Horizontal(
         left,
         rrb.Vertical(*cdfs, row_shares=[1.4, 1] * len(followers)) if cdfs else rrb.Vertical(),
-        column_shares=[1.45, 1], name="Scoreboard",
+        column_shares=[1.75, 1], name="Scoreboard",
     )
+
+
+def _pairs(runs: list[Run]) -> list[tuple[str, str]]:
+    """Every (follower, leader) with detections in any run, sorted."""
+    return sorted({(str(k[0]), str(k[1])) for r in runs for k, _ in groups(r.review.detections,
+                                                                             ["follower", "leader"])})
 
 
 def _detection(runs: list[Run]) -> rrb.Container:
+    """The lanes over the whole mission, and beside them why each detector did (not) flag at the cursor."""
     t_a = ", ".join(f"{training_end_s(r):.0f} s" for r in runs)
     lanes = rrb.StateTimelineView(
         name=f"Detection lanes: truth, then hit / false alarm / miss / quiet per detector (t_a = {t_a})",
-        contents=_contents(runs, "lanes") if len(runs) == 1 else [f"+ {COMPARED_ROOT}/**"],
-        time_view=_whole_mission())
-    features = [_series(f, [f"+ {r.path('series', f)}/**" for r in runs])
-                for f in ("f1_innovation_m", "f2_mahalanobis2", "f3_r_adapted_m2")]
-    return rrb.Vertical(
-        lanes,
-        _series("ANFIS output vs T2 (m); above T2 = flagged", _contents(runs, "series", "anfis"),
-                anfis_top(runs)),
-        rrb.Horizontal(*features, _series("Ranges measured / true (m)", _contents(runs, "series", "range")),
-                       _series("Residual measured - true (m)", _contents(runs, "series", "residual"))),
-        row_shares=[7, 2, 1.5], name="Detection",
-    )
+        contents=[f"+ {LANES_ROOT}/**"], time_view=_whole_mission())
+    pairs = _pairs(runs)
+    many = len({f for f, _ in pairs}) > 1
+    whys = [rrb.TextDocumentView(
+        name=f"Why (not) flagged at the cursor: {f + '/' if many else ''}{ld}{' [' + r.label + ']' if r.label else ''}",
+        contents=[f"+ {r.path('why', f, ld)}"]) for r in runs for f, ld in pairs]
+    return rrb.Horizontal(lanes, rrb.Vertical(*whys), column_shares=[2.1, 1], name="Detection") if whys else \
+        rrb.Vertical(lanes, name="Detection")
+
+
+def _scores(runs: list[Run]) -> rrb.Container:
+    """Every detector's statistic against its threshold over the whole mission, the residual, and a colour key."""
+    methods = {str(m) for r in runs if "method" in r.review.detections for m in r.review.detections["method"].unique()}
+    plots: list[rrb.View] = [_series(f"{ld}: ANFIS vs T2 (m)", [f"+ {r.path('series', 'anfis', f, ld)}/**"
+                                                               for r in runs], anfis_top(runs), legend=False)
+                             for f, ld in _pairs(runs)]
+    plots += [_series(title, _contents(runs, "scores", m), score_top(runs, m), legend=False)
+              for m, title in SCORED.items() if m in methods]
+    plots.append(_series("Range residual (m)", _contents(runs, "series", "residual"), legend=False))
+    plots.append(rrb.TextDocumentView(name="Colours", contents=[f"+ {runs[0].path('scores', 'key')}"]))
+    return rrb.Grid(*plots, grid_columns=4, name="Scores")
+
+
+def _features(runs: list[Run]) -> rrb.Container:
+    """Per leader: paper A's features, the ranges, and the computed new features by group (3 x 3 plots)."""
+    have = {f for r in runs for f in present_features(r.review.detections)}
+    det = [r.review.detections for r in runs]
+    pairs = _pairs(runs)
+    many = len({f for f, _ in pairs}) > 1
+    tabs = []
+    for f, ld in pairs:
+        plots = [_series(f"{ld}: {name}", [f"+ {r.path('series', name, f, ld)}" for r in runs])
+                 for name in ("f1_innovation_m", "f2_mahalanobis2", "f3_r_adapted_m2")]
+        plots.append(_series(f"{ld}: range measured / true (m)", [f"+ {r.path('series', 'range', f, ld)}/**"
+                                                                   for r in runs]))
+        for key, title, names in FEATURE_GROUPS:
+            shown = [n for n in names if n in have]
+            if not shown:
+                continue
+            mine = [d[(d["follower"].astype(str) == f) & (d["leader"].astype(str) == ld)] for d in det]
+            v = np.concatenate([floats(d, n) for d in mine for n in shown] or [np.zeros(0)])
+            plots.append(_series(f"{ld}: {group_title(title, shown)}", [f"+ {r.path('features', f, ld, key)}/**"
+                                                                        for r in runs],
+                                 y_range=robust_range(v)))
+        grid = rrb.Grid(*plots, grid_columns=3)
+        notes = [r for r in runs if feature_note(r.review.detections)]
+        tabs.append(rrb.Vertical(grid, rrb.TextDocumentView(
+            name="Features this run did not compute", contents=[f"+ {r.path('features', 'note')}" for r in notes]),
+            row_shares=[12, 1.3 if have else 6], name=f"{f + '/' if many else ''}{ld}") if notes else
+            rrb.Vertical(grid, name=f"{f + '/' if many else ''}{ld}"))
+    return rrb.Tabs(*tabs, name="Features")
 
 
 def anfis_top(runs: list[Run]) -> float | None:
     """The ANFIS plot's y extent: four times the largest T2 (outputs reach 1000 m where T2 is a few)."""
-    thr = [floats(r.review.detections[r.review.detections["method"].astype(str).str.startswith("anfis")],
+    thr = [floats(r.review.detections[r.review.detections["method"].astype(str).isin(ANFIS_FAMILY)],
                   "threshold") for r in runs if "method" in r.review.detections]
     v = np.concatenate(thr) if thr else np.zeros(0)
     v = v[np.isfinite(v)]
@@ -198,7 +275,7 @@ def _kmcdf(runs: list[Run]) -> rrb.Container | None:
             methods = sorted(rows["method"].astype(str).unique())
             prelim = ", ".join(with_fixes) if with_fixes else "none"
             views.append(rrb.Spatial2DView(
-                name=f"KMCDF {t}{tag}: fixes minus GPS (m); preliminary fixes of {prelim}: green kept, red C2",
+                name=f"KMCDF {t}{tag}: fix - GPS (m); prelim. fixes of {prelim}: green kept, red C2",
                 contents=[f"+ {run.path('kmcdf', t, m)}/final" for m in methods]
                 + [f"+ {run.path('kmcdf', t, m)}/fixes" for m in with_fixes]
                 + [f"+ {run.path('kmcdf', t, 'truth')}/**"],
@@ -213,7 +290,8 @@ def _kmcdf(runs: list[Run]) -> rrb.Container | None:
 
 def build_blueprint(runs: list[Run], error_top: float, active_tab: int | str = 0) -> rrb.Blueprint:
     """The workstation layout for one run or two compared; `error_top` the error plots' y extent."""
-    tabs = [_scoreboard(runs, error_top), _detection(runs), _navigation(runs), _anfis(runs), _kmcdf(runs)]
+    tabs = [_scoreboard(runs, error_top), _detection(runs), _scores(runs), _features(runs), _navigation(runs),
+            _anfis(runs), _kmcdf(runs)]
     main = rrb.Tabs(*(t for t in tabs if t is not None), active_tab=active_tab)
     log = rrb.TextLogView(name="Events", contents=_contents(runs, "events"),
                           columns=rrb.archetypes.TextLogColumns(
@@ -221,8 +299,10 @@ def build_blueprint(runs: list[Run], error_top: float, active_tab: int | str = 0
                               text_log_columns=[rrb.encodings.TextLogColumn("LogLevel"),
                                                 rrb.encodings.TextLogColumn("Body")]))
     return rrb.Blueprint(
-        rrb.Horizontal(main, log, column_shares=[3, 1.1]),
+        rrb.Horizontal(main, log, column_shares=[3, 1.3]),
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
-        rrb.TimePanel(timeline="mission_s", state="collapsed", play_state="paused"),
+        # Rerun 0.41's blueprint cannot place the cursor; "following" puts it on the last sample of a
+        # loaded file, where it stays: every view opens on the whole mission (CDFs = metrics.json)
+        rrb.TimePanel(timeline="mission_s", state="collapsed", play_state="following"),
     )

@@ -1,15 +1,16 @@
 """Detection lanes: one named lane per leader and detector, beside the truth, in a state timeline.
 
-Entities under a run prefix P, on `time` and `mission_s` (StateChange, one row per ranging epoch):
-- ``P/lanes/<follower>/<leader>/1 truth``: "anomaly" or "normal" (the truth label), so the labelled
-  anomaly intervals are the lane's "anomaly" stretches;
-- ``P/lanes/<follower>/<leader>/<k> <method>``: "hit", "false alarm", "miss" or "quiet" (a correct
-  silence), "training" before t_a and "no label" where the truth is unknown;
-- ``P/lanes/<follower>/0 scoring window``: "training" before t_a, "scored" after.
+Rerun 0.41 labels a lane with its whole entity path, sorted naturally and case-blind, so the paths
+are short and say what a lane is (one run per recording, or two under one root):
+- ``/lanes/<leader>/_truth``: "anomaly" or "normal" (the truth label), so the labelled anomaly
+  intervals are the lane's "anomaly" stretches ("_" sorts it first);
+- ``/lanes/<leader>/<method>``: "hit", "false alarm", "miss" or "quiet" (a correct silence),
+  "training" before t_a and "no label" where the truth is unknown;
+- ``/lanes/_scoring_window``: "training" before t_a, "scored" after.
+With several followers each path has the follower after ``/lanes``. In a comparison the run's label
+comes last (``/lanes/leader1/chi_square/1_r_m_2.5``), so a detector's two runs are neighbours.
 Every lane has a static StateConfiguration that fixes each state's label and colour, so hits, false
-alarms and misses read the same in every lane. The number in a lane's name keeps the truth first
-and the detectors in the run's own method order. In a comparison the lanes of both runs sit under
-one root instead, the run last (see `lane_path`), so a detector's two runs are neighbours.
+alarms and misses read the same in every lane; rows on `time` and `mission_s`, one per ranging epoch.
 """
 
 from __future__ import annotations
@@ -55,22 +56,21 @@ def training_end_s(run: Run) -> float:
     return float(ex["t_s"].min()) if not ex.empty and "t_s" in ex else 0.0
 
 
-COMPARED_ROOT = "/lanes"
-"""In a comparison every run's lane sits under one root, the run last, so the two runs' lanes of one
-detector are neighbours: `/lanes/<follower>/<leader>/<k> <method>/<i> <run label>`."""
+LANES_ROOT = "/lanes"
+TRUTH_LANE = "_truth"
+WINDOW_LANE = "_scoring_window"
 
 
 def lane_path(run: Run, *parts: str) -> str:
-    """A lane's entity path: under the run's prefix, or in a comparison under COMPARED_ROOT with the run last."""
-    if not run.label:
-        return run.path("lanes", *parts)
-    return "/".join([COMPARED_ROOT, *(part(p) for p in (*parts, f"{run.index + 1} {run.label}"))])
+    """A lane's entity path: under LANES_ROOT, the run's label last in a comparison."""
+    tail = (f"{run.index + 1} {run.label}",) if run.label else ()
+    # `part` strips a leading "_", which sorts the truth and window lanes first: keep theirs
+    return "/".join([LANES_ROOT, *(p if p in (TRUTH_LANE, WINDOW_LANE) else part(p) for p in (*parts, *tail))])
 
 
-def lane_paths(run: Run, follower: str, leader: str, methods: list[str]) -> list[str]:
-    """The lanes of one leader, truth first, then the detectors in the order given."""
-    return ([lane_path(run, follower, leader, "1 truth")]
-            + [lane_path(run, follower, leader, f"{k + 2} {m}") for k, m in enumerate(methods)])
+def lane_paths(run: Run, where: tuple[str, ...], leader: str, methods: list[str]) -> list[str]:
+    """The lanes of one leader (`where`: (follower,) with several followers, else ()), truth first."""
+    return [lane_path(run, *where, leader, TRUTH_LANE)] + [lane_path(run, *where, leader, m) for m in methods]
 
 
 def _configure(rec: rr.RecordingStream, path: str) -> None:
@@ -89,15 +89,17 @@ def log_lanes(rec: rr.RecordingStream, run: Run) -> None:
     t_a = training_end_s(run)
     present = {str(m) for m in det["method"].unique()} if "method" in det else set()
     order = [m for m in run.review.methods if m in present]
-    for (follower,), f_rows in groups(det, ["follower"]):
+    by_follower = groups(det, ["follower"])
+    for (follower,), f_rows in by_follower:
+        where = (str(follower),) if len(by_follower) > 1 else ()
         t = np.unique(f_rows["t_s"].to_numpy(dtype=float))
         if t.size:
             marks = np.array([t[0], t_a, t[-1]]) if t[0] < t_a < t[-1] else np.array([t[0], t[-1]])
-            _send(rec, run, lane_path(run, str(follower), "0 scoring window"), marks,
+            _send(rec, run, lane_path(run, *where, WINDOW_LANE), marks,
                   np.where(marks < t_a, "training", "scored").astype(object))
         methods = order + sorted({str(m) for m in f_rows["method"].unique()} - set(order))
         for (leader,), rows in groups(f_rows, ["leader"]):
-            paths = lane_paths(run, str(follower), str(leader), methods)
+            paths = lane_paths(run, where, str(leader), methods)
             epochs = rows.drop_duplicates("t_s")
             label = pd.to_numeric(epochs["label"], errors="coerce").fillna(-1).to_numpy(dtype=int)
             _send(rec, run, paths[0], epochs["t_s"].to_numpy(dtype=float), truth_states(label))

@@ -8,9 +8,9 @@ file in Rerun's native viewer, or in the web viewer bound to 127.0.0.1 only.
 Timelines: every mission row is on both `time` (UTC timestamps, trial_start_ns + t_s) and
 `mission_s` (seconds from the trial start, the one time base of the events, `compare` and
 `export`); `anfis_epoch` (sequence) for ANFIS training. Entity layout per run under
-``/<run_id>``: ``scoreboard``, ``map``, ``local``, ``series``, ``lanes``, ``cdf``, ``anfis``,
-``kmcdf``, ``events``, ``info`` (see the other modules of ``replay.views``); ``/colour_key``
-once per recording. This package's modules are
+``/<run_id>``: ``scoreboard``, ``map``, ``local``, ``series``, ``features``, ``scores``, ``why``, ``cdf``,
+``anfis``, ``kmcdf``, ``events``, ``info`` (see the other modules of ``replay.views``); ``/colour_key``
+and ``/lanes`` once per recording. This package's modules are
 the only ones that import `rerun` (with `replay.views.kmcdf`).
 """
 
@@ -31,6 +31,7 @@ from replay.views.anfis import log_anfis
 from replay.views.blueprint import build_blueprint
 from replay.views.cdf import error_axis, log_cdf_frame, log_cdfs
 from replay.views.common import Run, annotation_context, make_runs, run_names
+from replay.views.features import log_detector_scores, log_features, log_why
 from replay.views.lanes import log_lanes
 from replay.views.positioning import log_events, log_kmcdf
 from replay.views.scores import log_scores
@@ -64,6 +65,9 @@ def log_review(rec: rr.RecordingStream, run: Run, axes: dict, error_top: float) 
     log_ranges(rec, run)
     log_detections(rec, run)
     log_lanes(rec, run)
+    log_features(rec, run)
+    log_detector_scores(rec, run)
+    log_why(rec, run)
     log_errors(rec, run, error_top)
     log_cdfs(rec, run, axes)
     log_anfis(rec, run)

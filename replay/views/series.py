@@ -3,7 +3,8 @@
 Entities under a run prefix P, all on the `time` and `mission_s` timelines:
 - ``P/series/range/<follower>/<leader>/{measured,true}``, ``P/series/residual/<follower>/<leader>``;
 - ``P/series/<feature>/<follower>/<leader>`` for f1_innovation_m, f2_mahalanobis2, f3_r_adapted_m2;
-- ``P/series/anfis/<follower>/<leader>/<method>/{output,T2}`` for every ANFIS-family detector;
+- ``P/series/anfis/<follower>/<leader>/<method>/{output,T2}`` for anfis, anfis_aqpso, anfis_compensation
+  (anfis_hybrid's output is drawn with the other detectors' statistics, `replay.views.features`);
 - ``P/series/error/<follower>/<method>``: horizontal error against GPS, filters and positioning alike;
 - ``P/series/marks/t_a``: a vertical line at t_a (the start of the metrics window) in every plot
   that includes it.
@@ -17,6 +18,7 @@ import pandas as pd
 import rerun as rr
 
 from replay.review.scoreboard import method_kind
+from replay.review.why import ANFIS_FAMILY
 from replay.views.common import Run, floats, groups, method_rgb
 from replay.views.lanes import training_end_s
 
@@ -34,7 +36,7 @@ def _scalars(rec: rr.RecordingStream, path: str, run: Run, t_s: pd.Series, value
     rec.send_columns(path, indexes=run.times(t_s), columns=rr.Scalars.columns(scalars=values))
 
 
-LEADER_RGB = ((255, 200, 80), (110, 200, 255), (230, 130, 255), (160, 230, 120))
+LEADER_RGB = ((235, 150, 30), (60, 150, 235), (200, 100, 240), (90, 190, 80))
 
 
 def log_ranges(rec: rr.RecordingStream, run: Run) -> None:
@@ -61,7 +63,7 @@ def log_detections(rec: rr.RecordingStream, run: Run) -> None:
                      run.name(f"{ld} {feature}"), LEADER_RGB[k % len(LEADER_RGB)])
         for (method,), m_rows in groups(rows, ["method"]):
             m = str(method)
-            if m.startswith("anfis"):
+            if m in ANFIS_FAMILY:
                 _scalars(rec, run.path("series", "anfis", f, ld, m, "output"), run, m_rows["t_s"],
                          floats(m_rows, "score"), run.name(f"{ld} {m} output"), method_rgb(m, run.index))
                 _scalars(rec, run.path("series", "anfis", f, ld, m, "T2"), run, m_rows["t_s"],

@@ -186,5 +186,8 @@ def log_colour_key(rec: rr.RecordingStream, runs: list[Run]) -> None:
     rec.log(KEY + "/swatches", rr.LineStrips2D([np.array([[0.0, v], [1.5, v]]) for v in y],
                                                colors=[c for _, c in entries], radii=rr.Radius.ui_points(4.0)),
             static=True)
+    # names in the truth's middle grey, which reads on the dark and the light theme; the swatch carries the colour
+    # (a pale method colour as text vanishes on the light theme)
     rec.log(KEY + "/names", rr.Points2D(np.column_stack([np.full(y.size, 5.0), y]), labels=[t for t, _ in entries],
-                                        colors=[c for _, c in entries], radii=rr.Radius.ui_points(0.1)), static=True)
+                                        colors=[method_rgb("truth")] * len(entries), radii=rr.Radius.ui_points(0.1)),
+            static=True)

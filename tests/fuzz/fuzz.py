@@ -7,7 +7,10 @@ Decoder cases start from a real log of the format (the sample trial's, or a
 documented example), cut to a random window, then damaged a few ways: byte
 flips, insertions, deletions, repeats, and number fields replaced by hostile
 number text (`nan`, `1e400`, 400 digits...) with the line's NMEA checksum
-made right again, so hostile values reach the field parsers. A converter
+made right again, so hostile values reach the field parsers. The payload
+targets (/rosbag+payloads, /mavlink+payloads) keep the container valid and
+damage the messages inside it, where a damaged bag or tlog would mostly be
+refused whole at the open; their cases are damaged payloads. A converter
 may yield Rejects or refuse the whole file with a FormatError; anything
 else it raises is a failure. Archive cases damage a small archive (several
 chunks, metadata, attachments): cuts, byte flips, and crafted records
@@ -19,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 import os
 import random
 import re
@@ -28,7 +32,7 @@ import sys
 import tempfile
 import time
 import traceback
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from datetime import date
 from pathlib import Path
@@ -48,7 +52,14 @@ from formats.waterlinked import crc8  # noqa: E402
 from recorders.base import LogContext  # noqa: E402
 from recorders.manifest import load_manifest  # noqa: E402
 from recorders.registry import converters  # noqa: E402
-from tests.test_ecosystem_inputs import ALOG, write_ros1, write_tlog  # noqa: E402
+from tests.test_ecosystem_inputs import (  # noqa: E402
+    ALOG,
+    NMEA_SENTENCE_MSG,
+    _bag_messages,
+    _typestores,
+    write_ros1,
+    write_tlog,
+)
 
 SAMPLE = ROOT / "samples" / "lake_trial"
 BOOK = {1: "leader1", 2: "leader2", 3: "follower", 11: "buoy1", 12: "buoy2", 13: "buoy3", 14: "buoy4"}
@@ -181,7 +192,14 @@ def mutate(seed: bytes, rng: random.Random) -> bytes:
 
 def decoder_cases(key: str, seed: bytes, options: dict, n: int, base_seed: int = 0) -> dict[str, int]:
     """Run n mutated cases through one converter; counts of outputs, rejects, refusals, exceptions."""
+    return run_cases(key, lambda rng: mutate(seed, rng), options, n, base_seed)
+
+
+def run_cases(key: str, make: Callable[[random.Random], bytes], options: dict, n: int,
+              base_seed: int = 0) -> dict[str, int]:
+    """Run n cases `make(rng)` through the converter of `key` (sensor/format, or /container+target)."""
     sensor, fmt = key.split("/")
+    fmt = fmt.split("+")[0]
     conv = converters()[(sensor, fmt)]
     ctx = LogContext(vehicle="follower", role="follower", path=f"fuzz/{fmt}", trial_date=date(2016, 10, 12),
                      options=options, address_book=BOOK, sound_speed_mps=1450.0)
@@ -194,7 +212,7 @@ def decoder_cases(key: str, seed: bytes, options: dict, n: int, base_seed: int =
     examples: list[str] = []
     for case in range(n):
         rng = random.Random(f"{key}/{base_seed}/{case}")
-        data = mutate(seed, rng)
+        data = make(rng)
         counts["cases"] += 1
         if spool is not None:
             spool.write_bytes(data)
@@ -214,6 +232,129 @@ def decoder_cases(key: str, seed: bytes, options: dict, n: int, base_seed: int =
         shutil.rmtree(spool.parent, ignore_errors=True)
     counts["examples"] = examples  # type: ignore[assignment]
     return counts
+
+
+# ---- payload targets: a valid container whose message payloads are damaged ------------------------------------
+# A mutated container file is mostly refused whole when opened (its index, its connection records), so the
+# message decoding behind it is barely reached; these targets keep the container valid and damage the payloads:
+# words overwritten with NaN, infinities, huge floats and absurd array or string lengths, bits flipped, bytes cut
+# or added.
+_HOSTILE_WORDS = (struct.pack("<d", math.nan), struct.pack("<d", math.inf), struct.pack("<d", -math.inf),
+                  struct.pack("<d", 1e308), struct.pack("<d", -1e308), struct.pack("<f", math.nan) * 2,
+                  struct.pack("<I", 0xFFFFFFFF), struct.pack("<I", 1 << 30), struct.pack("<i", -1),
+                  struct.pack("<q", 2**63 - 1), struct.pack("<Q", 2**64 - 1))
+
+
+def mutate_payload(data: bytes, rng: random.Random, limit: int = 1 << 16) -> bytes:
+    """One message payload damaged a few ways (see above), at most `limit` bytes long."""
+    out = bytearray(data)
+    for _ in range(rng.randrange(1, 4)):
+        op = rng.random()
+        n = len(out)
+        if op < 0.5 and n >= 4:
+            word = rng.choice(_HOSTILE_WORDS)
+            at = rng.randrange(0, max(1, n - len(word) + 1))
+            at -= at % 4 if rng.random() < 0.7 else 0  # mostly where a field would be
+            out[at:at + len(word)] = word
+        elif op < 0.7 and n:
+            out[rng.randrange(n)] ^= 1 << rng.randrange(8)
+        elif op < 0.85:
+            del out[rng.randrange(n + 1):]
+        else:
+            at = rng.randrange(n + 1)
+            out[at:at] = rng.randbytes(rng.randrange(1, 32))
+    return bytes(out[:limit])
+
+
+def ros1_items() -> tuple[object, list[tuple[str, str, int, bytes]]]:
+    """The typestore and (topic, msgtype, bag time, serialized message) of the ecosystem tests' ROS 1 bag."""
+    from rosbags.typesys import get_types_from_msg  # the optional rosbags, as recorders.rosbag imports it
+    ts, _ = _typestores()
+    ts.register(get_types_from_msg(NMEA_SENTENCE_MSG, "nmea_msgs/msg/Sentence"))
+    items = sorted(_bag_messages(ts), key=lambda x: x[2])
+    return ts, [(topic, msgtype, t, bytes(ts.serialize_ros1(msg, msgtype))) for topic, msgtype, t, msg in items]
+
+
+def ros1_payload_case(ts: object, items: list[tuple[str, str, int, bytes]], folder: Path, rng: random.Random,
+                      damaged: int) -> bytes:
+    """A valid ROS 1 bag of `items` over and over (100 s apart) with a third of the payloads damaged, `damaged`
+    in all: opening a bag costs rosbags far more than its messages, so one bag carries many cases."""
+    from rosbags.rosbag1 import Writer
+    path = folder / "payloads.bag"
+    path.unlink(missing_ok=True)
+    done = rep = 0
+    with Writer(path) as w:
+        conns: dict[str, object] = {}
+        while done < damaged:
+            for topic, msgtype, t, data in items:
+                if topic not in conns:
+                    conns[topic] = w.add_connection(topic, msgtype, typestore=ts)
+                if done < damaged and rng.random() < 1 / 3:
+                    data, done = mutate_payload(data, rng), done + 1
+                w.write(conns[topic], t + rep * 100 * 10**9, data)
+            rep += 1
+    return path.read_bytes()
+
+
+def tlog_packets() -> list[tuple[int, bytes]]:
+    """(time in us, MAVLink 2 packet) of the ecosystem tests' tlog."""
+    with tempfile.TemporaryDirectory(prefix="fuzz-tlog-") as tmp:
+        write_tlog(Path(tmp) / "t.tlog")
+        data = (Path(tmp) / "t.tlog").read_bytes()
+    out, pos = [], 0
+    while pos < len(data):
+        n = 12 + data[pos + 9] + (13 if data[pos + 10] & 1 else 0)  # after the time: magic 0xFD, length, ...
+        out.append((struct.unpack_from(">Q", data, pos)[0], data[pos + 8:pos + 8 + n]))
+        pos += 8 + n
+    return out
+
+
+def mavlink_payload_case(packets: list[tuple[int, bytes]], rng: random.Random, damaged: int) -> bytes:
+    """The tlog's packets over and over (100 s apart) with a third of the payloads damaged, `damaged` in all,
+    each damaged packet's CRC made right (its signature dropped)."""
+    from pymavlink.dialects.v20 import ardupilotmega as mav  # the optional pymavlink
+    from pymavlink.generator.mavcrc import x25crc
+    out = bytearray()
+    done = rep = 0
+    while done < damaged:
+        for us, pkt in packets:
+            if done < damaged and rng.random() < 1 / 3:
+                msgid = int.from_bytes(pkt[7:10], "little")
+                payload = mutate_payload(pkt[10:10 + pkt[1]], rng, 255)
+                head = bytes([pkt[0], len(payload), pkt[2] & 0xFE]) + pkt[3:10]
+                crc = x25crc(head[1:] + payload)
+                crc.accumulate(bytes([mav.mavlink_map[msgid].crc_extra]) if msgid in mav.mavlink_map else b"\0")
+                pkt, done = head + payload + struct.pack("<H", crc.crc), done + 1
+            out += struct.pack(">Q", us + rep * 100_000_000) + pkt
+        rep += 1
+    return bytes(out)
+
+
+PAYLOADS_PER_FILE = {"/rosbag+payloads": 250, "/mavlink+payloads": 50}
+
+
+def payload_cases(name: str, n: int, base_seed: int = 0) -> dict[str, int]:
+    """n damaged payloads of one payload target (PAYLOADS_PER_FILE to a file) through its container's converter.
+
+    The counts are those of `run_cases`, with `cases` the payloads damaged and `files` the files they came in.
+    """
+    per = PAYLOADS_PER_FILE[name]
+    files = -(-n // per)
+    folder = Path(tempfile.mkdtemp(prefix="fuzz-payloads-"))
+    try:
+        if name == "/rosbag+payloads":
+            ts, items = ros1_items()
+            counts = run_cases(name, lambda rng: ros1_payload_case(ts, items, folder, rng, per), {}, files, base_seed)
+        else:
+            packets = tlog_packets()
+            counts = run_cases(name, lambda rng: mavlink_payload_case(packets, rng, per), {}, files, base_seed)
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    counts["files"], counts["cases"] = counts["cases"], files * per
+    return counts
+
+
+PAYLOAD_TARGETS = ("/mavlink+payloads", "/rosbag+payloads")
 
 
 # ---- archive damage ---------------------------------------------------------------------------------------
@@ -328,6 +469,8 @@ def run_job(name: str, cases: int, seed: int) -> tuple[str, dict, float]:
     t = time.monotonic()
     if name.startswith("archive/"):
         counts = archive_cases(name.split("/", 1)[1], cases, seed)
+    elif name in PAYLOAD_TARGETS:
+        counts = payload_cases(name, cases, seed)
     else:
         data, options = seeds()[name]
         counts = decoder_cases(name, data, options, cases, seed)
@@ -343,6 +486,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("only", nargs="*", help="entries (sensor/format) or damage kinds; default all")
     args = parser.parse_args(argv)
     names = [k for k in sorted(seeds()) if not args.only or k in args.only]
+    names += [k for k in PAYLOAD_TARGETS if not args.only or k in args.only]
     names += [f"archive/{k}" for k in DAMAGE_KINDS if not args.only or k in args.only]
     print(f"{'entry':<22} " + "  ".join(f"{c:>11}" for c in ("cases", "outputs/clean", "rejects/damaged",
                                                             "refused", "exceptions", "seconds")), flush=True)
