@@ -41,7 +41,7 @@ not requested.
 
 The filter-independent features (``replay.stack.features``) are computed
 only when a configured method decides on them (a method outside
-``PAPER_METHODS``, e.g. ``cusum_drift``, ``anfis_hybrid``): otherwise every
+``PAPER_METHODS``, the ``NEW_METHODS``): otherwise every
 epoch's EXTRA_FEATURES, and those columns of ``training_set``, are NaN.
 """
 
