@@ -39,7 +39,8 @@ class Engine:
                  training_set: TrainingSet | None = None):
         """The engine of one trial; `training_set` (another run's) goes to every follower's runner."""
         self.layout, self.config, self.t0_ns = layout, config, t0_ns
-        self.listeners = list(listeners)
+        # a tuple: the hook lists below are taken once, so a listener appended later would miss them
+        self.listeners: tuple[Listener, ...] = tuple(listeners)
         # the per-message hooks go only to the listeners that override them (Listener's own do nothing):
         # a results writer, which ignores positions, then costs nothing per INS or GPS message
         self._hear_position = _overriding(self.listeners, "position")
