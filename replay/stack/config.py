@@ -61,6 +61,9 @@ class FeatureConfig:
     scale_window_s: float = 300.0       # drift_z: median and MAD of the drift residuals of this window ...
     scale_min_samples: int = 8          # ... older than lag_s, at least this many
     scale_floor_m: float = 1.0          # ... the MAD-scale never below this (m)
+    # drift_z: one history of every leader's drift residuals (the stiff reference is one filter of the
+    # follower's DR error, its spread the mission's), leaving out repeated ranges; False: one per leader
+    scale_pooled: bool = True
     cusum_input: str = "drift_z"        # cusum_drift sums drift_z (sigmas) or drift_residual_m (metres, k/h in m)
     cusum_k_sigma: float = 0.5          # cusum_drift's allowance on drift_z (detects shifts of 1 sigma and up)
     cusum_h_sigma: float = 5.0          # cusum_drift's alarm level before calibration; its floor is half of it
@@ -121,6 +124,9 @@ class StackConfig:
     features: FeatureConfig = field(default_factory=FeatureConfig)
     injection: InjectionConfig = field(default_factory=InjectionConfig)
     detection_fpr_target: float = 0.02           # the new methods' threshold: this false-alarm rate on training
+    # drift_reference tests |drift_z| (the residual against the mission's own pooled scale) or, the
+    # session-12 form, |drift_residual_m| in metres
+    drift_reference_input: str = "drift_z"
     training_source: str = "own"                  # "own" window, a "given" TrainingSet, or "both"
     # anfis_hybrid's inputs, by name from replay.stack.features.FEATURE_NAMES
     hybrid_inputs: tuple[str, ...] = ("f2", "repeat_count", "drift_residual_m", "usbl_residual_m")

@@ -264,19 +264,23 @@ class FeatureTracker:
             second = excl if cfg.drift_source == "exclusion" else lag
             drift = usbl if math.isfinite(usbl) else second if math.isfinite(second) else d
         up, down, _ = self._cusum[leader].step(drift)
+        pool = ("drift", "*") if cfg.scale_pooled else ("drift", leader)
         return (float(self._repeats[leader]), d, consistency, usbl, lag, drift, max(up, down), excl,
-                self._standardized(t_s, ("drift", leader), drift),
+                self._standardized(t_s, pool, drift, keep=not (cfg.scale_pooled and self._repeats[leader] > 0)),
                 self._standardized(t_s, ("excl", leader), excl) if self.exclusion is not None else NAN)
 
-    def _standardized(self, t_s: float, key: tuple[str, str], x: float) -> float:
-        """x against the median and MAD of its series' (key) values aged lag_s to scale_window_s; NaN if few."""
+    def _standardized(self, t_s: float, key: tuple[str, str], x: float, keep: bool = True) -> float:
+        """x against the median and MAD of its series' (key) values aged lag_s to scale_window_s; NaN if few.
+
+        ``keep`` False: x is standardized but not remembered (a repeated range in the pooled series).
+        """
         cfg = self.config
         hist = self._history.setdefault(key, deque())
         while hist and hist[0][0] < t_s - cfg.scale_window_s:
             hist.popleft()
         cutoff = t_s - cfg.lag_s
         old = [v for t, v in hist if t <= cutoff]
-        if math.isfinite(x):
+        if keep and math.isfinite(x):
             hist.append((t_s, x))
         if len(old) < cfg.scale_min_samples or not math.isfinite(x):
             return NAN

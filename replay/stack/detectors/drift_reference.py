@@ -43,7 +43,9 @@ from replay.stack.detectors.base import Decision
 from replay.stack.features import FEATURE_NAMES
 from replay.stack.training import TrainingSet
 
-_COLUMN = FEATURE_NAMES.index("drift_residual_m")
+_METRES = FEATURE_NAMES.index("drift_residual_m")
+_Z = FEATURE_NAMES.index("drift_z")
+_INPUTS = ("drift_z", "drift_residual_m")
 _MIN_RECORDED = 100
 
 
@@ -52,21 +54,28 @@ class DriftReferenceExplanation:
     """Why drift_reference did (not) flag one epoch, for the views."""
 
     residual_m: float      # drift_residual_m: the range minus the stiff reference's prediction
-    threshold_m: float     # h
+    threshold_m: float     # h_m, the metres threshold (used where drift_z is NaN, or with the metres input)
     flagged: bool
+    z: float = math.nan            # drift_z: the residual in units of the mission's pooled recent scale
+    threshold_z: float = math.nan  # h_z (NaN with the metres input)
 
 
 class DriftReferenceDetector:
-    """``drift_reference``: flags |drift_residual_m| > h, h set by the target false-alarm rate on training."""
+    """``drift_reference``: flags |drift_z| > h_z with |drift_residual_m| > t1_m, h_z set by the target FPR."""
 
     name = "drift_reference"
     wide = True       # takes the whole FEATURE_NAMES vector, not paper A's (f1, f2, f3)
 
     def __init__(self, config: StackConfig) -> None:
-        """h = t1_m until training."""
+        """h_m = t1_m and no h_z until training."""
+        if config.drift_reference_input not in _INPUTS:
+            raise ValueError(f"drift_reference_input must be one of {_INPUTS}, got {config.drift_reference_input!r}")
         self.config = config
-        self.threshold = float(config.t1_m)
-        self.thresholds: dict[str, float] = {"configured": self.threshold}
+        self.t1 = float(config.t1_m)
+        self.threshold_m = self.t1
+        self.threshold_z = math.nan
+        self.threshold = self.t1
+        self.thresholds: dict[str, float] = {"configured": self.t1}
 
     def train_on(self, ts: TrainingSet) -> None:
         """`train` on the recorded rows when they hold enough normal epochs, else on every row."""
@@ -75,30 +84,49 @@ class DriftReferenceDetector:
         self.train(use.features, use.range_error, use.labels)
 
     def train(self, features: np.ndarray, range_error: np.ndarray, labels: np.ndarray) -> None:
-        """Set h so that at most the target share of the rows labelled normal score above it."""
-        x = np.abs(np.asarray(features, dtype=float).reshape(-1, len(FEATURE_NAMES))[:, _COLUMN])
-        normal = x[np.asarray(labels).ravel() == 0]
-        h = max(fpr_threshold(normal, self.config.detection_fpr_target), float(self.config.t1_m))
-        if not math.isfinite(h):        # no finite normal score: the floor
-            h = float(self.config.t1_m)
-        finite = normal[np.isfinite(normal)]
-        self.threshold = h
-        self.thresholds = {"fpr_target": h, "configured": float(self.config.t1_m), "used": h,
-                           "training_alarm_rate": float(np.mean(finite > h)) if finite.size else float("nan")}
+        """Set h_m and h_z so that at most the target share of the rows labelled normal score above each."""
+        x = np.asarray(features, dtype=float).reshape(-1, len(FEATURE_NAMES))
+        normal = np.asarray(labels).ravel() == 0
+        target = self.config.detection_fpr_target
+        h_m = max(fpr_threshold(np.abs(x[normal, _METRES]), target), self.t1)
+        self.threshold_m = h_m if math.isfinite(h_m) else self.t1      # no finite normal score: the floor
+        self.threshold_z = math.nan
+        if self.config.drift_reference_input == "drift_z":
+            h_z = fpr_threshold(np.abs(x[normal, _Z]), target)
+            self.threshold_z = h_z if math.isfinite(h_z) and h_z > 0.0 else math.nan
+        self.threshold = self.threshold_z if math.isfinite(self.threshold_z) else self.threshold_m
+        s = self.scores(x[normal])
+        finite = s[np.isfinite(s)]
+        self.thresholds = {"fpr_target": self.threshold, "configured": self.t1, "used": self.threshold,
+                           "metres": self.threshold_m,
+                           "training_alarm_rate": float(np.mean(finite > self.threshold)) if finite.size
+                           else float("nan")}
 
     def decide(self, features: np.ndarray) -> Decision:
-        """Flag when |drift_residual_m| exceeds h (a NaN residual is not flagged)."""
-        score = abs(float(features[_COLUMN]))
+        """Flag when the score exceeds the threshold (a NaN residual is not flagged)."""
+        score = float(self.scores(features)[0])
         return Decision(flagged=bool(score > self.threshold), score=score, threshold=self.threshold)
 
     def scores(self, features: np.ndarray) -> np.ndarray:
-        """Open-loop scores |drift_residual_m| of the rows (n, F)."""
-        return np.abs(np.asarray(features, dtype=float).reshape(-1, len(FEATURE_NAMES))[:, _COLUMN])
+        """Open-loop scores of the rows (n, F), on the scale of ``threshold``.
+
+        With h_z: min(|z|, h_z·|x|/t1_m), above h_z exactly when |z| > h_z and
+        |x| > t1_m (a residual under the label threshold is not an anomaly);
+        where z is NaN, h_z·|x|/h_m (the metres threshold). Without h_z: |x|.
+        """
+        rows = np.asarray(features, dtype=float).reshape(-1, len(FEATURE_NAMES))
+        x = np.abs(rows[:, _METRES])
+        h_z = self.threshold_z
+        if not math.isfinite(h_z):
+            return x
+        z = np.abs(rows[:, _Z])
+        floored = np.minimum(z, h_z * x / self.t1) if self.t1 > 0.0 else z
+        return np.where(np.isfinite(z), floored, h_z * x / self.threshold_m)
 
     def reset(self) -> None:
         """No memory to forget."""
 
     def explain(self, features: np.ndarray) -> DriftReferenceExplanation:
-        """The residual and h at this epoch."""
-        score = float(features[_COLUMN])
-        return DriftReferenceExplanation(score, self.threshold, abs(score) > self.threshold)
+        """The residual, its standardized value and the thresholds at this epoch."""
+        return DriftReferenceExplanation(float(features[_METRES]), self.threshold_m,
+                                         self.decide(features).flagged, float(features[_Z]), self.threshold_z)
