@@ -32,7 +32,8 @@ trains it on every leader's rows together.
 |drift_residual_m| against h_m alone. Its h_m did not carry its false-alarm
 rate to other trials: over training seeds 0-19 the 98 % quantile of a
 600 s window ranged 9-18 m, and the false-alarm rate it gave on the other
-seeds 1.2-17 % (mean 5.0 %): the residual's spread is the trial's DR error.
+seeds 1.2-17 % (mean 5.0 %; session 12 measured 0.7-13.5 %, mean 3.7 %,
+on other runs): the residual's spread is the trial's DR error.
 For a ramp residual rate·t its detection delay is h_m / rate (tests check
 it).
 """
