@@ -189,7 +189,10 @@ def test_z_threshold_is_configured_and_keeps_the_t1_floor() -> None:
     h_m = det.threshold_m
     assert h_m == pytest.approx(6.0 * 2.326, rel=0.08)
     assert not det.decide(_rows(np.array([h_m - 0.1]))[0]).flagged
-    assert det.decide(_rows(np.array([h_m + 0.1]))[0]).flagged
+    fallback = det.decide(_rows(np.array([h_m + 0.1]))[0])
+    assert fallback.flagged and fallback.score == pytest.approx(h_m + 0.1) and fallback.threshold == h_m
+    # the open-loop score ranks it on the z scale: above h_z exactly when beyond h_m
+    assert det.scores(_rows(np.array([h_m + 0.1])))[0] == pytest.approx(2.5 * (h_m + 0.1) / h_m)
     with pytest.raises(ValueError, match="drift_reference_z"):
         DriftReferenceDetector(StackConfig(drift_reference_z=0.0))
 

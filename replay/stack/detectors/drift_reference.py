@@ -111,7 +111,15 @@ class DriftReferenceDetector:
                            else float("nan")}
 
     def decide(self, features: np.ndarray) -> Decision:
-        """Flag when the score exceeds the threshold (a NaN residual is not flagged)."""
+        """Flag when the score exceeds the threshold (a NaN residual is not flagged).
+
+        The decision is in the units of the test that made it: the score of
+        `scores` against h_z where drift_z is finite, else |drift_residual_m|
+        against h_m (metres), so a why line can show either as it is.
+        """
+        if math.isfinite(self.threshold_z) and not math.isfinite(float(features[_Z])):
+            score = abs(float(features[_METRES]))
+            return Decision(flagged=bool(score > self.threshold_m), score=score, threshold=self.threshold_m)
         score = float(self.scores(features)[0])
         return Decision(flagged=bool(score > self.threshold), score=score, threshold=self.threshold)
 
