@@ -16,14 +16,17 @@ from recorders.record import record
 from replay.run.config import load_config
 from replay.run.evaluate import TrialScores, TrialSpec, closed_loop_fpr
 from replay.run.pipeline import replay_archive
-from replay.stack.config import ALL_METHODS, NEW_METHODS, StackConfig
+from replay.stack.config import ALL_METHODS, NEW_METHODS, FeatureConfig, StackConfig
 from replay.stack.detectors.drift_reference import DriftReferenceDetector
-from replay.stack.features import FEATURE_NAMES, StiffReference
+from replay.stack.features import EXTRA_FEATURES, FEATURE_NAMES, FeatureTracker, StiffReference
 from replay.stack.methods import DETECTOR_FACTORIES
 from replay.stack.training import TrainingSet
 
 SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"
 COL = FEATURE_NAMES.index("drift_residual_m")
+ZCOL = FEATURE_NAMES.index("drift_z")
+METRES = StackConfig(drift_reference_input="drift_residual_m")     # the session-12 form: |residual| in metres
+LAT, LON = math.radians(45.7), math.radians(126.6)
 
 
 class MatrixReference:
@@ -121,10 +124,77 @@ def test_stiff_reference_learns_a_dr_offset_but_not_a_minute_long_drift() -> Non
     assert 0.85 * ramp < last <= ramp + 0.5
 
 
-def _rows(residual: np.ndarray) -> np.ndarray:
+def _rows(residual: np.ndarray, z: np.ndarray | None = None) -> np.ndarray:
     x = np.zeros((residual.size, len(FEATURE_NAMES)))
     x[:, COL] = residual
+    x[:, ZCOL] = np.nan if z is None else z
     return x
+
+
+@pytest.mark.parametrize("pooled", [True, False])
+def test_drift_z_is_the_residual_against_both_leaders_recent_non_repeated_residuals(pooled: bool) -> None:
+    """drift_z against a slow reference: (x - median) / max(1.4826 MAD, floor) of the pooled drift residuals.
+
+    Pooled (the default): the epochs aged lag_s..scale_pooled_window_s of both
+    leaders with a finite residual and no repeated range; per leader
+    (``scale_pooled`` False): that leader's aged lag_s..scale_window_s, repeated or not. NaN with fewer
+    than scale_min_samples of them. Ranges are noisy, a fifth repeated.
+    """
+    cfg = replace(FeatureConfig(), scale_pooled=pooled)
+    tracker = FeatureTracker(cfg, ("leader1", "leader2"), LAT, LON)
+    rng = np.random.default_rng(5)
+    geos = {"leader1": (LAT + 4e-5, LON, 0.0), "leader2": (LAT, LON + 6e-5, 0.0)}
+    ix, iz, irep = (EXTRA_FEATURES.index(n) for n in ("drift_residual_m", "drift_z", "repeat_count"))
+    seen: list[tuple[float, str, float, bool]] = []
+    last: dict[str, float] = {}
+    t, checked = 0.0, 0
+    for k in range(520):
+        t += 2.4
+        tracker.propagate(2.4, 0.0, 0.0, 0.0, 0.0)
+        leader = f"leader{k % 2 + 1}"
+        slant = last[leader] if leader in last and rng.random() < 0.2 else 250.0 + float(rng.normal(0, 3.0))
+        last[leader] = slant
+        out = tracker.epoch(t, leader, slant, slant, 0.0, geos[leader])
+        window = cfg.scale_pooled_window_s if pooled else cfg.scale_window_s
+        old = [x for s, ld, x, rep in seen if t - window <= s <= t - cfg.lag_s
+               and (not rep if pooled else ld == leader)]
+        if len(old) < cfg.scale_min_samples:
+            assert math.isnan(out[iz])
+        else:
+            med = float(np.median(old))
+            scale = max(1.4826 * float(np.median(np.abs(np.array(old) - med))), cfg.scale_floor_m)
+            assert out[iz] == pytest.approx((out[ix] - med) / scale, rel=1e-9, abs=1e-9)
+            checked += 1
+        seen.append((t, leader, out[ix], out[irep] > 0))
+    assert checked > 400 and sum(rep for *_, rep in seen) > 50
+
+
+def test_z_threshold_is_configured_and_keeps_the_t1_floor() -> None:
+    """An epoch flags only with |drift_z| > drift_reference_z and |x| > T1; training sets only the metres fallback."""
+    rng = np.random.default_rng(4)
+    n = 4000
+    z = rng.normal(0.0, 1.0, n)
+    x = 6.0 * z
+    det = DriftReferenceDetector(StackConfig(drift_reference_z=2.5))
+    assert det.threshold == det.threshold_z == 2.5
+    det.train(_rows(x, z), x, np.zeros(n, int))
+    assert det.threshold == det.threshold_z == 2.5
+    flags = det.scores(_rows(x, z)) > det.threshold
+    np.testing.assert_array_equal(flags, (np.abs(z) > 2.5) & (np.abs(x) > 9.0))
+    assert flags.sum() > 20
+    # a large z on a residual under T1 is not flagged; the same z beyond T1 is
+    assert not det.decide(_rows(np.array([8.0]), np.array([9.0]))[0]).flagged
+    assert det.decide(_rows(np.array([9.5]), np.array([9.0]))[0]).flagged
+    # where drift_z is NaN the trained metres threshold (98 % of |N(0, 6)|) decides
+    h_m = det.threshold_m
+    assert h_m == pytest.approx(6.0 * 2.326, rel=0.08)
+    assert not det.decide(_rows(np.array([h_m - 0.1]))[0]).flagged
+    fallback = det.decide(_rows(np.array([h_m + 0.1]))[0])
+    assert fallback.flagged and fallback.score == pytest.approx(h_m + 0.1) and fallback.threshold == h_m
+    # the open-loop score ranks it on the z scale: above h_z exactly when beyond h_m
+    assert det.scores(_rows(np.array([h_m + 0.1])))[0] == pytest.approx(2.5 * (h_m + 0.1) / h_m)
+    with pytest.raises(ValueError, match="drift_reference_z"):
+        DriftReferenceDetector(StackConfig(drift_reference_z=0.0))
 
 
 def test_threshold_gives_the_target_false_alarm_rate_on_training() -> None:
@@ -133,7 +203,7 @@ def test_threshold_gives_the_target_false_alarm_rate_on_training() -> None:
     residual = rng.normal(0.0, 6.0, n)
     labels = (rng.random(n) < 0.1).astype(int)
     residual[labels == 1] += 30.0
-    det = DriftReferenceDetector(StackConfig())
+    det = DriftReferenceDetector(METRES)
     det.train(_rows(residual), residual, labels)
     normal = np.abs(residual[labels == 0])
     rate = float(np.mean(normal > det.threshold))
@@ -142,7 +212,7 @@ def test_threshold_gives_the_target_false_alarm_rate_on_training() -> None:
     assert det.threshold == pytest.approx(6.0 * 2.326, rel=0.08)
     assert det.thresholds["training_alarm_rate"] == pytest.approx(rate)
     # a spread far under T1: the threshold stays at T1 (9 m)
-    quiet = DriftReferenceDetector(StackConfig())
+    quiet = DriftReferenceDetector(METRES)
     quiet.train(_rows(rng.normal(0, 1.0, 500)), np.zeros(500), np.zeros(500, int))
     assert quiet.threshold == 9.0
 
@@ -150,7 +220,7 @@ def test_threshold_gives_the_target_false_alarm_rate_on_training() -> None:
 @pytest.mark.parametrize("rate", [0.1, 0.3, 0.5, 1.0])
 def test_detection_delay_on_a_ramp_is_threshold_over_rate(rate: float) -> None:
     """A residual rate·t sampled every 4.8 s is first flagged at the first sample past h / rate, then every one."""
-    det = DriftReferenceDetector(StackConfig())
+    det = DriftReferenceDetector(METRES)
     det.threshold = 13.0
     t = 4.8 * np.arange(1, 200)
     flags = np.array([det.decide(row).flagged for row in _rows(rate * t)])
@@ -165,6 +235,8 @@ def test_drift_reference_is_registered_as_a_new_method() -> None:
     assert "drift_reference" in NEW_METHODS and "drift_reference" in ALL_METHODS
     det = DETECTOR_FACTORIES["drift_reference"](StackConfig())
     assert isinstance(det, DriftReferenceDetector) and det.wide
+    with pytest.raises(ValueError, match="drift_reference_input"):
+        DriftReferenceDetector(StackConfig(drift_reference_input="f2"))
     why = det.explain(_rows(np.array([12.0]))[0])
     assert why.residual_m == 12.0 and why.flagged
 

@@ -61,6 +61,11 @@ class FeatureConfig:
     scale_window_s: float = 300.0       # drift_z: median and MAD of the drift residuals of this window ...
     scale_min_samples: int = 8          # ... older than lag_s, at least this many
     scale_floor_m: float = 1.0          # ... the MAD-scale never below this (m)
+    # drift_z: one history of every leader's drift residuals (the stiff reference is one filter of the
+    # follower's DR error, its spread the mission's), leaving out repeated ranges, aged lag_s to
+    # scale_pooled_window_s; False: one per leader, aged lag_s to scale_window_s, repeated or not
+    scale_pooled: bool = True
+    scale_pooled_window_s: float = 900.0   # 300 / 600 / 900 / 1200 s: recall 0.47 / 0.61 / 0.75 / 0.78 at 2 %
     cusum_input: str = "drift_z"        # cusum_drift sums drift_z (sigmas) or drift_residual_m (metres, k/h in m)
     cusum_k_sigma: float = 0.5          # cusum_drift's allowance on drift_z (detects shifts of 1 sigma and up)
     cusum_h_sigma: float = 5.0          # cusum_drift's alarm level before calibration; its floor is half of it
@@ -121,6 +126,12 @@ class StackConfig:
     features: FeatureConfig = field(default_factory=FeatureConfig)
     injection: InjectionConfig = field(default_factory=InjectionConfig)
     detection_fpr_target: float = 0.02           # the new methods' threshold: this false-alarm rate on training
+    # drift_reference tests |drift_z| (the residual against the mission's own pooled scale) against
+    # drift_reference_z, or, the session-12 form, |drift_residual_m| against the training quantile (m)
+    drift_reference_input: str = "drift_z"
+    # h_z, not trained: a training window's 98 % quantile of drift_z does not predict the later one's
+    # (r = 0.01 over seeds 0-19); 3.0 flags 1.9 % of the normal epochs after t_a of seeds 0-19 pooled
+    drift_reference_z: float = 3.0
     training_source: str = "own"                  # "own" window, a "given" TrainingSet, or "both"
     # anfis_hybrid's inputs, by name from replay.stack.features.FEATURE_NAMES
     hybrid_inputs: tuple[str, ...] = ("f2", "repeat_count", "drift_residual_m", "usbl_residual_m")

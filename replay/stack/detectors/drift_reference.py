@@ -1,8 +1,8 @@
-"""The ``drift_reference`` detector: the range against the stiff reference, thresholded for a target false-alarm rate.
+"""The ``drift_reference`` detector: the range against the stiff reference, on the mission's own scale.
 
-Its score is |drift_residual_m| of `replay.stack.features`: with the default
-``drift_source`` "stiff", the innovation of a filter of the follower's
-dead-reckoning error that is stiff enough (2-D random walk of 3e-4 m²/s)
+Its input is the innovation of the `replay.stack.features` stiff reference
+(``drift_residual_m``, default ``drift_source`` "stiff"): a filter of the
+follower's dead-reckoning error (2-D random walk of 3e-4 m²/s) stiff enough
 to follow the DR error and the rotating geometry but not a drift of a
 minute, and that takes the USBL fixes where they exist. The ACKF follows a
 slow drift; this reference does not, so the residual grows with the drift
@@ -11,23 +11,31 @@ epoch while the residual stays beyond the threshold, so there is no sum to
 restart after an alarm (STACK.md section 2) and its per-epoch recall is not
 capped as a restarting CUSUM's is.
 
-The threshold h is the (1 - ``StackConfig.detection_fpr_target``) quantile
-(default 98 %) of the score over the training rows labelled normal (the
-recorded ones when there are enough, as `CusumDriftDetector.train_on`), never
-below ``t1_m`` (a residual under the label threshold is not an anomaly). The
-runner trains it on every leader's rows together (one quantile of one
-reference's residual; a leader's ~100 normal rows leave the 98 % quantile to
-its two largest). For a ramp residual rate·t its detection delay is h / rate
-(tests check it).
+It flags an epoch when |drift_z| > h_z and |drift_residual_m| > ``t1_m``
+(a residual under the label threshold is not an anomaly). drift_z is the
+residual against the median and MAD-scale of both leaders' residuals of
+60-900 s ago (repeated ranges left out; features module), so the threshold
+follows the trial's DR error. h_z is ``StackConfig.drift_reference_z``
+(3.0), NOT trained: over development seeds 0-19 the 98 % quantile of
+drift_z in a training window (the first 600 s, where the pool is young and
+the DR error small) was 2.1-5.2 and uncorrelated with the same trial's
+after t_a (r = 0.01; those ranged 2.3-4.1), so a trained h_z carried no
+information about the test and its false-alarm rate spread as the metres
+one did. 3.0 flags 1.9 % of the normal epochs after t_a of seeds 0-19
+pooled (calibrated on 0-9 it gave 2.7 % on 10-19, on 10-19 1.2 % on 0-9).
+Where drift_z is NaN (the first ~70 s of a run) the metres threshold h_m
+decides: the (1 - ``detection_fpr_target``) quantile of |drift_residual_m|
+over the training rows labelled normal, never below ``t1_m``. The runner
+trains it on every leader's rows together.
 
-What h does not do: carry its false-alarm rate to other trials. Over
-training seeds 0-19 the 98 % quantile of a 600 s window ranged 9-18 m, and
-the false-alarm rate it gave on the other seeds 0.7-13.5 % (mean 3.7 %):
-the residual's spread is the trial's DR error. A running scale instead (c
-times the MAD-scale of the leader's last 600 s, c from training) was tried
-and dropped: per leader, the stale ranges of leader 1 inflate the scale,
-and development seeds 1-9 trained on 0 lost half the drift recall (0.30
-against 0.62).
+``drift_reference_input = "drift_residual_m"`` keeps the session-12 form:
+|drift_residual_m| against h_m alone. Its h_m did not carry its false-alarm
+rate to other trials: over training seeds 0-19 the 98 % quantile of a
+600 s window ranged 9-18 m, and the false-alarm rate it gave on the other
+seeds 1.2-17 % (mean 5.0 %; session 12 measured 0.7-13.5 %, mean 3.7 %,
+on other runs): the residual's spread is the trial's DR error.
+For a ramp residual rate·t its detection delay is h_m / rate (tests check
+it).
 """
 
 from __future__ import annotations
@@ -43,7 +51,9 @@ from replay.stack.detectors.base import Decision
 from replay.stack.features import FEATURE_NAMES
 from replay.stack.training import TrainingSet
 
-_COLUMN = FEATURE_NAMES.index("drift_residual_m")
+_METRES = FEATURE_NAMES.index("drift_residual_m")
+_Z = FEATURE_NAMES.index("drift_z")
+_INPUTS = ("drift_z", "drift_residual_m")
 _MIN_RECORDED = 100
 
 
@@ -52,21 +62,32 @@ class DriftReferenceExplanation:
     """Why drift_reference did (not) flag one epoch, for the views."""
 
     residual_m: float      # drift_residual_m: the range minus the stiff reference's prediction
-    threshold_m: float     # h
+    threshold_m: float     # h_m, the metres threshold (used where drift_z is NaN, or with the metres input)
     flagged: bool
+    z: float = math.nan            # drift_z: the residual in units of the mission's pooled recent scale
+    threshold_z: float = math.nan  # h_z (NaN with the metres input)
 
 
 class DriftReferenceDetector:
-    """``drift_reference``: flags |drift_residual_m| > h, h set by the target false-alarm rate on training."""
+    """``drift_reference``: flags |drift_z| > h_z with |drift_residual_m| > t1_m (h_z configured, h_m trained)."""
 
     name = "drift_reference"
     wide = True       # takes the whole FEATURE_NAMES vector, not paper A's (f1, f2, f3)
 
     def __init__(self, config: StackConfig) -> None:
-        """h = t1_m until training."""
+        """h_m = t1_m until training; h_z = ``drift_reference_z`` (drift_z input) or none (metres input)."""
+        if config.drift_reference_input not in _INPUTS:
+            raise ValueError(f"drift_reference_input must be one of {_INPUTS}, got {config.drift_reference_input!r}")
+        if not config.drift_reference_z > 0.0:
+            raise ValueError(f"drift_reference_z must be positive, got {config.drift_reference_z!r}")
         self.config = config
-        self.threshold = float(config.t1_m)
-        self.thresholds: dict[str, float] = {"configured": self.threshold}
+        self.t1 = float(config.t1_m)
+        self.threshold_m = self.t1
+        # h_z is a configured multiple, not trained (config: one window's quantile does not carry)
+        self.threshold_z = float(config.drift_reference_z) if config.drift_reference_input == "drift_z" \
+            else math.nan
+        self.threshold = self.threshold_z if math.isfinite(self.threshold_z) else self.t1
+        self.thresholds: dict[str, float] = {"configured": self.t1}
 
     def train_on(self, ts: TrainingSet) -> None:
         """`train` on the recorded rows when they hold enough normal epochs, else on every row."""
@@ -75,30 +96,53 @@ class DriftReferenceDetector:
         self.train(use.features, use.range_error, use.labels)
 
     def train(self, features: np.ndarray, range_error: np.ndarray, labels: np.ndarray) -> None:
-        """Set h so that at most the target share of the rows labelled normal score above it."""
-        x = np.abs(np.asarray(features, dtype=float).reshape(-1, len(FEATURE_NAMES))[:, _COLUMN])
-        normal = x[np.asarray(labels).ravel() == 0]
-        h = max(fpr_threshold(normal, self.config.detection_fpr_target), float(self.config.t1_m))
-        if not math.isfinite(h):        # no finite normal score: the floor
-            h = float(self.config.t1_m)
-        finite = normal[np.isfinite(normal)]
-        self.threshold = h
-        self.thresholds = {"fpr_target": h, "configured": float(self.config.t1_m), "used": h,
-                           "training_alarm_rate": float(np.mean(finite > h)) if finite.size else float("nan")}
+        """Set h_m so that at most the target share of the rows labelled normal score above it (h_z stays)."""
+        x = np.asarray(features, dtype=float).reshape(-1, len(FEATURE_NAMES))
+        normal = np.asarray(labels).ravel() == 0
+        target = self.config.detection_fpr_target
+        h_m = max(fpr_threshold(np.abs(x[normal, _METRES]), target), self.t1)
+        self.threshold_m = h_m if math.isfinite(h_m) else self.t1      # no finite normal score: the floor
+        self.threshold = self.threshold_z if math.isfinite(self.threshold_z) else self.threshold_m
+        s = self.scores(x[normal])
+        finite = s[np.isfinite(s)]
+        self.thresholds = {"fpr_target": self.threshold_m, "configured": self.t1, "used": self.threshold,
+                           "metres": self.threshold_m,
+                           "training_alarm_rate": float(np.mean(finite > self.threshold)) if finite.size
+                           else float("nan")}
 
     def decide(self, features: np.ndarray) -> Decision:
-        """Flag when |drift_residual_m| exceeds h (a NaN residual is not flagged)."""
-        score = abs(float(features[_COLUMN]))
+        """Flag when the score exceeds the threshold (a NaN residual is not flagged).
+
+        The decision is in the units of the test that made it: the score of
+        `scores` against h_z where drift_z is finite, else |drift_residual_m|
+        against h_m (metres), so a why line can show either as it is.
+        """
+        if math.isfinite(self.threshold_z) and not math.isfinite(float(features[_Z])):
+            score = abs(float(features[_METRES]))
+            return Decision(flagged=bool(score > self.threshold_m), score=score, threshold=self.threshold_m)
+        score = float(self.scores(features)[0])
         return Decision(flagged=bool(score > self.threshold), score=score, threshold=self.threshold)
 
     def scores(self, features: np.ndarray) -> np.ndarray:
-        """Open-loop scores |drift_residual_m| of the rows (n, F)."""
-        return np.abs(np.asarray(features, dtype=float).reshape(-1, len(FEATURE_NAMES))[:, _COLUMN])
+        """Open-loop scores of the rows (n, F), on the scale of ``threshold``.
+
+        With h_z: min(|z|, h_z·|x|/t1_m), above h_z exactly when |z| > h_z and
+        |x| > t1_m (a residual under the label threshold is not an anomaly);
+        where z is NaN, h_z·|x|/h_m (the metres threshold). Without h_z: |x|.
+        """
+        rows = np.asarray(features, dtype=float).reshape(-1, len(FEATURE_NAMES))
+        x = np.abs(rows[:, _METRES])
+        h_z = self.threshold_z
+        if not math.isfinite(h_z):
+            return x
+        z = np.abs(rows[:, _Z])
+        floored = np.minimum(z, h_z * x / self.t1) if self.t1 > 0.0 else z
+        return np.where(np.isfinite(z), floored, h_z * x / self.threshold_m)
 
     def reset(self) -> None:
         """No memory to forget."""
 
     def explain(self, features: np.ndarray) -> DriftReferenceExplanation:
-        """The residual and h at this epoch."""
-        score = float(features[_COLUMN])
-        return DriftReferenceExplanation(score, self.threshold, abs(score) > self.threshold)
+        """The residual, its standardized value and the thresholds at this epoch."""
+        return DriftReferenceExplanation(float(features[_METRES]), self.threshold_m,
+                                         self.decide(features).flagged, float(features[_Z]), self.threshold_z)
