@@ -79,7 +79,7 @@ class EpochResult(NamedTuple):
     drift_residual_m: float = NAN     # usbl_residual_m, else lag_residual_m, else dr_residual_m
     drift_cusum_m: float = NAN        # max(S+, S-) of the drift residual's CUSUM
     exclusion_residual_m: float = NAN  # range - range of the ACKF on DR and the other leaders' ranges only
-    drift_z: float = NAN              # drift residual against its median / MAD-scale of 60-300 s ago
+    drift_z: float = NAN              # drift residual against all leaders' median / MAD-scale of 60-900 s ago
     exclusion_z: float = NAN          # exclusion residual against its median / MAD-scale of 60-300 s ago
 
 

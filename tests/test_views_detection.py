@@ -61,11 +61,16 @@ def test_why_lines_name_each_detectors_statistic_and_threshold() -> None:
 
     assert why_line(_result("anfis_hybrid", True, 12.0, 10.4)) == "output 12.00 m > thr 10.40 m"
 
-    dref = DriftReferenceDetector(cfg)              # untrained: h = T1 = 9 m
-    r = _result("drift_reference", False, 0.0, 0.0, drift_residual_m=-14.5)
+    dref = DriftReferenceDetector(cfg)
+    r = _result("drift_reference", False, 0.0, 0.0, drift_residual_m=-14.5)      # no drift_z yet: metres
     d = dref.decide(wide_features(r))
-    assert why_line(r._replace(flagged=d.flagged, score=d.score, threshold=d.threshold)) == \
-        "|drift residual| 14.50 m > h 9.00 m"
+    assert why_line(r._replace(flagged=d.flagged, score=d.score, threshold=d.threshold), dref) == \
+        f"|drift residual| 14.50 m > h {dref.threshold_m:.2f} m"
+    r = _result("drift_reference", False, 0.0, 0.0, drift_residual_m=-14.5, drift_z=-4.2)
+    d = dref.decide(wide_features(r))
+    assert d.flagged and d.threshold == dref.threshold_z
+    assert why_line(r._replace(flagged=d.flagged, score=d.score, threshold=d.threshold), dref) == \
+        f"score {d.score:.2f} > h {dref.threshold_z:.2f} sd (drift_z -4.20, residual -14.5 m, needs > T1 too)"
     assert why_line(_result("dual_threshold", False, math.nan, 1.0)) == "not judged (a feature is missing at this epoch)"
 
 

@@ -6,7 +6,8 @@ dual_threshold's two tests (f2 over the gate, the CUSUM of the predicted error o
 flagged when either exceeds 1); the ANFIS family's output against T2 (metres);
 cusum_drift's max(S+, S-) against h, with the residual summed and its allowance k;
 anfis_hybrid's output against its false-alarm-rate threshold, with its named inputs;
-drift_reference's |drift_residual_m| (the range against the stiff reference) against h.
+drift_reference's min(|drift_z|, h_z·|drift_residual_m|/T1) against h_z in sd where drift_z
+exists, else |drift_residual_m| (the range against the stiff reference) against h_m in metres.
 Lines are plain ASCII: the Rerun viewer aborts on a glyph its font lacks.
 """
 
@@ -89,7 +90,13 @@ def _anfis_hybrid(r: EpochResult, det: Any) -> str:
     return text
 
 
-def _drift_reference(r: EpochResult) -> str:
+def _drift_reference(r: EpochResult, det: Any) -> str:
+    # the decision is in sd where drift_z exists and the detector tests it (h_z), else in metres (h_m)
+    h_z = float(getattr(det, "threshold_z", math.nan)) if det is not None else math.nan
+    in_sd = math.isfinite(r.drift_z) and (det is None or math.isfinite(h_z))
+    if in_sd:
+        return (f"score {_num(r.score)} {_cmp(r.flagged)} h {_num(r.threshold)} sd "
+                f"(drift_z {r.drift_z:+.2f}, residual {r.drift_residual_m:+.1f} m, needs > T1 too)")
     return f"|drift residual| {_num(r.score)} m {_cmp(r.flagged)} h {_num(r.threshold)} m"
 
 
@@ -113,5 +120,5 @@ def why_line(r: EpochResult, detector: Any | None = None) -> str:
     if m == "anfis_hybrid":
         return _anfis_hybrid(r, detector)
     if m == "drift_reference":
-        return _drift_reference(r)
+        return _drift_reference(r, detector)
     return f"score {r.score:.3g} {_cmp(r.flagged)} threshold {r.threshold:.3g}"

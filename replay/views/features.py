@@ -50,7 +50,7 @@ SCORED: dict[str, str] = {
     "dual_threshold": "dual_threshold vs 1",
     "cusum_drift": "cusum_drift S vs h (sd)",
     "anfis_hybrid": "anfis_hybrid vs thr (m)",
-    "drift_reference": "drift_reference |residual| vs h (m)",
+    "drift_reference": "drift_reference vs h (sd)",
 }
 REFERENCE_NAMES: dict[str, str] = {"usbl_residual_m": "USBL fix", "lag_residual_m": "lagged ACKF",
                                    "exclusion_residual_m": "other leaders"}
@@ -128,7 +128,7 @@ def log_detector_scores(rec: rr.RecordingStream, run: Run) -> None:
         ("chi_square", "f2 against its chi-square gate"), ("dual_threshold", "max(f2/gate, CUSUM S/h) against 1"),
         ("cusum_drift", "max(S+, S-) of drift_z against h, in sd"),
         ("anfis_hybrid", "output against the threshold of its 2 % training FPR, in m"),
-        ("drift_reference", "|range - stiff reference| against h, in m")))
+        ("drift_reference", "min(|drift_z|, h*|residual|/T1) against h, in sd (m before drift_z exists)")))
     rec.log(run.path("scores", "key"), rr.TextDocument(
         "Detector plots, one line per leader:\n\n" + "\n".join(key) + "\n- grey: the detector's threshold\n\n"
         "ANFIS plots: each method in its Scoreboard colour, its T2 as a step line of the same colour; "
