@@ -41,13 +41,14 @@ from formats import acoustic_messages as AM
 from formats import regex_lines as rx
 from formats.evologics import notifications as ev
 from formats.evologics import scan as evs
+from formats.log_blocks import LogText
 from formats.micromodem import scan as mms
 from formats.micromodem import sentences as mm
 from formats.records import FormatError, Reject, Where
 from formats.scanned import positions
 from formats.schemas import AcousticRange, Log, timestamp
 
-from .base import Converter, Ignored, LogContext, Output, output
+from .base import BlockConverter, Converter, Ignored, LogContext, Output, blockwise, output
 from .clock import DAY_NS, NS, DayClock
 
 SUFFIX = "modem/range"
@@ -407,7 +408,7 @@ def travel_and_range(values: Mapping[str, float], c: float) -> tuple[float, floa
     return r / c, r
 
 
-def regex_outputs(data: bytes, ctx: LogContext, opts: RegexOptions,
+def regex_outputs(data: LogText, ctx: LogContext, opts: RegexOptions,
                   build: Callable[[rx.RegexRecord, int], Output | Reject]) -> Iterator[Output | Reject]:
     """`build(record, time)` for each matched line of a regex log, or a Reject (the line's own or its time's)."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
@@ -429,7 +430,7 @@ def _regex_range(ctx: LogContext, opts: RegexOptions, rec: rx.RegexRecord, t: in
     return acoustic_range(ctx, t, rec.where, endpoint(ctx, rec.source), measurer, tt, "user", "regex", opts.c)
 
 
-def convert_regex(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_regex(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
     """User-pattern log -> ranges; a bad pattern raises FormatError at once."""
     opts = regex_options(ctx)
     if "source" not in opts.pattern.groupindex:
@@ -442,3 +443,5 @@ CONVERTERS: dict[str, Converter] = {
     "evologics": convert_evologics,
     "regex": convert_regex,
 }
+# the formats whose logs are converted block by block, in bounded memory (`recorders.base.blockwise`)
+BLOCK_CONVERTERS: dict[str, BlockConverter] = {"regex": blockwise(convert_regex)}

@@ -34,11 +34,12 @@ from formats import acoustic_messages as AM
 from formats import regex_lines as rx
 from formats.evologics import notifications as ev
 from formats.evologics import scan as evs
+from formats.log_blocks import LogText
 from formats.records import FormatError, Reject, Where
 from formats.scanned import positions
 from formats.schemas import UsblObservation, timestamp
 
-from .base import Converter, LogContext, Output, output
+from .base import BlockConverter, Converter, LogContext, Output, blockwise, output
 from .clock import NS, plausible_ns
 from .modem import (
     NO_USBL_TIME,
@@ -218,7 +219,7 @@ def _regex_observation(ctx: LogContext, opts: RegexOptions, rec: rx.RegexRecord,
     return output(ctx, SUFFIX, msg, t, rec.where)
 
 
-def convert_regex(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_regex(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
     """User-pattern USBL log -> observations; a bad pattern raises FormatError at once."""
     opts = regex_options(ctx, require_range=False)
     names = set(opts.pattern.groupindex)
@@ -233,3 +234,5 @@ CONVERTERS: dict[str, Converter] = {
     "evologics": convert_evologics,
     "regex": convert_regex,
 }
+# the formats whose logs are converted block by block, in bounded memory (`recorders.base.blockwise`)
+BLOCK_CONVERTERS: dict[str, BlockConverter] = {"regex": blockwise(convert_regex)}
