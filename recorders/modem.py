@@ -251,7 +251,7 @@ class _ScanPings:
         return Output(self.topic, msg, t, t if publish is None else publish, Where(offset, line, host))
 
 
-def _micromodem_scan(data: bytes, ctx: LogContext, opts: MicromodemOptions) -> Iterator[Output | Reject | Ignored]:
+def _micromodem_scan(data: LogText, ctx: LogContext, opts: MicromodemOptions) -> Iterator[Output | Reject | Ignored]:
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     ping = _ScanPings(ctx, opts.c)
     own = ping.own
@@ -297,7 +297,7 @@ def _micromodem_scan(data: bytes, ctx: LogContext, opts: MicromodemOptions) -> I
                 yield Ignored(Where(offset, line, host), MICROMODEM_UNUSED[kind])
 
 
-def convert_micromodem(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+def convert_micromodem(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     """WHOI Micro-Modem log -> ranges (options are checked before the first record)."""
     return _micromodem_scan(data, ctx, micromodem_options(ctx))
 
@@ -444,4 +444,6 @@ CONVERTERS: dict[str, Converter] = {
     "regex": convert_regex,
 }
 # the formats whose logs are converted block by block, in bounded memory (`recorders.base.blockwise`)
-BLOCK_CONVERTERS: dict[str, BlockConverter] = {"regex": blockwise(convert_regex)}
+BLOCK_CONVERTERS: dict[str, BlockConverter] = {
+    "micromodem": blockwise(convert_micromodem), "regex": blockwise(convert_regex),
+}

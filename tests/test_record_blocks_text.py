@@ -16,6 +16,7 @@ from formats import regex_lines as rx
 from formats.log_blocks import blocks_of
 from recorders import dvl, ins, modem, usbl
 from recorders.base import LogContext
+from recorders.manifest import load_manifest
 from recorders.record import RECORDS_WINDOW, RecordCount
 from recorders.registry import block_converters
 from tests.hostile import run_child
@@ -24,6 +25,8 @@ from tests.test_record_blocks import RSS_LIMIT_KB, _plain
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "samples" / "lake_trial"
 PHINS = (SAMPLE / "leader1" / "ins.log").read_bytes()
+MICROMODEM = (SAMPLE / "follower" / "modem.log").read_bytes()
+BOOK = load_manifest(SAMPLE / "trial.toml").address_book()
 S = 10**9
 T_MIDNIGHT = 1476316790 * S  # 2016-10-12T23:59:50Z: the day clock must roll over across blocks
 CTX = LogContext(vehicle="v", trial_date=date(2016, 10, 12))
@@ -94,6 +97,7 @@ CASES = {  # (sensor, format): (whole-log converter, log, manifest options)
     ("dvl", "pd6"): (dvl.convert_pd6, _pd6(), {}),
     ("dvl", "waterlinked"): (dvl.convert_waterlinked, _waterlinked(), {}),
     ("dvl", "nortek"): (dvl.convert_nortek, _nortek(), {}),
+    ("modem", "micromodem"): (modem.convert_micromodem, MICROMODEM, {}),
     ("modem", "regex"): (modem.convert_regex, _benthos(), BENTHOS_OPTIONS),
     ("usbl", "regex"): (usbl.convert_regex, _usbl(), USBL_OPTIONS),
 }
@@ -109,7 +113,7 @@ def test_text_formats_in_blocks_give_the_whole_logs_outputs(key, seed):
     convert, data, options = CASES[key]
     data = data if seed is None else _damage(data, seed)
     ctx = LogContext(vehicle="v", trial_date=date(2016, 10, 12), options=options,
-                     address_book={1: "leader1", 2: "leader2", 3: "follower"})
+                     address_book=BOOK)
     whole = _plain(convert(data, ctx))
     outputs = [item for item in whole if isinstance(item, tuple)]
     assert len(outputs) > 90, key
