@@ -316,7 +316,7 @@ def evologics_problem(us: float, address: int) -> str | None:
     return None
 
 
-def _evologics_scan(data: bytes, ctx: LogContext, c: float) -> Iterator[Output | Reject]:
+def _evologics_scan(data: LogText, ctx: LogContext, c: float) -> Iterator[Output | Reject]:
     """`_evologics` over `formats.evologics.scan` tuples, messages from packed wire bytes."""
     me, address, offset_ns = ctx.vehicle, own_address(ctx), ctx.clock_offset_ns
     topic, names = f"/{me}/{SUFFIX}", dict[int, str]()
@@ -360,7 +360,7 @@ def _evologics_scan(data: bytes, ctx: LogContext, c: float) -> Iterator[Output |
         yield Output(topic, msg, t, publish, Where(offset, line, host))
 
 
-def convert_evologics(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_evologics(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
     """EvoLogics S2C log -> ranges from propagation times and USBL fixes."""
     return _evologics_scan(data, ctx, sound_speed(ctx))
 
@@ -445,5 +445,6 @@ CONVERTERS: dict[str, Converter] = {
 }
 # the formats whose logs are converted block by block, in bounded memory (`recorders.base.blockwise`)
 BLOCK_CONVERTERS: dict[str, BlockConverter] = {
-    "micromodem": blockwise(convert_micromodem), "regex": blockwise(convert_regex),
+    "micromodem": blockwise(convert_micromodem), "evologics": blockwise(convert_evologics),
+    "regex": blockwise(convert_regex),
 }

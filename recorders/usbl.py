@@ -166,7 +166,7 @@ class _ScanEmitter:
         return Output(self.topic, msg, t, publish, Where(offset, line, host))
 
 
-def _evologics_scan(data: bytes, ctx: LogContext, opts: UsblOptions) -> Iterator[Output | Reject]:
+def _evologics_scan(data: LogText, ctx: LogContext, opts: UsblOptions) -> Iterator[Output | Reject]:
     emit = _ScanEmitter(ctx, opts)
     first: evs.Scanned | None = None
     parts: dict[str, list] = {}
@@ -190,7 +190,7 @@ def _evologics_scan(data: bytes, ctx: LogContext, opts: UsblOptions) -> Iterator
         yield emit(first, parts)
 
 
-def convert_evologics(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_evologics(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
     """EvoLogics USBL log -> one UsblObservation per measurement."""
     return _evologics_scan(data, ctx, usbl_options(ctx))
 
@@ -235,4 +235,6 @@ CONVERTERS: dict[str, Converter] = {
     "regex": convert_regex,
 }
 # the formats whose logs are converted block by block, in bounded memory (`recorders.base.blockwise`)
-BLOCK_CONVERTERS: dict[str, BlockConverter] = {"regex": blockwise(convert_regex)}
+BLOCK_CONVERTERS: dict[str, BlockConverter] = {
+    "evologics": blockwise(convert_evologics), "regex": blockwise(convert_regex),
+}

@@ -12,6 +12,8 @@ from pathlib import Path
 import pytest
 
 from formats import nortek, pashr, pd6, waterlinked
+from formats.evologics import notifications as ev
+from formats.micromodem import sentences as mm
 from formats import regex_lines as rx
 from formats.log_blocks import blocks_of
 from recorders import dvl, ins, modem, usbl
@@ -26,6 +28,7 @@ ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "samples" / "lake_trial"
 PHINS = (SAMPLE / "leader1" / "ins.log").read_bytes()
 MICROMODEM = (SAMPLE / "follower" / "modem.log").read_bytes()
+USBL = (SAMPLE / "buoy1" / "usbl.log").read_bytes()
 BOOK = load_manifest(SAMPLE / "trial.toml").address_book()
 S = 10**9
 T_MIDNIGHT = 1476316790 * S  # 2016-10-12T23:59:50Z: the day clock must roll over across blocks
@@ -77,6 +80,17 @@ def _nortek() -> bytes:
                    for k in range(300)).encode()
 
 
+def _evologics() -> bytes:
+    """Deliveries, framed AT?T replies, the two-line unframed one, and framed instant messages whose payload
+    holds line ends (a frame spanning lines, perhaps blocks)."""
+    t0 = 1476259200 * S
+    return "".join(
+        mm.host_line(t0 + k * S, ev.encode_delivered_im(1 + k % 2))
+        + mm.host_line(t0 + k * S + S // 4, ev.encode_propagation_time(0.3 + k / 1000, framed=k % 3 != 0))
+        + ev.encode_recvim(2, 3, b"ab\ncd\r\nef" * (1 + k % 3), framed=True)
+        for k in range(150)).encode("latin-1")
+
+
 def _benthos() -> bytes:
     return b"".join(b"%02d:%02d:%02d.200 Range 1 to 2 : %.1f m (Round-trip %.1f ms)\n"
                     % (12 + k // 3600, k // 60 % 60, k % 60, 500.0 + k, (500.0 + k) / 1500 * 2000)
@@ -98,6 +112,8 @@ CASES = {  # (sensor, format): (whole-log converter, log, manifest options)
     ("dvl", "waterlinked"): (dvl.convert_waterlinked, _waterlinked(), {}),
     ("dvl", "nortek"): (dvl.convert_nortek, _nortek(), {}),
     ("modem", "micromodem"): (modem.convert_micromodem, MICROMODEM, {}),
+    ("modem", "evologics"): (modem.convert_evologics, _evologics(), {}),
+    ("usbl", "evologics"): (usbl.convert_evologics, USBL, {"carrier_hz": 75000.0}),
     ("modem", "regex"): (modem.convert_regex, _benthos(), BENTHOS_OPTIONS),
     ("usbl", "regex"): (usbl.convert_regex, _usbl(), USBL_OPTIONS),
 }
