@@ -256,7 +256,7 @@ def _nmea_ins(records: list[nmea.NmeaRecord], ctx: LogContext, clock: DayClock) 
     yield output(ctx, "ins", ins_state(t, ctx, source, **f), t, records[0].where)
 
 
-def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_nmea(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
     """NMEA heading ($--HDT, $--THS) and position/velocity sentences from an INS or gyrocompass."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     for epoch in record_epochs(data, ctx.prefix):
@@ -270,4 +270,6 @@ CONVERTERS: dict[str, Converter] = {
     "phins": convert_phins, "pashr": convert_pashr, "novatel": convert_span, "nmea": convert_nmea,
 }
 # the formats whose logs are converted block by block, in bounded memory (`recorders.base.blockwise`)
-BLOCK_CONVERTERS: dict[str, BlockConverter] = {"phins": blockwise(convert_phins), "pashr": blockwise(convert_pashr)}
+BLOCK_CONVERTERS: dict[str, BlockConverter] = {
+    "phins": blockwise(convert_phins), "pashr": blockwise(convert_pashr), "nmea": blockwise(convert_nmea),
+}

@@ -449,15 +449,18 @@ def _scan_general(raw: str, line_start: int, number: int, prefix: str) -> Iterat
             yield result
 
 
-def decode(data: bytes, prefix: str = "auto") -> Iterator[NmeaRecord | Reject]:
-    """Stream every GNSS sentence record (or Reject) in a log, in file order (see `scan`)."""
+def decode(data: LogText, prefix: str = "auto") -> Iterator[NmeaRecord | Reject]:
+    """Stream every GNSS sentence record (or Reject) in a log, whole or in blocks, in file order (see `scan`)."""
+    if prefix not in PREFIX_STYLES:
+        raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
     records = RECORDS
-    for item in scan(data, prefix):
-        if isinstance(item, Reject):
-            yield item
-        else:
-            kind, talker, values, offset, line, host = item
-            yield records[kind](Where(offset, line, host), talker, *values)
+    for block in blocks_in(data):
+        for item in scan(block.data, prefix, block.offset, block.lines):
+            if isinstance(item, Reject):
+                yield item
+            else:
+                kind, talker, values, offset, line, host = item
+                yield records[kind](Where(offset, line, host), talker, *values)
 
 
 # ---------------------------------------------------------------- encoders
