@@ -4,7 +4,14 @@ A converter turns one log file's bytes into archive messages. It is a plain
 function ``convert(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]``
 registered in its family module's ``CONVERTERS`` mapping under the manifest's
 format name (``recorders.gps.CONVERTERS["nmea"]``). Converters never raise on
-bad records: they yield a `formats.records.Reject` and go on.
+bad records: they yield a `formats.records.Reject` and go on. A record's
+outputs come together (per record, or per epoch as it closes): the recording
+counts records parsed in a bounded window (`recorders.record.RecordCount`).
+
+A line-based format's converter also takes the log in blocks: it is listed
+in its module's ``BLOCK_CONVERTERS``, as is or through `blockwise` when its
+decoder reads a `formats.log_blocks.LogText`; the recording then holds one
+block of the log at a time, not the whole log.
 """
 
 from __future__ import annotations
