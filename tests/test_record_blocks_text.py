@@ -10,12 +10,18 @@ from datetime import date
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from formats import nortek, pashr, pd6, waterlinked
+from formats import alog as alog_format
+from formats import csv_table, lines, nortek, pashr, pd6, phins, waterlinked
 from formats import regex_lines as rx
 from formats.evologics import notifications as ev
-from formats.log_blocks import blocks_of
+from formats.evologics import scan as evologics_scan
+from formats.log_blocks import LogBlocks, blocks_of
+from formats.micromodem import scan as micromodem_scan
 from formats.micromodem import sentences as mm
+from formats.nmea import sentences as nmea
 from recorders import alog, csvlog, dvl, ins, modem, usbl
 from recorders.base import LogContext
 from recorders.manifest import SENSORS, load_manifest
@@ -233,3 +239,22 @@ def test_phins_record_memory_does_not_grow_with_the_log(tmp_path):
         rc, err, peaks[size] = run_child("record", str(manifest), "-o", str(tmp_path / f"{size}.mcap"), "--quiet")
         assert rc == 0, err
     assert peaks[large] < RSS_LIMIT_KB and peaks[large] - peaks[small] < (large - small) / 2 / 1024, peaks
+
+
+LINES = [line for log in (PHINS[:3000], GPS[:2000], MICROMODEM[:3000], USBL[:2000], _csv()[:300], _evologics()[:600])
+         for line in log.split(b"\n")] + [b"", b"\r", b"\x0c", b"\xef\xbb\xbf", b"\xff\xfe", b"\xc2\x85", b"t;lat"]
+DECODERS = {
+    "lines": lambda data: lines.iter_lines(data), "frames": lambda data: nmea.iter_frames(data),
+    "nmea": lambda data: nmea.decode(data), "phins": lambda data: phins.scan(data),
+    "micromodem": lambda data: micromodem_scan.scan(data), "evologics": lambda data: evologics_scan.scan(data),
+    "csv": lambda data: csv_table.decode(data), "alog": lambda data: alog_format.decode(data),
+}
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.sampled_from(LINES), max_size=60), st.integers(1, 400), st.sampled_from(sorted(DECODERS)))
+def test_line_decoders_in_blocks_are_the_whole_logs(picked, size, name):
+    data = b"\n".join(picked)
+    decode = DECODERS[name]
+    longest = max(map(len, data.split(b"\n")))
+    assert list(decode(LogBlocks(blocks_of(data, max(size, longest + 1))))) == list(decode(data))
