@@ -213,8 +213,6 @@ class RecordCount:
 
     def add(self, key: int) -> None:
         """Count `key` unless it is among the last RECORDS_WINDOW distinct ones."""
-        if key == self.last:  # a record's second message (a fix, then its status)
-            return
         self.last = key
         seen = self.seen
         if key in seen:
@@ -265,7 +263,10 @@ class LogRecorder:
         st = self.stats
         st.messages += 1
         where = item.where
-        self.records.add(where.offset if where is not None else -st.messages)  # no position: one record each
+        key = where.offset if where is not None else -st.messages  # no position: one record each
+        records = self.records
+        if key != records.last:  # not a record's second message (a fix, then its status): no call
+            records.add(key)
         prev = self.last_ns.get(topic)
         if prev is None or t > prev:
             self.last_ns[topic] = t
