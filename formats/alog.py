@@ -18,6 +18,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 from .lines import iter_lines
+from .log_blocks import LogText
 from .numbers import finite
 from .records import Reject, Where
 
@@ -46,7 +47,7 @@ def _seconds_ns(text: str) -> int | None:
     return round(value * NS)
 
 
-def decode(data: bytes) -> Iterator[Posting | Reject]:
+def decode(data: LogText) -> Iterator[Posting | Reject]:
     """Every posting of an alog, or a Reject saying why a line is not one; header lines give neither."""
     epoch: int | None = None
     for line in iter_lines(data, "none"):

@@ -15,6 +15,7 @@ from collections.abc import Iterator
 from datetime import UTC, datetime
 
 from .lines import PREFIX_STYLES, strip_prefix
+from .log_blocks import Block
 
 NS = 1_000_000_000
 ScannedLine = tuple[str, int, int, "int | None", int]  # text, line offset, 1-based line number, host ns, text offset
@@ -36,26 +37,36 @@ def scan_lines(data: bytes, prefix: str = "auto") -> Iterator[ScannedLine]:
 
     The text offset is where the text after the prefix starts in `data` (for checksums over the buffer).
     """
+    return block_lines(Block(data), prefix)
+
+
+def block_lines(block: Block, prefix: str = "auto", minutes: dict[str, int | None] | None = None
+                ) -> Iterator[ScannedLine]:
+    """`scan_lines` of one block of a log: offsets and line numbers the log's, the text offset the block's.
+
+    `minutes` caches parsed prefix minutes from one block to the next.
+    """
     if prefix not in PREFIX_STYLES:
         raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
     match = _FAST_ISO.match if prefix in ("auto", "iso8601") else None
-    minutes: dict[str, int | None] = {}
-    offset = 0
-    for number, raw in enumerate(data.decode("latin-1").split("\n"), start=1):
+    minutes = {} if minutes is None else minutes
+    base = offset = block.offset
+    for number, raw in enumerate(block.data.decode("latin-1").split("\n"), start=block.lines + 1):
         start = offset
         offset += len(raw) + 1
         text = raw.rstrip("\r")
         m = match(text) if match is not None else None
         if m is not None:  # not blank then
             key, second, frac = m.groups()
-            base = minutes.get(key, -1)
-            if base == -1:
-                base = minutes[key] = _minute_ns(key)
-            if base is not None and second < "60":
+            minute = minutes.get(key, -1)
+            if minute == -1:
+                minute = minutes[key] = _minute_ns(key)
+            if minute is not None and second < "60":
                 end = m.end()
-                yield text[end:], start, number, base + int(second) * NS + int((frac + "000000000")[:9]), start + end
+                yield (text[end:], start, number, minute + int(second) * NS + int((frac + "000000000")[:9]),
+                       start - base + end)
                 continue
         elif not text.strip():
             continue
         rest, host = strip_prefix(text, prefix)
-        yield rest, start, number, host, start + len(text) - len(rest)
+        yield rest, start, number, host, start - base + len(text) - len(rest)

@@ -13,6 +13,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import UTC, datetime
 
+from .log_blocks import LogText, blocks_in
 from .records import Where
 
 PREFIX_STYLES = ("auto", "none", "iso8601", "unix")
@@ -66,16 +67,17 @@ def strip_prefix(text: str, style: str = "auto") -> tuple[str, int | None]:
     return text, None
 
 
-def iter_lines(data: bytes, prefix: str = "auto") -> Iterator[Line]:
-    """Yield every non-empty line with its byte offset, line number and host time."""
+def iter_lines(data: LogText, prefix: str = "auto") -> Iterator[Line]:
+    """Yield every non-empty line with its byte offset, line number and host time in the log (whole or in blocks)."""
     if prefix not in PREFIX_STYLES:
         raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
-    offset = 0
-    for number, raw in enumerate(data.split(b"\n"), start=1):
-        start = offset
-        offset += len(raw) + 1
-        text = raw.decode("latin-1").rstrip("\r")
-        if not text.strip():
-            continue
-        rest, host_ns = strip_prefix(text, prefix)
-        yield Line(rest, Where(start, number, host_ns))
+    for block in blocks_in(data):
+        offset = block.offset
+        for number, raw in enumerate(block.data.split(b"\n"), start=block.lines + 1):
+            start = offset
+            offset += len(raw) + 1
+            text = raw.decode("latin-1").rstrip("\r")
+            if not text.strip():
+                continue
+            rest, host_ns = strip_prefix(text, prefix)
+            yield Line(rest, Where(start, number, host_ns))

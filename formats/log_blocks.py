@@ -7,6 +7,12 @@ sentence of any format we read, and cutting it keeps memory bounded). The
 block knows where it sits in the log (byte offset, lines before it), so
 positions in diagnostics are the log's. A rotated or split log's files are
 one stream, as their concatenation is.
+
+Decoders that read lines (`formats.lines.iter_lines`, `nmea.sentences.iter_frames`,
+`phins.scan`) take a `LogText`: the log's bytes, or `LogBlocks` wrapping its
+blocks. A converter written over such a decoder then reads a log in blocks
+unchanged, its state (an open epoch, a day clock) going on from block to
+block because it is one loop over the log's lines.
 """
 
 from __future__ import annotations
@@ -43,6 +49,28 @@ def cut_blocks(pieces: Iterable[bytes], size: int = BLOCK_BYTES) -> Iterator[Blo
             pending = pending[cut:]
     if pending:
         yield Block(pending, offset, lines)
+
+
+class LogBlocks:
+    """A log as its blocks, read once, for decoders that take a `LogText` (see `blocks_in`)."""
+
+    __slots__ = ("blocks",)
+
+    def __init__(self, blocks: Iterable[Block]):
+        self.blocks = blocks
+
+    def __iter__(self) -> Iterator[Block]:
+        return iter(self.blocks)
+
+
+LogText = bytes | LogBlocks  # a log whole in memory, or read in blocks
+
+
+def blocks_in(data: LogText) -> Iterable[Block]:
+    """The blocks of a `LogText`: a log in memory is one block (none when empty), as it is, not copied."""
+    if isinstance(data, LogBlocks):
+        return data
+    return (Block(data),) if data else ()
 
 
 def blocks_of(data: bytes, size: int = BLOCK_BYTES) -> Iterator[Block]:

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 
 from .lines import iter_lines
+from .log_blocks import LogText
 from .nmea.framing import build, frame
 from .numbers import optional
 from .records import Reject, Where
@@ -173,7 +174,7 @@ def parse_line(text: str, where: Where) -> NortekRecord | Reject | None:
         return Reject(where, f"{s.address}: field not a number: {exc}")
 
 
-def decode(data: bytes, prefix: str = "auto") -> Iterator[NortekRecord | Reject]:
+def decode(data: LogText, prefix: str = "auto") -> Iterator[NortekRecord | Reject]:
     """Yield every $PNORBT record; other lines (other sentences, noise) are rejected."""
     for line in iter_lines(data, prefix):
         rec = parse_line(line.text, line.where)

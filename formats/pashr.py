@@ -18,6 +18,7 @@ import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 
+from .log_blocks import LogText
 from .nmea.fields import parse_tod
 from .nmea.framing import build
 from .nmea.sentences import iter_frames
@@ -62,7 +63,7 @@ def parse_fields(f: list[str], where: Where) -> Pashr | Reject | None:
         return Reject(where, f"bad PASHR sentence: {exc}")
 
 
-def decode(data: bytes, prefix: str = "auto") -> Iterator[Pashr | Reject]:
+def decode(data: LogText, prefix: str = "auto") -> Iterator[Pashr | Reject]:
     """Stream every $PASHR attitude record (or Reject) in a log, in file order."""
     for item in iter_frames(data, prefix):
         if isinstance(item, Reject):

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 
 from .lines import iter_lines
+from .log_blocks import LogText
 from .numbers import optional
 from .records import Reject, Where
 
@@ -167,7 +168,7 @@ def parse_line(text: str, where: Where) -> Pd6Line | Reject | None:
         return Reject(where, f":{tag} field not a number: {exc}")
 
 
-def decode(data: bytes, prefix: str = "auto") -> Iterator[Pd6Line | Reject]:
+def decode(data: LogText, prefix: str = "auto") -> Iterator[Pd6Line | Reject]:
     """Yield every PD6/PD13 line record; non-PD6 text lines are rejected as noise."""
     for line in iter_lines(data, prefix):
         rec = parse_line(line.text, line.where)
@@ -177,7 +178,7 @@ def decode(data: bytes, prefix: str = "auto") -> Iterator[Pd6Line | Reject]:
             yield rec
 
 
-def ensembles(data: bytes, prefix: str = "auto") -> Iterator[Pd6Ensemble | Reject]:
+def ensembles(data: LogText, prefix: str = "auto") -> Iterator[Pd6Ensemble | Reject]:
     """Group decoded lines into ensembles (a new :SA or :TS, or a repeated tag, starts one)."""
     cur: dict | None = None
     for rec in decode(data, prefix):

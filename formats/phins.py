@@ -32,6 +32,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 from .lines import PREFIX_STYLES
+from .log_blocks import Block, LogText, blocks_in
 from .nmea.fields import parse_tod
 from .nmea.framing import HEX, build, prefix_xor
 from .nmea.sentences import iter_frames
@@ -280,7 +281,7 @@ def _parse(address: str, fields: list[str], where: Where) -> PhinsRecord | Rejec
     return None if found is None else RECORDS[found[0]](where, *found[1])
 
 
-def decode(data: bytes, prefix: str = "auto") -> Iterator[PhinsRecord | Reject]:
+def decode(data: LogText, prefix: str = "auto") -> Iterator[PhinsRecord | Reject]:
     """Stream every PHINS record (or Reject) in a log, in file order."""
     for item in iter_frames(data, prefix):
         if isinstance(item, Reject):
@@ -296,7 +297,7 @@ def decode(data: bytes, prefix: str = "auto") -> Iterator[PhinsRecord | Reject]:
 Scanned = tuple[str, tuple, int, int, int | None]
 
 
-def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
+def scan(data: LogText, prefix: str = "auto") -> Iterator[Scanned | Reject]:
     """What `decode` yields, as plain tuples instead of records (for converters on the hot path).
 
     The common line (``$ADDRS,...*HH``, nothing before it, one '$') is framed
@@ -305,10 +306,17 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
     """
     if prefix not in PREFIX_STYLES:
         raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
+    for block in blocks_in(data):
+        yield from _scan_block(block, prefix)
+
+
+def _scan_block(block: Block, prefix: str) -> Iterator[Scanned | Reject]:
+    """`scan` of one block of a log (positions the log's)."""
+    data, base = block.data, block.offset
     pxor = prefix_xor(data)
     hexes, values = HEX, _values
-    offset = 0
-    for number, raw in enumerate(data.decode("latin-1").split("\n"), start=1):
+    offset = base
+    for number, raw in enumerate(data.decode("latin-1").split("\n"), start=block.lines + 1):
         line_start = offset
         offset += len(raw) + 1
         star = raw.find("*")
@@ -316,7 +324,8 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
         if given is None or raw[0] != "$" or raw.count("$") != 1:
             yield from _scan_general(raw, line_start, number, prefix)
             continue
-        computed = pxor[line_start + star - 1] ^ pxor[line_start]
+        at = line_start - base  # in the block, where `pxor` is
+        computed = pxor[at + star - 1] ^ pxor[at]
         if given != computed:
             yield Reject(Where(line_start, number),
                          f"bad checksum {raw[star + 1 : star + 3]!r}, computed {computed:02X}", bad_checksum=True)

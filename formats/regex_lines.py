@@ -48,6 +48,7 @@ from typing import Any
 import regex
 
 from .lines import PREFIX_STYLES, iter_lines, strip_prefix
+from .log_blocks import LogText
 from .numbers import finite
 from .records import FormatError, Reject, Where
 
@@ -179,7 +180,7 @@ def _record(m: Any, where: Where, time_format: str, scale: float) -> RegexRecord
 
 
 def decode(
-    data: bytes,
+    data: LogText,
     pattern: Any,
     time_format: str = "tod",
     prefix: str = "auto",

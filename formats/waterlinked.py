@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .lines import iter_lines
+from .log_blocks import LogText
 from .numbers import integer, optional
 from .records import Reject, Where
 
@@ -219,7 +220,7 @@ def parse_json(text: str, where: Where) -> WaterLinkedRecord | Reject:
     return Reject(where, f"JSON message of type {kind!r} is not a report")
 
 
-def decode(data: bytes, prefix: str = "auto") -> Iterator[WaterLinkedRecord | Reject]:
+def decode(data: LogText, prefix: str = "auto") -> Iterator[WaterLinkedRecord | Reject]:
     """Yield every report in a serial or TCP-JSON log (both may be mixed, line by line)."""
     for line in iter_lines(data, prefix):
         j = line.text.find("{")

@@ -28,9 +28,10 @@ from collections.abc import Iterator
 
 from formats import alog
 from formats import schemas as S
+from formats.log_blocks import LogText
 from formats.records import Reject, Where
 
-from .base import Converter, Ignored, LogContext, Output, output
+from .base import BlockConverter, Converter, Ignored, LogContext, Output, blockwise, output
 from .containers import (
     TextStream,
     checked_times,
@@ -144,12 +145,12 @@ def _range_report(p: alog.Posting, ctx: LogContext) -> Output | Reject:
     return Output(f"/{measured_by}/modem/range", msg, t, t, p.where)
 
 
-def convert_alog(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+def convert_alog(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     """MOOS-IvP .alog: NAV_* -> INS state, GPS_* -> fixes, range reports, raw sentences via our decoders."""
     return checked_times(_convert_alog(data, ctx))
 
 
-def _convert_alog(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+def _convert_alog(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     mapping = ctx.options.get("variables")
     mapping = mapping if isinstance(mapping, dict) else {}
     origin = origin_option(ctx)
@@ -211,3 +212,5 @@ variables = { "DEPTH_SENSOR" = "NAV_DEPTH", "NMEA_FROM_GPS" = "gps:nmea", "ACOMM
 """
 
 CONVERTERS: dict[str, Converter] = {"alog": convert_alog}
+# read block by block, in bounded memory (`recorders.base.blockwise`)
+BLOCK_CONVERTERS: dict[str, BlockConverter] = {"alog": blockwise(convert_alog)}

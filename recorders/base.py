@@ -4,7 +4,14 @@ A converter turns one log file's bytes into archive messages. It is a plain
 function ``convert(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]``
 registered in its family module's ``CONVERTERS`` mapping under the manifest's
 format name (``recorders.gps.CONVERTERS["nmea"]``). Converters never raise on
-bad records: they yield a `formats.records.Reject` and go on.
+bad records: they yield a `formats.records.Reject` and go on. A record's
+outputs come together (per record, or per epoch as it closes): the recording
+counts records parsed in a bounded window (`recorders.record.RecordCount`).
+
+A line-based format's converter also takes the log in blocks: it is listed
+in its module's ``BLOCK_CONVERTERS``, as is or through `blockwise` when its
+decoder reads a `formats.log_blocks.LogText`; the recording then holds one
+block of the log at a time, not the whole log.
 """
 
 from __future__ import annotations
@@ -15,7 +22,7 @@ from datetime import date
 from pathlib import Path
 from typing import Any
 
-from formats.log_blocks import Block
+from formats.log_blocks import Block, LogBlocks, LogText
 from formats.records import Reject, Where
 
 NS = 1_000_000_000
@@ -72,6 +79,17 @@ Converter = Callable[[bytes, LogContext], Iterator["Output | Reject | Ignored"]]
 # the same conversion over the log read in blocks (`formats.log_blocks`), for formats whose family module lists
 # it in BLOCK_CONVERTERS: the recording then holds one block of the log, not all of it
 BlockConverter = Callable[[Iterable[Block], LogContext], Iterator["Output | Reject | Ignored"]]
+# a converter whose decoder reads lines of a `formats.log_blocks.LogText`: it takes the log in blocks as it is
+TextConverter = Callable[[LogText, LogContext], Iterator["Output | Reject | Ignored"]]
+
+
+def blockwise(convert: TextConverter) -> BlockConverter:
+    """`convert` over the log's blocks: one loop over its lines, so whatever it carries from line to line
+    (a burst, an ensemble, a day clock) goes on across blocks, and the outputs are the whole log's."""
+    def over_blocks(blocks: Iterable[Block], ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+        return convert(LogBlocks(blocks), ctx)
+    over_blocks.__doc__ = convert.__doc__
+    return over_blocks
 
 
 def output(ctx: LogContext, suffix: str, message: Any, t_ns: int, where: Where | None) -> Output:

@@ -22,6 +22,7 @@ from google.protobuf.descriptor import FieldDescriptor
 
 from formats import csv_table
 from formats import schemas as S
+from formats.log_blocks import LogText
 from formats.numbers import finite, integer, optional, optional_integer
 from formats.records import FormatError, Reject
 
@@ -112,11 +113,11 @@ def _complete(msg: Any, ctx: LogContext) -> None:
         msg.travel_time_s = msg.range_m / c
 
 
-def converter_for(family: str) -> Callable[[bytes, LogContext], Iterator[Output | Reject]]:
+def converter_for(family: str) -> Callable[[LogText, LogContext], Iterator[Output | Reject]]:
     """The CSV converter of one sensor family."""
     cls, suffix = FAMILY_MESSAGES[family]
 
-    def convert(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+    def convert(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
         """CSV with a column mapping given in the manifest."""
         columns = ctx.options.get("columns")
         if not isinstance(columns, dict) or "time" not in columns:

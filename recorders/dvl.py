@@ -32,6 +32,7 @@ import numpy as np
 from google.protobuf.timestamp_pb2 import Timestamp
 
 from formats import nortek, pd4, pd6, waterlinked
+from formats.log_blocks import LogText
 from formats.pd0 import blocks as pd0_blocks
 from formats.pd0 import ensembles as pd0
 from formats.pd0.frames import vehicle_velocity
@@ -39,7 +40,7 @@ from formats.records import FormatError, Reject, Where
 from formats.schemas import DvlVelocity, timestamp
 from formats.wire import DVL_VELOCITY
 
-from .base import NS, Converter, LogContext, Output, output
+from .base import NS, BlockConverter, Converter, LogContext, Output, blockwise, output
 from .clock import DayClock
 from .value_checks import TIME_RANGE_NS
 
@@ -224,7 +225,7 @@ def convert_pd4(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
         yield output(ctx, "dvl", msg, t, rec.where)
 
 
-def convert_pd6(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_pd6(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
     """Teledyne RDI PD6/PD13 ASCII; BS (BODY_FRD) preferred, dvl_frame picks BS/BE/BI."""
     choice = frame_option(ctx, "") if "dvl_frame" in ctx.options else None
     angle = beam_angle(ctx)
@@ -259,7 +260,7 @@ def _pd6_message(ctx: LogContext, ens: pd6.Pd6Ensemble, vel: tuple, t: int, angl
 # --- Nortek -------------------------------------------------------------------------------
 
 
-def convert_nortek(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_nortek(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
     """Nortek $PNORBT family; XYZ velocities in dvl_frame (default INSTRUMENT)."""
     frame = frame_option(ctx, "INSTRUMENT")
     angle = beam_angle(ctx)
@@ -325,7 +326,7 @@ def _nortek_beams(ctx: LogContext, beams: list[nortek.BeamReport], angle: float
 # --- Water Linked -------------------------------------------------------------------------
 
 
-def convert_waterlinked(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_waterlinked(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
     """Water Linked wrz/wru (and wrx/wrt) serial or TCP JSON; dvl_frame default BODY_FRD."""
     frame = frame_option(ctx, "BODY_FRD")
     angle = beam_angle(ctx)
@@ -372,4 +373,8 @@ CONVERTERS: dict[str, Converter] = {
     "pd6": convert_pd6,
     "nortek": convert_nortek,
     "waterlinked": convert_waterlinked,
+}
+# the formats whose logs are converted block by block, in bounded memory (`recorders.base.blockwise`)
+BLOCK_CONVERTERS: dict[str, BlockConverter] = {
+    "pd6": blockwise(convert_pd6), "nortek": blockwise(convert_nortek), "waterlinked": blockwise(convert_waterlinked),
 }

@@ -30,11 +30,12 @@ from collections.abc import Iterator
 
 from formats import pashr, phins
 from formats import schemas as S
+from formats.log_blocks import LogText
 from formats.nmea import sentences as nmea
 from formats.novatel import scan as novatel_scan
 from formats.records import Reject, Where
 
-from .base import Converter, LogContext, Output, output
+from .base import BlockConverter, Converter, LogContext, Output, blockwise, output
 from .clock import DayClock
 from .epochs import host_time_ns
 from .nmea_epochs import (
@@ -135,7 +136,7 @@ def _phins_scan_outputs(burst: dict[str, phins.Scanned], ctx: LogContext, clock:
     yield Output(f"/{ctx.vehicle}/ins", state, t, publish, Where(*first[2:]))
 
 
-def convert_phins(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_phins(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
     """iXblue/Exail PHINS standard ASCII ($HEHDT, $PIXSE ..., $PHTRO), one InsState per burst."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     burst: dict[str, phins.Scanned] = {}
@@ -154,7 +155,7 @@ def convert_phins(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
 # ---------------------------------------------------------------- $PASHR
 
 
-def convert_pashr(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_pashr(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
     """$PASHR attitude/heading sentences, one InsState each."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     for r in pashr.decode(data, ctx.prefix):
@@ -255,7 +256,7 @@ def _nmea_ins(records: list[nmea.NmeaRecord], ctx: LogContext, clock: DayClock) 
     yield output(ctx, "ins", ins_state(t, ctx, source, **f), t, records[0].where)
 
 
-def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_nmea(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
     """NMEA heading ($--HDT, $--THS) and position/velocity sentences from an INS or gyrocompass."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     for epoch in record_epochs(data, ctx.prefix):
@@ -267,4 +268,8 @@ def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
 
 CONVERTERS: dict[str, Converter] = {
     "phins": convert_phins, "pashr": convert_pashr, "novatel": convert_span, "nmea": convert_nmea,
+}
+# the formats whose logs are converted block by block, in bounded memory (`recorders.base.blockwise`)
+BLOCK_CONVERTERS: dict[str, BlockConverter] = {
+    "phins": blockwise(convert_phins), "pashr": blockwise(convert_pashr), "nmea": blockwise(convert_nmea),
 }

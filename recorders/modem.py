@@ -41,13 +41,14 @@ from formats import acoustic_messages as AM
 from formats import regex_lines as rx
 from formats.evologics import notifications as ev
 from formats.evologics import scan as evs
+from formats.log_blocks import LogText
 from formats.micromodem import scan as mms
 from formats.micromodem import sentences as mm
 from formats.records import FormatError, Reject, Where
 from formats.scanned import positions
 from formats.schemas import AcousticRange, Log, timestamp
 
-from .base import Converter, Ignored, LogContext, Output, output
+from .base import BlockConverter, Converter, Ignored, LogContext, Output, blockwise, output
 from .clock import DAY_NS, NS, DayClock
 
 SUFFIX = "modem/range"
@@ -250,7 +251,7 @@ class _ScanPings:
         return Output(self.topic, msg, t, t if publish is None else publish, Where(offset, line, host))
 
 
-def _micromodem_scan(data: bytes, ctx: LogContext, opts: MicromodemOptions) -> Iterator[Output | Reject | Ignored]:
+def _micromodem_scan(data: LogText, ctx: LogContext, opts: MicromodemOptions) -> Iterator[Output | Reject | Ignored]:
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     ping = _ScanPings(ctx, opts.c)
     own = ping.own
@@ -296,7 +297,7 @@ def _micromodem_scan(data: bytes, ctx: LogContext, opts: MicromodemOptions) -> I
                 yield Ignored(Where(offset, line, host), MICROMODEM_UNUSED[kind])
 
 
-def convert_micromodem(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+def convert_micromodem(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     """WHOI Micro-Modem log -> ranges (options are checked before the first record)."""
     return _micromodem_scan(data, ctx, micromodem_options(ctx))
 
@@ -315,7 +316,7 @@ def evologics_problem(us: float, address: int) -> str | None:
     return None
 
 
-def _evologics_scan(data: bytes, ctx: LogContext, c: float) -> Iterator[Output | Reject]:
+def _evologics_scan(data: LogText, ctx: LogContext, c: float) -> Iterator[Output | Reject]:
     """`_evologics` over `formats.evologics.scan` tuples, messages from packed wire bytes."""
     me, address, offset_ns = ctx.vehicle, own_address(ctx), ctx.clock_offset_ns
     topic, names = f"/{me}/{SUFFIX}", dict[int, str]()
@@ -359,7 +360,7 @@ def _evologics_scan(data: bytes, ctx: LogContext, c: float) -> Iterator[Output |
         yield Output(topic, msg, t, publish, Where(offset, line, host))
 
 
-def convert_evologics(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_evologics(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
     """EvoLogics S2C log -> ranges from propagation times and USBL fixes."""
     return _evologics_scan(data, ctx, sound_speed(ctx))
 
@@ -407,7 +408,7 @@ def travel_and_range(values: Mapping[str, float], c: float) -> tuple[float, floa
     return r / c, r
 
 
-def regex_outputs(data: bytes, ctx: LogContext, opts: RegexOptions,
+def regex_outputs(data: LogText, ctx: LogContext, opts: RegexOptions,
                   build: Callable[[rx.RegexRecord, int], Output | Reject]) -> Iterator[Output | Reject]:
     """`build(record, time)` for each matched line of a regex log, or a Reject (the line's own or its time's)."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
@@ -429,7 +430,7 @@ def _regex_range(ctx: LogContext, opts: RegexOptions, rec: rx.RegexRecord, t: in
     return acoustic_range(ctx, t, rec.where, endpoint(ctx, rec.source), measurer, tt, "user", "regex", opts.c)
 
 
-def convert_regex(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_regex(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
     """User-pattern log -> ranges; a bad pattern raises FormatError at once."""
     opts = regex_options(ctx)
     if "source" not in opts.pattern.groupindex:
@@ -441,4 +442,9 @@ CONVERTERS: dict[str, Converter] = {
     "micromodem": convert_micromodem,
     "evologics": convert_evologics,
     "regex": convert_regex,
+}
+# the formats whose logs are converted block by block, in bounded memory (`recorders.base.blockwise`)
+BLOCK_CONVERTERS: dict[str, BlockConverter] = {
+    "micromodem": blockwise(convert_micromodem), "evologics": blockwise(convert_evologics),
+    "regex": blockwise(convert_regex),
 }

@@ -12,6 +12,7 @@ import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 
+from formats.log_blocks import LogText
 from formats.nmea.sentences import (
     KNOT_MPS,
     Gga,
@@ -36,7 +37,7 @@ NO_DATE = "no date for time of day {:.3f} s: no RMC/ZDA date yet and no [trial] 
 NO_TIME = "no time: the epoch has no timed sentence and no host timestamp"
 
 
-def record_epochs(data: bytes, prefix: str) -> Iterator[list[NmeaRecord] | Reject]:
+def record_epochs(data: LogText, prefix: str) -> Iterator[list[NmeaRecord] | Reject]:
     """A log's NMEA records (`sentences.decode`) grouped into epochs by `nmea_key`; Rejects pass through."""
     epochs: Iterator[list[NmeaRecord] | Reject] = group_epochs(decode(data, prefix), nmea_key)
     return epochs

@@ -6,7 +6,7 @@ import bisect
 import hashlib
 import mimetypes
 import re
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
@@ -47,6 +47,9 @@ DIAGNOSTICS_PER_KIND = 100
 # logs that write in bursts) is reported: a file is probably missing
 SEAM_GAP_SPACINGS = 10
 SEAM_GAP_MIN_NS = NS
+# distinct record offsets remembered when counting records parsed: converters yield a record's messages
+# together (one record or epoch at a time), so a repeat is never further back than this and memory stays bounded
+RECORDS_WINDOW = 4096
 _KIND = re.compile(r"[^'\":\d(]*")
 
 
@@ -192,6 +195,36 @@ def _diagnostic(log: LogSpec, reject: Reject, t_ns: int) -> S.Log:
                  message=f"{log.path} {reject.where.describe()}: {reject.reason}")
 
 
+class RecordCount:
+    """Distinct records (by byte offset) among a log's messages, in memory bounded by RECORDS_WINDOW.
+
+    Exact as long as a record's messages come within RECORDS_WINDOW distinct
+    records of each other, as every converter yields them (per record, or per
+    epoch as it closes); a set of every offset grew with the log (~80 bytes a record).
+    """
+
+    __slots__ = ("count", "last", "seen", "order")
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.last: int | None = None
+        self.seen: set[int] = set()
+        self.order: deque[int] = deque()
+
+    def add(self, key: int) -> None:
+        """Count `key` unless it is among the last RECORDS_WINDOW distinct ones."""
+        self.last = key
+        seen = self.seen
+        if key in seen:
+            return
+        seen.add(key)
+        order = self.order
+        order.append(key)
+        self.count += 1
+        if len(order) > RECORDS_WINDOW:
+            seen.discard(order.popleft())
+
+
 class LogRecorder:
     """Writes one log's outputs and diagnostics, keeping its statistics."""
 
@@ -200,7 +233,7 @@ class LogRecorder:
         self.writer, self.log, self.stats = writer, log, stats
         self.pending: list[Reject] = []  # rejects seen before any time is known
         self.last_ns: dict[str, int] = {}
-        self.records: set[int] = set()
+        self.records = RecordCount()
         self.fallback_ns = fallback_ns
         self.hint_ns: int | None = None  # the earliest own time of a message refused at record time
         self.checks = ValueChecks(float(log.options.get("max_range_m", MAX_RANGE_M)))
@@ -230,7 +263,10 @@ class LogRecorder:
         st = self.stats
         st.messages += 1
         where = item.where
-        self.records.add(where.offset if where is not None else -st.messages)  # no position: one record each
+        key = where.offset if where is not None else -st.messages  # no position: one record each
+        records = self.records
+        if key != records.last:  # not a record's second message (a fix, then its status): no call
+            records.add(key)
         prev = self.last_ns.get(topic)
         if prev is None or t > prev:
             self.last_ns[topic] = t
@@ -283,7 +319,7 @@ class LogRecorder:
                                                      f"(the first {DIAGNOSTICS_PER_KIND} are)", bad_checksum))
         self.flush(t)
         st = self.stats
-        st.parsed = len(self.records)
+        st.parsed = self.records.count
         st.out_of_range, st.bad_ranges = self.checks.out_of_range, self.checks.bad_ranges
         st.ignored = sum(self.ignored.values())
         st.ignored_reasons = dict(self.ignored)

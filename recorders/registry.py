@@ -5,7 +5,7 @@ from __future__ import annotations
 import importlib
 
 from . import csvlog
-from .base import BlockConverter, Converter
+from .base import BlockConverter, Converter, blockwise
 from .manifest import SENSORS
 
 # sensor family -> module with a CONVERTERS mapping
@@ -38,12 +38,17 @@ def converters() -> dict[tuple[str, str], Converter]:
 
 
 def block_converters() -> dict[tuple[str, str], BlockConverter]:
-    """The (sensor, format)s whose converters also take the log in blocks (their modules' BLOCK_CONVERTERS)."""
+    """The (sensor, format)s whose converters also take the log in blocks (their modules' BLOCK_CONVERTERS, csv)."""
     table: dict[tuple[str, str], BlockConverter] = {}
     for family in SENSORS:
         module = importlib.import_module(FAMILY_MODULES[family])
         for fmt, fn in getattr(module, "BLOCK_CONVERTERS", {}).items():
             table[(family, fmt)] = fn
+        table[(family, "csv")] = blockwise(csvlog.converter_for(family))
+    for fmt, name in CONTAINER_MODULES.items():
+        fn = getattr(importlib.import_module(name), "BLOCK_CONVERTERS", {}).get(fmt)
+        if fn is not None:
+            table[("", fmt)] = fn
     return table
 
 

@@ -34,11 +34,12 @@ from formats import acoustic_messages as AM
 from formats import regex_lines as rx
 from formats.evologics import notifications as ev
 from formats.evologics import scan as evs
+from formats.log_blocks import LogText
 from formats.records import FormatError, Reject, Where
 from formats.scanned import positions
 from formats.schemas import UsblObservation, timestamp
 
-from .base import Converter, LogContext, Output, output
+from .base import BlockConverter, Converter, LogContext, Output, blockwise, output
 from .clock import NS, plausible_ns
 from .modem import (
     NO_USBL_TIME,
@@ -165,7 +166,7 @@ class _ScanEmitter:
         return Output(self.topic, msg, t, publish, Where(offset, line, host))
 
 
-def _evologics_scan(data: bytes, ctx: LogContext, opts: UsblOptions) -> Iterator[Output | Reject]:
+def _evologics_scan(data: LogText, ctx: LogContext, opts: UsblOptions) -> Iterator[Output | Reject]:
     emit = _ScanEmitter(ctx, opts)
     first: evs.Scanned | None = None
     parts: dict[str, list] = {}
@@ -189,7 +190,7 @@ def _evologics_scan(data: bytes, ctx: LogContext, opts: UsblOptions) -> Iterator
         yield emit(first, parts)
 
 
-def convert_evologics(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_evologics(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
     """EvoLogics USBL log -> one UsblObservation per measurement."""
     return _evologics_scan(data, ctx, usbl_options(ctx))
 
@@ -218,7 +219,7 @@ def _regex_observation(ctx: LogContext, opts: RegexOptions, rec: rx.RegexRecord,
     return output(ctx, SUFFIX, msg, t, rec.where)
 
 
-def convert_regex(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_regex(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
     """User-pattern USBL log -> observations; a bad pattern raises FormatError at once."""
     opts = regex_options(ctx, require_range=False)
     names = set(opts.pattern.groupindex)
@@ -232,4 +233,8 @@ def convert_regex(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
 CONVERTERS: dict[str, Converter] = {
     "evologics": convert_evologics,
     "regex": convert_regex,
+}
+# the formats whose logs are converted block by block, in bounded memory (`recorders.base.blockwise`)
+BLOCK_CONVERTERS: dict[str, BlockConverter] = {
+    "evologics": blockwise(convert_evologics), "regex": blockwise(convert_regex),
 }

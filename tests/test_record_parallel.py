@@ -14,6 +14,8 @@ import pytest
 import recorders.record as rec
 from formats.mcap_reader import ArchiveReader
 from formats.records import FormatError
+from recorders import csvlog
+from recorders.base import blockwise
 from recorders.manifest import ManifestError, load_manifest
 from recorders.record import record, resolve_workers
 from replay.cli import main
@@ -186,7 +188,7 @@ def _crashing_table(monkeypatch, how) -> None:
 
 def _patch_converters(monkeypatch, gps, modem) -> None:
     """Record through `gps(real_gps_converter, data, ctx)` for csv GPS logs and `modem(data, ctx)` for csv modem logs."""
-    real = rec.converters
+    real, real_blocks = rec.converters, rec.block_converters
 
     def table():
         t = real()
@@ -195,7 +197,14 @@ def _patch_converters(monkeypatch, gps, modem) -> None:
         t[("modem", "csv")] = modem
         return t
 
+    def block_table():  # csv logs are read in blocks: the same functions over them
+        t = real_blocks()
+        t[("gps", "csv")] = blockwise(lambda data, ctx: gps(csvlog.converter_for("gps"), data, ctx))
+        t[("modem", "csv")] = blockwise(modem)
+        return t
+
     monkeypatch.setattr(rec, "converters", table)
+    monkeypatch.setattr(rec, "block_converters", block_table)
 
 
 @pytest.mark.parametrize("how, words", [

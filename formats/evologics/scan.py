@@ -19,9 +19,11 @@ Values, by keyword (the record's fields after `where`, in order):
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 
-from ..host_lines import scan_lines
+from ..host_lines import ScannedLine, block_lines
+from ..lines import PREFIX_STYLES
+from ..log_blocks import LogText, blocks_in
 from ..records import Reject, Where
 from . import notifications as ev
 
@@ -72,12 +74,31 @@ def _where(rec: ev.Record) -> tuple[int, int | None, int | None]:
     return w.offset, w.line, w.host_time_ns
 
 
-def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
-    """What `evologics.decode` yields for the converters, as tuples (see the module docstring)."""
-    lines = list(scan_lines(data, prefix))
-    texts = [line[0] for line in lines]
+def scan(data: LogText, prefix: str = "auto") -> Iterator[Scanned | Reject]:
+    """What `evologics.decode` yields for the converters, as tuples (see the module docstring); `data` may be
+    the log in blocks: a block's last lines, which a +++AT frame may join to the next block's, wait for it."""
+    if prefix not in PREFIX_STYLES:
+        raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
     state = ev._Decoder()
-    i, n = 0, len(lines)
+    minutes: dict[str, int | None] = {}
+    carry: list[ScannedLine] = []
+    blocks = iter(blocks_in(data))
+    block = next(blocks, None)
+    while block is not None:
+        following = next(blocks, None)
+        lines = carry + list(block_lines(block, prefix, minutes))
+        # a frame starting before `stop` peeks at most ev._MAX_JOIN - 1 lines on, all in `lines`
+        stop = len(lines) if following is None else max(len(lines) - ev._MAX_JOIN, 0)
+        done = yield from _scan_lines(state, lines, stop)
+        carry = lines[done:]
+        block = following
+
+
+def _scan_lines(state: ev._Decoder, lines: list[ScannedLine], stop: int
+                ) -> Generator[Scanned | Reject, None, int]:
+    """`scan` over `lines` until a line at `stop` or later would come next; returns that line's index."""
+    texts = [line[0] for line in lines]
+    i, n = 0, stop
     while i < n:
         text, offset, number, host, _ = lines[i]
         if "+++AT" not in text:
@@ -96,6 +117,7 @@ def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
             i += used
         if item is not None:
             yield item
+    return i
 
 
 def _scan_framed(state: ev._Decoder, texts: list[str], i: int, where: Where) -> tuple[Scanned | Reject | None, int]:

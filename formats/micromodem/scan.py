@@ -25,7 +25,9 @@ import math
 from collections.abc import Iterator
 from typing import Literal
 
-from ..host_lines import scan_lines
+from ..host_lines import block_lines
+from ..lines import PREFIX_STYLES
+from ..log_blocks import Block, LogText, blocks_in
 from ..nmea.framing import HEX, prefix_xor
 from ..records import Reject, Where
 from . import sentences as mm
@@ -89,12 +91,23 @@ def _fast(fields: list[str], round_trip: bool) -> tuple[str, tuple] | None | Lit
     return "reply", (int(fields[1]), int(fields[2]), tt / 2 if round_trip else tt, None)
 
 
-def scan(data: bytes, prefix: str = "auto", campr_round_trip: bool = False) -> Iterator[Scanned | Reject]:
-    """What `micromodem.decode` yields for the converter, as tuples (see the module docstring)."""
-    pxor = prefix_xor(data)
+def scan(data: LogText, prefix: str = "auto", campr_round_trip: bool = False) -> Iterator[Scanned | Reject]:
+    """What `micromodem.decode` yields for the converter, as tuples (see the module docstring); `data` may be
+    the log in blocks."""
+    if prefix not in PREFIX_STYLES:
+        raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
     # a ping exchange repeats its command and echo lines word for word: read each text once
     seen: dict[str, tuple[str, tuple] | None] = {}
-    for text, offset, number, host, at in scan_lines(data, prefix):
+    minutes: dict[str, int | None] = {}
+    for block in blocks_in(data):
+        yield from _scan_block(block, prefix, campr_round_trip, seen, minutes)
+
+
+def _scan_block(block: Block, prefix: str, campr_round_trip: bool, seen: dict[str, tuple[str, tuple] | None],
+                minutes: dict[str, int | None]) -> Iterator[Scanned | Reject]:
+    """`scan` of one block of a log; `seen` and `minutes` go on from block to block."""
+    pxor = prefix_xor(block.data)
+    for text, offset, number, host, at in block_lines(block, prefix, minutes):
         found: tuple[str, tuple] | None | Literal[False] = seen.get(text, False)
         if found is False and text[:1] == "$":
             body = text[1:].rstrip("\r\n ")

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from datetime import UTC, date, datetime
 
 from ..lines import PREFIX_STYLES, strip_prefix
+from ..log_blocks import Block, LogText, blocks_in
 from ..records import Reject, Where
 from .fields import (
     NAN,
@@ -312,17 +313,24 @@ def frame_line(text: str, where: Where, checksum: int | None = None) -> Frame | 
     return address, fields, where
 
 
-def iter_frames(data: bytes, prefix: str = "auto") -> Iterator[Frame | Reject]:
+def iter_frames(data: LogText, prefix: str = "auto") -> Iterator[Frame | Reject]:
     """Every NMEA-framed sentence of a log (checksum verified) or a Reject, in file order.
 
     Shared by the NMEA, PHINS and $PASHR decoders. `fields[0]` is the address.
     """
     if prefix not in PREFIX_STYLES:
         raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
-    pxor = prefix_xor(data)
-    offset = 0
     strip = prefix != "none"
-    for number, raw in enumerate(data.decode("latin-1").split("\n"), start=1):
+    for block in blocks_in(data):
+        yield from _block_frames(block, prefix, strip)
+
+
+def _block_frames(block: Block, prefix: str, strip: bool) -> Iterator[Frame | Reject]:
+    """`iter_frames` of one block of a log (positions the log's)."""
+    data, base = block.data, block.offset
+    pxor = prefix_xor(data)
+    offset = base
+    for number, raw in enumerate(data.decode("latin-1").split("\n"), start=block.lines + 1):
         line_start = offset
         offset += len(raw) + 1
         text = raw.rstrip("\r")
@@ -346,8 +354,8 @@ def iter_frames(data: bytes, prefix: str = "auto") -> Iterator[Frame | Reject]:
         star = text.find("*", start) if start >= 0 else -1
         checksum = None
         if star > start + 1:
-            base = line_start + skipped
-            checksum = pxor[base + star - 1] ^ pxor[base + start]
+            at = line_start - base + skipped  # in the block, where `pxor` is
+            checksum = pxor[at + star - 1] ^ pxor[at + start]
         result = frame_line(text, where, checksum)
         if result is not None:
             yield result
@@ -441,15 +449,18 @@ def _scan_general(raw: str, line_start: int, number: int, prefix: str) -> Iterat
             yield result
 
 
-def decode(data: bytes, prefix: str = "auto") -> Iterator[NmeaRecord | Reject]:
-    """Stream every GNSS sentence record (or Reject) in a log, in file order (see `scan`)."""
+def decode(data: LogText, prefix: str = "auto") -> Iterator[NmeaRecord | Reject]:
+    """Stream every GNSS sentence record (or Reject) in a log, whole or in blocks, in file order (see `scan`)."""
+    if prefix not in PREFIX_STYLES:
+        raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
     records = RECORDS
-    for item in scan(data, prefix):
-        if isinstance(item, Reject):
-            yield item
-        else:
-            kind, talker, values, offset, line, host = item
-            yield records[kind](Where(offset, line, host), talker, *values)
+    for block in blocks_in(data):
+        for item in scan(block.data, prefix, block.offset, block.lines):
+            if isinstance(item, Reject):
+                yield item
+            else:
+                kind, talker, values, offset, line, host = item
+                yield records[kind](Where(offset, line, host), talker, *values)
 
 
 # ---------------------------------------------------------------- encoders
