@@ -123,3 +123,23 @@ def record_offsets(path: Path, opcode: int) -> list[tuple[int, int]]:
             out.append((pos, 9 + n))
         pos += 9 + n
     return out
+
+
+def damage_lines(data: bytes, seed: int) -> bytes:
+    """`data` with lines cut, checksums broken, garbage, host-prefixed and repeated lines thrown in."""
+    rng = random.Random(seed)
+    lines = data.splitlines(keepends=True)
+    for _ in range(max(len(lines) // 40, 5)):
+        i = rng.randrange(len(lines))
+        kind = rng.randrange(5)
+        if kind == 0:
+            lines[i] = lines[i][: rng.randrange(len(lines[i]))] + b"\n"
+        elif kind == 1:
+            lines[i] = lines[i].replace(b"*", b"*0", 1)
+        elif kind == 2:
+            lines.insert(i, rng.randbytes(rng.randrange(1, 60)).replace(b"\n", b"") + b"\r\n")
+        elif kind == 3:
+            lines[i] = b"2016-10-12T08:00:%02d.250Z " % rng.randrange(60) + lines[i]
+        else:
+            lines.insert(i, lines[i])
+    return b"".join(lines)

@@ -18,7 +18,7 @@ from recorders.base import LogContext
 from recorders.gps import convert_nmea, convert_nmea_blocks
 from recorders.manifest import load_manifest
 from recorders.record import record, reject_kind
-from tests.hostile import run_child
+from tests.hostile import damage_lines, run_child
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "samples" / "lake_trial"
@@ -53,27 +53,9 @@ def test_blocks_are_the_log_cut_after_line_ends(data, size, piece_sizes):
         offset, lines = offset + len(block.data), lines + block.data.count(b"\n")
 
 
-def _damaged(seed: int) -> bytes:
-    """The follower's GPS log with lines cut, checksums broken, garbage and a date change thrown in."""
-    rng = random.Random(seed)
-    lines = GPS.splitlines(keepends=True)
-    for _ in range(25):
-        i = rng.randrange(len(lines))
-        kind = rng.randrange(4)
-        if kind == 0:
-            lines[i] = lines[i][: rng.randrange(len(lines[i]))] + b"\n"
-        elif kind == 1:
-            lines[i] = lines[i].replace(b"*", b"*0", 1)
-        elif kind == 2:
-            lines.insert(i, rng.randbytes(rng.randrange(1, 60)).replace(b"\n", b"") + b"\r\n")
-        else:
-            lines.insert(i, lines[i])  # a repeated sentence: the epoch closes on it
-    return b"".join(lines)
-
-
 @pytest.mark.parametrize("seed", [None, 1, 2, 3])
 def test_nmea_in_blocks_gives_the_whole_logs_outputs(seed):
-    data = GPS if seed is None else _damaged(seed)
+    data = GPS if seed is None else damage_lines(GPS, seed)
     whole = _plain(convert_nmea(data, CTX))
     assert len(whole) > 3000
     longest = max(map(len, data.split(b"\n")))

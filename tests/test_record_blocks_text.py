@@ -27,7 +27,7 @@ from recorders.base import LogContext
 from recorders.manifest import SENSORS, load_manifest
 from recorders.record import RECORDS_WINDOW, RecordCount
 from recorders.registry import block_converters, converters
-from tests.hostile import run_child
+from tests.hostile import damage_lines, run_child
 from tests.test_record_blocks import RSS_LIMIT_KB, _plain
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -40,26 +40,6 @@ BOOK = load_manifest(SAMPLE / "trial.toml").address_book()
 S = 10**9
 T_MIDNIGHT = 1476316790 * S  # 2016-10-12T23:59:50Z: the day clock must roll over across blocks
 CTX = LogContext(vehicle="v", trial_date=date(2016, 10, 12))
-
-
-def _damage(data: bytes, seed: int) -> bytes:
-    """`data` with lines cut, checksums broken, garbage, host-prefixed and repeated lines thrown in."""
-    rng = random.Random(seed)
-    lines = data.splitlines(keepends=True)
-    for _ in range(max(len(lines) // 40, 5)):
-        i = rng.randrange(len(lines))
-        kind = rng.randrange(5)
-        if kind == 0:
-            lines[i] = lines[i][: rng.randrange(len(lines[i]))] + b"\n"
-        elif kind == 1:
-            lines[i] = lines[i].replace(b"*", b"*0", 1)
-        elif kind == 2:
-            lines.insert(i, rng.randbytes(rng.randrange(1, 60)).replace(b"\n", b"") + b"\r\n")
-        elif kind == 3:
-            lines[i] = b"2016-10-12T08:00:%02d.250Z " % rng.randrange(60) + lines[i]
-        else:
-            lines.insert(i, lines[i])
-    return b"".join(lines)
 
 
 def _pashr() -> bytes:
@@ -167,7 +147,7 @@ def test_every_line_based_format_reads_in_blocks():
 @pytest.mark.parametrize("seed", [None, 1])
 def test_text_formats_in_blocks_give_the_whole_logs_outputs(key, seed):
     convert, data, options = CASES[key]
-    data = data if seed is None else _damage(data, seed)
+    data = data if seed is None else damage_lines(data, seed)
     ctx = LogContext(vehicle="v", trial_date=date(2016, 10, 12), options=options,
                      address_book=BOOK)
     whole = _plain(convert(data, ctx))
