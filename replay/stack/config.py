@@ -70,9 +70,20 @@ class FeatureConfig:
     cusum_k_sigma: float = 0.5          # cusum_drift's allowance on drift_z (detects shifts of 1 sigma and up)
     cusum_h_sigma: float = 5.0          # cusum_drift's alarm level before calibration; its floor is half of it
     cusum_k_m: float = 4.0              # drift CUSUM allowance (m), feature and cusum_drift detector
-    # the drift residual: "stiff" (the stiff reference's innovation, fed USBL fixes too), else without USBL
-    # lag_residual_m ("lag") or exclusion_residual_m ("exclusion"), with usbl_residual_m where finite
-    drift_source: str = "stiff"
+    # the drift residual: "model" (the range against the DR error model of lag_s ago, fed USBL fixes too),
+    # "stiff" (the stiff reference's innovation, the session-13 form), else without USBL lag_residual_m
+    # ("lag") or exclusion_residual_m ("exclusion"), with usbl_residual_m where finite
+    drift_source: str = "model"
+    # the DR error model (replay.stack.dr_error_model): DR error, heading error and DVL scale error, whose
+    # noise comes from the sensors' specifications (scenario: a DVL of 0.1 m/s at 1 Hz, a low-grade INS's
+    # heading walk of 0.03 deg/sqrt(s)); over seeds 0-19 its drift recall moved by ~1 % for 30x q and 3x walk
+    model_q_m2_per_s: float = 1e-2          # DR position random walk: the DVL's white noise, sigma² · dt
+    model_heading_walk_deg_per_sqrt_s: float = 0.03
+    model_scale_walk_per_sqrt_s: float = 1e-4
+    model_heading_sigma_deg: float = 3.0    # initial heading error sigma
+    model_scale_sigma: float = 0.01         # initial DVL scale-factor error sigma
+    model_gate_sigma: float = 4.0           # its update leaves out ranges whose lagged residual is beyond this
+    model_cap: int = 10                     # ... and repeated ranges, at most this many in a row per leader
     # the stiff reference (features.StiffReference): DR error as a 2-D random walk of this intensity (m²/s),
     # about the follower's DR error growth over minutes (0.05 m/s Gauss-Markov, tau 300 s, plus heading bias)
     stiff_q_m2_per_s: float = 3e-4
@@ -131,7 +142,7 @@ class StackConfig:
     drift_reference_input: str = "drift_z"
     # h_z, not trained: a training window's 98 % quantile of drift_z does not predict the later one's
     # (r = 0.01 over seeds 0-19); 3.0 flags 1.9 % of the normal epochs after t_a of seeds 0-19 pooled
-    drift_reference_z: float = 3.0
+    drift_reference_z: float = 2.5
     training_source: str = "own"                  # "own" window, a "given" TrainingSet, or "both"
     # anfis_hybrid's inputs, by name from replay.stack.features.FEATURE_NAMES
     hybrid_inputs: tuple[str, ...] = ("f2", "repeat_count", "drift_residual_m", "usbl_residual_m")

@@ -88,6 +88,7 @@ from collections import deque
 
 from replay.stack.config import FeatureConfig
 from replay.stack.cusum import Cusum
+from replay.stack.dr_error_model import DrErrorModel
 from replay.stack.exclusion import LeaderExclusion
 from replay.stack.model import metric_scales_scalar
 
@@ -187,7 +188,13 @@ class FeatureTracker:
         """
         self.config = config
         self.exclusion = exclusion
-        self.stiff = StiffReference(config.stiff_q_m2_per_s, range_sigma_m, p0_m, config.stiff_cap)
+        self.stiff = StiffReference(config.stiff_q_m2_per_s, range_sigma_m, p0_m, config.stiff_cap) \
+            if config.drift_source == "stiff" else None
+        self.model = DrErrorModel(
+            config.model_q_m2_per_s, math.radians(config.model_heading_walk_deg_per_sqrt_s),
+            config.model_scale_walk_per_sqrt_s, range_sigma_m, p0_m, math.radians(config.model_heading_sigma_deg),
+            config.model_scale_sigma, config.lag_s, config.model_gate_sigma, config.model_cap,
+        ) if config.drift_source == "model" else None
         self.dr = [float(lat_rad), float(lon_rad)]
         self.anchor: list[float] | None = None
         self.anchor_t = -math.inf
@@ -204,10 +211,13 @@ class FeatureTracker:
         """Carry dead reckoning and the anchor forward by one DR step (A.1, radii at the start of the step)."""
         if self.exclusion is not None:
             self.exclusion.propagate(dt_s, forward_mps, lateral_mps, heading_rad, depth_m)
-        self.stiff.propagate(dt_s)
+        if self.stiff is not None:
+            self.stiff.propagate(dt_s)
         c, s = math.cos(heading_rad), math.sin(heading_rad)
         north = dt_s * (forward_mps * c - lateral_mps * s)
         east = dt_s * (forward_mps * s + lateral_mps * c)
+        if self.model is not None:
+            self.model.step(dt_s, north, east)
         for p in (self.dr, self.anchor):
             if p is not None:
                 b, a = metric_scales_scalar(p[0], depth_m)
@@ -224,8 +234,12 @@ class FeatureTracker:
             self.exclusion.fix(lat_rad, lon_rad, *cov_rad2)
         if cov_rad2 is not None:
             b, a = metric_scales_scalar(lat_rad, 0.0)
-            self.stiff.fix(b * (self.dr[0] - lat_rad), a * (self.dr[1] - lon_rad),
-                           (cov_rad2[0] * b * b, cov_rad2[1] * b * a, cov_rad2[2] * a * a))
+            d_m = (b * (self.dr[0] - lat_rad), a * (self.dr[1] - lon_rad))
+            cov_m2 = (cov_rad2[0] * b * b, cov_rad2[1] * b * a, cov_rad2[2] * a * a)
+            if self.stiff is not None:
+                self.stiff.fix(*d_m, cov_m2)
+            if self.model is not None:
+                self.model.fix(t_s, *d_m, cov_m2)
         if self.anchor is None or t_s - self.anchor_t > self.config.usbl_max_age_s:
             self.anchor = [float(lat_rad), float(lon_rad)]
         else:
@@ -262,10 +276,13 @@ class FeatureTracker:
             excl = self.exclusion.epoch(leader, z_m, geo, depth_m, self._repeats[leader] > 0)
         lat, lon, ldepth = geo
         b, a = metric_scales_scalar(0.5 * (self.dr[0] + lat), 0.5 * (depth_m + ldepth))
-        stiff = self.stiff.range(leader, z_m, b * (self.dr[0] - lat), a * (self.dr[1] - lon),
-                                 self._repeats[leader] > 0)
-        if cfg.drift_source == "stiff":
-            drift = stiff
+        rel = (b * (self.dr[0] - lat), a * (self.dr[1] - lon))
+        if self.model is not None:
+            res = self.model.range(t_s, leader, z_m, *rel, self._repeats[leader] > 0)
+            # before the first lagged state (lag_s into the run) the current innovation stands in
+            drift = res.lagged_m if math.isfinite(res.lagged_m) else res.innovation_m
+        elif self.stiff is not None:
+            drift = self.stiff.range(leader, z_m, *rel, self._repeats[leader] > 0)
         else:
             second = excl if cfg.drift_source == "exclusion" else lag
             drift = usbl if math.isfinite(usbl) else second if math.isfinite(second) else d
