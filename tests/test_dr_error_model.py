@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from replay.stack.config import FeatureConfig
 from replay.stack.dr_error_model import DrErrorModel, transition
+from replay.stack.features import EXTRA_FEATURES, FeatureTracker, range_to
+from replay.stack.model import metric_scales_scalar
 
 HEADING_WALK = math.radians(0.03)
 
@@ -165,3 +169,50 @@ def test_the_lagged_residual_holds_a_minute_of_drift_the_current_state_starts_to
     np.testing.assert_allclose(leader1[:, 2], ramp, atol=1.0)
     # once past the gate (4 sigma of a few metres) the ranges stay out of the update: no pull on the state
     assert np.all(np.abs(leader1[:, 1]) > 0.6 * ramp)
+
+
+def _tracker_run(source: str, drift_from_s: float) -> np.ndarray:
+    """FeatureTracker on a turning track with a 2 deg heading bias, noise-free ranges to two fixed leaders.
+
+    Rows (t, leader index, drift_residual_m); leader 1's range ramps at 0.3 m/s from drift_from_s.
+    """
+    lat0, lon0, depth = math.radians(45.7), math.radians(126.6), 2.0
+    b, a = metric_scales_scalar(lat0, depth)
+    leaders = [(lat0 + 400.0 / b, lon0 - 300.0 / a, 1.5), (lat0 - 350.0 / b, lon0 + 500.0 / a, 1.5)]
+    tracker = FeatureTracker(replace(FeatureConfig(), drift_source=source), ("leader1", "leader2"), lat0, lon0)
+    truth = [lat0, lon0]
+    bias = math.radians(2.0)
+    rows, k, next_ping = [], 0, 2.4
+    for i in range(1, 1601):
+        t = float(i)
+        heading = 2.0 * math.pi * t / 400.0
+        tracker.propagate(1.0, 1.5, 0.0, heading + bias, depth)
+        bt, at = metric_scales_scalar(truth[0], depth)
+        truth[0] += 1.5 * math.cos(heading) / bt
+        truth[1] += 1.5 * math.sin(heading) / at
+        if t < next_ping:
+            continue
+        next_ping += 2.4
+        geo = leaders[k % 2]
+        z = range_to(truth[0], truth[1], depth, *geo)
+        z += 0.3 * (t - drift_from_s) if (k % 2 == 0 and t >= drift_from_s) else 0.0
+        features = tracker.epoch(t, f"leader{k % 2 + 1}", z + 0.123 * k, z, depth, geo)
+        rows.append((t, k % 2, features[EXTRA_FEATURES.index("drift_residual_m")]))
+        k += 1
+    return np.array(rows)
+
+
+def test_the_feature_trackers_default_drift_residual_is_the_lagged_model() -> None:
+    """Default drift_source "model": flat under a heading bias, the ramp under a drift; the stiff form lags the bias.
+
+    The circle keeps the heading bias's DR error within a few metres, which
+    the stiff random walk follows only minutes late.
+    """
+    rows = _tracker_run("model", drift_from_s=1540.0)
+    before = rows[(rows[:, 0] > 800.0) & (rows[:, 0] < 1540.0)]
+    assert np.max(np.abs(before[:, 2])) < 1.0
+    drift = rows[(rows[:, 0] >= 1560.0) & (rows[:, 1] == 0)]
+    np.testing.assert_allclose(drift[:, 2], 0.3 * (drift[:, 0] - 1540.0), atol=1.0)
+    stiff = _tracker_run("stiff", drift_from_s=math.inf)
+    stiff_before = stiff[(stiff[:, 0] > 800.0) & (stiff[:, 0] < 1540.0), 2]
+    assert np.max(np.abs(stiff_before)) > 3.0 * np.max(np.abs(before[:, 2]))

@@ -273,6 +273,6 @@ def test_detections_carry_the_filter_independent_features(full_run, tmp_path):
     assert set(EXTRA_FEATURES) <= set(df.columns)
     per_epoch = df.groupby(["timestamp", "leader"])[list(EXTRA_FEATURES)].nunique(dropna=False)
     assert (per_epoch <= 1).all().all()
-    # the stiff reference's residual (lag_residual_m is NaN unless drift_source is "lag" or anfis_hybrid takes it)
+    # the DR error model's residual (lag_residual_m is NaN unless drift_source is "lag" or anfis_hybrid takes it)
     assert np.isfinite(df["drift_residual_m"]).mean() > 0.8 and (df["repeat_count"] >= 0).all()
     assert np.isfinite(df["drift_z"]).mean() > 0.5

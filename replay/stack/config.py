@@ -141,7 +141,7 @@ class StackConfig:
     # drift_reference_z, or, the session-12 form, |drift_residual_m| against the training quantile (m)
     drift_reference_input: str = "drift_z"
     # h_z, not trained: a training window's 98 % quantile of drift_z does not predict the later one's
-    # (r = 0.01 over seeds 0-19); 3.0 flags 1.9 % of the normal epochs after t_a of seeds 0-19 pooled
+    # (r = 0.01 over seeds 0-19); 2.5 flags about 2 % of the normal epochs after t_a of seeds 0-19
     drift_reference_z: float = 2.5
     training_source: str = "own"                  # "own" window, a "given" TrainingSet, or "both"
     # anfis_hybrid's inputs, by name from replay.stack.features.FEATURE_NAMES

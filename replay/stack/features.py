@@ -35,10 +35,13 @@ filter, and are the same for every method of a run:
   (replay.stack.exclusion; NaN with one leader or without the filters,
   which run only when ``drift_source`` is "exclusion" or anfis_hybrid takes
   an exclusion input: on held-out seeds they did not beat the lag residual);
-- ``drift_residual_m``: with ``FeatureConfig.drift_source`` "stiff" (the
-  default) the innovation of the `StiffReference` (the range against a
-  deliberately stiff filter of the follower's dead-reckoning error, which
-  takes the USBL fixes too); otherwise ``usbl_residual_m`` where finite, else
+- ``drift_residual_m``: with ``FeatureConfig.drift_source`` "model" (the
+  default) the range against the DR error model of ``lag_s`` ago carried
+  forward (`replay.stack.dr_error_model`: DR error, heading error and DVL
+  scale error, fed the USBL fixes too; its current innovation for the
+  first ``lag_s``); with "stiff" the innovation of the `StiffReference` (a
+  2-D random walk of the DR error, the session-13 form, which takes the
+  USBL fixes too); otherwise ``usbl_residual_m`` where finite, else
   ``exclusion_residual_m`` or ``lag_residual_m`` (``drift_source``), else
   ``dr_residual_m``. What the drift CUSUM sums and ``drift_reference`` tests;
 - ``drift_z``: the drift residual standardized by the mission's own recent
@@ -46,13 +49,13 @@ filter, and are the same for every method of a run:
   residuals of EVERY leader (``scale_pooled``, the default) of the last
   ``scale_pooled_window_s`` (900 s) that are older than ``lag_s`` (60 s)
   and not from a repeated range, NaN with fewer than ``scale_min_samples``
-  of them. The stiff reference is one filter of the follower's DR error, so
+  of them. The reference is one filter of the follower's DR error, so
   its residual's spread is the mission's, not a leader's: pooled, the stale
   ranges of one leader do not inflate it (a per-leader scale did, and halved
-  drift_reference's recall). Old enough not to hold a young drift; long,
-  because over seeds 0-19 a longer pool separates drift from normal better
-  (drift recall at 0.3 m/s at 2 % FPR: 0.47, 0.61, 0.75 for 300, 600,
-  900 s). With ``scale_pooled`` False: per leader over ``scale_window_s``
+  drift_reference's recall on the stiff reference). Old enough not to hold
+  a young drift; long, because over seeds 0-19 a longer pool separated
+  drift from normal better (stiff reference: drift recall at 0.3 m/s at
+  2 % FPR 0.47, 0.61, 0.75 for 300, 600, 900 s). With ``scale_pooled`` False: per leader over ``scale_window_s``
   (300 s), repeated ranges included (the session-12 form);
 - ``exclusion_z``: ``exclusion_residual_m`` standardized the same way (its
   offset is the follower's DR error across the other links' lines of
@@ -60,21 +63,21 @@ filter, and are the same for every method of a run:
 - ``drift_cusum_m``: max(S+, S-) of a two-sided CUSUM(k, h) of the drift
   residual per leader, restarting after each of its own alarms.
 
-Why a stiff reference sees a slow drift (issue 16): the ACKF's process
-noise (1 m/sqrt(s)) lets it move ~2 m between two ranges of a leader, so
-it takes a 0.3 m/s drift (1.4 m per 4.8 s) as motion and its innovation
-stays at the range noise. The follower's DR error (dead reckoning minus
-truth) grows much more slowly: 0.05 m/s Gauss-Markov (tau 300 s) and a
-1.5 deg heading bias, a few cm/s. A filter of that 2-D error as a random
-walk of intensity ``stiff_q_m2_per_s`` (3e-4 m²/s: sqrt(q*R*dt) gives a gain
-of ~1 % per range, a memory of minutes) follows the DR error and the
-rotating geometry (the error's projection on a line of sight changes as
-the follower passes a leader, the wander of ``dr_residual_m``) but only a
-small part of a drift of a minute: over seeds 0-19 the innovation of a
-0.3 m/s ramp averages 13.2 m at 30-45 s and 16.8 m at 45-60 s against a
-spread of 5.9 m (MAD-sigma of the normal epochs), where the ACKF's stays at
-~3 m. Its own prediction is worse than the ACKF's (error sd 6.0 m against
-3.8 m against the GPS ranges): it gives up tracking for not following.
+Why a model of the DR error of a minute ago sees a slow drift (issue 16):
+the ACKF's process noise (1 m/sqrt(s)) lets it move ~2 m between two ranges
+of a leader, so it takes a 0.3 m/s drift (1.4 m per 4.8 s) as motion and
+its innovation stays at the range noise. The follower's DR error grows much
+more slowly, and mostly through the heading error turning each DVL step
+(1.5 deg bias plus a walk in the scenario): the DR error model predicts it
+as the vehicle turns, and the state of ``lag_s`` ago, carried forward over
+the DR displacement, holds none of a younger drift. Over seeds 0-19, after
+t_a, its residual on normal ranges has a MAD-sigma of 3.8 m (the range
+noise is 3 m) and a 0.3 m/s drift's anomalous epochs a median of 15.6 m;
+the 98 % quantile of the normal residuals flags 94 % of them. The stiff
+reference (``drift_source`` "stiff", a 2-D random walk of 3e-4 m²/s) had
+6.0 m and 16.6 m, and flagged 51 %: it lagged the heading error's ramp by
+minutes, and a 2-D random walk with the heading state but no lag (3.5 m
+spread) took in half of the drift (median 8.8 m, 46 %).
 
 `FeatureTracker` keeps O(1) state per leader: each call costs the same
 whatever the mission length.
