@@ -11,11 +11,19 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from replay.stack.config import FeatureConfig
-from replay.stack.dr_error_model import DrErrorModel, transition
+from replay.stack.dr_error_model import DrErrorModel
 from replay.stack.features import EXTRA_FEATURES, FeatureTracker, range_to
 from replay.stack.model import metric_scales_scalar
 
 HEADING_WALK = math.radians(0.03)
+
+
+def transition(sum_perp: tuple[float, float], sum_disp: tuple[float, float]) -> np.ndarray:
+    """F of DR steps summing to (n, e): d gains psi·(-e, n) + s·(n, e), sum_perp = (-e, n), sum_disp = (n, e)."""
+    f = np.eye(4)
+    f[0, 2], f[1, 2] = sum_perp
+    f[0, 3], f[1, 3] = sum_disp
+    return f
 
 
 def model(q: float = 1e-2, walk: float = HEADING_WALK, scale_walk: float = 1e-4, lag_s: float = 60.0,

@@ -38,8 +38,6 @@ import math
 from collections import deque
 from typing import NamedTuple
 
-import numpy as np
-
 NAN = float("nan")
 
 
@@ -52,31 +50,36 @@ class LaggedResidual(NamedTuple):
     lagged_var_m2: float
 
 
-def transition(sum_perp: tuple[float, float], sum_disp: tuple[float, float]) -> np.ndarray:
-    """F over an interval whose DR displacements sum to sum_disp = (n, e), sum_perp = (-e, n)."""
-    f = np.eye(4)
-    f[0, 2], f[1, 2] = sum_perp
-    f[0, 3], f[1, 3] = sum_disp
-    return f
+def _moved(x: list[float], a0: float, a1: float, b0: float, b1: float) -> list[float]:
+    """F·x for the F of an interval whose DR steps sum to (n, e): (a0, a1) = (-e, n), (b0, b1) = (n, e)."""
+    return [x[0] + a0 * x[2] + b0 * x[3], x[1] + a1 * x[2] + b1 * x[3], x[2], x[3]]
 
 
 class DrErrorModel:
-    """The DR error (d_n, d_e, heading error, scale error) of one follower, updated by ranges and fixes."""
+    """The DR error (d_n, d_e, heading error, scale error) of one follower, updated by ranges and fixes.
+
+    Plain floats rather than numpy matrices: it runs once per range epoch, where
+    a 4x4 numpy product costs more in call overhead than in arithmetic
+    (tests/test_dr_error_model.py checks it against the matrix filter).
+    """
 
     def __init__(self, q_m2_per_s: float, heading_walk_rad_per_sqrt_s: float, scale_walk_per_sqrt_s: float,
                  range_sigma_m: float, p0_m: tuple[float, float], heading_sigma_rad: float, scale_sigma: float,
                  lag_s: float, gate_sigma: float, cap: int) -> None:
         """Start at x = 0 with P = diag(p0_m², heading_sigma², scale_sigma²); no lagged state yet."""
-        self.q = np.array([q_m2_per_s, q_m2_per_s, heading_walk_rad_per_sqrt_s ** 2, scale_walk_per_sqrt_s ** 2])
+        self.q = (float(q_m2_per_s), float(q_m2_per_s), float(heading_walk_rad_per_sqrt_s) ** 2,
+                  float(scale_walk_per_sqrt_s) ** 2)
         self.r_var = float(range_sigma_m) ** 2
         self.lag_s = float(lag_s)
         self.gate_sigma = float(gate_sigma)
         self.cap = int(cap)
-        self.x = np.zeros(4)
-        self.p = np.diag([p0_m[0] ** 2, p0_m[1] ** 2, heading_sigma_rad ** 2, scale_sigma ** 2])
+        self.x = [0.0, 0.0, 0.0, 0.0]
+        diag = (float(p0_m[0]) ** 2, float(p0_m[1]) ** 2, float(heading_sigma_rad) ** 2, float(scale_sigma) ** 2)
+        self.p = [[diag[i] if i == j else 0.0 for j in range(4)] for i in range(4)]
         self._pending = [0.0, 0.0, 0.0]                 # n, e, dt since the last propagation
-        self._cum = np.zeros(5)                         # sum of (-e, n, n, e) and of dt since the start
-        self._snaps: deque[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = deque()   # t, x, P, cum
+        self._cum = (0.0, 0.0, 0.0, 0.0, 0.0)           # sums of (-e, n), (n, e) and dt since the start
+        # t, x, P, cum: the states of the last lag_s and the newest older one
+        self._snaps: deque[tuple[float, list[float], list[list[float]], tuple[float, ...]]] = deque()
         self._left_out: dict[str, int] = {}
 
     def step(self, dt_s: float, north_m: float, east_m: float) -> None:
@@ -89,33 +92,44 @@ class DrErrorModel:
         n, e, dt = self._pending
         if dt == 0.0 and n == 0.0 and e == 0.0:
             return
-        f = transition((-e, n), (n, e))
-        self.p[np.diag_indices(4)] += self.q * dt
-        self.x = f @ self.x
-        self.p = f @ self.p @ f.T
-        self._cum += (-e, n, n, e, dt)
+        p, q = self.p, self.q
+        for i in range(4):
+            p[i][i] += q[i] * dt
+        a0, a1, b0, b1 = -e, n, n, e
+        self.x = _moved(self.x, a0, a1, b0, b1)
+        # F·P·Fᵀ with F = I + G: G adds rows 2 and 3 into rows 0 and 1, then the same for the columns
+        r2, r3 = p[2], p[3]
+        p[0] = [p[0][j] + a0 * r2[j] + b0 * r3[j] for j in range(4)]
+        p[1] = [p[1][j] + a1 * r2[j] + b1 * r3[j] for j in range(4)]
+        for row in p:
+            row[0], row[1] = row[0] + a0 * row[2] + b0 * row[3], row[1] + a1 * row[2] + b1 * row[3]
+        c = self._cum
+        self._cum = (c[0] + a0, c[1] + a1, c[2] + b0, c[3] + b1, c[4] + dt)
         self._pending = [0.0, 0.0, 0.0]
 
     def _remember(self, t_s: float) -> None:
         """Keep this state for the lagged prediction; forget those a newer one at least lag_s old replaces."""
         snaps, cutoff = self._snaps, t_s - self.lag_s
-        snaps.append((float(t_s), self.x.copy(), self.p.copy(), self._cum.copy()))
+        snaps.append((float(t_s), list(self.x), [list(row) for row in self.p], self._cum))
         while len(snaps) > 1 and snaps[1][0] <= cutoff:
             snaps.popleft()
 
-    def _lagged(self, t_s: float) -> tuple[np.ndarray, np.ndarray] | None:
-        """The state of lag_s ago (the newest at least that old) carried forward to now, or None."""
+    def _lagged(self, t_s: float, h0: float, h1: float) -> tuple[float, float] | None:
+        """h·x and h·P·hᵀ of the state of lag_s ago (the newest at least that old) carried forward, or None."""
         snaps, cutoff = self._snaps, t_s - self.lag_s
         while len(snaps) > 1 and snaps[1][0] <= cutoff:
             snaps.popleft()
         if not snaps or snaps[0][0] > cutoff:
             return None
         _, x, p, cum = snaps[0]
-        dc = self._cum - cum
-        f = transition((dc[0], dc[1]), (dc[2], dc[3]))
-        p = p.copy()
-        p[np.diag_indices(4)] += self.q * dc[4]
-        return f @ x, f @ p @ f.T
+        c = self._cum
+        a0, a1, b0, b1, dt = (c[k] - cum[k] for k in range(5))
+        hx = h0 * (x[0] + a0 * x[2] + b0 * x[3]) + h1 * (x[1] + a1 * x[2] + b1 * x[3])
+        # h·F·(P + Q dt)·Fᵀ·hᵀ = g·(P + Q dt)·gᵀ with g = Fᵀ·hᵀ
+        g = (h0, h1, a0 * h0 + a1 * h1, b0 * h0 + b1 * h1)
+        q = self.q
+        var = sum(g[i] * (sum(p[i][j] * g[j] for j in range(4)) + q[i] * dt * g[i]) for i in range(4))
+        return hx, var
 
     def range(self, t_s: float, leader: str, z_m: float, north_m: float, east_m: float,
               repeated: bool) -> LaggedResidual:
@@ -124,16 +138,16 @@ class DrErrorModel:
         r = math.hypot(north_m, east_m)
         if not r > 0.0 or not math.isfinite(z_m):
             return LaggedResidual(NAN, NAN, NAN, NAN)
-        h = np.array([-north_m / r, -east_m / r, 0.0, 0.0])
-        ph = self.p @ h
-        s = float(h @ ph) + self.r_var
-        v = z_m - r - float(h @ self.x)
-        lagged = self._lagged(t_s)
+        h0, h1 = -north_m / r, -east_m / r
+        x, p = self.x, self.p
+        ph = [p[i][0] * h0 + p[i][1] * h1 for i in range(4)]
+        s = h0 * ph[0] + h1 * ph[1] + self.r_var
+        v = z_m - r - (h0 * x[0] + h1 * x[1])
+        lagged = self._lagged(t_s, h0, h1)
         vl = sl = NAN
         if lagged is not None:
-            xl, pl = lagged
-            vl = z_m - r - float(h @ xl)
-            sl = float(h @ pl @ h) + self.r_var
+            vl = z_m - r - lagged[0]
+            sl = lagged[1] + self.r_var
         out = LaggedResidual(v, s, vl, sl)
         gated = math.isfinite(vl) and abs(vl) > self.gate_sigma * math.sqrt(sl)
         left_out = self._left_out.get(leader, 0)
@@ -141,21 +155,25 @@ class DrErrorModel:
             self._left_out[leader] = left_out + 1
         else:
             self._left_out[leader] = 0
-            k = ph / s
-            self.x = self.x + k * v
-            self.p = self.p - np.outer(k, ph)
+            k = [ph[i] / s for i in range(4)]
+            self.x = [x[i] + k[i] * v for i in range(4)]
+            self.p = [[p[i][j] - k[i] * ph[j] for j in range(4)] for i in range(4)]
         self._remember(t_s)
         return out
 
     def fix(self, t_s: float, north_m: float, east_m: float, cov_m2: tuple[float, float, float]) -> None:
         """A position fix: d measured as (north_m, east_m), DR minus the fix, with covariance (nn, ne, ee) m²."""
         self._propagate()
-        r = np.array([[cov_m2[0], cov_m2[1]], [cov_m2[1], cov_m2[2]]])
-        s = self.p[:2, :2] + r
-        if not np.linalg.det(s) > 0.0:
+        p, x = self.p, self.x
+        snn, sne, see = p[0][0] + cov_m2[0], p[0][1] + cov_m2[1], p[1][1] + cov_m2[2]
+        det = snn * see - sne * sne
+        if not det > 0.0:
             return
-        k = self.p[:, :2] @ np.linalg.inv(s)
-        self.x = self.x + k @ (np.array([north_m, east_m]) - self.x[:2])
-        self.p = self.p - k @ self.p[:2, :]
-        self.p = 0.5 * (self.p + self.p.T)
+        inn, ine, iee = see / det, -sne / det, snn / det
+        # K = P[:, :2]·S⁻¹ (4 x 2); x += K·(fix - d); P -= K·P[:2, :]
+        k = [(p[i][0] * inn + p[i][1] * ine, p[i][0] * ine + p[i][1] * iee) for i in range(4)]
+        rn, re = north_m - x[0], east_m - x[1]
+        self.x = [x[i] + k[i][0] * rn + k[i][1] * re for i in range(4)]
+        new = [[p[i][j] - k[i][0] * p[0][j] - k[i][1] * p[1][j] for j in range(4)] for i in range(4)]
+        self.p = [[0.5 * (new[i][j] + new[j][i]) for j in range(4)] for i in range(4)]
         self._remember(t_s)
