@@ -72,8 +72,8 @@ more slowly, and mostly through the heading error turning each DVL step
 as the vehicle turns, and the state of ``lag_s`` ago, carried forward over
 the DR displacement, holds none of a younger drift. Over seeds 0-19, after
 t_a, its residual on normal ranges has a MAD-sigma of 3.8 m (the range
-noise is 3 m) and a 0.3 m/s drift's anomalous epochs a median of 15.6 m;
-the 98 % quantile of the normal residuals flags 94 % of them. The stiff
+noise is 3 m) and a 0.3 m/s drift's anomalous epochs a median of 15.3 m;
+the 98 % quantile of the normal residuals flags 91 % of them. The stiff
 reference (``drift_source`` "stiff", a 2-D random walk of 3e-4 m²/s) had
 6.0 m and 16.6 m, and flagged 51 %: it lagged the heading error's ramp by
 minutes, and a 2-D random walk with the heading state but no lag (3.5 m
