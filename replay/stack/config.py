@@ -61,7 +61,7 @@ class FeatureConfig:
     scale_window_s: float = 300.0       # drift_z: median and MAD of the drift residuals of this window ...
     scale_min_samples: int = 8          # ... older than lag_s, at least this many
     scale_floor_m: float = 1.0          # ... the MAD-scale never below this (m)
-    # drift_z: one history of every leader's drift residuals (the stiff reference is one filter of the
+    # drift_z: one history of every leader's drift residuals (the DR error reference is one filter of the
     # follower's DR error, its spread the mission's), leaving out repeated ranges, aged lag_s to
     # scale_pooled_window_s; False: one per leader, aged lag_s to scale_window_s, repeated or not
     scale_pooled: bool = True

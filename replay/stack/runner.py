@@ -88,7 +88,7 @@ from replay.stack.model import (
 from replay.stack.training import RECORDED, TRAINING_SOURCES, TrainingSet
 
 # methods trained on every leader's rows together whatever anfis.model says: drift_reference's threshold is
-# a quantile of the stiff reference's residual, the same for every link, and one leader's ~100 normal rows
+# a quantile of the DR error reference's residual, the same for every link, and one leader's ~100 normal rows
 # of a 600 s window leave the 98 % quantile to its two largest values (17.4 against 10.5 m on seed 0)
 _POOLED_TRAINING: frozenset[str] = frozenset({"drift_reference"})
 _NO_EXTRA: tuple[float, ...] = (NAN,) * len(EXTRA_FEATURES)

@@ -60,7 +60,7 @@ _MIN_RECORDED = 100
 class DriftReferenceExplanation:
     """Why drift_reference did (not) flag one epoch, for the views."""
 
-    residual_m: float      # drift_residual_m: the range minus the stiff reference's prediction
+    residual_m: float      # drift_residual_m: the range minus the DR error reference's prediction
     threshold_m: float     # h_m, the metres threshold (used where drift_z is NaN, or with the metres input)
     flagged: bool
     z: float = math.nan            # drift_z: the residual in units of the mission's pooled recent scale
