@@ -28,6 +28,22 @@ PAPER_METHODS: tuple[str, ...] = ("chi_square", "dual_threshold", "anfis", "anfi
 POSITIONING_METHODS: tuple[str, ...] = ("kmcdf1", "kmcdf2", "gar", "ear", "lms", "lhc")
 
 
+class ConfigError(ValueError):
+    """A configuration the stack cannot run (an unknown name, a value out of range): the CLI's one-line error."""
+
+
+DRIFT_SOURCES: tuple[str, ...] = ("model", "stiff", "lag", "exclusion")
+"""What ``features.drift_source`` may name (replay.stack.features: the drift residual's reference)."""
+# the string parameters with a fixed set of values, by dotted key: a configuration naming another is refused
+CHOICES: dict[str, tuple[str, ...]] = {
+    "stack.features.drift_source": DRIFT_SOURCES,
+    "stack.features.cusum_input": ("drift_z", "drift_residual_m"),
+    "stack.drift_reference_input": ("drift_z", "drift_residual_m"),
+    "stack.anfis.model": ("per_leader", "shared"),
+    "stack.anfis.rule_structure": ("grid", "diagonal"),
+}
+
+
 @dataclass(frozen=True)
 class AnfisConfig:
     """ANFIS structure and training (STACK.md section 4, patent steps 3-4)."""

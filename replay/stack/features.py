@@ -89,7 +89,7 @@ import math
 import statistics
 from collections import deque
 
-from replay.stack.config import FeatureConfig
+from replay.stack.config import DRIFT_SOURCES, ConfigError, FeatureConfig
 from replay.stack.cusum import Cusum
 from replay.stack.dr_error_model import DrErrorModel
 from replay.stack.exclusion import LeaderExclusion
@@ -189,6 +189,8 @@ class FeatureTracker:
 
         ``range_sigma_m`` and ``p0_m`` (the stack's r_m and p0_m) set the stiff reference's R and P0.
         """
+        if config.drift_source not in DRIFT_SOURCES:
+            raise ConfigError(f"features.drift_source must be one of {DRIFT_SOURCES}, got {config.drift_source!r}")
         self.config = config
         self.exclusion = exclusion
         self.stiff = StiffReference(config.stiff_q_m2_per_s, range_sigma_m, p0_m, config.stiff_cap) \

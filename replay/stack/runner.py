@@ -58,7 +58,7 @@ from itertools import chain
 import numpy as np
 
 from replay.events import NAN, EpochResult, RunResults, Track
-from replay.stack.config import PAPER_METHODS, StackConfig
+from replay.stack.config import PAPER_METHODS, ConfigError, StackConfig
 from replay.stack.detectors.base import Decision, Detector
 from replay.stack.detectors.chi_square import chi_square_threshold
 from replay.stack.exclusion import LeaderExclusion
@@ -173,7 +173,7 @@ class CooperativeRunner:
         none, or the set's features are not `FEATURE_NAMES`.
         """
         if config.training_source not in TRAINING_SOURCES:
-            raise ValueError(f"unknown training_source {config.training_source!r}; expected one of "
+            raise ConfigError(f"unknown training_source {config.training_source!r}; expected one of "
                              f"{', '.join(TRAINING_SOURCES)}")
         if config.training_source != "own" and training_set is None:
             raise ValueError(f"training_source {config.training_source!r} needs a training_set")

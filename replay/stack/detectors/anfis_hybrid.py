@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from replay.stack.config import StackConfig
+from replay.stack.config import ConfigError, StackConfig
 from replay.stack.detectors.anfis_detector import (
     AnfisDetector,
     Explanation,
@@ -85,7 +85,7 @@ class HybridAnfisDetector:
         """Configure; nothing is trained until :meth:`train`."""
         unknown = [n for n in config.hybrid_inputs if n not in FEATURE_NAMES]
         if unknown:
-            raise ValueError(f"unknown hybrid input {unknown[0]!r}; expected names from {FEATURE_NAMES}")
+            raise ConfigError(f"unknown hybrid input {unknown[0]!r}; expected names from {FEATURE_NAMES}")
         self.config = config
         self.inputs: tuple[str, ...] = tuple(config.hybrid_inputs)
         self._cols = [FEATURE_NAMES.index(n) for n in self.inputs]

@@ -44,7 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from replay.stack.config import StackConfig
+from replay.stack.config import CHOICES, ConfigError, StackConfig
 from replay.stack.detectors.anfis_hybrid import fpr_threshold
 from replay.stack.detectors.base import Decision
 from replay.stack.features import FEATURE_NAMES
@@ -52,7 +52,7 @@ from replay.stack.training import TrainingSet
 
 _METRES = FEATURE_NAMES.index("drift_residual_m")
 _Z = FEATURE_NAMES.index("drift_z")
-_INPUTS = ("drift_z", "drift_residual_m")
+_INPUTS = CHOICES["stack.drift_reference_input"]
 _MIN_RECORDED = 100
 
 
@@ -76,9 +76,9 @@ class DriftReferenceDetector:
     def __init__(self, config: StackConfig) -> None:
         """h_m = t1_m until training; h_z = ``drift_reference_z`` (drift_z input) or none (metres input)."""
         if config.drift_reference_input not in _INPUTS:
-            raise ValueError(f"drift_reference_input must be one of {_INPUTS}, got {config.drift_reference_input!r}")
+            raise ConfigError(f"drift_reference_input must be one of {_INPUTS}, got {config.drift_reference_input!r}")
         if not config.drift_reference_z > 0.0:
-            raise ValueError(f"drift_reference_z must be positive, got {config.drift_reference_z!r}")
+            raise ConfigError(f"drift_reference_z must be positive, got {config.drift_reference_z!r}")
         self.config = config
         self.t1 = float(config.t1_m)
         self.threshold_m = self.t1
