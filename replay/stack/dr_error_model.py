@@ -20,10 +20,10 @@ A filter that follows the DR error follows a drifting range too (a drift is
 an error ramp on one line of sight, which the heading state can take for a
 turn). So the residual a detector tests is the range against the filter's
 state of ``lag_s`` ago, carried forward by the model over the DR
-displacement since (`epoch`'s ``lagged``): a drift younger than the lag is
+displacement since (`DrErrorModel.range`'s ``lagged_m``): a drift younger than the lag is
 in none of it. The filter leaves out of its update a repeated range (a stale
 modem) and a range whose lagged residual is beyond ``gate_sigma`` of its
-predicted spread, each at most ``cap`` in a row per leader, so a longer
+predicted spread, together at most ``cap`` in a row per leader, so a longer
 drift does not pull the state either, while a real change of the DR error
 (which every leader sees) is taken after ``cap`` ranges.
 
