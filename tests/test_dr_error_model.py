@@ -224,3 +224,34 @@ def test_the_feature_trackers_default_drift_residual_is_the_lagged_model() -> No
     stiff = _tracker_run("stiff", drift_from_s=math.inf)
     stiff_before = stiff[(stiff[:, 0] > 800.0) & (stiff[:, 0] < 1540.0), 2]
     assert np.max(np.abs(stiff_before)) > 3.0 * np.max(np.abs(before[:, 2]))
+
+
+def test_with_a_fresh_usbl_fix_the_drift_residual_is_the_current_innovation(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The lagged state has not seen a fix younger than lag_s: while one exists the current innovation is used."""
+    lat0, lon0, depth = math.radians(45.7), math.radians(126.6), 2.0
+    b, a = metric_scales_scalar(lat0, depth)
+    leaders = [(lat0 + 400.0 / b, lon0 - 300.0 / a, 1.5), (lat0 - 350.0 / b, lon0 + 500.0 / a, 1.5)]
+    tracker = FeatureTracker(FeatureConfig(), ("leader1", "leader2"), lat0, lon0)
+    assert tracker.model is not None
+    seen = []
+    model_range = tracker.model.range
+
+    def spy(*args):
+        seen.append(model_range(*args))
+        return seen[-1]
+
+    monkeypatch.setattr(tracker.model, "range", spy)
+    fix_until = 400.0
+    for k in range(1, 300):
+        t = 2.4 * k
+        tracker.propagate(2.4, 1.5, 0.0, 0.3, depth)
+        if t <= fix_until:
+            tracker.fix(t, lat0, lon0, (1e-12, 0.0, 1e-12))
+        geo = leaders[k % 2]
+        z = range_to(lat0, lon0, depth, *geo) + 5.0 * math.sin(k)
+        drift = tracker.epoch(t, f"leader{k % 2 + 1}", z, z, depth, geo)[EXTRA_FEATURES.index("drift_residual_m")]
+        res = seen[-1]
+        if t - fix_until <= 60.0:            # a fix within lag_s (60 s): the current innovation
+            assert drift == res.innovation_m
+        elif t > 60.0:                       # no fresh fix, a lagged state: the lagged residual
+            assert drift == res.lagged_m and drift != res.innovation_m
