@@ -112,15 +112,25 @@ def write_ours_bytes(path: Path, content: Recorded, classes: dict[str, type]) ->
 
 
 
-# (module, attribute, label, index of the argument naming the span or None): the traced steps
-TRACED = [
-    (recording, "_decode_log", "decode", 1),
-    (recording, "_attach", "attach", 1),
+def _log_path(at: int) -> Callable[[tuple], str]:
+    return lambda args: args[at].path
+
+
+def _part_names(args: tuple) -> str:
+    return " ".join(name for name, _ in args[1])
+
+
+# (module, attribute, label, what the step was about from its arguments, or None): the traced steps
+TRACED: list[tuple[Any, str, str, Callable[[tuple], str] | None]] = [
+    (recording, "_decode_log", "decode", _log_path(1)),
+    (recording, "_decode_streamed", "decode in blocks", _log_path(1)),
+    (recording, "_attach", "attach", _part_names),
+    (recording, "_attach_streamed", "attach from file", _log_path(2)),
     (recording, "write_captured", "write captured", None),
     (parallel_recording.WorkerPool, "__init__", "fork workers", None),
-    (parallel_recording.WorkerPool, "result", "wait for worker", 1),
+    (parallel_recording.WorkerPool, "result", "wait for worker", lambda args: str(args[1])),
     (parallel_recording.WorkerPool, "close", "stop workers", None),
-    (parallel_recording, "_hand_over", "hand over", 1),
+    (parallel_recording, "_hand_over", "hand over", lambda args: str(args[1])),
     (parallel_recording, "_take_over", "take over", None),
     (ArchiveWriter, "close", "close archive", None),
 ]
@@ -132,9 +142,9 @@ def traced(events_path: Path) -> Iterator[None]:
     # one O_APPEND descriptor inherited by the forks: each line is one write(), whole under PIPE_BUF
     fd = os.open(events_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_TRUNC)
 
-    def wrap(real: Callable, label: str, arg: int | None) -> Callable:
+    def wrap(real: Callable, label: str, describe: Callable[[tuple], str] | None) -> Callable:
         def step(*args: Any, **kwargs: Any) -> Any:
-            what = "" if arg is None else str(getattr(args[arg], "path", args[arg]))
+            what = "" if describe is None else describe(args)
             start, cpu = time.perf_counter(), time.process_time()
             try:
                 return real(*args, **kwargs)
@@ -145,8 +155,8 @@ def traced(events_path: Path) -> Iterator[None]:
 
     saved = [(owner, attr, getattr(owner, attr)) for owner, attr, _, _ in TRACED]
     try:
-        for (owner, attr, label, arg), (_, _, real) in zip(TRACED, saved):
-            setattr(owner, attr, wrap(real, label, arg))
+        for (owner, attr, label, describe), (_, _, real) in zip(TRACED, saved):
+            setattr(owner, attr, wrap(real, label, describe))
         yield
     finally:
         for owner, attr, real in saved:
