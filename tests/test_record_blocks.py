@@ -200,3 +200,27 @@ def test_record_memory_does_not_grow_with_the_log(tmp_path, kind, small, large):
     # holding the log costs a byte per log byte at least (4 to 7 before blocks); in blocks the peak is about the
     # same from a couple of blocks on (both sizes are several); the full 200 MB runs in bench/bench_record_memory.py
     assert peaks[large] < RSS_LIMIT_KB and peaks[large] - peaks[small] < (large - small) / 2 / 1024, peaks
+
+
+@pytest.mark.parametrize("files, extra", [('"gps.log.*"', ""), ('["gps.log.2", "gps.log.0", "gps.log.1"]',
+                                                                  'order = "time"\n')])
+def test_a_rotated_log_in_blocks_is_the_archive_it_is_read_whole(tmp_path, monkeypatch, files, extra):
+    # at most a block in all, a log is read whole; larger, its files are read in blocks (and ordered by time so)
+    lines = GPS.splitlines(keepends=True)
+    a, b = len(lines) // 3, 2 * len(lines) // 3
+    for i, piece in enumerate([lines[:a], lines[a:b], lines[b:]]):
+        (tmp_path / f"gps.log.{i}").write_bytes(b"".join(piece))
+    (tmp_path / "whole.log").write_bytes(GPS)
+    (tmp_path / "trial.toml").write_text(
+        '[trial]\nname = "t"\ndate = "2016-10-12"\n\n[[vehicles]]\nname = "a"\nrole = "leader"\n\n'
+        f'[[vehicles.logs]]\nsensor = "gps"\nformat = "nmea"\npath = {files}\n{extra}\n'
+        '[[vehicles]]\nname = "b"\nrole = "follower"\n\n'
+        '[[vehicles.logs]]\nsensor = "gps"\nformat = "nmea"\npath = "whole.log"\n')
+    manifest = load_manifest(tmp_path / "trial.toml")
+    record(manifest, tmp_path / "whole.mcap", workers=1)
+    monkeypatch.setattr(log_blocks, "BLOCK_BYTES", 3000)
+    record(manifest, tmp_path / "blocks.mcap", workers=1)
+    record(manifest, tmp_path / "blocks2.mcap", workers=2)
+    whole = (tmp_path / "whole.mcap").read_bytes()
+    assert (tmp_path / "blocks.mcap").read_bytes() == whole
+    assert (tmp_path / "blocks2.mcap").read_bytes() == whole
