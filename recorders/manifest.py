@@ -6,6 +6,7 @@ See DESIGN.md "The trial manifest". Every problem is reported as one
 
 from __future__ import annotations
 
+import itertools
 import tomllib
 from dataclasses import dataclass, field, replace
 from datetime import date
@@ -21,6 +22,10 @@ CONTAINER_FORMATS = ("rosbag", "alog", "mavlink")
 ORDERS = ("name", "time")
 _LOG_KEYS = {"sensor", "format", "path", "source", "clock_offset_s", "prefix", "order"}
 _GLOB_CHARS = frozenset("*?[")
+# a manifest is a small TOML file; one from another lab may be anything (a huge file, a device that never ends)
+MAX_MANIFEST_BYTES = 4 << 20
+# a glob's matches become one log's parts: more than this is a pattern that went wrong, not a rotated log
+MAX_GLOB_MATCHES = 10_000
 
 
 class ManifestError(ValueError):
@@ -199,13 +204,17 @@ def load_manifest(path: str | Path, allow_outside: bool = False) -> Manifest:
     """
     path = Path(path)
     try:
-        text = path.read_bytes().decode("utf-8")
+        with open(path, "rb") as f:
+            raw = f.read(MAX_MANIFEST_BYTES + 1)   # bounded: a special file or a huge one stops here
+        if len(raw) > MAX_MANIFEST_BYTES:
+            raise ManifestError(f"{path}: larger than {MAX_MANIFEST_BYTES >> 20} MiB, not a trial manifest")
+        text = raw.decode("utf-8")
     except OSError as exc:
         raise ManifestError(f"{path}: cannot read manifest ({exc.strerror or exc})") from exc
     except UnicodeDecodeError as exc:
         raise ManifestError(f"{path}: manifest is not UTF-8 text") from exc
     manifest = parse_manifest(text, path)
-    manifest = _expand_globs(manifest)
+    manifest = _expand_globs(manifest, allow_outside)
     try:   # every file a log names, a glob's matches included, must be inside the manifest's folder
         check_log_paths(manifest.root, [name for log in manifest.logs() for name in log.files()], str(path),
                         allow_outside)
@@ -219,15 +228,31 @@ def load_manifest(path: str | Path, allow_outside: bool = False) -> Manifest:
     return manifest
 
 
-def _expand_globs(manifest: Manifest) -> Manifest:
-    """Every log whose path is a glob gets its matching files as parts, in name order."""
+def _expand_globs(manifest: Manifest, allow_outside: bool = False) -> Manifest:
+    """Every log whose path is a glob gets its matching files as parts, in name order.
+
+    Unless `allow_outside`, a glob may not climb out of the manifest's folder
+    (an absolute pattern or a ".." part): it is refused before any directory
+    outside is listed. At most MAX_GLOB_MATCHES files match.
+    """
     vehicles = []
     for v in manifest.vehicles:
         logs = []
         for log in v.logs:
             if not log.source and not log.parts and _GLOB_CHARS & set(log.path):
-                found = sorted(p.relative_to(manifest.root).as_posix() for p in manifest.root.glob(log.path)
-                               if p.is_file())
+                pattern = PurePosixPath(log.path.replace("\\", "/"))
+                if not allow_outside and (pattern.is_absolute() or ".." in pattern.parts):
+                    raise ManifestError(f"{manifest.path}: vehicle {v.name!r}: the glob {log.path} reaches outside "
+                                        f"the manifest's folder (--allow-outside permits it)")
+                # pathlib globs relative patterns only: an absolute one (allowed outside) from its anchor
+                base, rel = (Path(pattern.anchor), pattern.relative_to(pattern.anchor).as_posix()) \
+                    if pattern.is_absolute() else (manifest.root, log.path)
+                matches = (p for p in base.glob(rel) if p.is_file())
+                found = sorted(p.as_posix() if pattern.is_absolute() else p.relative_to(manifest.root).as_posix()
+                               for p in itertools.islice(matches, MAX_GLOB_MATCHES + 1))
+                if len(found) > MAX_GLOB_MATCHES:
+                    raise ManifestError(f"{manifest.path}: vehicle {v.name!r}: the glob {log.path} matches more "
+                                        f"than {MAX_GLOB_MATCHES} files")
                 if not found:
                     raise ManifestError(f"{manifest.path}: vehicle {v.name!r}: no file matches {log.path} "
                                         f"(looked in {manifest.root})")

@@ -12,6 +12,7 @@ from importlib.metadata import PackageNotFoundError, version
 
 from formats.records import FormatError
 from replay.errors import UserError
+from replay.stack.config import ConfigError
 
 # command name -> (module, one-line help). Only the chosen command's module is imported (it imports
 # what it needs at its top), so `auvreplay info` does not pay for numpy, pandas, rerun or dask.
@@ -82,6 +83,9 @@ def main(argv: list[str] | None = None) -> int:
         return int(args._run(args) or 0)
     except (UserError, FormatError, OSError) as exc:
         print(f"auvreplay {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+    except ConfigError as exc:
+        print(f"auvreplay {args.command}: error: configuration: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(f"auvreplay {args.command}: interrupted", file=sys.stderr)

@@ -65,3 +65,21 @@ def test_a_batch_run_keeps_the_archives_warning(archives, tmp_path):
 
 
 REPLAY_OVERRIDES = ["methods=dead_reckoning", "window_s=[0,700]"]
+
+
+def test_view_and_report_warn_of_the_damaged_input_archive_they_re_run(archives, tmp_path, capsys, monkeypatch):
+    """A results archive's view and report re-run its input: that input's damage is named too, once."""
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    results = tmp_path / "of-garbage.mcap"
+    assert main(["replay", str(archives["garbage"]), "--set", "methods=chi_square", "--window", "0", "700",
+                 "-o", str(results)]) == 0
+    capsys.readouterr()
+    for command in (["view", str(results), "--save", str(tmp_path / "v.rrd")],
+                    ["report", str(results), "-o", str(tmp_path / "r.html")]):
+        assert main(command) == 0
+        line = one_line(capsys.readouterr().err, "warning")
+        assert line.startswith(f"auvreplay {command[0]}: warning: {archives['garbage']}: ")
+        assert "do not decode" in line and str(results) + ":" not in line
+    assert main(["view", str(archives["results"]), "--save", str(tmp_path / "w.rrd")]) == 0
+    assert "warning" not in capsys.readouterr().err

@@ -1,4 +1,4 @@
-"""The stiff reference (features.StiffReference), the drift_reference detector and the run id of a given training set."""
+"""The stiff reference (features.StiffReference, drift_source "stiff"), the drift_reference detector and the run id of a given training set."""
 
 from __future__ import annotations
 

@@ -273,6 +273,22 @@ def test_detections_carry_the_filter_independent_features(full_run, tmp_path):
     assert set(EXTRA_FEATURES) <= set(df.columns)
     per_epoch = df.groupby(["timestamp", "leader"])[list(EXTRA_FEATURES)].nunique(dropna=False)
     assert (per_epoch <= 1).all().all()
-    # the stiff reference's residual (lag_residual_m is NaN unless drift_source is "lag" or anfis_hybrid takes it)
+    # the DR error model's residual (lag_residual_m is NaN unless drift_source is "lag" or anfis_hybrid takes it)
     assert np.isfinite(df["drift_residual_m"]).mean() > 0.8 and (df["repeat_count"] >= 0).all()
     assert np.isfinite(df["drift_z"]).mean() > 0.5
+
+
+@pytest.mark.parametrize("setting, words", [
+    ("training_source=x", "unknown training_source 'x'"),
+    ("anfis.threshold_rule=x", "unknown ANFIS threshold rule 'x'"),
+    ("drift_reference_z=-1", "drift_reference_z must be positive"),
+    ("hybrid_inputs=f2,nope", "unknown hybrid input 'nope'"),
+])
+def test_a_configuration_the_stack_cannot_run_is_a_one_line_error(archive, tmp_path, capsys, setting, words):
+    """Refused where the stack checks it (ConfigError), printed as one line, no traceback and no results."""
+    out = tmp_path / "r.mcap"
+    code = main(["replay", str(archive), "--set", "methods=ackf,anfis,anfis_hybrid,drift_reference",
+                 "--set", setting, "-o", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1 and len(err) == 1 and not out.exists()
+    assert err[0].startswith("auvreplay replay: error: configuration: ") and words in err[0]

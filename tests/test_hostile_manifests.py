@@ -69,6 +69,42 @@ def test_a_symlink_inside_the_folder_is_fine(tmp_path, capsys):
     assert rc == 0
 
 
+@pytest.mark.parametrize("pattern", ["../*.log", "/*.log", "sub/../../*.log"])
+def test_a_glob_that_climbs_out_of_the_folder_is_refused_before_it_is_walked(tmp_path, capsys, pattern):
+    (tmp_path / "secret.log").write_bytes(GPS)
+    pattern = pattern if not pattern.startswith("/") else str(tmp_path) + pattern
+    manifest = trial(tmp_path, pattern)
+    rc, _, err = run_cli(capsys, "record", str(manifest), "-o", str(tmp_path / "o.mcap"), "--quiet")
+    assert rc == 1 and "reaches outside the manifest's folder" in error_line(err)
+    if not pattern.startswith("sub"):   # a ".." glob is the user's to allow (the secret is then matched)
+        rc, _, _ = run_cli(capsys, "record", str(manifest), "-o", str(tmp_path / "o.mcap"), "--quiet",
+                           "--allow-outside")
+        assert rc == 0
+
+
+def test_a_glob_matching_too_many_files_is_refused(tmp_path, monkeypatch):
+    manifest = trial(tmp_path, "parts/*.log")
+    (manifest.parent / "parts").mkdir()
+    for k in range(6):
+        (manifest.parent / "parts" / f"{k}.log").write_bytes(GPS[:100])
+    monkeypatch.setattr("recorders.manifest.MAX_GLOB_MATCHES", 5)
+    with pytest.raises(ManifestError, match="matches more than 5 files"):
+        load_manifest(manifest)
+    monkeypatch.setattr("recorders.manifest.MAX_GLOB_MATCHES", 6)
+    assert len(load_manifest(manifest).vehicles[0].logs[0].parts) == 6
+
+
+def test_a_manifest_is_read_bounded(tmp_path, monkeypatch):
+    """A huge manifest, or a device that never ends, is refused after MAX_MANIFEST_BYTES, not read whole."""
+    big = tmp_path / "big.toml"
+    big.write_bytes(b"#" * 1001)
+    monkeypatch.setattr("recorders.manifest.MAX_MANIFEST_BYTES", 1000)
+    with pytest.raises(ManifestError, match="not a trial manifest"):
+        load_manifest(big)
+    with pytest.raises(ManifestError, match="not a trial manifest"):
+        load_manifest("/dev/zero")
+
+
 # -- outputs ------------------------------------------------------------------------------------------------
 def test_output_never_overwrites_an_input_or_a_foreign_file(tmp_path, capsys):
     manifest = trial(tmp_path)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 
 import pytest
@@ -11,6 +12,7 @@ from hypothesis import strategies as st
 from replay.engine.tracks import Fix, Track
 from replay.errors import UserError
 from replay.run.config import load_config, run_id
+from replay.stack.config import CHOICES
 
 
 def test_defaults_are_stack_md():
@@ -78,3 +80,14 @@ def test_track_interpolation_stays_between_neighbours(times, t):
     f = tr.at(t, max_gap_s=1e9)
     if f is not None:
         assert min(times) * 1e-6 - 1e-9 <= f.lat_rad <= max(times) * 1e-6 + 1e-9
+
+
+@pytest.mark.parametrize("key", sorted(CHOICES))
+def test_a_parameter_with_fixed_values_refuses_another(key):
+    """Every default is one of its key's values; a misspelt one is a one-line UserError naming the values."""
+    allowed = CHOICES[key]
+    assert functools.reduce(getattr, key.split("."), load_config()) in allowed
+    for value in allowed:
+        assert functools.reduce(getattr, key.split("."), load_config(overrides=[f"{key}={value}"])) == value
+    with pytest.raises(UserError, match=f"{key}: unknown 'modle' \\(known: {', '.join(allowed)}\\)"):
+        load_config(overrides=[f"{key}=modle"])

@@ -57,5 +57,6 @@ def run(args: argparse.Namespace) -> int:
               f"({outcome.metrics['anomalous']} anomalous), {outcome.messages} messages in {outcome.wall_s:.2f} s")
         print(format_table(outcome.metrics))
         print(f"results: {outcome.output}" + (f"; recording: {args.rrd}" if args.rrd else ""))
-    warn_damage("replay", outcome.warning)
+    compared = reviews[1].input_warning if args.rrd and args.compare else None
+    warn_damage("replay", "; ".join(w for w in (outcome.warning, compared) if w) or None)
     return 0

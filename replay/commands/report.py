@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from replay.errors import UserError
+from replay.errors import UserError, warn_damage
 from replay.review.anomaly_kinds import load_intervals
 from replay.review.rebuild import review_from_results, run_metadata
 from replay.review.report import build_report
@@ -45,4 +45,5 @@ def run(args: argparse.Namespace) -> int:
     text = build_report(meta, review, intervals)
     out.write_text(text, encoding="utf-8")
     print(f"wrote {out} ({len(text.encode()) / 1e6:.2f} MB)")
+    warn_damage("report", review.input_warning)
     return 0

@@ -53,12 +53,15 @@ def check_file(name: str) -> Path:
     return path
 
 
-def _recording_of_results(args: argparse.Namespace) -> Path | None:
-    """Results archives become one recording (re-run from their inputs); None for a plain file."""
+def _recording_of_results(args: argparse.Namespace) -> tuple[Path | None, list[str]]:
+    """Results archives become one recording (re-run from their inputs); None for a plain file.
+
+    With it, what reading the input archives re-run skipped (one entry per damaged one).
+    """
     paths = [check_file(f) for f in args.file]
     metas = [run_metadata(p) if p.suffix.lower() == ".mcap" else None for p in paths]
     if len(paths) == 1 and metas[0] is None:
-        return None
+        return None, []
     if any(m is None for m in metas) or len(paths) > 2:
         raise UserError("give one .rrd or .mcap file, or one or two replay results archives")
     from replay.views.recording import save_rrd
@@ -69,7 +72,7 @@ def _recording_of_results(args: argparse.Namespace) -> Path | None:
     default = default_recording(paths)
     print(f"saved {out}" + (f" ({default} exists and was kept; --force replaces it)" if out != default and
                             not args.save else ""))
-    return out
+    return out, [r.input_warning for r in reviews if r.input_warning]
 
 
 def default_recording(paths: list[Path]) -> Path:
@@ -113,9 +116,9 @@ def run(args: argparse.Namespace) -> int:
     The damage warning line comes before the viewer opens (it runs until closed).
     """
     damage = archive_damage([check_file(f) for f in args.file])
-    built = _recording_of_results(args)
+    built, inputs = _recording_of_results(args)
     path = built if built is not None else check_file(args.file[0])
-    warn_damage("view", damage)
+    warn_damage("view", "; ".join([d for d in (damage,) if d] + inputs) or None)
     from replay.views.recording import open_viewer, viewer_command
 
     if not args.web and not has_display(os.environ):

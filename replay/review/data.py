@@ -77,3 +77,5 @@ class ReviewData:
     events: pd.DataFrame = field(default_factory=lambda: empty(EVENT_COLUMNS))
     metrics: dict[str, Any] = field(default_factory=dict)       # the replay --json object
     parameters: dict[str, Any] = field(default_factory=dict)    # the run's configuration (to_dict)
+    # what reading the input archive skipped, "<path>: <warning>", when a results archive's run was re-run
+    input_warning: str | None = None

@@ -52,4 +52,5 @@ def review_from_results(results: str | Path, archive: str | Path | None = None) 
         outcome.review.metrics["note"] = (f"re-run gives id {outcome.run_id}, stored {meta['run_id']} "
                                           "(another package version)")
     outcome.review.run_id = meta["run_id"]
+    outcome.review.input_warning = f"{source}: {outcome.warning}" if outcome.warning else None
     return outcome.review

@@ -7,7 +7,7 @@ flagged when either exceeds 1); the ANFIS family's output against T2 (metres);
 cusum_drift's max(S+, S-) against h, with the residual summed and its allowance k;
 anfis_hybrid's output against its false-alarm-rate threshold, with its named inputs;
 drift_reference's min(|drift_z|, h_z·|drift_residual_m|/T1) against h_z in sd where drift_z
-exists, else |drift_residual_m| (the range against the stiff reference) against h_m in metres.
+exists, else |drift_residual_m| (the range against the DR error reference) against h_m in metres.
 Lines are plain ASCII: the Rerun viewer aborts on a glyph its font lacks.
 """
 

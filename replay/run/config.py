@@ -8,6 +8,7 @@ a changed parameter gives a new run id.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 import math
@@ -20,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from replay.errors import UserError
-from replay.stack.config import ALL_METHODS, AnfisConfig, StackConfig
+from replay.stack.config import ALL_METHODS, CHOICES, AnfisConfig, StackConfig
 
 # the positioning methods the engine runs on archived USBL epochs (replay.engine.usbl.positioning)
 USBL_UPDATE_METHODS: tuple[str, ...] = ("kmcdf2", "gar", "ear", "lms", "lhc")
@@ -186,6 +187,10 @@ def load_config(path: str | Path | None = None, overrides: Sequence[str] = (),
     bad = [m for m in cfg.stack.methods if m not in ALL_METHODS]
     if bad:
         raise UserError(f"configuration methods: unknown {', '.join(bad)} (known: {', '.join(ALL_METHODS)})")
+    for key, allowed in CHOICES.items():
+        value = functools.reduce(getattr, key.split("."), cfg)
+        if value not in allowed:
+            raise UserError(f"configuration {key}: unknown {value!r} (known: {', '.join(allowed)})")
     if cfg.engine.usbl_update not in ("",) + USBL_UPDATE_METHODS:
         raise UserError(f"configuration engine.usbl_update: unknown {cfg.engine.usbl_update!r} "
                         f"(known: {', '.join(USBL_UPDATE_METHODS)}, or empty for none)")

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from replay.stack.config import InjectionConfig
+from replay.stack.config import ConfigError, InjectionConfig
 
 INJECTED_KINDS: tuple[str, ...] = ("stale", "drift", "outlier", "dropout")
 NORMAL: str = "normal"
@@ -62,7 +62,7 @@ def inject_link(t_s: np.ndarray, slant_m: np.ndarray, cfg: InjectionConfig,
     shares = {"stale": cfg.stale_share, "drift": cfg.drift_share, "outlier": cfg.outlier_share,
               "dropout": cfg.dropout_share}
     if any(not 0.0 <= v <= 1.0 for v in shares.values()) or sum(shares.values()) > 1.0:
-        raise ValueError(f"injection shares must be in [0, 1] and sum to <= 1, got {shares}")
+        raise ConfigError(f"injection shares must be in [0, 1] and sum to <= 1, got {shares}")
     stale = _segments(t, free, round(cfg.stale_share * n), (cfg.stale_min_s, cfg.stale_max_s), rng)
     drifts = _segments(t, free, round(cfg.drift_share * n), cfg.drift_s, rng)
     singles = {}

@@ -8,7 +8,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
-from replay.stack.config import ALL_METHODS, DETECTING_METHODS, StackConfig
+from replay.stack.config import ALL_METHODS, DETECTING_METHODS, ConfigError, StackConfig
 from replay.stack.detectors.anfis_detector import AnfisDetector
 from replay.stack.detectors.anfis_hybrid import HybridAnfisDetector
 from replay.stack.detectors.base import Detector
@@ -57,5 +57,5 @@ DETECTOR_FACTORIES: Mapping[str, DetectorFactory] = MappingProxyType({
 def filter_kind(method: str) -> str:
     """The filter kind of a method name; ValueError for a name not in config.ALL_METHODS."""
     if method not in FILTER_KINDS:
-        raise ValueError(f"unknown method {method!r}; expected one of {', '.join(ALL_METHODS)}")
+        raise ConfigError(f"unknown method {method!r}; expected one of {', '.join(ALL_METHODS)}")
     return FILTER_KINDS[method]

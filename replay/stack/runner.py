@@ -58,7 +58,7 @@ from itertools import chain
 import numpy as np
 
 from replay.events import NAN, EpochResult, RunResults, Track
-from replay.stack.config import PAPER_METHODS, StackConfig
+from replay.stack.config import PAPER_METHODS, ConfigError, StackConfig
 from replay.stack.detectors.base import Decision, Detector
 from replay.stack.detectors.chi_square import chi_square_threshold
 from replay.stack.exclusion import LeaderExclusion
@@ -88,7 +88,7 @@ from replay.stack.model import (
 from replay.stack.training import RECORDED, TRAINING_SOURCES, TrainingSet
 
 # methods trained on every leader's rows together whatever anfis.model says: drift_reference's threshold is
-# a quantile of the stiff reference's residual, the same for every link, and one leader's ~100 normal rows
+# a quantile of the DR error reference's residual, the same for every link, and one leader's ~100 normal rows
 # of a 600 s window leave the 98 % quantile to its two largest values (17.4 against 10.5 m on seed 0)
 _POOLED_TRAINING: frozenset[str] = frozenset({"drift_reference"})
 _NO_EXTRA: tuple[float, ...] = (NAN,) * len(EXTRA_FEATURES)
@@ -173,7 +173,7 @@ class CooperativeRunner:
         none, or the set's features are not `FEATURE_NAMES`.
         """
         if config.training_source not in TRAINING_SOURCES:
-            raise ValueError(f"unknown training_source {config.training_source!r}; expected one of "
+            raise ConfigError(f"unknown training_source {config.training_source!r}; expected one of "
                              f"{', '.join(TRAINING_SOURCES)}")
         if config.training_source != "own" and training_set is None:
             raise ValueError(f"training_source {config.training_source!r} needs a training_set")

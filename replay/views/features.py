@@ -34,7 +34,7 @@ from replay.views.series import LEADER_RGB
 FEATURE_GROUPS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ("dr", "range - dead-reckoned range (m)", ("dr_residual_m", "leader_consistency_m")),
     ("anchored", "vs {} (m)", ("usbl_residual_m", "lag_residual_m", "exclusion_residual_m")),
-    ("drift", "drift residual (range - stiff ref.), CUSUM (m)", ("drift_residual_m", "drift_cusum_m")),
+    ("drift", "DR model residual, CUSUM (m)", ("drift_residual_m", "drift_cusum_m")),
     ("z", "standardized residuals (sd)", ("drift_z", "exclusion_z")),
     ("repeats", "identical ranges in a row (count)", ("repeat_count",)),
 )

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from replay.stack.config import StackConfig
+from replay.stack.config import ConfigError, StackConfig
 from replay.stack.detectors.anfis import (
     AnfisModel,
     PointPredictor,
@@ -49,7 +49,7 @@ def threshold_from_rule(rule: str, sigma: float, t1_m: float) -> float:
         return float(t1_m)
     match = _SIGMA_RULE.match(text)
     if match is None:
-        raise ValueError(f"unknown ANFIS threshold rule {rule!r}; expected '3sigma', 't1' or '<k>sigma'")
+        raise ConfigError(f"unknown ANFIS threshold rule {rule!r}; expected '3sigma', 't1' or '<k>sigma'")
     return float(match.group(1)) * float(sigma)
 
 
@@ -96,7 +96,7 @@ class AnfisDetector:
     def __init__(self, config: StackConfig, trainer: str = "hybrid", compensation: bool = False) -> None:
         """Configure from ``config.anfis``; nothing is trained until :meth:`train`."""
         if trainer not in TRAINERS:
-            raise ValueError(f"unknown ANFIS trainer {trainer!r}; expected one of {TRAINERS}")
+            raise ConfigError(f"unknown ANFIS trainer {trainer!r}; expected one of {TRAINERS}")
         threshold_from_rule(config.anfis.threshold_rule, 1.0, config.t1_m)  # fail early on a bad rule
         self.config = config
         self.trainer = trainer
@@ -252,5 +252,5 @@ def detectors_for(config: StackConfig, leaders: list[str], trainer: str = "hybri
         shared = AnfisDetector(config, trainer, compensation)
         return {leader: shared for leader in leaders}
     if config.anfis.model != "per_leader":
-        raise ValueError(f"unknown ANFIS model mode {config.anfis.model!r}; expected 'per_leader' or 'shared'")
+        raise ConfigError(f"unknown ANFIS model mode {config.anfis.model!r}; expected 'per_leader' or 'shared'")
     return {leader: AnfisDetector(config, trainer, compensation) for leader in leaders}

@@ -3,17 +3,18 @@
 Inputs (``StackConfig.hybrid_inputs``, by name from `FEATURE_NAMES`): by
 default f2 (the innovation's Mahalanobis distance: the outliers),
 repeat_count (stale ranges), |drift_residual_m| (with the default
-``drift_source`` "stiff", a range off the stiff DR-error reference of
-`replay.stack.features`: drift and stale; it replaced |lag_residual_m|,
-development seeds 1-5 trained on 0: AUC 0.971 against 0.911, FNR at 2 %
-0.258 against 0.309, drift recall at 0.3 m/s 0.21 against 0) and
+``drift_source`` "model", the range against the DR error model of 60 s ago,
+`replay.stack.dr_error_model`: drift and stale; the stiff reference's
+residual replaced |lag_residual_m| in session 13, development seeds 1-5
+trained on 0: AUC 0.971 against 0.911, FNR at 2 % 0.258 against 0.309,
+drift recall at 0.3 m/s 0.21 against 0) and
 |usbl_residual_m| (a range off the USBL-anchored position). The leader-exclusion input exclusion_z
 (signed, ``hybrid_signed_inputs``) did better on development seeds 1-4
 trained on 0 (AUC 0.935 against 0.907, FNR 0.225 against 0.335 at 2 % FPR)
 but not held out (seeds 100-109 trained on 0: AUC 0.936 against 0.937, FNR
 0.302 against 0.304), so it is an option, not the default. The lag residual
 is NaN on the hybrid database's rows (its reference filter does not run
-there); the stiff residual is not (the database's tracker runs it). Residuals enter as magnitudes unless named in
+there); the drift residual is not (the database's tracker runs its model). Residuals enter as magnitudes unless named in
 ``StackConfig.hybrid_signed_inputs``: the model learns |Z - Z_gps|;
 f2 enters as sqrt(f2), the innovation in sigmas, because min-max
 normalization of a squared distance (up to thousands) leaves every normal
@@ -36,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from replay.stack.config import StackConfig
+from replay.stack.config import ConfigError, StackConfig
 from replay.stack.detectors.anfis_detector import (
     AnfisDetector,
     Explanation,
@@ -84,7 +85,7 @@ class HybridAnfisDetector:
         """Configure; nothing is trained until :meth:`train`."""
         unknown = [n for n in config.hybrid_inputs if n not in FEATURE_NAMES]
         if unknown:
-            raise ValueError(f"unknown hybrid input {unknown[0]!r}; expected names from {FEATURE_NAMES}")
+            raise ConfigError(f"unknown hybrid input {unknown[0]!r}; expected names from {FEATURE_NAMES}")
         self.config = config
         self.inputs: tuple[str, ...] = tuple(config.hybrid_inputs)
         self._cols = [FEATURE_NAMES.index(n) for n in self.inputs]

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from replay.stack.config import StackConfig
+from replay.stack.config import CHOICES, ConfigError, StackConfig
 from replay.stack.cusum import Cusum, alarm_rate, calibrate_h
 from replay.stack.detectors.base import Decision
 from replay.stack.features import FEATURE_NAMES
@@ -59,8 +59,9 @@ class CusumDriftDetector:
         """k and h until training from ``config.features`` (in sigmas for drift_z, metres for drift_residual_m)."""
         self.config = config
         fc = config.features
-        if fc.cusum_input not in (_METRES, "drift_z"):
-            raise ValueError(f"features.cusum_input must be {_METRES!r} or 'drift_z', got {fc.cusum_input!r}")
+        allowed = CHOICES["stack.features.cusum_input"]
+        if fc.cusum_input not in allowed:
+            raise ConfigError(f"features.cusum_input must be one of {allowed}, got {fc.cusum_input!r}")
         self.input = fc.cusum_input
         self._col = FEATURE_NAMES.index(self.input)
         sigma = self.input == "drift_z"

@@ -1,28 +1,27 @@
-"""The ``drift_reference`` detector: the range against the stiff reference, on the mission's own scale.
+"""The ``drift_reference`` detector: the range against a model of the DR error of a minute ago, on the mission's scale.
 
-Its input is the innovation of the `replay.stack.features` stiff reference
-(``drift_residual_m``, default ``drift_source`` "stiff"): a filter of the
-follower's dead-reckoning error (2-D random walk of 3e-4 m²/s) stiff enough
-to follow the DR error and the rotating geometry but not a drift of a
-minute, and that takes the USBL fixes where they exist. The ACKF follows a
-slow drift; this reference does not, so the residual grows with the drift
-(features module docstring). One epoch's score, no memory: it flags every
-epoch while the residual stays beyond the threshold, so there is no sum to
-restart after an alarm (STACK.md section 2) and its per-epoch recall is not
-capped as a restarting CUSUM's is.
+Its input (``drift_residual_m``, default ``drift_source`` "model") is the
+range against `replay.stack.dr_error_model`'s filter of the follower's
+dead-reckoning error, heading error and DVL scale error, as it was
+``lag_s`` (60 s) ago, carried forward over the DR displacement since: it
+follows the DR error as the vehicle turns, and holds none of a drift
+younger than the lag, where the ACKF follows a slow drift (features module
+docstring). It takes the USBL fixes where they exist. One epoch's score,
+no memory: it flags every epoch while the residual stays beyond the
+threshold, so there is no sum to restart after an alarm (STACK.md section
+2) and its per-epoch recall is not capped as a restarting CUSUM's is.
 
 It flags an epoch when |drift_z| > h_z and |drift_residual_m| > ``t1_m``
 (a residual under the label threshold is not an anomaly). drift_z is the
 residual against the median and MAD-scale of both leaders' residuals of
 60-900 s ago (repeated ranges left out; features module), so the threshold
 follows the trial's DR error. h_z is ``StackConfig.drift_reference_z``
-(3.0), NOT trained: over development seeds 0-19 the 98 % quantile of
-drift_z in a training window (the first 600 s, where the pool is young and
-the DR error small) was 2.1-5.2 and uncorrelated with the same trial's
-after t_a (r = 0.01; those ranged 2.3-4.1), so a trained h_z carried no
-information about the test and its false-alarm rate spread as the metres
-one did. 3.0 flags 1.9 % of the normal epochs after t_a of seeds 0-19
-pooled (calibrated on 0-9 it gave 2.7 % on 10-19, on 10-19 1.2 % on 0-9).
+(2.5), NOT trained: over development seeds 0-19 a training window's 98 %
+quantile of drift_z did not predict the same trial's after t_a (r = 0.01,
+measured on the stiff reference), so a trained h_z carried no information
+about the test. 2.5 flags about 2 % of the normal epochs after t_a of
+seeds 0-19 closed loop (2.4: 2.1 % on 0-9 and on 10-19; 2.6: 1.9 % and
+1.5 %; with |residual| > T1 beside it).
 Where drift_z is NaN (the first ~70 s of a run) the metres threshold h_m
 decides: the (1 - ``detection_fpr_target``) quantile of |drift_residual_m|
 over the training rows labelled normal, never below ``t1_m``. The runner
@@ -45,7 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from replay.stack.config import StackConfig
+from replay.stack.config import CHOICES, ConfigError, StackConfig
 from replay.stack.detectors.anfis_hybrid import fpr_threshold
 from replay.stack.detectors.base import Decision
 from replay.stack.features import FEATURE_NAMES
@@ -53,7 +52,7 @@ from replay.stack.training import TrainingSet
 
 _METRES = FEATURE_NAMES.index("drift_residual_m")
 _Z = FEATURE_NAMES.index("drift_z")
-_INPUTS = ("drift_z", "drift_residual_m")
+_INPUTS = CHOICES["stack.drift_reference_input"]
 _MIN_RECORDED = 100
 
 
@@ -61,7 +60,7 @@ _MIN_RECORDED = 100
 class DriftReferenceExplanation:
     """Why drift_reference did (not) flag one epoch, for the views."""
 
-    residual_m: float      # drift_residual_m: the range minus the stiff reference's prediction
+    residual_m: float      # drift_residual_m: the range minus the DR error reference's prediction
     threshold_m: float     # h_m, the metres threshold (used where drift_z is NaN, or with the metres input)
     flagged: bool
     z: float = math.nan            # drift_z: the residual in units of the mission's pooled recent scale
@@ -77,9 +76,9 @@ class DriftReferenceDetector:
     def __init__(self, config: StackConfig) -> None:
         """h_m = t1_m until training; h_z = ``drift_reference_z`` (drift_z input) or none (metres input)."""
         if config.drift_reference_input not in _INPUTS:
-            raise ValueError(f"drift_reference_input must be one of {_INPUTS}, got {config.drift_reference_input!r}")
+            raise ConfigError(f"drift_reference_input must be one of {_INPUTS}, got {config.drift_reference_input!r}")
         if not config.drift_reference_z > 0.0:
-            raise ValueError(f"drift_reference_z must be positive, got {config.drift_reference_z!r}")
+            raise ConfigError(f"drift_reference_z must be positive, got {config.drift_reference_z!r}")
         self.config = config
         self.t1 = float(config.t1_m)
         self.threshold_m = self.t1

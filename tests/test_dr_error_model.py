@@ -1,0 +1,257 @@
+"""The DR error model (replay.stack.dr_error_model): against a per-step matrix filter, and on a turning track."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from replay.stack.config import FeatureConfig
+from replay.stack.dr_error_model import DrErrorModel
+from replay.stack.features import EXTRA_FEATURES, FeatureTracker, range_to
+from replay.stack.model import metric_scales_scalar
+
+HEADING_WALK = math.radians(0.03)
+
+
+def transition(sum_perp: tuple[float, float], sum_disp: tuple[float, float]) -> np.ndarray:
+    """F of DR steps summing to (n, e): d gains psi·(-e, n) + s·(n, e), sum_perp = (-e, n), sum_disp = (n, e)."""
+    f = np.eye(4)
+    f[0, 2], f[1, 2] = sum_perp
+    f[0, 3], f[1, 3] = sum_disp
+    return f
+
+
+def model(q: float = 1e-2, walk: float = HEADING_WALK, scale_walk: float = 1e-4, lag_s: float = 60.0,
+          gate: float = 4.0, cap: int = 10) -> DrErrorModel:
+    return DrErrorModel(q, walk, scale_walk, 3.0, (1.0, 2.0), math.radians(3.0), 0.01, lag_s, gate, cap)
+
+
+class StepwiseModel:
+    """The slow obvious filter: F·P·Fᵀ + Q at every DR step, every state kept for the lagged prediction."""
+
+    def __init__(self, q: float, walk: float, scale_walk: float, lag_s: float, gate: float, cap: int) -> None:
+        self.q = np.array([q, q, walk ** 2, scale_walk ** 2])
+        self.x = np.zeros(4)
+        self.p = np.diag([1.0, 4.0, math.radians(3.0) ** 2, 1e-4])
+        self.lag_s, self.gate, self.cap = lag_s, gate, cap
+        self.history: list[tuple[float, np.ndarray, np.ndarray, int]] = []     # t, x, P, steps taken by then
+        self.steps: list[tuple[float, float, float]] = []
+        self.left_out = 0
+
+    def step(self, dt: float, n: float, e: float) -> None:
+        f = transition((-e, n), (n, e))
+        self.x = f @ self.x
+        self.p = f @ (self.p + np.diag(self.q * dt)) @ f.T
+        self.steps.append((dt, n, e))
+
+    def range(self, t: float, z: float, north: float, east: float,
+              repeated: bool) -> tuple[float, float, float, float]:
+        r = math.hypot(north, east)
+        h = -np.array([north, east, 0.0, 0.0]) / np.array([r, r, 1.0, 1.0])
+        v = z - r - h @ self.x
+        vl = sl = math.nan
+        old = [s for s in self.history if s[0] <= t - self.lag_s]
+        if old:
+            _, x, p, k = old[-1]
+            for dt, n, e in self.steps[k:]:
+                f = transition((-e, n), (n, e))
+                x, p = f @ x, f @ (p + np.diag(self.q * dt)) @ f.T
+            vl = z - r - h @ x
+            sl = h @ p @ h + 9.0
+        gated = math.isfinite(vl) and abs(vl) > self.gate * math.sqrt(sl)
+        s = h @ self.p @ h + 9.0
+        if (repeated or gated) and self.left_out < self.cap:
+            self.left_out += 1
+        else:
+            self.left_out = 0
+            k = self.p @ h / s
+            self.x = self.x + k * v
+            self.p = (np.eye(4) - np.outer(k, h)) @ self.p
+        self.history.append((t, self.x.copy(), self.p.copy(), len(self.steps)))
+        return float(v), float(s), float(vl), float(sl)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.tuples(st.floats(0.2, 3.0), st.floats(-2.0, 2.0), st.floats(-2.0, 2.0), st.integers(0, 3),
+                          st.floats(-300, 300), st.floats(-300, 300), st.floats(-30, 30), st.booleans()),
+                min_size=1, max_size=60),
+       st.floats(1e-4, 1e-1), st.booleans())
+def test_the_lazy_model_is_the_per_step_filter(events: list[tuple[float, float, float, int, float, float, float,
+                                                                     bool]], q: float, walks: bool) -> None:
+    """Ranges after runs of DR steps: innovation and lagged residual as the per-step filter gives them.
+
+    Exact without heading and scale walks (a position random walk commutes
+    with F); with them the lazy filter adds an interval's noise at its start,
+    a difference of q_psi·dt·displacement² that stays within 2 %.
+    """
+    walk, scale_walk = (HEADING_WALK, 1e-4) if walks else (0.0, 0.0)
+    fast, slow = model(q, walk, scale_walk, lag_s=10.0, cap=2), StepwiseModel(q, walk, scale_walk, 10.0, 4.0, 2)
+    t = 0.0
+    for dt, vn, ve, nsteps, north, east, err, repeated in events:
+        for _ in range(nsteps):
+            t += dt
+            fast.step(dt, vn * dt, ve * dt)
+            slow.step(dt, vn * dt, ve * dt)
+        if math.hypot(north, east) < 1.0:
+            continue
+        z = math.hypot(north, east) + err
+        got = fast.range(t, "leader1", z, north, east, repeated)
+        want = slow.range(t, z, north, east, repeated)
+        tol = dict(rel=1e-9, abs=1e-9) if not walks else dict(rel=2e-2, abs=0.05)
+        assert got.innovation_m == pytest.approx(want[0], **tol)
+        assert got.innovation_var_m2 == pytest.approx(want[1], **tol)
+        if math.isnan(want[2]):
+            assert math.isnan(got.lagged_m) and math.isnan(got.lagged_var_m2)
+        else:
+            assert got.lagged_m == pytest.approx(want[2], **tol)
+            assert got.lagged_var_m2 == pytest.approx(want[3], **tol)
+        if not walks:
+            np.testing.assert_allclose(fast.x, slow.x, atol=1e-9)
+            np.testing.assert_allclose(fast.p, slow.p, rtol=1e-9, atol=1e-12)
+
+
+def _turning_track(duration_s: float, bias_deg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """1 Hz DR displacements of a follower turning through a full circle every 400 s, and its DR error.
+
+    DR rotates each true step by the heading bias: error = DR - truth.
+    """
+    t = np.arange(1.0, duration_s + 1.0)
+    heading = 2.0 * np.pi * t / 400.0
+    true_step = 1.5 * np.stack([np.cos(heading), np.sin(heading)], axis=1)
+    b = math.radians(bias_deg)
+    rot = np.array([[math.cos(b), -math.sin(b)], [math.sin(b), math.cos(b)]])
+    dr_step = true_step @ rot.T
+    truth = np.cumsum(true_step, axis=0)
+    return t, dr_step, np.cumsum(dr_step, axis=0) - truth
+
+
+def _leaders(k: int) -> np.ndarray:
+    return np.array([[400.0, -300.0], [-350.0, 500.0]])[k % 2]
+
+
+def _run(ref: DrErrorModel, duration_s: float, bias_deg: float, drift_from_s: float = math.inf,
+         rate_mps: float = 0.3) -> list[tuple[float, float, float]]:
+    """Noise-free ranges every 2.4 s alternately to two fixed leaders; leader 1's ramps from drift_from_s."""
+    t, dr_step, err = _track = _turning_track(duration_s, bias_deg)
+    dr = np.cumsum(dr_step, axis=0)
+    out = []
+    next_ping, k = 2.4, 0
+    for i, ti in enumerate(t):
+        ref.step(1.0, *dr_step[i])
+        if ti < next_ping:
+            continue
+        next_ping += 2.4
+        rel = dr[i] - _leaders(k)          # DR position minus leader
+        truth = dr[i] - err[i] - _leaders(k)
+        z = float(np.hypot(*truth))
+        drift = rate_mps * (ti - drift_from_s) if (k % 2 == 0 and ti >= drift_from_s) else 0.0
+        res = ref.range(float(ti), f"leader{k % 2 + 1}", z + drift, float(rel[0]), float(rel[1]), False)
+        out.append((float(ti), res.innovation_m, res.lagged_m))
+        k += 1
+    return out
+
+
+def test_the_model_learns_a_heading_bias_that_a_random_walk_cannot_follow() -> None:
+    """A 2 deg heading bias on a turning track: the model's residuals vanish, its heading state finds the bias."""
+    ref = model()
+    rows = np.array(_run(ref, 1600.0, 2.0))
+    late = rows[rows[:, 0] > 800.0]
+    assert np.max(np.abs(late[:, 1])) < 0.5
+    assert np.max(np.abs(late[:, 2])) < 1.0
+    # DR rotated by +2 deg: d grows as +psi·perp(step), the state's psi is the bias
+    assert math.degrees(ref.x[2]) == pytest.approx(2.0, abs=0.2)
+    assert abs(ref.x[3]) < 2e-3
+
+
+def test_the_lagged_residual_holds_a_minute_of_drift_the_current_state_starts_to_take() -> None:
+    """A 0.3 m/s ramp on one link for 60 s: the lagged residual is the ramp; the ranges are gated out of the update."""
+    onset = 1500.0
+    rows = np.array(_run(model(), 1560.0, 2.0, drift_from_s=onset))
+    leader1 = rows[(rows[:, 0] >= onset + 20.0) & (np.arange(len(rows)) % 2 == 0)]
+    ramp = 0.3 * (leader1[:, 0] - onset)
+    np.testing.assert_allclose(leader1[:, 2], ramp, atol=1.0)
+    # once past the gate (4 sigma of a few metres) the ranges stay out of the update: no pull on the state
+    assert np.all(np.abs(leader1[:, 1]) > 0.6 * ramp)
+
+
+def _tracker_run(source: str, drift_from_s: float) -> np.ndarray:
+    """FeatureTracker on a turning track with a 2 deg heading bias, noise-free ranges to two fixed leaders.
+
+    Rows (t, leader index, drift_residual_m); leader 1's range ramps at 0.3 m/s from drift_from_s.
+    """
+    lat0, lon0, depth = math.radians(45.7), math.radians(126.6), 2.0
+    b, a = metric_scales_scalar(lat0, depth)
+    leaders = [(lat0 + 400.0 / b, lon0 - 300.0 / a, 1.5), (lat0 - 350.0 / b, lon0 + 500.0 / a, 1.5)]
+    tracker = FeatureTracker(replace(FeatureConfig(), drift_source=source), ("leader1", "leader2"), lat0, lon0)
+    truth = [lat0, lon0]
+    bias = math.radians(2.0)
+    rows, k, next_ping = [], 0, 2.4
+    for i in range(1, 1601):
+        t = float(i)
+        heading = 2.0 * math.pi * t / 400.0
+        tracker.propagate(1.0, 1.5, 0.0, heading + bias, depth)
+        bt, at = metric_scales_scalar(truth[0], depth)
+        truth[0] += 1.5 * math.cos(heading) / bt
+        truth[1] += 1.5 * math.sin(heading) / at
+        if t < next_ping:
+            continue
+        next_ping += 2.4
+        geo = leaders[k % 2]
+        z = range_to(truth[0], truth[1], depth, *geo)
+        z += 0.3 * (t - drift_from_s) if (k % 2 == 0 and t >= drift_from_s) else 0.0
+        features = tracker.epoch(t, f"leader{k % 2 + 1}", z + 0.123 * k, z, depth, geo)
+        rows.append((t, k % 2, features[EXTRA_FEATURES.index("drift_residual_m")]))
+        k += 1
+    return np.array(rows)
+
+
+def test_the_feature_trackers_default_drift_residual_is_the_lagged_model() -> None:
+    """Default drift_source "model": flat under a heading bias, the ramp under a drift; the stiff form lags the bias.
+
+    The circle keeps the heading bias's DR error within a few metres, which
+    the stiff random walk follows only minutes late.
+    """
+    rows = _tracker_run("model", drift_from_s=1540.0)
+    before = rows[(rows[:, 0] > 800.0) & (rows[:, 0] < 1540.0)]
+    assert np.max(np.abs(before[:, 2])) < 1.0
+    drift = rows[(rows[:, 0] >= 1560.0) & (rows[:, 1] == 0)]
+    np.testing.assert_allclose(drift[:, 2], 0.3 * (drift[:, 0] - 1540.0), atol=1.0)
+    stiff = _tracker_run("stiff", drift_from_s=math.inf)
+    stiff_before = stiff[(stiff[:, 0] > 800.0) & (stiff[:, 0] < 1540.0), 2]
+    assert np.max(np.abs(stiff_before)) > 3.0 * np.max(np.abs(before[:, 2]))
+
+
+def test_with_a_fresh_usbl_fix_the_drift_residual_is_the_current_innovation(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The lagged state has not seen a fix younger than lag_s: while one exists the current innovation is used."""
+    lat0, lon0, depth = math.radians(45.7), math.radians(126.6), 2.0
+    b, a = metric_scales_scalar(lat0, depth)
+    leaders = [(lat0 + 400.0 / b, lon0 - 300.0 / a, 1.5), (lat0 - 350.0 / b, lon0 + 500.0 / a, 1.5)]
+    tracker = FeatureTracker(FeatureConfig(), ("leader1", "leader2"), lat0, lon0)
+    assert tracker.model is not None
+    seen = []
+    model_range = tracker.model.range
+
+    def spy(*args):
+        seen.append(model_range(*args))
+        return seen[-1]
+
+    monkeypatch.setattr(tracker.model, "range", spy)
+    fix_until = 400.0
+    for k in range(1, 300):
+        t = 2.4 * k
+        tracker.propagate(2.4, 1.5, 0.0, 0.3, depth)
+        if t <= fix_until:
+            tracker.fix(t, lat0, lon0, (1e-12, 0.0, 1e-12))
+        geo = leaders[k % 2]
+        z = range_to(lat0, lon0, depth, *geo) + 5.0 * math.sin(k)
+        drift = tracker.epoch(t, f"leader{k % 2 + 1}", z, z, depth, geo)[EXTRA_FEATURES.index("drift_residual_m")]
+        res = seen[-1]
+        if t - fix_until <= 60.0:            # a fix within lag_s (60 s): the current innovation
+            assert drift == res.innovation_m
+        elif t > 60.0:                       # no fresh fix, a lagged state: the lagged residual
+            assert drift == res.lagged_m and drift != res.innovation_m
