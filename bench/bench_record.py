@@ -20,7 +20,11 @@ are checked to be byte-identical.
 Ratios are against the bare writer (goal for recording: >= 50 %), and the
 parallel row also against the serial one. Timings are medians of interleaved
 rounds (one of each per round), so a load change on the shared machine hits
-all four alike.
+all four alike. Beside the wall time, each row's CPU time (getrusage: this
+process, and the forked workers once they are reaped) says what the work
+costs whatever else runs: under load, wall ratios move with the load from
+round to round, CPU figures much less; the parallel row splits it into the
+main process's and the workers'.
 
 With --timeline, one more record(workers=N) is traced: when each log's
 decode starts and ends in which process, when the main process writes, waits
@@ -36,6 +40,8 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import resource
+import statistics
 import sys
 import tempfile
 import time
@@ -48,7 +54,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
-from common import interleaved, print_table  # noqa: E402
+from common import print_table  # noqa: E402
 from mcap.reader import SeekingReader  # noqa: E402
 from mcap.writer import CompressionType, Writer  # noqa: E402
 
@@ -112,15 +118,43 @@ def write_ours_bytes(path: Path, content: Recorded, classes: dict[str, type]) ->
 
 
 
-# (module, attribute, label, index of the argument naming the span or None): the traced steps
-TRACED = [
-    (recording, "_decode_log", "decode", 1),
-    (recording, "_attach", "attach", 1),
+def _log_path(at: int) -> Callable[[tuple], str]:
+    return lambda args: args[at].path
+
+
+def _part_names(args: tuple) -> str:
+    return " ".join(name for name, _ in args[1])
+
+
+def _cpu(who: int) -> float:
+    use = resource.getrusage(who)
+    return use.ru_utime + use.ru_stime
+
+
+def interleaved_cpu(fns: dict[str, Callable[[], object]], repeats: int) -> dict[str, tuple[float, float, float]]:
+    """Per function, medians over `repeats` interleaved rounds of (wall s, CPU s of this process, of its children)."""
+    times: dict[str, list[tuple[float, float, float]]] = {name: [] for name in fns}
+    for _ in range(repeats):
+        for name, fn in fns.items():
+            start, own, kids = time.perf_counter(), _cpu(resource.RUSAGE_SELF), _cpu(resource.RUSAGE_CHILDREN)
+            fn()
+            times[name].append((time.perf_counter() - start, _cpu(resource.RUSAGE_SELF) - own,
+                                _cpu(resource.RUSAGE_CHILDREN) - kids))
+    return {name: (statistics.median(t[0] for t in ts), statistics.median(t[1] for t in ts),
+                   statistics.median(t[2] for t in ts)) for name, ts in times.items()}
+
+
+# (module, attribute, label, what the step was about from its arguments, or None): the traced steps
+TRACED: list[tuple[Any, str, str, Callable[[tuple], str] | None]] = [
+    (recording, "_decode_log", "decode", _log_path(1)),
+    (recording, "_decode_streamed", "decode in blocks", _log_path(1)),
+    (recording, "_attach", "attach", _part_names),
+    (recording, "_attach_streamed", "attach from file", _log_path(2)),
     (recording, "write_captured", "write captured", None),
     (parallel_recording.WorkerPool, "__init__", "fork workers", None),
-    (parallel_recording.WorkerPool, "result", "wait for worker", 1),
+    (parallel_recording.WorkerPool, "result", "wait for worker", lambda args: str(args[1])),
     (parallel_recording.WorkerPool, "close", "stop workers", None),
-    (parallel_recording, "_hand_over", "hand over", 1),
+    (parallel_recording, "_hand_over", "hand over", lambda args: str(args[1])),
     (parallel_recording, "_take_over", "take over", None),
     (ArchiveWriter, "close", "close archive", None),
 ]
@@ -132,9 +166,9 @@ def traced(events_path: Path) -> Iterator[None]:
     # one O_APPEND descriptor inherited by the forks: each line is one write(), whole under PIPE_BUF
     fd = os.open(events_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_TRUNC)
 
-    def wrap(real: Callable, label: str, arg: int | None) -> Callable:
+    def wrap(real: Callable, label: str, describe: Callable[[tuple], str] | None) -> Callable:
         def step(*args: Any, **kwargs: Any) -> Any:
-            what = "" if arg is None else str(getattr(args[arg], "path", args[arg]))
+            what = "" if describe is None else describe(args)
             start, cpu = time.perf_counter(), time.process_time()
             try:
                 return real(*args, **kwargs)
@@ -145,8 +179,8 @@ def traced(events_path: Path) -> Iterator[None]:
 
     saved = [(owner, attr, getattr(owner, attr)) for owner, attr, _, _ in TRACED]
     try:
-        for (owner, attr, label, arg), (_, _, real) in zip(TRACED, saved):
-            setattr(owner, attr, wrap(real, label, arg))
+        for (owner, attr, label, describe), (_, _, real) in zip(TRACED, saved):
+            setattr(owner, attr, wrap(real, label, describe))
         yield
     finally:
         for owner, attr, real in saved:
@@ -205,12 +239,14 @@ def main(argv: list[str] | None = None) -> int:
         record(manifest, ours, workers=1)
         content = recorded_content(ours)
         n = len(content[0])
-        t = interleaved({
+        measured = interleaved_cpu({
             "bare": lambda: write_bare(bare, content),
             "bytes": lambda: write_ours_bytes(ours_bytes, content, MESSAGE_CLASSES),
             "record": lambda: record(manifest, ours, workers=1),
             "parallel": lambda: record(manifest, parallel, workers=workers),
         }, args.repeats)
+        t = {name: wall for name, (wall, _, _) in measured.items()}
+        cpu = {name: own + kids for name, (_, own, kids) in measured.items()}
         size = ours.stat().st_size
         if parallel.read_bytes() != ours.read_bytes():
             raise SystemExit("the parallel archive differs from the serial one")
@@ -218,16 +254,16 @@ def main(argv: list[str] | None = None) -> int:
     print_table(
         f"Recording {args.manifest.parent.name}: {n:,} messages from {len(content[2])} logs ({logs / 1e6:.1f} MB), "
         f"archive {size / 1e6:.1f} MB, median of {args.repeats} interleaved rounds",
-        ["what", "seconds", "msgs/s", "ratio to bare"],
-        [
-            ["bare mcap writer, pre-encoded messages + attachments", t["bare"], n / t["bare"], 1.0],
-            ["ours: ArchiveWriter.write_serialized, same bytes", t["bytes"], n / t["bytes"], t["bare"] / t["bytes"]],
-            ["ours: record() from the logs, in-process (workers=1)", t["record"], n / t["record"],
-             t["bare"] / t["record"]],
-            [f"ours: record(workers={workers}): main + {workers - 1} forked", t["parallel"], n / t["parallel"],
-             t["bare"] / t["parallel"]],
-        ],
+        ["what", "seconds", "msgs/s", "ratio to bare", "CPU s", "CPU ratio to bare"],
+        [[what, t[name], n / t[name], t["bare"] / t[name], cpu[name], cpu["bare"] / cpu[name]] for what, name in (
+            ("bare mcap writer, pre-encoded messages + attachments", "bare"),
+            ("ours: ArchiveWriter.write_serialized, same bytes", "bytes"),
+            ("ours: record() from the logs, in-process (workers=1)", "record"),
+            (f"ours: record(workers={workers}): main + {workers - 1} forked", "parallel"))],
     )
+    _, main_cpu, workers_cpu = measured["parallel"]
+    print(f"  record(workers={workers}) CPU: main process {main_cpu:.3f} s, workers {workers_cpu:.3f} s "
+          f"(in-process record() {cpu['record']:.3f} s)")
     print(f"  workers {workers}, cores available {available_cores()} (os.cpu_count() {os.cpu_count()}); "
           f"parallel is {t['record'] / t['parallel']:.2f}x the in-process record(), archives byte-identical")
     ratio = t["bare"] / min(t["record"], t["parallel"])

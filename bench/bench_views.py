@@ -21,6 +21,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -75,6 +76,7 @@ def _finish(rec: rr.RecordingStream) -> int:
 
 def bulk_columnar(run: Run) -> None:
     """The bulk series with send_columns (the views' own functions); `bulk_rows` counts them."""
+    run = replace(run)  # a Run as a recording starts with it: no groups cached by the previous call
     rec = _stream()
     log_tracks(rec, run)
     log_range_circles(rec, run)

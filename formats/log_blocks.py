@@ -132,6 +132,19 @@ class LogFiles:
         if not several and self.digests:
             self.digests[0].sha256 = self.sha256
 
+    def read_whole(self) -> list[bytes]:
+        """Each file's bytes read at once, for a log small enough to hold; ChangedWhileRead as for `pieces`."""
+        out = []
+        for path, expected in zip(self.paths, self.sizes):
+            with open(path, "rb") as stream:
+                data = stream.read(expected + 1)  # one byte over tells a file that grew, without reading it all
+            if len(data) != expected:
+                more = "more than " if len(data) > expected else ""
+                raise ChangedWhileRead(f"{path}: {more}{expected if more else len(data)} bytes read, "
+                                       f"{expected} when the recording started")
+            out.append(data)
+        return out
+
     def blocks(self, size: int | None = None) -> Iterator[Block]:
         """The log as blocks of about `size` bytes (default BLOCK_BYTES, read when called; see `cut_blocks`)."""
         size = size or BLOCK_BYTES

@@ -14,12 +14,13 @@ from functools import partial
 from pathlib import Path
 from typing import Any, Protocol
 
+import formats.log_blocks as log_blocks
 from formats import schemas as S
-from formats.log_blocks import ChangedWhileRead, LogFiles
+from formats.log_blocks import ChangedWhileRead, LogFiles, blocks_of
 from formats.mcap_writer import ArchiveWriter
 from formats.records import FormatError, Reject, Where
 
-from .base import NS, BlockConverter, Ignored, LogContext, Output
+from .base import NS, BlockConverter, Converter, Ignored, LogContext, Output
 from .clock import date_to_ns, iso_utc
 from .manifest import LogSpec, Manifest, ManifestError
 from .output_checks import OutputProblem, check_output, remove_stale_parts
@@ -158,6 +159,36 @@ def _order_parts(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]
 def _log_files(manifest: Manifest, names: list[str] | tuple[str, ...]) -> LogFiles:
     paths = [manifest.root / name for name in names]
     return LogFiles(paths, [path.stat().st_size for path in paths])
+
+
+def _over_one_block(convert: BlockConverter, data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+    """A block converter over a log held in memory: the log is its one block (`blocks_of`, no copy)."""
+    return convert(blocks_of(data), ctx)
+
+
+def _reading(manifest: Manifest, log: LogSpec,
+             tables: Converters) -> BlockConverter | tuple[Converter, list[tuple[str, bytes]]]:
+    """How a log is read: its block converter, when it is read from its files in blocks; else its converter and
+    its files' bytes in log order, read whole.
+
+    A block converter's log that fits in one block (log_blocks.BLOCK_BYTES in all) is read whole too, as that
+    one block: decoded and attached from the same bytes, it is read and hashed once, no change between two
+    reads can go unseen, and a worker hands its bytes back instead of the main process reading them again.
+    """
+    streamed = tables.streamed(log)
+    if streamed is None:
+        convert = tables.whole[(log.sensor, log.format)]
+        parts = read_parts(manifest, log)
+    else:
+        files = _log_files(manifest, log.files())
+        if files.size > log_blocks.BLOCK_BYTES:  # read when the module is, so that a test may set it smaller
+            return streamed
+        convert = partial(_over_one_block, streamed)
+        try:
+            parts = list(zip(log.files(), files.read_whole()))
+        except ChangedWhileRead as exc:
+            raise ManifestError(f"{log.path}: changed while it was recorded ({exc})") from None
+    return convert, _order_parts(manifest, log, parts, convert)
 
 
 def _first_time_streamed(convert: BlockConverter, manifest: Manifest, log: LogSpec, name: str) -> float:
@@ -485,15 +516,14 @@ def _same_bytes(log: LogSpec, stats: FileStats, attached: list[str]) -> None:
 def _record_here(manifest: Manifest, writer: ArchiveWriter, log: LogSpec, tables: Converters, fallback: int,
                  progress: Progress | None) -> FileStats:
     """One log decoded in this process straight into the archive, after its attachment."""
-    streamed = tables.streamed(log)
-    if streamed is not None:
-        names = _ordered_names(manifest, log, streamed)
+    how = _reading(manifest, log, tables)
+    if not isinstance(how, tuple):
+        names = _ordered_names(manifest, log, how)
         attached = _attach_streamed(writer, manifest, log, names, fallback)
-        stats = _decode_streamed(manifest, log, names, streamed, fallback, writer, progress)
+        stats = _decode_streamed(manifest, log, names, how, fallback, writer, progress)
         _same_bytes(log, stats, attached)
         return stats
-    convert = tables.whole[(log.sensor, log.format)]
-    parts = _order_parts(manifest, log, read_parts(manifest, log), convert)
+    convert, parts = how
     _attach(writer, parts, fallback)
     return _decode_log(manifest, log, parts, convert, fallback, writer, progress)[0]
 
@@ -501,13 +531,11 @@ def _record_here(manifest: Manifest, writer: ArchiveWriter, log: LogSpec, tables
 def _capture(manifest: Manifest, log: LogSpec, tables: Converters, fallback: int) -> Captured:
     """One log decoded and converted, its messages serialized for writing later."""
     sink = Capture()
-    streamed = tables.streamed(log)
-    if streamed is not None:  # read again for its attachment by the main process, and checked the same
-        stats = _decode_streamed(manifest, log, _ordered_names(manifest, log, streamed), streamed, fallback, sink,
-                                 None)
+    how = _reading(manifest, log, tables)
+    if not isinstance(how, tuple):  # read again for its attachment by the main process, and checked the same
+        stats = _decode_streamed(manifest, log, _ordered_names(manifest, log, how), how, fallback, sink, None)
         return sink.finish(stats)
-    convert = tables.whole[(log.sensor, log.format)]
-    parts = _order_parts(manifest, log, read_parts(manifest, log), convert)
+    convert, parts = how
     stats, data = _decode_log(manifest, log, parts, convert, fallback, sink, None)
     captured = sink.finish(stats)
     # the log's bytes go back with its messages: the attachment is then the very bytes decoded, and the

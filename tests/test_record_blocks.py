@@ -4,6 +4,7 @@ carrying its epoch and clock across them, archives unchanged, peak RSS flat in t
 from __future__ import annotations
 
 import random
+import shutil
 from datetime import date
 from pathlib import Path
 
@@ -12,11 +13,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import formats.log_blocks as log_blocks
+import recorders.record as recording
 from formats.log_blocks import Block, ChangedWhileRead, LogFiles, blocks_of, cut_blocks
 from formats.nmea.sentences import encode_gga, encode_rmc
 from recorders.base import LogContext
 from recorders.gps import convert_nmea, convert_nmea_blocks
-from recorders.manifest import load_manifest
+from recorders.manifest import ManifestError, load_manifest
 from recorders.record import record, reject_kind
 from tests.hostile import damage_lines, run_child
 
@@ -95,6 +97,62 @@ def test_a_file_that_changes_size_while_read_is_refused(tmp_path):
         b"".join(block.data for block in files.blocks(1000))
 
 
+@pytest.mark.parametrize("started, words", [(4000, "more than 4000 bytes read, 4000 when"),
+                                             (6000, "5000 bytes read, 6000 when")])
+def test_a_log_read_whole_that_changed_size_is_refused(tmp_path, started, words):
+    path = tmp_path / "gps.log"
+    path.write_bytes(GPS[:5000])
+    assert LogFiles([path], [5000]).read_whole() == [GPS[:5000]]
+    with pytest.raises(ChangedWhileRead, match=words):
+        LogFiles([path], [started]).read_whole()
+
+
+def _flip_first_byte(path: Path) -> None:
+    data = path.read_bytes()
+    path.write_bytes(bytes([data[0] ^ 1]) + data[1:])
+
+
+def _append_line(path: Path) -> None:
+    with open(path, "ab") as log:
+        log.write(b"$GPTXT,01,01,02,late*00\r\n")
+
+
+@pytest.mark.parametrize("change", [_flip_first_byte, _append_line])
+def test_a_log_in_blocks_changed_between_attaching_and_decoding_is_refused(tmp_path, monkeypatch, change):
+    shutil.copytree(SAMPLE, tmp_path / "trial")
+    manifest = load_manifest(tmp_path / "trial" / "trial.toml")
+    monkeypatch.setattr(log_blocks, "BLOCK_BYTES", 3000)  # every log larger than a block: attached from the file
+    attach = recording._attach_streamed
+
+    def attach_then_change(writer, manifest, log, names, fallback):
+        digests = attach(writer, manifest, log, names, fallback)
+        change(manifest.root / names[0])
+        return digests
+
+    monkeypatch.setattr(recording, "_attach_streamed", attach_then_change)
+    with pytest.raises(ManifestError, match="changed while it was recorded"):
+        record(manifest, tmp_path / "out.mcap", workers=1)
+    assert not (tmp_path / "out.mcap").exists()
+
+
+def test_a_log_a_worker_decoded_in_blocks_then_changed_is_refused(tmp_path, monkeypatch):
+    # the main process attaches a worker's log from the file: a change after the worker read it must be seen
+    shutil.copytree(SAMPLE, tmp_path / "trial")
+    manifest = load_manifest(tmp_path / "trial" / "trial.toml")
+    monkeypatch.setattr(log_blocks, "BLOCK_BYTES", 3000)
+    capture = recording._capture
+
+    def capture_then_change(manifest, log, tables, fallback):
+        captured = capture(manifest, log, tables, fallback)
+        _flip_first_byte(manifest.root / log.path)
+        return captured
+
+    monkeypatch.setattr(recording, "_capture", capture_then_change)
+    with pytest.raises(ManifestError, match="changed while it was recorded"):
+        record(manifest, tmp_path / "out.mcap", workers=2)
+    assert not (tmp_path / "out.mcap").exists()
+
+
 def test_reject_kinds_ignore_the_bytes_quoted():
     assert reject_kind("bad checksum '00', computed 4A") == reject_kind("bad checksum 'Zq', computed 01") \
         == "bad checksum"
@@ -142,3 +200,27 @@ def test_record_memory_does_not_grow_with_the_log(tmp_path, kind, small, large):
     # holding the log costs a byte per log byte at least (4 to 7 before blocks); in blocks the peak is about the
     # same from a couple of blocks on (both sizes are several); the full 200 MB runs in bench/bench_record_memory.py
     assert peaks[large] < RSS_LIMIT_KB and peaks[large] - peaks[small] < (large - small) / 2 / 1024, peaks
+
+
+@pytest.mark.parametrize("files, extra", [('"gps.log.*"', ""), ('["gps.log.2", "gps.log.0", "gps.log.1"]',
+                                                                  'order = "time"\n')])
+def test_a_rotated_log_in_blocks_is_the_archive_it_is_read_whole(tmp_path, monkeypatch, files, extra):
+    # at most a block in all, a log is read whole; larger, its files are read in blocks (and ordered by time so)
+    lines = GPS.splitlines(keepends=True)
+    a, b = len(lines) // 3, 2 * len(lines) // 3
+    for i, piece in enumerate([lines[:a], lines[a:b], lines[b:]]):
+        (tmp_path / f"gps.log.{i}").write_bytes(b"".join(piece))
+    (tmp_path / "whole.log").write_bytes(GPS)
+    (tmp_path / "trial.toml").write_text(
+        '[trial]\nname = "t"\ndate = "2016-10-12"\n\n[[vehicles]]\nname = "a"\nrole = "leader"\n\n'
+        f'[[vehicles.logs]]\nsensor = "gps"\nformat = "nmea"\npath = {files}\n{extra}\n'
+        '[[vehicles]]\nname = "b"\nrole = "follower"\n\n'
+        '[[vehicles.logs]]\nsensor = "gps"\nformat = "nmea"\npath = "whole.log"\n')
+    manifest = load_manifest(tmp_path / "trial.toml")
+    record(manifest, tmp_path / "whole.mcap", workers=1)
+    monkeypatch.setattr(log_blocks, "BLOCK_BYTES", 3000)
+    record(manifest, tmp_path / "blocks.mcap", workers=1)
+    record(manifest, tmp_path / "blocks2.mcap", workers=2)
+    whole = (tmp_path / "whole.mcap").read_bytes()
+    assert (tmp_path / "blocks.mcap").read_bytes() == whole
+    assert (tmp_path / "blocks2.mcap").read_bytes() == whole

@@ -6,6 +6,7 @@ import argparse
 import itertools
 import json
 from collections import defaultdict
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +23,7 @@ from replay.stack.detectors.anfis import AnfisModel, predict
 from replay.views import recording as views
 from replay.views.anfis import SURFACE_GRID, grid_triangles, history_of, surface
 from replay.views.cdf import CDF_SNAPSHOTS, PERCENTILES, error_axis, expanding_quantiles
-from replay.views.common import make_runs
+from replay.views.common import groups, make_runs
 from replay.views.tracks import decimate
 from tests.review_fixtures import FOLLOWER, LEADERS, synthetic_review
 
@@ -468,3 +469,21 @@ def test_sample_mission_seconds_beside_utc_and_events_use_them(sample: tuple[Rev
     assert (ev.text.str.startswith("ANOMALY STARTS").sum() > 10
             and ev[ev.level == "INFO"].text.str.contains("trained at t_a").any())
     assert not ev[ev.level == "INFO"].text.str.startswith(("FALSE ALARM", "MISS")).any()
+
+
+def test_a_run_groups_each_table_once_and_gives_what_groups_gives() -> None:
+    review = synthetic_review(0, n_epochs=N_EPOCHS, anfis_epochs=ANFIS_EPOCHS)
+    run = make_runs([review])[0]
+    det = review.detections
+    pairs = run.groups(det, ["follower", "leader"])
+    assert run.groups(det, ["follower", "leader"]) is pairs  # asked again: the same list, not grouped again
+    direct = groups(det, ["follower", "leader"])
+    assert [k for k, _ in pairs] == [k for k, _ in direct] and len(pairs) == len(LEADERS)
+    for (_, rows), (_, expected) in zip(pairs, direct, strict=True):
+        assert rows.equals(expected) and list(rows.index) == list(expected.index)
+    # a group's rows grouped again are cached by that group; another table (or keys) is grouped anew
+    assert run.groups(pairs[0][1], ["method"]) is run.groups(pairs[0][1], ["method"])
+    copy = det.copy()
+    assert run.groups(copy, ["follower", "leader"]) is not pairs
+    assert run.groups(det, ["follower"]) is not pairs and len(run.groups(det, ["follower"])) == 1
+    assert replace(run).groups(det, ["follower", "leader"]) is not pairs  # a new Run starts with no cache

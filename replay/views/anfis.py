@@ -32,7 +32,7 @@ from replay.stack.detectors.anfis import (
     rule_outputs,
     rule_table,
 )
-from replay.views.common import CLUSTER_COLORS, Run, floats, groups
+from replay.views.common import CLUSTER_COLORS, Run, floats
 
 INPUT_NAMES = ("f1 |r| (m)", "f2 r'Pzz^-1 r", "f3 R* (m^2)")
 MF_POINTS = 101
@@ -135,8 +135,8 @@ def surface_colors(z: np.ndarray, threshold: float) -> np.ndarray:
 
 def log_anfis(rec: rr.RecordingStream, run: Run) -> None:
     """Training history and per-epoch explanations of every ANFIS model of a run."""
-    histories = {str(k[0]): history_of(rows) for k, rows in groups(run.review.anfis_epochs, ["model"])}
-    explain = {str(k[0]): rows for k, rows in groups(run.review.anfis_explain, ["model"])}
+    histories = {str(k[0]): history_of(rows) for k, rows in run.groups(run.review.anfis_epochs, ["model"])}
+    explain = {str(k[0]): rows for k, rows in run.groups(run.review.anfis_explain, ["model"])}
     for model, h in histories.items():
         if h is not None:
             _log_training(rec, run, model, h, explain.get(model))

@@ -32,7 +32,7 @@ from rerun.encodings import EntityPathLike
 from replay.review.data import ReviewData
 from replay.review.why import ANFIS_FAMILY
 from replay.views.cdf import HEIGHT, WIDTH
-from replay.views.common import Run, floats, groups, part
+from replay.views.common import Run, floats, part
 from replay.views.features import (
     FEATURE_GROUPS,
     SCORED,
@@ -127,7 +127,7 @@ def _navigation(runs: list[Run]) -> rrb.Container:
 
 
 def _scoreboard(runs: list[Run], error_top: float) -> rrb.Container:
-    followers = sorted({str(k[0]) for r in runs for k, _ in groups(r.review.errors, ["follower"])})
+    followers = sorted({str(k[0]) for r in runs for k, _ in r.groups(r.review.errors, ["follower"])})
     docs = [rrb.TextDocumentView(name=f"Scoreboard{' [' + r.label + ']' if r.label else ''}",
                                  contents=[f"+ {r.path('scoreboard')}"]) for r in runs]
     if len(runs) == 2:
@@ -156,7 +156,7 @@ def _scoreboard(runs: list[Run], error_top: float) -> rrb.Container:
 
 def _pairs(runs: list[Run]) -> list[tuple[str, str]]:
     """Every (follower, leader) with detections in any run, sorted."""
-    return sorted({(str(k[0]), str(k[1])) for r in runs for k, _ in groups(r.review.detections,
+    return sorted({(str(k[0]), str(k[1])) for r in runs for k, _ in r.groups(r.review.detections,
                                                                              ["follower", "leader"])})
 
 
@@ -258,8 +258,8 @@ def _anfis_model(run: Run, model: str) -> rrb.Container:
 def _anfis(runs: list[Run]) -> rrb.Container | None:
     tabs = []
     for run in runs:
-        models = {str(k[0]) for k, _ in groups(run.review.anfis_epochs, ["model"])}
-        models |= {str(k[0]) for k, _ in groups(run.review.anfis_explain, ["model"])}
+        models = {str(k[0]) for k, _ in run.groups(run.review.anfis_epochs, ["model"])}
+        models |= {str(k[0]) for k, _ in run.groups(run.review.anfis_explain, ["model"])}
         tabs += [_anfis_model(run, part(m)) for m in sorted(models)]
     return rrb.Tabs(*tabs, name="ANFIS") if tabs else None
 
@@ -269,7 +269,7 @@ def _kmcdf(runs: list[Run]) -> rrb.Container | None:
     for run in runs:
         tag = f" [{run.label}]" if run.label else ""
         with_fixes = fix_methods(run.review.kmcdf)
-        for (target,), rows in groups(run.review.kmcdf, ["target"]):
+        for (target,), rows in run.groups(run.review.kmcdf, ["target"]):
             t = str(target)
             half = kmcdf_half_width(run, t)
             methods = sorted(rows["method"].astype(str).unique())

@@ -24,7 +24,7 @@ import pandas as pd
 import rerun as rr
 
 from replay.review.scoreboard import scoreboard
-from replay.views.common import Run, floats, groups, method_rgb
+from replay.views.common import Run, floats, method_rgb
 from replay.views.lanes import training_end_s
 
 CDF_SNAPSHOTS = 120
@@ -69,7 +69,7 @@ def error_axis(runs: list[Run]) -> dict[str, LogAxis]:
     run up the right edge)."""
     out: dict[str, list[np.ndarray]] = {}
     for run in runs:
-        for (follower, _method), rows in groups(run.review.errors, ["follower", "method"]):
+        for (follower, _method), rows in run.groups(run.review.errors, ["follower", "method"]):
             v = floats(scored(run, rows), "error_m")
             v = v[np.isfinite(v) & (v > 0)]
             if v.size:
@@ -118,14 +118,14 @@ def log_cdfs(rec: rr.RecordingStream, run: Run, axes: dict[str, LogAxis]) -> Non
     """The growing CDF of every method and the percentile table, per follower; axes and legend once."""
     probs = np.linspace(0.0, 1.0, CDF_POINTS)
     marks = np.array(PERCENTILES)
-    for (follower,), f_rows in groups(run.review.errors, ["follower"]):
+    for (follower,), f_rows in run.groups(run.review.errors, ["follower"]):
         f, axis = str(follower), axes.get(str(follower))
         if axis is None:
             continue
         f_rows = scored(run, f_rows)
         at = snapshot_times(floats(f_rows, "t_s"))
         table: dict[str, np.ndarray] = {}
-        for (method,), rows in groups(f_rows, ["method"]):
+        for (method,), rows in run.groups(f_rows, ["method"]):
             m = str(method)
             q = expanding_quantiles(floats(rows, "t_s"), floats(rows, "error_m"), at, np.concatenate([probs, marks]))
             _log_curve(rec, run, f, m, at, q, axis)
@@ -190,7 +190,7 @@ def _log_axes(rec: rr.RecordingStream, path: str, axis: LogAxis) -> None:
 def _log_legend(rec: rr.RecordingStream, runs: list[Run], follower: str, path: str) -> None:
     """One entry per method, its name and p50 in its colour, best first (the first run's scoreboard order)."""
     entries: list[tuple[str, tuple[int, int, int]]] = []
-    present = [{str(k[1]) for k, _ in groups(r.review.errors, ["follower", "method"]) if str(k[0]) == follower}
+    present = [{str(k[1]) for k, _ in r.groups(r.review.errors, ["follower", "method"]) if str(k[0]) == follower}
                for r in runs]
     first = runs[0]
     ranked = [r.method for r in scoreboard(first.review.metrics) if r.method in present[0]]

@@ -12,7 +12,7 @@ import colorsys
 import json
 import re
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -62,6 +62,21 @@ class Run:
     prefix: str
     label: str
     index: int
+    # (id of a table, keys) -> (the table, its groups): several views group the same rows the same way
+    _groups: dict[tuple[int, tuple[str, ...]], tuple[pd.DataFrame, list[tuple[tuple, pd.DataFrame]]]] = field(
+        default_factory=dict, init=False, repr=False, compare=False)
+
+    def groups(self, frame: pd.DataFrame, keys: list[str]) -> list[tuple[tuple, pd.DataFrame]]:
+        """`groups(frame, keys)`, computed once per table and keys for this run (read it, never change it).
+
+        A table is one of this run's or a group of one (the same object each time it is asked for); the
+        cache holds it, so its id is not reused while it stands for it.
+        """
+        key = (id(frame), tuple(keys))
+        hit = self._groups.get(key)
+        if hit is None or hit[0] is not frame:
+            hit = self._groups[key] = (frame, groups(frame, keys))
+        return hit[1]
 
     def path(self, *parts: str) -> str:
         """An entity path under this run's prefix, each part made safe."""

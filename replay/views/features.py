@@ -25,7 +25,7 @@ import pandas as pd
 import rerun as rr
 
 from replay.stack.features import EXTRA_FEATURES
-from replay.views.common import Run, floats, groups
+from replay.views.common import Run, floats
 from replay.views.lanes import epoch_states, training_end_s
 from replay.views.series import LEADER_RGB
 
@@ -107,7 +107,7 @@ def log_features(rec: rr.RecordingStream, run: Run) -> None:
     if note:
         rec.log(run.path("features", "note"), rr.TextDocument(note), static=True)
     have = set(present_features(det))
-    for (follower, leader), rows in groups(det, ["follower", "leader"]):
+    for (follower, leader), rows in run.groups(det, ["follower", "leader"]):
         epochs = rows.drop_duplicates("t_s")
         t = floats(epochs, "t_s")
         for key, _, names in FEATURE_GROUPS:
@@ -122,7 +122,7 @@ LEADER_COLOUR_NAMES = ("orange", "blue", "violet", "green")     # of LEADER_RGB,
 
 def log_detector_scores(rec: rr.RecordingStream, run: Run) -> None:
     """Each detector of SCORED: its statistic per leader as a line, its threshold as a grey step line; a colour key."""
-    pairs = groups(run.review.detections, ["follower", "leader"])
+    pairs = run.groups(run.review.detections, ["follower", "leader"])
     key = [f"- {LEADER_COLOUR_NAMES[k % len(LEADER_RGB)]}: {leader}" for k, ((_, leader), _) in enumerate(pairs)]
     titles = "".join(f"\n- {t}: {d}" for t, d in (
         ("chi_square", "f2 against its chi-square gate"), ("dual_threshold", "max(f2/gate, CUSUM S/h) against 1"),
@@ -136,7 +136,7 @@ def log_detector_scores(rec: rr.RecordingStream, run: Run) -> None:
         static=True)
     for k, ((follower, leader), rows) in enumerate(pairs):
         rgb = LEADER_RGB[k % len(LEADER_RGB)]
-        for (method,), m_rows in groups(rows, ["method"]):
+        for (method,), m_rows in run.groups(rows, ["method"]):
             m = str(method)
             if m not in SCORED:
                 continue
@@ -181,7 +181,7 @@ def why_documents(rows: pd.DataFrame, t_a: float) -> tuple[np.ndarray, list[str]
 def log_why(rec: rr.RecordingStream, run: Run) -> None:
     """The "why (not) flagged" document of every follower and leader, one per epoch after t_a."""
     t_a = training_end_s(run)
-    for (follower, leader), rows in groups(run.review.detections, ["follower", "leader"]):
+    for (follower, leader), rows in run.groups(run.review.detections, ["follower", "leader"]):
         t, docs = why_documents(rows, t_a)
         if docs:
             # before t_a the view would say "(empty)": say why instead

@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 import rerun as rr
 
-from replay.views.common import Run, groups, part
+from replay.views.common import Run, part
 
 # state -> colour; the same in every lane and every run (errors loud, correct silence quiet)
 STATES: tuple[tuple[str, tuple[int, int, int]], ...] = (
@@ -89,7 +89,9 @@ def log_lanes(rec: rr.RecordingStream, run: Run) -> None:
     t_a = training_end_s(run)
     present = {str(m) for m in det["method"].unique()} if "method" in det else set()
     order = [m for m in run.review.methods if m in present]
-    by_follower = groups(det, ["follower"])
+    by_follower = run.groups(det, ["follower"])
+    # a follower's leaders as the other views group them: the same rows, in time order, grouped once
+    pairs = run.groups(det, ["follower", "leader"])
     for (follower,), f_rows in by_follower:
         where = (str(follower),) if len(by_follower) > 1 else ()
         t = np.unique(f_rows["t_s"].to_numpy(dtype=float))
@@ -98,12 +100,14 @@ def log_lanes(rec: rr.RecordingStream, run: Run) -> None:
             _send(rec, run, lane_path(run, *where, WINDOW_LANE), marks,
                   np.where(marks < t_a, "training", "scored").astype(object))
         methods = order + sorted({str(m) for m in f_rows["method"].unique()} - set(order))
-        for (leader,), rows in groups(f_rows, ["leader"]):
+        for (pair_follower, leader), rows in pairs:
+            if pair_follower != follower:
+                continue
             paths = lane_paths(run, where, str(leader), methods)
             epochs = rows.drop_duplicates("t_s")
             label = pd.to_numeric(epochs["label"], errors="coerce").fillna(-1).to_numpy(dtype=int)
             _send(rec, run, paths[0], epochs["t_s"].to_numpy(dtype=float), truth_states(label))
-            by_method = {str(k[0]): r for k, r in groups(rows, ["method"])}
+            by_method = {str(k[0]): r for k, r in run.groups(rows, ["method"])}
             for path, method in zip(paths[1:], methods, strict=True):
                 m_rows = by_method.get(method)
                 if m_rows is None:

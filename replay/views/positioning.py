@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 import rerun as rr
 
-from replay.views.common import CLUSTER_COLORS, Run, class_id, floats, groups, ragged
+from replay.views.common import CLUSTER_COLORS, Run, class_id, floats, ragged
 
 NODE_OK, NODE_DELAY_BAD, NODE_PHASE_BAD = (200, 200, 200), (230, 50, 40), (240, 180, 40)
 
@@ -29,9 +29,9 @@ RINGS_M = (5.0, 10.0, 20.0)
 
 def log_kmcdf(rec: rr.RecordingStream, run: Run) -> None:
     """Every KMCDF-family epoch of a run, per target and method, and the truth rings of each target."""
-    for (target, method), rows in groups(run.review.kmcdf, ["target", "method"]):
+    for (target, method), rows in run.groups(run.review.kmcdf, ["target", "method"]):
         _log_epochs(rec, run, str(target), str(method), rows)
-    for (target,), _ in groups(run.review.kmcdf, ["target"]):
+    for (target,), _ in run.groups(run.review.kmcdf, ["target"]):
         rings = [np.column_stack([r * np.cos(a), r * np.sin(a)]) for r in RINGS_M
                  for a in [np.linspace(0, 2 * np.pi, 73)]]
         rec.log(run.path("kmcdf", str(target), "truth", "rings"),

@@ -19,7 +19,7 @@ import rerun as rr
 
 from replay.review.scoreboard import method_kind
 from replay.review.why import ANFIS_FAMILY
-from replay.views.common import Run, floats, groups, method_rgb
+from replay.views.common import Run, floats, method_rgb
 from replay.views.lanes import training_end_s
 
 FEATURES = ("f1_innovation_m", "f2_mahalanobis2", "f3_r_adapted_m2")
@@ -41,7 +41,7 @@ LEADER_RGB = ((235, 150, 30), (60, 150, 235), (200, 100, 240), (90, 190, 80))
 
 def log_ranges(rec: rr.RecordingStream, run: Run) -> None:
     """Measured and GPS-true range per leader, and the residual."""
-    for k, ((follower, leader), rows) in enumerate(groups(run.review.ranges, ["follower", "leader"])):
+    for k, ((follower, leader), rows) in enumerate(run.groups(run.review.ranges, ["follower", "leader"])):
         f, ld = str(follower), str(leader)
         rgb = LEADER_RGB[k % len(LEADER_RGB)]
         _scalars(rec, run.path("series", "range", f, ld, "measured"), run, rows["t_s"], floats(rows, "measured_m"),
@@ -55,13 +55,13 @@ def log_ranges(rec: rr.RecordingStream, run: Run) -> None:
 def log_detections(rec: rr.RecordingStream, run: Run) -> None:
     """Features per leader, and each ANFIS-family detector's output against its T2."""
     det = run.review.detections
-    for k, ((follower, leader), rows) in enumerate(groups(det, ["follower", "leader"])):
+    for k, ((follower, leader), rows) in enumerate(run.groups(det, ["follower", "leader"])):
         f, ld = str(follower), str(leader)
         epochs = rows.drop_duplicates("t_s")
         for feature in FEATURES:
             _scalars(rec, run.path("series", feature, f, ld), run, epochs["t_s"], floats(epochs, feature),
                      run.name(f"{ld} {feature}"), LEADER_RGB[k % len(LEADER_RGB)])
-        for (method,), m_rows in groups(rows, ["method"]):
+        for (method,), m_rows in run.groups(rows, ["method"]):
             m = str(method)
             if m in ANFIS_FAMILY:
                 _scalars(rec, run.path("series", "anfis", f, ld, m, "output"), run, m_rows["t_s"],
@@ -76,7 +76,7 @@ def log_errors(rec: rr.RecordingStream, run: Run, height: float) -> None:
     Positioning methods (a fix every few seconds, with outliers of hundreds of metres) are drawn as
     markers: as lines their outliers would hatch the whole plot.
     """
-    for (follower, method), rows in groups(run.review.errors, ["follower", "method"]):
+    for (follower, method), rows in run.groups(run.review.errors, ["follower", "method"]):
         m = str(method)
         _scalars(rec, run.path("series", "error", str(follower), m), run, rows["t_s"], floats(rows, "error_m"),
                  run.name(m), method_rgb(m, run.index), points=method_kind(m) == "positioning")

@@ -21,7 +21,7 @@ import rerun as rr
 
 from replay.review.data import ReviewData
 from replay.review.scoreboard import method_kind
-from replay.views.common import Run, class_id, floats, groups, method_rgb
+from replay.views.common import Run, class_id, floats, method_rgb
 
 MAX_STATIC_VERTICES = 4000
 KEY = "/colour_key"
@@ -45,7 +45,7 @@ def decimate(n: int, limit: int = MAX_STATIC_VERTICES) -> np.ndarray:
 
 def log_tracks(rec: rr.RecordingStream, run: Run) -> None:
     """Map and local-plot entities for every (vehicle, source) track of a run."""
-    for (vehicle, source), rows in groups(run.review.tracks, ["vehicle", "source"]):
+    for (vehicle, source), rows in run.groups(run.review.tracks, ["vehicle", "source"]):
         _log_track(rec, run, str(vehicle), str(source), rows)
 
 
@@ -151,7 +151,7 @@ def _epoch_labels(run: Run, ranges: pd.DataFrame) -> np.ndarray:
 
 def log_range_circles(rec: rr.RecordingStream, run: Run) -> None:
     """One circle per ranging epoch around the ranged leader, coloured by the epoch's truth label."""
-    for (follower, leader), rows in groups(run.review.ranges, ["follower", "leader"]):
+    for (follower, leader), rows in run.groups(run.review.ranges, ["follower", "leader"]):
         radius = floats(rows, "horizontal_m")
         radius = np.where(np.isfinite(radius), radius, floats(rows, "measured_m"))
         centre = np.column_stack([floats(rows, "leader_east_m"), -floats(rows, "leader_north_m")])
