@@ -364,7 +364,10 @@ def test_any_message_content_is_counted_never_a_traceback(tmp_path, data):
     bag = next(folder.glob("*.mcap"))
     _, info = messages(tmp_path, manifest(tmp_path, log("rosbag", str(bag.relative_to(tmp_path)))), "f.mcap")
     stats = info["recording"]["files"][0]
-    assert stats["parsed"] + stats["skipped"] + stats["ignored"] == len(chosen)
+    # every message is archived, rejected or ignored; one may be two of them (a NavSatFix's fix archived and
+    # its status refused), and each refusal is one skip with its diagnostic line
+    assert stats["parsed"] <= len(chosen) <= stats["parsed"] + stats["skipped"] + stats["ignored"]
+    assert stats["parsed"] + stats["skipped"] + stats["ignored"] <= 2 * len(chosen)
 
 
 SAMPLE_LOGS = [  # vehicle, sensor, format, sample log, bag topic
