@@ -82,6 +82,7 @@ class DrErrorModel:
         # t, x, P, cum: the states of the last lag_s and the newest older one
         self._snaps: deque[tuple[float, list[float], list[list[float]], tuple[float, ...]]] = deque()
         self._left_out: dict[str, int] = {}
+        self.last_fix_s = -math.inf                     # time of the last position fix taken
 
     def step(self, dt_s: float, north_m: float, east_m: float) -> None:
         """One DR step of dt_s seconds that moved the DR position by (north_m, east_m)."""
@@ -177,4 +178,5 @@ class DrErrorModel:
         self.x = [x[i] + k[i][0] * rn + k[i][1] * re for i in range(4)]
         new = [[p[i][j] - k[i][0] * p[0][j] - k[i][1] * p[1][j] for j in range(4)] for i in range(4)]
         self.p = [[0.5 * (new[i][j] + new[j][i]) for j in range(4)] for i in range(4)]
+        self.last_fix_s = float(t_s)
         self._remember(t_s)

@@ -288,7 +288,7 @@ class FeatureTracker:
             # the current innovation before the first lagged state (lag_s into the run), and while a USBL fix
             # younger than lag_s holds the filter: the lagged state has not seen that fix, and fixes keep the
             # filter off a drift (dev seeds 1-9 with fixes: FNR at 2 % 0.051 against the lagged one's 0.071)
-            fresh_fix = t_s - self.anchor_t <= cfg.lag_s
+            fresh_fix = t_s - self.model.last_fix_s <= cfg.lag_s
             drift = res.lagged_m if math.isfinite(res.lagged_m) and not fresh_fix else res.innovation_m
         elif self.stiff is not None:
             drift = self.stiff.range(leader, z_m, *rel, self._repeats[leader] > 0)
