@@ -73,8 +73,13 @@ def perron_weights(dist: FloatArray, mask: BoolArray) -> FloatArray:
     amax = np.max(np.where(both, dist, 0.0), axis=(-2, -1))
     scale = np.where(amax > 0.0, amax, 1.0)[..., None, None]
     support = np.where(both, 1.0 - dist / scale, 0.0)
-    _, vectors = np.linalg.eigh(support)
+    values, vectors = np.linalg.eigh(support)
     v = np.abs(vectors[..., :, -1]) * mask
+    # a repeated largest eigenvalue (two fixes: B = I) has no one Perron vector, and LAPACK's pick depends on
+    # the padding of a batch: every fix of the mask then has the same support
+    tied = values[..., -1] - values[..., -2] <= 1e-9 * np.maximum(np.abs(values[..., -1]), 1.0) \
+        if support.shape[-1] > 1 else np.zeros(values.shape[:-1], dtype=bool)
+    v = np.where(tied[..., None], mask.astype(float), v)
     total = np.sum(v, axis=-1, keepdims=True)
     return v / np.where(total > 0.0, total, 1.0)
 
