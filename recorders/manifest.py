@@ -203,6 +203,8 @@ def load_manifest(path: str | Path, allow_outside: bool = False) -> Manifest:
     too, unless `allow_outside`.
     """
     path = Path(path)
+    if path.exists() and not path.is_file():   # a device, a FIFO (whose open would wait for a writer), a folder
+        raise ManifestError(f"{path}: not a regular file, not a trial manifest")
     try:
         with open(path, "rb") as f:
             raw = f.read(MAX_MANIFEST_BYTES + 1)   # bounded: a special file or a huge one stops here

@@ -95,14 +95,17 @@ def test_a_glob_matching_too_many_files_is_refused(tmp_path, monkeypatch):
 
 
 def test_a_manifest_is_read_bounded(tmp_path, monkeypatch):
-    """A huge manifest, or a device that never ends, is refused after MAX_MANIFEST_BYTES, not read whole."""
+    """A huge manifest is refused after MAX_MANIFEST_BYTES, not read whole; a device, FIFO or folder before any read."""
     big = tmp_path / "big.toml"
     big.write_bytes(b"#" * 1001)
     monkeypatch.setattr("recorders.manifest.MAX_MANIFEST_BYTES", 1000)
     with pytest.raises(ManifestError, match="not a trial manifest"):
         load_manifest(big)
-    with pytest.raises(ManifestError, match="not a trial manifest"):
-        load_manifest("/dev/zero")
+    fifo = tmp_path / "fifo.toml"
+    os.mkfifo(fifo)
+    for special in ("/dev/zero", fifo, tmp_path):
+        with pytest.raises(ManifestError, match="not a regular file"):
+            load_manifest(special)
 
 
 # -- outputs ------------------------------------------------------------------------------------------------
