@@ -218,6 +218,16 @@ def test_location_fix_round_trip_property(tmp_path_factory, lat, lon, alt, t, na
     assert m.message.SerializeToString() == fix.SerializeToString()
 
 
+def _assert_ordered_read_is_the_library_s(path, topics: list[str], lo: int, hi: int) -> None:
+    """Our decoded messages, in order, are the mcap reader's: the whole archive, then `topics` in [lo, hi)."""
+    with ArchiveReader(path) as r:
+        for chosen, window in ((None, (None, None)), (topics, (lo, hi))):
+            fast = [(m.topic, m.log_time_ns, m.message.satellites) for m in r.messages(chosen, *window)]
+            slow = [(c.topic, m.log_time, S.GnssStatus.FromString(m.data).satellites)
+                    for _, c, m in r.raw_messages(chosen, *window)]
+            assert fast == slow
+
+
 @settings(max_examples=15, deadline=None)
 @given(st.lists(st.tuples(st.integers(0, 3), st.integers(0, 50)), min_size=1, max_size=400),
        st.integers(0, 60), st.integers(0, 60))
@@ -227,13 +237,7 @@ def test_fast_ordered_read_equals_the_mcap_library(tmp_path_factory, items, a, b
     with ArchiveWriter(path, chunk_size=256) as w:
         for k, (topic, t) in enumerate(items):
             w.write(f"/v{topic}/gps/status", S.GnssStatus(satellites=k), T0 + t)
-    lo, hi = T0 + min(a, b), T0 + max(a, b)
-    with ArchiveReader(path) as r:
-        for topics, window in ((None, (None, None)), (["/v1/gps/status", "/v3/gps/status"], (lo, hi))):
-            fast = [(m.topic, m.log_time_ns, m.message.satellites) for m in r.messages(topics, *window)]
-            slow = [(c.topic, m.log_time, S.GnssStatus.FromString(m.data).satellites)
-                    for _, c, m in r.raw_messages(topics, *window)]
-            assert fast == slow
+    _assert_ordered_read_is_the_library_s(path, ["/v1/gps/status", "/v3/gps/status"], T0 + min(a, b), T0 + max(a, b))
 
 
 @settings(max_examples=20, deadline=None)
@@ -247,10 +251,4 @@ def test_fast_ordered_read_of_mostly_ordered_writes(tmp_path_factory, items, a, 
         for k, (topic, step) in enumerate(items):
             t = max(0, t + step)
             w.write(f"/v{topic}/gps/status", S.GnssStatus(satellites=k), T0 + t)
-    lo, hi = T0 + min(a, b), T0 + max(a, b)
-    with ArchiveReader(path) as r:
-        for topics, window in ((None, (None, None)), (["/v0/gps/status", "/v2/gps/status"], (lo, hi))):
-            fast = [(m.topic, m.log_time_ns, m.message.satellites) for m in r.messages(topics, *window)]
-            slow = [(c.topic, m.log_time, S.GnssStatus.FromString(m.data).satellites)
-                    for _, c, m in r.raw_messages(topics, *window)]
-            assert fast == slow
+    _assert_ordered_read_is_the_library_s(path, ["/v0/gps/status", "/v2/gps/status"], T0 + min(a, b), T0 + max(a, b))

@@ -58,5 +58,5 @@ def run(args: argparse.Namespace) -> int:
         print(format_table(outcome.metrics))
         print(f"results: {outcome.output}" + (f"; recording: {args.rrd}" if args.rrd else ""))
     compared = reviews[1].input_warning if args.rrd and args.compare else None
-    warn_damage("replay", "; ".join(w for w in (outcome.warning, compared) if w) or None)
+    warn_damage("replay", "; ".join(filter(None, [outcome.warning, compared])) or None)
     return 0

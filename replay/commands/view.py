@@ -118,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
     damage = archive_damage([check_file(f) for f in args.file])
     built, inputs = _recording_of_results(args)
     path = built if built is not None else check_file(args.file[0])
-    warn_damage("view", "; ".join([d for d in (damage,) if d] + inputs) or None)
+    warn_damage("view", "; ".join(filter(None, [damage, *inputs])) or None)
     from replay.views.recording import open_viewer, viewer_command
 
     if not args.web and not has_display(os.environ):

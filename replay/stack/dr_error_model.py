@@ -109,19 +109,22 @@ class DrErrorModel:
         self._cum = (c[0] + a0, c[1] + a1, c[2] + b0, c[3] + b1, c[4] + dt)
         self._pending = [0.0, 0.0, 0.0]
 
-    def _remember(self, t_s: float) -> None:
-        """Keep this state for the lagged prediction; forget those a newer one at least lag_s old replaces."""
+    def _forget(self, t_s: float) -> None:
+        """Drop the states that a newer one at least lag_s old (at t_s) replaces."""
         snaps, cutoff = self._snaps, t_s - self.lag_s
-        snaps.append((float(t_s), list(self.x), [list(row) for row in self.p], self._cum))
         while len(snaps) > 1 and snaps[1][0] <= cutoff:
             snaps.popleft()
 
+    def _remember(self, t_s: float) -> None:
+        """Keep this state for the lagged prediction (memory bounded even if only fixes come)."""
+        self._snaps.append((float(t_s), list(self.x), [list(row) for row in self.p], self._cum))
+        self._forget(t_s)
+
     def _lagged(self, t_s: float, h0: float, h1: float) -> tuple[float, float] | None:
         """h·x and h·P·hᵀ of the state of lag_s ago (the newest at least that old) carried forward, or None."""
-        snaps, cutoff = self._snaps, t_s - self.lag_s
-        while len(snaps) > 1 and snaps[1][0] <= cutoff:
-            snaps.popleft()
-        if not snaps or snaps[0][0] > cutoff:
+        self._forget(t_s)
+        snaps = self._snaps
+        if not snaps or snaps[0][0] > t_s - self.lag_s:
             return None
         _, x, p, cum = snaps[0]
         c = self._cum
