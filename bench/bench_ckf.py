@@ -25,9 +25,10 @@ from collections.abc import Callable
 import numpy as np
 
 from replay.stack import model
-from replay.stack.config import METHODS, StackConfig
+from replay.stack.config import StackConfig
 from replay.stack.filters import ckf
 from replay.stack.filters.ckf import State2
+from replay.stack.methods import default_names
 from replay.stack.runner import CooperativeRunner, RunResults
 
 LAT, LON = math.radians(45.7), math.radians(126.6)
@@ -117,7 +118,7 @@ def whole_trial(trial: object) -> RunResults:
     for rate in (None, 5.0):
         samples = dr_samples(trial, rate)
         own = statistics.median(drive(trial, samples, OWN)[0] for _ in range(3))
-        runs = [drive(trial, samples, METHODS) for _ in range(3)]
+        runs = [drive(trial, samples, default_names()) for _ in range(3)]
         full = statistics.median(t for t, _ in runs)
         keep = keep or runs[0][1]
         label = "sim (1 Hz)" if rate is None else f"{rate:g} Hz"
@@ -126,7 +127,7 @@ def whole_trial(trial: object) -> RunResults:
     samples = dr_samples(trial, None)
     base = statistics.median(drive(trial, samples, ("ackf",))[0] for _ in range(3))
     print(f"\n  cost of each detecting method at the sim rate (s; ackf alone = {base:.3f}, training included)")
-    for m in METHODS[3:]:
+    for m in default_names()[3:]:
         t = statistics.median(drive(trial, samples, ("ackf", m))[0] for _ in range(3))
         print(f"  {m:<20}{t - base:>8.3f}")
     return keep

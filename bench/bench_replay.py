@@ -47,11 +47,11 @@ def sample_trial(repeats: int, all_methods: bool = False) -> list[list[object]]:
     from recorders.record import record
     from replay.run.config import RunConfig, load_config
     from replay.run.pipeline import replay_archive
-    from replay.stack.config import ALL_METHODS
+    from replay.stack.methods import runnable_names
 
     configs = [("default methods", RunConfig())]
     if all_methods:
-        configs.append(("every method", load_config(default_methods=ALL_METHODS)))
+        configs.append(("every method", load_config(default_methods=runnable_names())))
     rows: list[list[object]] = []
     with tempfile.TemporaryDirectory() as d:
         archive = Path(d) / "lake.mcap"
@@ -86,7 +86,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--hours", type=float, default=24.0, help="length of the long mission (default 24)")
     parser.add_argument("--skip-mission", action="store_true")
-    parser.add_argument("--all-methods", action="store_true", help="also replay with every method (ALL_METHODS)")
+    parser.add_argument("--all-methods", action="store_true", help="also replay with every method of the table")
     args = parser.parse_args()
     print_table(f"Replay of the sample trial (median of {args.repeats})", ["what", "wall", "speed", "goal"],
                 sample_trial(args.repeats, args.all_methods))

@@ -1,6 +1,6 @@
 """Time to log the sample trial to Rerun: columnar (`send_columns`) against row-by-row `log`.
 
-The bundled sample trial is recorded and replayed with every method (ALL_METHODS, as `demo`), and its
+The bundled sample trial is recorded and replayed with every method (every method of the table, as `demo`), and its
 ReviewData (what `auvreplay demo` logs) is logged both ways and saved whole;
 a synthetic ReviewData of the same size is timed too:
 
@@ -35,16 +35,16 @@ from recorders.manifest import load_manifest
 from recorders.record import record
 from replay.run.config import load_config
 from replay.run.pipeline import replay_archive
-from replay.stack.config import ALL_METHODS
+from replay.stack.methods import runnable_names
 from replay.views import recording as views
 from replay.views.common import Run, class_id, floats, groups, make_runs
 from replay.views.features import (
     FEATURE_GROUPS,
-    SCORED,
     log_detector_scores,
     log_features,
     log_why,
     present_features,
+    scored,
     why_documents,
 )
 from replay.views.lanes import (
@@ -101,7 +101,7 @@ def bulk_rows(run: Run) -> int:
     n_anfis = int(rv.detections.method.str.startswith("anfis").sum())
     epochs = rv.detections.drop_duplicates(["t_s", "follower", "leader"])
     n_features = sum(int(np.isfinite(floats(epochs, f)).sum()) for f in present_features(rv.detections))
-    n_scores = 2 * int(rv.detections.method.isin(list(SCORED)).sum())
+    n_scores = 2 * int(rv.detections.method.isin(list(scored())).sum())
     n_why = sum(len(why_documents(rows, training_end_s(run))[1]) for _, rows in groups(rv.detections,
                                                                                       ["follower", "leader"]))
     return (2 * len(rv.tracks) + 2 * _trail_rows(run) + 4 * len(rv.ranges) + 3 * n_det_epochs + n_det_epochs
@@ -135,6 +135,7 @@ def bulk_row_by_row(run: Run) -> None:
             for name, v in (("measured", r.measured_m), ("true", r.true_m), ("residual", r.residual_m)):
                 rec.log(run.path("series", "range", follower, leader, name), rr.Scalars(v))
     t_a = training_end_s(run)
+    plotted = scored()
     have = present_features(run.review.detections)
     group_of = {f: key for key, _, names in FEATURE_GROUPS for f in names}
     for (follower, leader), rows in groups(run.review.detections, ["follower", "leader"]):
@@ -158,7 +159,7 @@ def bulk_row_by_row(run: Run) -> None:
             if r.method.startswith("anfis"):
                 rec.log(run.path("series", "anfis", follower, leader, r.method, "output"), rr.Scalars(r.score))
                 rec.log(run.path("series", "anfis", follower, leader, r.method, "T2"), rr.Scalars(r.threshold))
-            if r.method in SCORED:
+            if r.method in plotted:
                 base = run.path("scores", r.method, follower, leader)
                 rec.log(base + "/score", rr.Scalars(r.score))
                 rec.log(base + "/threshold", rr.Scalars(r.threshold))
@@ -191,7 +192,8 @@ def sample_trial_review(workdir: Path) -> object:
     """The bundled sample trial recorded and replayed with every method: the ReviewData `demo` logs."""
     archive = workdir / "lake.mcap"
     record(load_manifest(ROOT / "samples/lake_trial/trial.toml"), archive)
-    return replay_archive(archive, load_config(default_methods=ALL_METHODS), write_output=False, review=True).review
+    config = load_config(default_methods=runnable_names())
+    return replay_archive(archive, config, write_output=False, review=True).review
 
 
 def describe(name: str, review: object) -> str:

@@ -10,10 +10,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from replay.stack import labels
-from replay.stack.config import ALL_METHODS, DETECTING_METHODS, StackConfig
+from replay.stack.config import StackConfig
 from replay.stack.detectors.chi_square import ChiSquareDetector, chi_square_threshold
 from replay.stack.detectors.dual_threshold import DualThresholdDetector, cusum, train_bp
-from replay.stack.methods import DETECTOR_FACTORIES, FILTER_KINDS, filter_kind
+from replay.stack.methods import METHOD_TABLE, detecting_names, filter_kind, runnable_names
 
 CONFIG = StackConfig()
 
@@ -142,10 +142,12 @@ def test_detectors_never_raise(values: list[float]) -> None:
 
 
 def test_method_mapping_covers_every_method() -> None:
-    assert set(FILTER_KINDS) == set(ALL_METHODS)
-    assert set(DETECTOR_FACTORIES) == set(DETECTING_METHODS)
+    assert {filter_kind(m) for m in runnable_names()} == {"dr", "ckf", "ackf", "detect"}
+    assert {m for m in runnable_names() if filter_kind(m) == "detect"} == set(detecting_names())
     assert [filter_kind(m) for m in ("dead_reckoning", "ckf", "ackf", "anfis")] == ["dr", "ckf", "ackf", "detect"]
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="unknown method 'kalman'"):
         filter_kind("kalman")
-    assert isinstance(DETECTOR_FACTORIES["chi_square"](CONFIG), ChiSquareDetector)
-    assert isinstance(DETECTOR_FACTORIES["dual_threshold"](CONFIG), DualThresholdDetector)
+    assert all(METHOD_TABLE[m].factory is not None for m in detecting_names())
+    chi, dual = METHOD_TABLE["chi_square"].factory, METHOD_TABLE["dual_threshold"].factory
+    assert chi is not None and isinstance(chi(CONFIG), ChiSquareDetector)
+    assert dual is not None and isinstance(dual(CONFIG), DualThresholdDetector)

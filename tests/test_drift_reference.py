@@ -16,10 +16,10 @@ from recorders.record import record
 from replay.run.config import load_config
 from replay.run.evaluate import TrialScores, TrialSpec, closed_loop_fpr
 from replay.run.pipeline import replay_archive
-from replay.stack.config import ALL_METHODS, NEW_METHODS, FeatureConfig, StackConfig
+from replay.stack.config import FeatureConfig, StackConfig
 from replay.stack.detectors.drift_reference import DriftReferenceDetector
 from replay.stack.features import EXTRA_FEATURES, FEATURE_NAMES, FeatureTracker, StiffReference
-from replay.stack.methods import DETECTOR_FACTORIES
+from replay.stack.methods import METHOD_TABLE
 from replay.stack.training import TrainingSet
 
 SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"
@@ -232,8 +232,10 @@ def test_detection_delay_on_a_ramp_is_threshold_over_rate(rate: float) -> None:
 
 
 def test_drift_reference_is_registered_as_a_new_method() -> None:
-    assert "drift_reference" in NEW_METHODS and "drift_reference" in ALL_METHODS
-    det = DETECTOR_FACTORIES["drift_reference"](StackConfig())
+    entry = METHOD_TABLE["drift_reference"]
+    assert entry.kind == "detector" and entry.wide and not entry.default and entry.pooled_training
+    assert entry.factory is not None
+    det = entry.factory(StackConfig())
     assert isinstance(det, DriftReferenceDetector) and det.wide
     with pytest.raises(ValueError, match="drift_reference_input"):
         DriftReferenceDetector(StackConfig(drift_reference_input="f2"))

@@ -16,7 +16,7 @@ from recorders.record import record
 from replay.cli import main
 from replay.run.config import load_config
 from replay.run.pipeline import replay_archive
-from replay.stack.config import ALL_METHODS, DETECTING_METHODS
+from replay.stack.methods import detecting_names, runnable_names
 
 SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"
 FAST = ["methods=dead_reckoning,ckf,ackf,chi_square,anfis"]
@@ -32,7 +32,7 @@ def archive(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def full_run(archive, tmp_path_factory):
     out = tmp_path_factory.mktemp("run") / "results.mcap"
-    return replay_archive(archive, load_config(default_methods=ALL_METHODS), out, review=True)   # every method
+    return replay_archive(archive, load_config(default_methods=runnable_names()), out, review=True)   # every method
 
 
 def test_replay_scores_every_method_on_the_test_window(full_run):
@@ -186,7 +186,7 @@ def test_export_any_topic(full_run, tmp_path, capsys, fmt):
     with ArchiveReader(full_run.output) as r:
         assert len(df) == r.summary().topics[topic]["count"]
     assert {"method", "flagged", "score", "feature_mahalanobis2", "label"} <= set(df.columns)
-    assert set(df["method"]) == set(DETECTING_METHODS)
+    assert set(df["method"]) == set(detecting_names())
     assert main(["export", str(full_run.output), "--topic", "/nope", "-o", str(out)]) == 1
     assert "no topic /nope" in capsys.readouterr().err
 

@@ -25,7 +25,7 @@ from replay.run.evaluate import (
     method_figures,
     split_seeds,
 )
-from replay.stack.config import ALL_METHODS
+from replay.stack.methods import runnable_names
 from samples.anomalies import KIND_CODES
 from samples.scenario import ANOMALY_KINDS, Scenario, ScenarioError, scenario_to_toml
 from samples.simulator import simulate_trial
@@ -97,7 +97,7 @@ def test_json_has_the_documented_shape(evaluated: Spied) -> None:
     assert set(obj) == {"seeds", "train_seed", "methods", "drift_sweep"}
     assert obj["seeds"] == [1, 2] and obj["train_seed"] == 0
     # every method (evaluate judges the new detectors too), in its order, with every figure
-    assert list(obj["methods"]) == list(ALL_METHODS)
+    assert list(obj["methods"]) == list(runnable_names())
     for name, fig in obj["methods"].items():
         assert set(fig) == FIGURES, name
         assert set(fig["recall_by_kind"]) == set(ANOMALY_KINDS)

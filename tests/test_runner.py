@@ -9,10 +9,10 @@ import numpy as np
 
 from replay.stack.config import AnfisConfig, StackConfig
 from replay.stack.detectors.base import Decision
-from replay.stack.methods import DETECTOR_FACTORIES
 from replay.stack.model import metric_scales_scalar
 from replay.stack.runner import CooperativeRunner, EpochResult, RunResults
 from replay.stack.scoring import RESULT_KEYS, score_run
+from replay.stack.training import TrainingSet
 
 LAT, LON = math.radians(45.7), math.radians(126.6)
 B0, A0 = metric_scales_scalar(LAT, 0.0)
@@ -199,8 +199,8 @@ class _Bias:
     def __init__(self, config: StackConfig) -> None:
         self.resets = 0
 
-    def train(self, features: np.ndarray, range_error: np.ndarray, labels: np.ndarray) -> None:
-        self.trained_on = features.shape[0]
+    def train_on(self, ts: TrainingSet) -> None:
+        self.trained_on = len(ts)
 
     def decide(self, features: np.ndarray) -> Decision:
         return Decision(True, 25.0, 9.0, correction_m=25.0)
@@ -263,9 +263,9 @@ def test_run_without_epochs_scores_cleanly() -> None:
     assert scores["dead_reckoning"]["error_p50_m"] < 1e-3         # radii vary over the 400 m run
 
 
-def test_factories_mapping_is_the_default() -> None:
+def test_factories_come_from_the_method_table_by_default() -> None:
     runner = CooperativeRunner(CONFIG, "f", ["leader1"], 0.0, LAT, LON)
-    assert runner._factories is DETECTOR_FACTORIES
+    assert runner._factories == {}
 
 
 def test_position_fixes_update_every_filter_but_dead_reckoning() -> None:

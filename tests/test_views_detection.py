@@ -12,13 +12,14 @@ from rerun.chunk import RrdReader
 
 from replay.events import EpochResult
 from replay.review.data import ReviewData
-from replay.review.why import why_line, wide_features
 from replay.stack.config import StackConfig
 from replay.stack.detectors.chi_square import ChiSquareDetector
 from replay.stack.detectors.cusum import CusumDriftDetector
 from replay.stack.detectors.drift_reference import DriftReferenceDetector
 from replay.stack.detectors.dual_threshold import DualThresholdDetector
+from replay.stack.detectors.why_text import epoch_features
 from replay.stack.features import EXTRA_FEATURES, FEATURE_NAMES
+from replay.stack.methods import why_line
 from replay.views import recording as views
 from replay.views.features import FEATURE_GROUPS
 from replay.views.lanes import epoch_states
@@ -52,7 +53,7 @@ def test_why_lines_name_each_detectors_statistic_and_threshold() -> None:
 
     cusum = CusumDriftDetector(cfg)
     r = _result("cusum_drift", False, 0.0, cusum.threshold, drift_z=1.7, drift_residual_m=4.0)
-    d = cusum.decide(wide_features(r))
+    d = cusum.decide(epoch_features(r))
     r = r._replace(flagged=d.flagged, score=d.score)
     expected_s = max(1.7 - cusum.k, 0.0) if cusum.input == "drift_z" else max(4.0 - cusum.k, 0.0)
     line = why_line(r, cusum)
@@ -63,11 +64,11 @@ def test_why_lines_name_each_detectors_statistic_and_threshold() -> None:
 
     dref = DriftReferenceDetector(cfg)
     r = _result("drift_reference", False, 0.0, 0.0, drift_residual_m=-14.5)      # no drift_z yet: metres
-    d = dref.decide(wide_features(r))
+    d = dref.decide(epoch_features(r))
     assert why_line(r._replace(flagged=d.flagged, score=d.score, threshold=d.threshold), dref) == \
         f"|drift residual| 14.50 m > h {dref.threshold_m:.2f} m"
     r = _result("drift_reference", False, 0.0, 0.0, drift_residual_m=-14.5, drift_z=-4.2)
-    d = dref.decide(wide_features(r))
+    d = dref.decide(epoch_features(r))
     assert d.flagged and d.threshold == dref.threshold_z
     assert why_line(r._replace(flagged=d.flagged, score=d.score, threshold=d.threshold), dref) == \
         f"score {d.score:.2f} > h {dref.threshold_z:.2f} sd (drift_z -4.20, residual -14.5 m, needs > T1 too)"
@@ -76,7 +77,7 @@ def test_why_lines_name_each_detectors_statistic_and_threshold() -> None:
 
 def test_wide_features_follow_feature_names() -> None:
     values = {n: float(i) for i, n in enumerate(EXTRA_FEATURES, start=10)}
-    v = wide_features(_result("cusum_drift", False, 0.0, 1.0, f2=5.0, **values))
+    v = epoch_features(_result("cusum_drift", False, 0.0, 1.0, f2=5.0, **values))
     assert v.tolist() == [2.0, 5.0, 9.0, *values.values()] and len(v) == len(FEATURE_NAMES)
 
 

@@ -22,7 +22,7 @@ from replay.run.config import load_config
 from replay.run.metrics import format_table
 from replay.run.outputs import claim_directory, claim_outputs
 from replay.run.pipeline import replay_archive, results_paths
-from replay.stack.config import ALL_METHODS
+from replay.stack.methods import runnable_names
 from samples.scenario import Scenario
 from samples.simulator import simulate_trial
 from samples.writer import write_trial
@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     print_summary(record(load_manifest(trial_dir / "trial.toml"), archive))
     print(f"\nreplaying {archive} with every method")
     # the demo shows every method, the new detectors included (a plain `replay` runs paper A's stack)
-    outcome = replay_archive(archive, load_config(default_methods=ALL_METHODS), output=results, review=True,
+    outcome = replay_archive(archive, load_config(default_methods=runnable_names()), output=results, review=True,
                              force=args.force)
     m = outcome.metrics
     print(f"run {outcome.run_id}: {m['epochs']} ranging epochs scored after t_a = {m['window'][0]:.0f} s "

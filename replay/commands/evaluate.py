@@ -29,7 +29,7 @@ from replay.errors import UserError
 from replay.run.batch import dask_client, parse_seeds
 from replay.run.config import load_config
 from replay.run.evaluate import DEFAULT_DRIFT_RATES, evaluate
-from replay.stack.config import ALL_METHODS
+from replay.stack.methods import runnable_names
 from samples.scenario import ScenarioError, load_scenario
 
 if TYPE_CHECKING:
@@ -152,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
         seeds = parse_seeds(args.seeds)
     except UserError:
         raise UserError(f"--seeds {args.seeds!r}: expected seeds like 100-109 or 1,4,7") from None
-    config = load_config(args.config, args.set, default_methods=ALL_METHODS)   # every detector is judged
+    config = load_config(args.config, args.set, default_methods=runnable_names())   # every detector is judged
     rates = _rates(args.drift_rate)
     scenario = _scenario(args.scenario)
     progress = _Progress(not args.json)

@@ -23,7 +23,7 @@ from replay.engine.usbl import positioning
 from replay.engine.usbl.epochs import UsblEpochBuilder
 from replay.events import EpochResult, ErrorSample, Fix, FollowerScores, Listener, RunResults, RunScores, UsblEpoch
 from replay.run.config import RunConfig
-from replay.stack.config import POSITIONING_METHODS
+from replay.stack.methods import method_names
 from replay.stack.model import horizontal_offset_m, offset_to_latlon
 from replay.stack.positioning.kmcdf import KmcdfParams
 from replay.stack.training import TrainingSet
@@ -62,7 +62,7 @@ class Engine:
         self._usbl: UsblEpochBuilder | None = None
         self._origin: tuple[float, float] | None = None
         self.usbl_epochs = 0
-        self.positioning_errors: dict[str, array] = {m: array("d") for m in POSITIONING_METHODS}
+        self.positioning_errors: dict[str, array] = {m: array("d") for m in method_names("positioning")}
         self.messages = 0
         self.last_s = -math.inf
         self._routes: dict[str, tuple[str | None, Callable[[Engine, str, float, Any], None] | None]] = {}

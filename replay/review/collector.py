@@ -20,9 +20,8 @@ from replay.events import (
     UsblEpoch,
 )
 from replay.review.data import ReviewData
-from replay.review.why import short_names, why_line
-from replay.stack.config import DETECTING_METHODS
 from replay.stack.features import EXTRA_FEATURES
+from replay.stack.methods import detecting_names, short_names, why_line
 from replay.stack.model import horizontal_offset_m, offset_to_latlon
 
 RAD = 180.0 / math.pi
@@ -44,6 +43,7 @@ class ReviewCollector(Listener):
             "tracks", "ranges", "detections", "errors", "anfis_epochs", "anfis_explain", "kmcdf", "events")}
         self._last_ins: dict[str, float] = {}
         self._models: dict[str, TrainedDetectors] = {}
+        self._detecting = detecting_names()     # the method table's detectors, in its order
         self._detectors: dict[str, dict[str, dict[str, Any]]] = {}     # follower -> method -> leader -> detector
 
     def origin(self, lat_rad: float, lon_rad: float) -> None:
@@ -84,11 +84,11 @@ class ReviewCollector(Listener):
         models = self._models.get(follower)
         self._interval(follower, r0)
         if models is not None and r0.time_s > models.training_end_s:
-            self._verdict_event(follower, [r for r in results if r.method in DETECTING_METHODS])
+            self._verdict_event(follower, [r for r in results if r.method in self._detecting])
         dets = self._detectors.get(follower, {}) if models is not None and r0.time_s > models.training_end_s else None
         extra = {n: getattr(r0, n) for n in EXTRA_FEATURES}        # the same for every method of an epoch
         for r in results:
-            if r.method not in DETECTING_METHODS:
+            if r.method not in self._detecting:
                 continue
             self.rows["detections"].append({
                 "t_s": r.time_s, "follower": follower, "leader": r.leader, "method": r.method,
@@ -161,8 +161,8 @@ class ReviewCollector(Listener):
 
     def trained(self, follower: str, models: TrainedDetectors, t_s: float) -> None:
         self._models[follower] = models
-        self._detectors[follower] = {m: dict(models.detectors(m)) for m in DETECTING_METHODS}
-        for method in DETECTING_METHODS:
+        self._detectors[follower] = {m: dict(models.detectors(m)) for m in self._detecting}
+        for method in self._detecting:
             per_leader = models.detectors(method)
             if method != "anfis":
                 continue

@@ -9,34 +9,25 @@ from __future__ import annotations
 
 import zlib
 
-METHOD_RGB: dict[str, tuple[int, int, int]] = {
+from replay.stack.methods import METHOD_TABLE, methods
+
+# what is drawn beside the methods: sources of a trial and the truth (the methods' colours are the method table's)
+SOURCE_RGB: dict[str, tuple[int, int, int]] = {
     "gps": (128, 128, 128),
     "ins": (176, 150, 110),
-    "dead_reckoning": (166, 118, 29),
-    "ckf": (31, 119, 230),
-    "ackf": (23, 180, 200),
-    "chi_square": (255, 127, 14),
-    "dual_threshold": (148, 103, 189),
-    "anfis": (44, 170, 44),
-    "anfis_aqpso": (150, 190, 20),
-    "anfis_compensation": (0, 140, 110),
-    "kmcdf1": (214, 39, 40),
-    "kmcdf2": (227, 80, 170),
-    "gar": (200, 170, 0),
-    "ear": (240, 120, 110),
-    "lms": (128, 128, 0),
-    "lhc": (100, 140, 255),
     "truth": (128, 128, 128),
     "measured": (255, 170, 40),
-    "cusum_drift": (160, 80, 50),
-    "anfis_hybrid": (90, 60, 200),
 }
-"""Method (or source) name -> RGB; the order is the views' fixed class-id order: new names go last."""
+
+
+def palette() -> dict[str, tuple[int, int, int]]:
+    """Source or method name -> RGB: the sources, then every method of the table in its order (the class ids)."""
+    return {**SOURCE_RGB, **{m.name: m.colour for m in methods()}}
 
 
 def method_rgb(name: str) -> tuple[int, int, int]:
     """A method's colour; an unknown name gets a stable mid-tone from its hash."""
-    rgb = METHOD_RGB.get(name)
+    rgb = SOURCE_RGB.get(name) or (METHOD_TABLE[name].colour if name in METHOD_TABLE else None)
     if rgb is not None:
         return rgb
     h = zlib.crc32(name.encode())

@@ -39,7 +39,7 @@ from replay.review.scoreboard import (
     window_text,
 )
 from replay.run.compare import flatten
-from replay.stack.config import DETECTING_METHODS
+from replay.stack.methods import detecting_names
 
 KIND_ORDER = ("stale", "drift", "outlier", "dropout", "usbl_delay")
 HEADINGS = {"error_p50_m": "p50 m", "error_p90_m": "p90 m", "error_rms_m": "RMS m", "tp": "TP", "fp": "FP",
@@ -87,7 +87,7 @@ def detection_tallies(review: ReviewData, t_a: float) -> list[DetectionTally]:
     det = det[det["t_s"] >= t_a]
     out = []
     for leader in leaders:
-        for method in [m for m in DETECTING_METHODS if m in present]:
+        for method in [m for m in detecting_names() if m in present]:
             d = det[(det["leader"] == leader) & (det["method"] == method)]
             flagged, label = d["flagged"].to_numpy(bool), d["label"].to_numpy(int) > 0
             t = d["t_s"].to_numpy(float)
@@ -181,7 +181,7 @@ def _timeline_section(review: ReviewData, tallies: list[DetectionTally], t_a: fl
 
 def _kinds_section(review: ReviewData, t_a: float, intervals: list[KindInterval] | None) -> str:
     det = review.detections
-    methods = [m for m in DETECTING_METHODS if len(det) and m in set(det["method"])]
+    methods = [m for m in detecting_names() if len(det) and m in set(det["method"])]
     if not methods:
         return '<p class="note">No detecting method ran: nothing to tabulate.</p>'
     det = det[det["t_s"] >= t_a]

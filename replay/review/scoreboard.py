@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from replay.run.metrics import format_value
-from replay.stack.config import DETECTING_METHODS, POSITIONING_METHODS
+from replay.stack.methods import METHOD_TABLE
 
 __all__ = ["DETECTION_COLUMNS", "ERROR_COLUMNS", "ScoreRow", "format_value", "method_kind", "scoreboard",
            "window_text"]
@@ -35,11 +35,8 @@ class ScoreRow:
 
 def method_kind(method: str) -> str:
     """'detector' (an ACKF isolated by a detector), 'positioning' (USBL/LBL fixes) or 'filter'."""
-    if method in DETECTING_METHODS:
-        return "detector"
-    if method in POSITIONING_METHODS:
-        return "positioning"
-    return "filter"
+    entry = METHOD_TABLE.get(method)
+    return entry.kind if entry is not None else "filter"
 
 
 def _rank_key(item: tuple[str, dict[str, Any]]) -> tuple[float, float, str]:

@@ -21,7 +21,8 @@ from pathlib import Path
 from typing import Any
 
 from replay.errors import UserError
-from replay.stack.config import ALL_METHODS, CHOICES, AnfisConfig, StackConfig
+from replay.stack.config import CHOICES, AnfisConfig, StackConfig
+from replay.stack.methods import runnable_names
 
 # the positioning methods the engine runs on archived USBL epochs (replay.engine.usbl.positioning)
 USBL_UPDATE_METHODS: tuple[str, ...] = ("kmcdf2", "gar", "ear", "lms", "lhc")
@@ -184,9 +185,10 @@ def load_config(path: str | Path | None = None, overrides: Sequence[str] = (),
         raise UserError(f"window {list(w)}: expected two finite times T0 < T1 (seconds from the trial start)")
     if not (math.isfinite(cfg.engine.rate) and cfg.engine.rate >= 0):
         raise UserError(f"rate {cfg.engine.rate}: expected >= 0 (0 = as fast as possible)")
-    bad = [m for m in cfg.stack.methods if m not in ALL_METHODS]
+    known = runnable_names()
+    bad = [m for m in cfg.stack.methods if m not in known]
     if bad:
-        raise UserError(f"configuration methods: unknown {', '.join(bad)} (known: {', '.join(ALL_METHODS)})")
+        raise UserError(f"configuration methods: unknown {', '.join(bad)} (known: {', '.join(known)})")
     for key, allowed in CHOICES.items():
         value = functools.reduce(getattr, key.split("."), cfg)
         if value not in allowed:

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from replay.events import RunResults, RunScores
-from replay.stack.config import DETECTING_METHODS
+from replay.stack.methods import METHOD_TABLE
 from replay.stack.scoring import RESULT_KEYS, detection_scores, error_stats
 
 
@@ -24,7 +24,7 @@ def run_metrics(scores: RunScores, results: dict[str, RunResults], run_id: str, 
         row: dict[str, Any] = {k: None for k in RESULT_KEYS}
         flagged = _pool([np.asarray(s.flagged.get(method, []), dtype=bool) for s in scores.followers.values()])
         labels = _pool([np.asarray(s.labels.get(method, []), dtype=int) for s in scores.followers.values()])
-        if method in DETECTING_METHODS:
+        if method in METHOD_TABLE and METHOD_TABLE[method].detects:
             ol = [r.open_loop[method] for r in results.values() if method in r.open_loop]
             ol_labels = _pool([o["label"].astype(int) for o in ol])
             ol_scores = _pool([o["score"].astype(float) for o in ol])

@@ -17,8 +17,8 @@ from replay.events import (
     TrainedDetectors,
     UsblEpoch,
 )
-from replay.stack.config import DETECTING_METHODS
 from replay.stack.features import EXTRA_FEATURES
+from replay.stack.methods import detecting_names
 from replay.stack.model import offset_to_latlon
 
 RAD = 180.0 / math.pi
@@ -36,6 +36,7 @@ class ResultsWriter(Listener):
     def __init__(self, writer: ArchiveWriter, run_id: str, t0_ns: int):
         self.w, self.run, self.t0_ns = writer, run_id, t0_ns
         self._origin: tuple[float, float] | None = None
+        self._detecting = detecting_names()
 
     def origin(self, lat_rad: float, lon_rad: float) -> None:
         self._origin = (lat_rad, lon_rad)
@@ -53,7 +54,7 @@ class ResultsWriter(Listener):
     def epoch(self, follower: str, results: list[EpochResult], leader_fix: Fix | None) -> None:
         t = self._ns(results[0].time_s)
         for r in results:
-            if r.method not in DETECTING_METHODS:
+            if r.method not in self._detecting:
                 continue
             msg = S.Detection(timestamp=S.timestamp(t), follower=follower, leader=r.leader, method=r.method,
                               flagged=bool(r.flagged), score=r.score, threshold=r.threshold,
@@ -67,7 +68,7 @@ class ResultsWriter(Listener):
 
     def trained(self, follower: str, models: TrainedDetectors, t_s: float) -> None:
         t = self._ns(t_s)
-        for method in DETECTING_METHODS:
+        for method in self._detecting:
             per_leader = models.detectors(method)
             for leader, det in per_leader.items():
                 if det is None or not hasattr(det, "snapshots"):

@@ -9,23 +9,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-# what a replay runs unless told otherwise: paper A's stack and its baselines (the README's replay speed)
-METHODS: tuple[str, ...] = (
-    "dead_reckoning", "ckf", "ackf", "chi_square", "dual_threshold",
-    "anfis", "anfis_aqpso", "anfis_compensation",
-)
-# detectors on filter-independent features (issue 16): their hybrid database and extra ANFIS training cost
-# about half again a replay's time, so they run when named (`--set methods=...`), in `evaluate` and in `demo`
-NEW_METHODS: tuple[str, ...] = ("cusum_drift", "anfis_hybrid", "drift_reference")
-ALL_METHODS: tuple[str, ...] = METHODS + NEW_METHODS
-DETECTING_METHODS: tuple[str, ...] = (
-    "chi_square", "dual_threshold", "anfis", "anfis_aqpso", "anfis_compensation", "cusum_drift", "anfis_hybrid",
-    "drift_reference",
-)
-# paper A's detectors and baselines: trained on the recorded window's (f1, f2, f3) only, as published
-PAPER_METHODS: tuple[str, ...] = ("chi_square", "dual_threshold", "anfis", "anfis_aqpso", "anfis_compensation")
-# the positioning methods run on archived LBL/USBL epochs (KMCDF, seed 003, and its delay-only baselines)
-POSITIONING_METHODS: tuple[str, ...] = ("kmcdf1", "kmcdf2", "gar", "ear", "lms", "lhc")
+# the method sets (default, detecting, positioning...) are read from the method table, replay.stack.methods
+
+
+def _default_methods() -> tuple[str, ...]:
+    """What a replay runs unless told otherwise: the method table's default set (imported late: it imports us)."""
+    from replay.stack.methods import default_names
+
+    return default_names()
 
 
 class ConfigError(ValueError):
@@ -147,7 +138,7 @@ class StackConfig:
     dual_threshold_cusum_h_m: float = 20.0        # CUSUM alarm level on the predicted error (m)
     dual_threshold_cusum_k_m: float = 3.0         # CUSUM drift allowance (m)
     dual_threshold_hidden: int = 8                # BP network hidden units
-    methods: tuple[str, ...] = METHODS
+    methods: tuple[str, ...] = field(default_factory=_default_methods)
     anfis: AnfisConfig = field(default_factory=AnfisConfig)
     seed: int = 0
     features: FeatureConfig = field(default_factory=FeatureConfig)

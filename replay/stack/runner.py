@@ -40,8 +40,8 @@ every detector) with ``Detector.scores``; ``ackf`` runs internally even when
 not requested.
 
 The filter-independent features (``replay.stack.features``) are computed
-only when a configured method decides on them (a method outside
-``PAPER_METHODS``, the ``NEW_METHODS``): otherwise every
+only when a configured method decides on them (a method-table entry
+whose ``features`` go beyond (f1, f2, f3)): otherwise every
 epoch's EXTRA_FEATURES, and those columns of ``training_set``, are NaN.
 """
 
@@ -58,7 +58,7 @@ from itertools import chain
 import numpy as np
 
 from replay.events import NAN, EpochResult, RunResults, Track
-from replay.stack.config import PAPER_METHODS, ConfigError, StackConfig
+from replay.stack.config import ConfigError, StackConfig
 from replay.stack.detectors.base import Decision, Detector
 from replay.stack.detectors.chi_square import chi_square_threshold
 from replay.stack.exclusion import LeaderExclusion
@@ -79,7 +79,7 @@ from replay.stack.filters.ckf import (
 )
 from replay.stack.injection import inject_link
 from replay.stack.labels import UNKNOWN, label_one
-from replay.stack.methods import DETECTOR_FACTORIES, DetectorFactory, filter_kind
+from replay.stack.methods import DetectorFactory, method
 from replay.stack.model import (
     cov_radians_to_metres,
     metric_scales_scalar,
@@ -87,10 +87,6 @@ from replay.stack.model import (
 )
 from replay.stack.training import RECORDED, TRAINING_SOURCES, TrainingSet
 
-# methods trained on every leader's rows together whatever anfis.model says: drift_reference's threshold is
-# a quantile of the DR error reference's residual, the same for every link, and one leader's ~100 normal rows
-# of a 600 s window leave the 98 % quantile to its two largest values (17.4 against 10.5 m on seed 0)
-_POOLED_TRAINING: frozenset[str] = frozenset({"drift_reference"})
 _NO_EXTRA: tuple[float, ...] = (NAN,) * len(EXTRA_FEATURES)
 _NO_DECISION = Decision(False, NAN, NAN)     # what a method that does not decide reports (frozen: shared)
 _REPEAT, _LAG = EXTRA_FEATURES.index("repeat_count"), EXTRA_FEATURES.index("lag_residual_m")
@@ -103,13 +99,12 @@ class _Method:
     kind: str
     state: State2
     wide: bool = False      # decides on every FEATURE_NAMES column (the new methods), not (f1, f2, f3)
+    features: tuple[str, ...] = PAPER_FEATURES   # the columns its detector reads (the method table's)
+    pooled: bool = False    # trained on every leader's rows together (the method table's pooled_training)
+    threaded: bool = False  # trained on a thread beside its like (the method table's threaded_training)
     detectors: dict[str, Detector | None] = field(default_factory=dict)
     streak: Counter = field(default_factory=Counter)
     capped: int = 0
-
-
-# trainers whose work is whole-population numpy (the GIL released): trained side by side
-_THREADED_TRAINERS: frozenset[str] = frozenset({"anfis_aqpso"})
 
 
 def default_training_threads() -> int:
@@ -118,6 +113,14 @@ def default_training_threads() -> int:
     if env.isdigit() and int(env) > 0:
         return int(env)
     return max(1, min(4, os.cpu_count() or 1))
+
+
+def _columns(m: _Method, f1: float, f2: float, f3: float, extra: tuple[float, ...]) -> np.ndarray:
+    """An epoch's features as the method's detector reads them (its table entry's columns)."""
+    if m.features == PAPER_FEATURES:
+        return np.array([f1, f2, f3])
+    full = np.array([f1, f2, f3, *extra])
+    return full if m.features == FEATURE_NAMES else full[[FEATURE_NAMES.index(n) for n in m.features]]
 
 
 def _cov_m2(s: State2, depth_m: float) -> tuple[float, float, float]:
@@ -156,7 +159,7 @@ class CooperativeRunner:
     def __init__(
         self, config: StackConfig, follower: str, leaders: Sequence[str], start_time_s: float,
         initial_lat_rad: float, initial_lon_rad: float, initial_depth_m: float = 0.0,
-        factories: Mapping[str, DetectorFactory] = DETECTOR_FACTORIES, keep_history: bool = True,
+        factories: Mapping[str, DetectorFactory] | None = None, keep_history: bool = True,
         training_threads: int | None = None, training_set: TrainingSet | None = None,
     ) -> None:
         """Start every method at the initial position with P0 = diag(p0_m)² (m², converted to rad²).
@@ -186,7 +189,7 @@ class CooperativeRunner:
         self.leaders = tuple(leaders)
         self.start_time_s = float(start_time_s)
         self.training_end_s = self.start_time_s + config.training_window_s
-        self._factories = factories
+        self._factories = dict(factories or {})     # overrides of the method table's factories (tests)
         self.keep_history = keep_history
         self.training_threads = default_training_threads() if training_threads is None else max(1, training_threads)
         self._r_var = config.r_m ** 2
@@ -195,12 +198,13 @@ class CooperativeRunner:
                     (config.p0_m[0] / b) ** 2, 0.0, (config.p0_m[1] / a) ** 2)
         names = list(dict.fromkeys(config.methods))
         self._reported = tuple(names)
-        if any(filter_kind(n) == "detect" for n in names) and "ackf" not in names:
-            names.append("ackf")    # the open-loop feature source for ROC curves
-        self._methods = [_Method(n, filter_kind(n), s0, filter_kind(n) == "detect" and n not in PAPER_METHODS)
-                         for n in names]
+        entries = [method(n) for n in names]
+        if any(e.detects for e in entries) and "ackf" not in names:
+            entries.append(method("ackf"))    # the open-loop feature source for ROC curves
+        self._methods = [_Method(e.name, e.filter, s0, e.wide, e.features or PAPER_FEATURES, e.pooled_training,
+                                 e.threaded_training) for e in entries]
         self._ackf = next((m for m in self._methods if m.kind == "ackf"), None)
-        self._needs_database = any(filter_kind(n) == "detect" and n not in PAPER_METHODS for n in names)
+        self._needs_database = any(e.wide for e in entries)
         # the gated ACKF the lagged residual starts from (replay.stack.features); never reported
         self._reference: _Method | None = None
         if self._needs_database and (config.features.drift_source == "lag"
@@ -445,7 +449,7 @@ class CooperativeRunner:
         elif m is self._ackf and t_s <= self.training_end_s and label != UNKNOWN:
             self._train_rows.append((t_s, leader, f1, f2, f3, *extra, z - truth, label))
         elif m.kind == "detect" and t_s > self.training_end_s and (det := m.detectors.get(leader)) is not None:
-            decision = det.decide(np.array([f1, f2, f3, *extra] if m.wide else [f1, f2, f3]))
+            decision = det.decide(_columns(m, f1, f2, f3, extra))
             action, used_inn, compensated = self._act(m, det, decision, inn, leader, z, geo)
         if action in ("update", "capped"):
             key = (m.state, used_inn, m.kind != "ckf")
@@ -487,7 +491,7 @@ class CooperativeRunner:
         # that only contend for the GIL (3x slower each on threads), so they run here, in turn.
         # Each job has its own data and seed: results do not depend on the threads.
         outcomes: list[tuple[Detector | None, str] | None] = [None] * len(jobs)
-        heavy = [i for i, job in enumerate(jobs) if job[0].name in _THREADED_TRAINERS]
+        heavy = [i for i, job in enumerate(jobs) if job[0].threaded]
         if self.training_threads > 1 and len(heavy) > 1:
             from concurrent.futures import ThreadPoolExecutor
 
@@ -645,27 +649,21 @@ class CooperativeRunner:
         Paper A's detectors get the recorded rows only, as published; the new
         ones every row, the hybrid database included.
         """
-        sub = ts if m.wide else ts.recorded()
-        if self.config.anfis.model == "shared" or m.name in _POOLED_TRAINING:
+        sub = (ts if m.wide else ts.recorded()).with_features(m.features)
+        if self.config.anfis.model == "shared" or m.pooled:
             return [("all", sub)]
         return [(ld, sub.for_leader(ld)) for ld in self.leaders]
 
     def _train_one(self, m: _Method, ts: TrainingSet) -> tuple[Detector | None, str]:
-        """One detector trained on the given rows, or (None, why not).
-
-        Paper A's detectors see (f1, f2, f3) through ``Detector.train``; a new
-        one sees every feature, and the whole set (kinds included) when it
-        has ``train_on``.
-        """
+        """One detector trained on the given rows (the method's feature columns), or (None, why not)."""
         if len(ts) == 0:
             return None, "no labelled epochs in the training window"
-        det = self._factories[m.name](self.config)
-        train_on = getattr(det, "train_on", None) if m.wide else None
+        factory = self._factories.get(m.name) or method(m.name).factory
+        if factory is None:
+            return None, f"{m.name} has no detector factory"
+        det = factory(self.config)
         try:
-            if callable(train_on):
-                train_on(ts)
-            else:
-                det.train(ts.features if m.wide else ts.columns(PAPER_FEATURES), ts.range_error, ts.labels)
+            det.train_on(ts)
         except Exception as exc:  # noqa: BLE001 - a detector that cannot train is disabled, the run goes on
             return None, f"{type(exc).__name__}: {exc}"
         return det, ""
@@ -694,7 +692,7 @@ class CooperativeRunner:
         for m in self._methods:
             if m.kind != "detect" or m.name not in self._reported:
                 continue
-            feats_all = wide_all if m.wide else wide_all[:, :len(PAPER_FEATURES)]
+            feats_all = wide_all[:, [FEATURE_NAMES.index(n) for n in m.features]]
             score = np.full(len(src), np.nan)
             for leader, det in m.detectors.items():
                 idx = np.nonzero(leaders == leader)[0]

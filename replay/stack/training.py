@@ -89,6 +89,12 @@ class TrainingSet:
             raise KeyError(f"TrainingSet has no feature {missing[0]!r}; it has {', '.join(self.feature_names)}")
         return self.features[:, [self.feature_names.index(n) for n in names]]
 
+    def with_features(self, names: Sequence[str]) -> TrainingSet:
+        """The same rows with only the feature columns called ``names`` (KeyError naming a missing one)."""
+        if tuple(names) == self.feature_names:
+            return self
+        return TrainingSet(self.columns(names), self.range_error, self.labels, self.leaders, tuple(names), self.kinds)
+
     def digest(self) -> str:
         """SHA-256 (hex) of every row's content and the feature names: equal sets give equal digests.
 

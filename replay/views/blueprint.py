@@ -30,16 +30,16 @@ from rerun.blueprint.api import VisualizerLike
 from rerun.encodings import EntityPathLike
 
 from replay.review.data import ReviewData
-from replay.review.why import ANFIS_FAMILY
+from replay.stack.methods import anfis_family
 from replay.views.cdf import HEIGHT, WIDTH
 from replay.views.common import Run, floats, part
 from replay.views.features import (
     FEATURE_GROUPS,
-    SCORED,
     feature_note,
     group_title,
     present_features,
     score_top,
+    scored,
 )
 from replay.views.lanes import LANES_ROOT, training_end_s
 from replay.views.positioning import fix_methods, kmcdf_half_width
@@ -182,7 +182,7 @@ def _scores(runs: list[Run]) -> rrb.Container:
                                                                for r in runs], anfis_top(runs), legend=False)
                              for f, ld in _pairs(runs)]
     plots += [_series(title, _contents(runs, "scores", m), score_top(runs, m), legend=False)
-              for m, title in SCORED.items() if m in methods]
+              for m, title in scored().items() if m in methods]
     plots.append(_series("Range residual (m)", _contents(runs, "series", "residual"), legend=False))
     plots.append(rrb.TextDocumentView(name="Colours", contents=[f"+ {runs[0].path('scores', 'key')}"]))
     return rrb.Grid(*plots, grid_columns=4, name="Scores")
@@ -220,7 +220,7 @@ def _features(runs: list[Run]) -> rrb.Container:
 
 def anfis_top(runs: list[Run]) -> float | None:
     """The ANFIS plot's y extent: four times the largest T2 (outputs reach 1000 m where T2 is a few)."""
-    thr = [floats(r.review.detections[r.review.detections["method"].astype(str).isin(ANFIS_FAMILY)],
+    thr = [floats(r.review.detections[r.review.detections["method"].astype(str).isin(anfis_family())],
                   "threshold") for r in runs if "method" in r.review.detections]
     v = np.concatenate(thr) if thr else np.zeros(0)
     v = v[np.isfinite(v)]

@@ -19,12 +19,13 @@ import pandas as pd
 import rerun as rr
 
 from replay.review.data import ReviewData
-from replay.review.palette import METHOD_RGB
 from replay.review.palette import method_rgb as palette_rgb
+from replay.review.palette import palette
 from replay.run.compare import run_labels
 
-# the palette's order fixes the class ids (1-based) and never changes: new names are added at its end
-METHOD_STYLE: tuple[tuple[str, tuple[int, int, int]], ...] = tuple(METHOD_RGB.items())
+# the palette's order fixes the class ids (1-based): sources, then the method table's order; a method
+# registered later gets a stable id from its hash (class_id)
+METHOD_STYLE: tuple[tuple[str, tuple[int, int, int]], ...] = tuple(palette().items())
 _IDS = {name: i + 1 for i, (name, _) in enumerate(METHOD_STYLE)}
 FIRST_FREE_ID = 100
 # KMCDF cluster of a preliminary fix: 1 = C1 (consistent, kept) green, 2 = C2 red; 0 = unclustered grey

@@ -25,6 +25,7 @@ import pandas as pd
 import rerun as rr
 
 from replay.stack.features import EXTRA_FEATURES
+from replay.stack.methods import methods
 from replay.views.common import Run, floats
 from replay.views.lanes import epoch_states, training_end_s
 from replay.views.series import LEADER_RGB
@@ -44,14 +45,12 @@ FEATURE_RGB: dict[str, tuple[int, int, int]] = {
     "drift_residual_m": (90, 160, 255), "drift_cusum_m": (240, 80, 60),
     "drift_z": (90, 160, 255), "exclusion_z": (200, 160, 0), "repeat_count": (128, 128, 140),
 }
-# detectors whose score is drawn against its threshold here, with the plot's title
-SCORED: dict[str, str] = {
-    "chi_square": "chi_square: f2 vs gate",
-    "dual_threshold": "dual_threshold vs 1",
-    "cusum_drift": "cusum_drift S vs h (sd)",
-    "anfis_hybrid": "anfis_hybrid vs thr (m)",
-    "drift_reference": "drift_reference vs h (sd)",
-}
+
+
+def scored() -> dict[str, str]:
+    """The detectors whose score is drawn against its threshold here, with the plot's title (the method table)."""
+    return {m.name: m.score_plot[0] for m in methods("detector") if m.score_plot is not None}
+
 REFERENCE_NAMES: dict[str, str] = {"usbl_residual_m": "USBL fix", "lag_residual_m": "lagged ACKF",
                                    "exclusion_residual_m": "other leaders"}
 
@@ -121,24 +120,21 @@ LEADER_COLOUR_NAMES = ("orange", "blue", "violet", "green")     # of LEADER_RGB,
 
 
 def log_detector_scores(rec: rr.RecordingStream, run: Run) -> None:
-    """Each detector of SCORED: its statistic per leader as a line, its threshold as a grey step line; a colour key."""
+    """Each detector with a score plot (the method table): per leader its statistic, its threshold in grey; a key."""
     pairs = run.groups(run.review.detections, ["follower", "leader"])
     key = [f"- {LEADER_COLOUR_NAMES[k % len(LEADER_RGB)]}: {leader}" for k, ((_, leader), _) in enumerate(pairs)]
-    titles = "".join(f"\n- {t}: {d}" for t, d in (
-        ("chi_square", "f2 against its chi-square gate"), ("dual_threshold", "max(f2/gate, CUSUM S/h) against 1"),
-        ("cusum_drift", "max(S+, S-) of drift_z against h, in sd"),
-        ("anfis_hybrid", "output against the threshold of its 2 % training FPR, in m"),
-        ("drift_reference", "min(|drift_z|, h*|residual|/T1) against h, in sd (m before drift_z exists)")))
+    titles = "".join(f"\n- {m.name}: {m.score_plot[1]}" for m in methods("detector") if m.score_plot is not None)
     rec.log(run.path("scores", "key"), rr.TextDocument(
         "Detector plots, one line per leader:\n\n" + "\n".join(key) + "\n- grey: the detector's threshold\n\n"
         "ANFIS plots: each method in its Scoreboard colour, its T2 as a step line of the same colour; "
         "above the threshold = flagged. Hover a line for its name and value.\n" + titles, media_type="text/markdown"),
         static=True)
+    plotted = scored()
     for k, ((follower, leader), rows) in enumerate(pairs):
         rgb = LEADER_RGB[k % len(LEADER_RGB)]
         for (method,), m_rows in run.groups(rows, ["method"]):
             m = str(method)
-            if m not in SCORED:
+            if m not in plotted:
                 continue
             base = run.path("scores", m, str(follower), str(leader))
             t = floats(m_rows, "t_s")

@@ -18,7 +18,7 @@ import pandas as pd
 import rerun as rr
 
 from replay.review.scoreboard import method_kind
-from replay.review.why import ANFIS_FAMILY
+from replay.stack.methods import anfis_family
 from replay.views.common import Run, floats, method_rgb
 from replay.views.lanes import training_end_s
 
@@ -55,6 +55,7 @@ def log_ranges(rec: rr.RecordingStream, run: Run) -> None:
 def log_detections(rec: rr.RecordingStream, run: Run) -> None:
     """Features per leader, and each ANFIS-family detector's output against its T2."""
     det = run.review.detections
+    family = anfis_family()
     for k, ((follower, leader), rows) in enumerate(run.groups(det, ["follower", "leader"])):
         f, ld = str(follower), str(leader)
         epochs = rows.drop_duplicates("t_s")
@@ -63,7 +64,7 @@ def log_detections(rec: rr.RecordingStream, run: Run) -> None:
                      run.name(f"{ld} {feature}"), LEADER_RGB[k % len(LEADER_RGB)])
         for (method,), m_rows in run.groups(rows, ["method"]):
             m = str(method)
-            if m in ANFIS_FAMILY:
+            if m in family:
                 _scalars(rec, run.path("series", "anfis", f, ld, m, "output"), run, m_rows["t_s"],
                          floats(m_rows, "score"), run.name(f"{ld} {m} output"), method_rgb(m, run.index))
                 _scalars(rec, run.path("series", "anfis", f, ld, m, "T2"), run, m_rows["t_s"],

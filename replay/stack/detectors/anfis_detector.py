@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from replay.events import EpochResult
 from replay.stack.config import ConfigError, StackConfig
 from replay.stack.detectors.anfis import (
     AnfisModel,
@@ -37,6 +38,8 @@ from replay.stack.detectors.anfis import (
 )
 from replay.stack.detectors.aqpso import AqpsoSettings, train_aqpso_ga
 from replay.stack.detectors.base import Decision
+from replay.stack.detectors.why_text import cmp, num
+from replay.stack.training import TrainingSet
 
 TRAINERS: tuple[str, ...] = ("hybrid", "aqpso_ga")
 _SIGMA_RULE = re.compile(r"^\s*([0-9]*\.?[0-9]+)\s*sigma\s*$")
@@ -128,6 +131,10 @@ class AnfisDetector:
     def history(self) -> TrainingHistory | None:
         """Per-epoch (hybrid) or per-iteration (AQPSO-GA) parameters and training RMSE."""
         return None if self.result is None else self.result.history
+
+    def train_on(self, ts: TrainingSet) -> None:
+        """`train` on the rows' features, range errors and labels."""
+        self.train(ts.features, ts.range_error, ts.labels)
 
     def train(self, features: np.ndarray, range_error: np.ndarray, labels: np.ndarray) -> None:
         """Fit on the training window: features (n, 3), signed error Z - Z_gps (n,), labels (n,).
@@ -254,3 +261,9 @@ def detectors_for(config: StackConfig, leaders: list[str], trainer: str = "hybri
     if config.anfis.model != "per_leader":
         raise ConfigError(f"unknown ANFIS model mode {config.anfis.model!r}; expected 'per_leader' or 'shared'")
     return {leader: AnfisDetector(config, trainer, compensation) for leader in leaders}
+
+
+def why_line(r: EpochResult, detector: object | None = None) -> str:
+    """The ANFIS output against T2 (metres), and what the runner did with the range."""
+    extra = ", range corrected" if r.compensated else ", isolated" if r.isolated else ", capped" if r.capped else ""
+    return f"output {num(r.score)} m {cmp(r.flagged)} T2 {num(r.threshold)} m{extra}"

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from replay.events import EpochResult
 from replay.stack.config import ConfigError, StackConfig
 from replay.stack.detectors.anfis_detector import (
     AnfisDetector,
@@ -44,7 +45,9 @@ from replay.stack.detectors.anfis_detector import (
     threshold_from_rule,
 )
 from replay.stack.detectors.base import Decision
+from replay.stack.detectors.why_text import cmp, epoch_features, num
 from replay.stack.features import FEATURE_NAMES
+from replay.stack.training import TrainingSet
 
 SIGNED_INPUTS: frozenset[str] = frozenset({"dr_residual_m", "leader_consistency_m", "usbl_residual_m",
                                            "lag_residual_m", "drift_residual_m", "exclusion_residual_m",
@@ -105,6 +108,10 @@ class HybridAnfisDetector:
         f = np.where(self._sqrt, np.sqrt(np.abs(f)), f)
         return np.nan_to_num(f, nan=0.0, posinf=0.0, neginf=0.0)
 
+    def train_on(self, ts: TrainingSet) -> None:
+        """`train` on the rows' features, range errors and labels."""
+        self.train(ts.features, ts.range_error, ts.labels)
+
     def train(self, features: np.ndarray, range_error: np.ndarray, labels: np.ndarray) -> None:
         """Fit on wide rows (n, F) with |Z - Z_gps| as target; set the FPR-target and 3σ thresholds."""
         raw = np.atleast_2d(np.asarray(features, dtype=float))
@@ -162,3 +169,19 @@ class HybridAnfisDetector:
         one = np.asarray(features).ndim == 1
         return HybridExplanation(self.inputs, x[0] if one else x, self.anfis.explain(x[0] if one else x),
                                  self.threshold, self.thresholds.get("3sigma", float("nan")))
+
+
+# short names of the hybrid inputs in its why-line, as the model sees them (magnitudes; f2 as its square root)
+_SHORT = {"f2": "sqrt f2", "repeat_count": "repeats", "dr_residual_m": "|dr|", "leader_consistency_m": "|consist.|",
+          "usbl_residual_m": "|usbl|", "lag_residual_m": "|lag|", "drift_residual_m": "|drift|",
+          "exclusion_residual_m": "|excl.|", "drift_z": "|drift_z|", "exclusion_z": "|excl_z|"}
+
+
+def why_line(r: EpochResult, detector: object | None = None) -> str:
+    """The output against its false-alarm-rate threshold, with its named inputs."""
+    text = f"output {num(r.score)} m {cmp(r.flagged)} thr {num(r.threshold)} m"
+    if isinstance(detector, HybridAnfisDetector):
+        ex = detector.explain(epoch_features(r))
+        text += "; " + ", ".join(f"{_SHORT.get(n, n)} {v:.3g}" for n, v in zip(ex.input_names,
+                                                                               np.ravel(ex.inputs), strict=True))
+    return text

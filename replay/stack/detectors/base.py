@@ -1,16 +1,21 @@
 """The contract every anomaly detector follows, so the runner can drive them side by side.
 
-Features at a range epoch are ``[f1, f2, f3]`` = innovation magnitude (m),
-squared Mahalanobis distance on the unadapted P_zz, adapted measurement
-variance R* (m²) (STACK.md section 2).
+A detector reads the feature columns its method-table entry names
+(`replay.stack.methods.Method.features`): paper A's ``[f1, f2, f3]`` =
+innovation magnitude (m), squared Mahalanobis distance on the unadapted
+P_zz, adapted measurement variance R* (m²), or every column of
+`replay.stack.features.FEATURE_NAMES` (docs/design.md, the features).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from replay.stack.training import TrainingSet
 
 
 @dataclass(frozen=True, slots=True)
@@ -32,16 +37,20 @@ class Detector(Protocol):
 
     name: str
 
-    def train(self, features: np.ndarray, range_error: np.ndarray, labels: np.ndarray) -> None:
-        """Fit on the training window: features (n, 3), signed range error Z - Z_gps (n,), labels (n,)."""
+    def train_on(self, ts: TrainingSet) -> None:
+        """Fit on the training rows, whose feature columns are the method's (the runner selects them).
+
+        Paper A's detectors are handed the recorded window only; the others
+        the hybrid database too, with each row's kind (`TrainingSet.kinds`).
+        """
         ...
 
     def decide(self, features: np.ndarray) -> Decision:
-        """Decide one epoch from its features (3,); may keep memory between epochs."""
+        """Decide one epoch from its features (F,); may keep memory between epochs."""
         ...
 
     def scores(self, features: np.ndarray) -> np.ndarray:
-        """Open-loop scores for many epochs (n, 3) -> (n,), for threshold sweeps (ROC)."""
+        """Open-loop scores for many epochs (n, F) -> (n,), for threshold sweeps (ROC)."""
         ...
 
     def reset(self) -> None:

@@ -9,8 +9,11 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2
 
+from replay.events import EpochResult
 from replay.stack.config import StackConfig
 from replay.stack.detectors.base import Decision
+from replay.stack.detectors.why_text import cmp, num
+from replay.stack.training import TrainingSet
 
 
 def chi_square_threshold(alpha: float, dof: int = 1) -> float:
@@ -27,6 +30,10 @@ class ChiSquareDetector:
         """Threshold from ``config.chi_square_alpha``."""
         self.threshold = chi_square_threshold(config.chi_square_alpha)
 
+    def train_on(self, ts: TrainingSet) -> None:
+        """`train` on the rows' features, range errors and labels."""
+        self.train(ts.features, ts.range_error, ts.labels)
+
     def train(self, features: np.ndarray, range_error: np.ndarray, labels: np.ndarray) -> None:
         """Nothing to fit: the threshold is a quantile."""
 
@@ -41,3 +48,8 @@ class ChiSquareDetector:
 
     def reset(self) -> None:
         """No memory to forget."""
+
+
+def why_line(r: EpochResult, detector: object | None = None) -> str:
+    """f2 against the chi-square gate."""
+    return f"f2 {num(r.score)} {cmp(r.flagged)} gate {num(r.threshold)}"

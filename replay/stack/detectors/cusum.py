@@ -26,9 +26,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from replay.events import EpochResult
 from replay.stack.config import CHOICES, ConfigError, StackConfig
 from replay.stack.cusum import Cusum, alarm_rate, calibrate_h
 from replay.stack.detectors.base import Decision
+from replay.stack.detectors.why_text import cmp, epoch_features, num
 from replay.stack.features import FEATURE_NAMES
 from replay.stack.training import TrainingSet
 
@@ -117,3 +119,13 @@ class CusumDriftDetector:
         c = self._cusum
         return CusumExplanation(float(features[self._col]), self.k, c.up, c.down, self.threshold,
                                 max(c.up, c.down) > self.threshold, self.input)
+
+
+def why_line(r: EpochResult, detector: object | None = None) -> str:
+    """max(S+, S-) against h, with the residual summed and its allowance k."""
+    ex = detector.explain(epoch_features(r)) if isinstance(detector, CusumDriftDetector) else None
+    unit = " m" if ex is not None and ex.input.endswith("_m") else " sd"
+    text = f"S {num(r.score)} {cmp(r.flagged)} h {num(r.threshold)}{unit}"
+    if ex is not None:
+        text += f" ({ex.input} {ex.residual_m:+.2f}, k {ex.allowance_m:.2f})"
+    return text

@@ -44,9 +44,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from replay.events import EpochResult
 from replay.stack.config import CHOICES, ConfigError, StackConfig
 from replay.stack.detectors.anfis_hybrid import fpr_threshold
 from replay.stack.detectors.base import Decision
+from replay.stack.detectors.why_text import cmp, num
 from replay.stack.features import FEATURE_NAMES
 from replay.stack.training import TrainingSet
 
@@ -145,3 +147,13 @@ class DriftReferenceDetector:
         """The residual, its standardized value and the thresholds at this epoch."""
         return DriftReferenceExplanation(float(features[_METRES]), self.threshold_m,
                                          self.decide(features).flagged, float(features[_Z]), self.threshold_z)
+
+
+def why_line(r: EpochResult, detector: object | None = None) -> str:
+    """min(|drift_z|, h_z*|residual|/T1) against h_z in sd where drift_z exists, else |residual| against h_m (m)."""
+    h_z = float(getattr(detector, "threshold_z", math.nan)) if detector is not None else math.nan
+    in_sd = math.isfinite(r.drift_z) and (detector is None or math.isfinite(h_z))
+    if in_sd:
+        return (f"score {num(r.score)} {cmp(r.flagged)} h {num(r.threshold)} sd "
+                f"(drift_z {r.drift_z:+.2f}, residual {r.drift_residual_m:+.1f} m, needs > T1 too)")
+    return f"|drift residual| {num(r.score)} m {cmp(r.flagged)} h {num(r.threshold)} m"

@@ -34,9 +34,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from replay.events import EpochResult
 from replay.stack.config import StackConfig
 from replay.stack.detectors.base import Decision
 from replay.stack.detectors.chi_square import chi_square_threshold
+from replay.stack.detectors.why_text import cmp, num
+from replay.stack.training import TrainingSet
 
 BP_ITERATIONS: int = 1500
 BP_STEP: float = 0.01
@@ -154,6 +157,10 @@ class DualThresholdDetector:
         self.network: BpNetwork | None = None
         self.cusum_state = 0.0
 
+    def train_on(self, ts: TrainingSet) -> None:
+        """`train` on the rows' features, range errors and labels."""
+        self.train(ts.features, ts.range_error, ts.labels)
+
     def train(self, features: np.ndarray, range_error: np.ndarray, labels: np.ndarray) -> None:
         """Fit the BP network on the window's features and |signed range error|."""
         self.network = train_bp(features, np.abs(np.asarray(range_error, float)), self.hidden, self.seed)
@@ -184,3 +191,17 @@ class DualThresholdDetector:
     def reset(self) -> None:
         """Restart the CUSUM (after an alarm)."""
         self.cusum_state = 0.0
+
+
+def why_line(r: EpochResult, detector: object | None = None) -> str:
+    """The two tests: f2 over the gate and the CUSUM of the predicted error over h; flagged when either exceeds 1."""
+    chi2 = float(getattr(detector, "chi2_threshold", math.nan))
+    abrupt = r.f2 / chi2 if chi2 > 0 else math.nan
+    if r.flagged or not isinstance(detector, DualThresholdDetector):
+        # after an alarm the runner restarted the CUSUM: the score is the larger of the two ratios
+        drift = r.score if not (abrupt >= r.score - 1e-12) else math.nan
+        drift_text = num(drift) if math.isfinite(drift) else f"<= {num(r.score)}"
+    else:
+        drift_text = num(float(detector.cusum_state) / float(detector.cusum_h))
+    which = (" (abrupt)" if abrupt > 1.0 else " (drift)") if r.flagged else ""
+    return f"f2/gate {num(abrupt)}, drift S/h {drift_text}; max {cmp(r.flagged)} 1{which}"
