@@ -169,6 +169,7 @@ class RunScores:
     usbl_epochs: int
     notes: list[str]
     counts: dict[str, int]
+    skipped: dict[str, str] = field(default_factory=dict)      # method -> the input no vehicle held
 
 
 class Listener:

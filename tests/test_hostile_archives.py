@@ -6,9 +6,11 @@ exits 1 with one `error:` line saying why; the reader never raises on damage.
 
 from __future__ import annotations
 
+import json
 import os
 import random
 import struct
+from collections.abc import Callable
 from pathlib import Path
 
 import lz4.frame
@@ -136,8 +138,13 @@ def _garbage(rate: float, topic: str | None = None):
 
 def test_every_follower_gps_message_garbage(trial, tmp_path, capsys):
     path = rewrite(trial, tmp_path / "g.mcap", message=_garbage(1.0, "/follower/gps"))
-    rc, _, err = run_cli(capsys, "replay", str(path), *REPLAY, "-o", str(tmp_path / "r.mcap"))
-    assert rc == 1 and "nothing to replay" in one_line(err, "error") and "/follower/gps:" in err
+    rc, out, err = run_cli(capsys, "replay", str(path), "--set", "methods=dead_reckoning,chi_square", "--window",
+                           "0", "700", "--json", "-o", str(tmp_path / "r.mcap"))
+    # the follower's INS and the leaders' GPS are positions: the replay runs, says what it skipped, and scores
+    # no epoch (no GPS to label one)
+    assert rc == 0 and "/follower/gps:" in one_line(err, "warning")
+    obj = json.loads(out)
+    assert obj["epochs"] == 0 and set(obj["methods"]) >= {"dead_reckoning", "chi_square"}
     rc, out, err = run_cli(capsys, "export", str(path), "--topic", "/follower/gps", "-o", str(tmp_path / "g.csv"))
     assert rc == 0 and "do not decode" in one_line(err, "warning")
 
@@ -275,15 +282,29 @@ def test_truncated_archives_say_so_or_refuse_with_a_reason(trial, tmp_path, caps
         assert rc == 0 and "read sequentially" in one_line(err, "warning")
 
 
-def test_replay_with_no_follower_exits_1_with_the_reason(trial, tmp_path, capsys):
-    path = tmp_path / "leaders.mcap"
+def _without(trial: Path, path: Path, drop: Callable[[str], bool]) -> Path:
     with ArchiveReader(trial) as r, ArchiveWriter(path) as w:
         for m in r.messages():
-            if not m.topic.startswith("/follower/"):
+            if not drop(m.topic):
                 w.write(m.topic, m.message, m.log_time_ns)
         w.add_metadata("trial", r.metadata("trial"))
+    return path
+
+
+def test_replay_with_no_follower_runs_what_it_can_and_names_the_rest(trial, tmp_path, capsys):
+    path = _without(trial, tmp_path / "leaders.mcap", lambda t: t.startswith("/follower/"))
+    rc, out, err = run_cli(capsys, "replay", str(path), "--set", "methods=dead_reckoning,ackf", "--window", "0",
+                           "700", "--json", "-o", str(tmp_path / "r.mcap"))
+    assert rc == 0 and (tmp_path / "r.mcap").exists()
+    skipped = json.loads(out)["skipped"]
+    assert skipped["dead_reckoning"] == "needs DVL velocities on the vehicle"
+    assert skipped["ackf"] == "needs DVL velocities on the vehicle and modem ranges from a leader with a position"
+
+
+def test_replay_of_a_trial_without_any_position_exits_1_with_the_reason(trial, tmp_path, capsys):
+    path = _without(trial, tmp_path / "blind.mcap", lambda t: t.endswith(("/gps", "/ins")))
     rc, out, err = run_cli(capsys, "replay", str(path), *REPLAY, "-o", str(tmp_path / "r.mcap"))
-    assert rc == 1 and "no follower can run" in one_line(err, "error") and not (tmp_path / "r.mcap").exists()
+    assert rc == 1 and "no position of any kind" in one_line(err, "error") and not (tmp_path / "r.mcap").exists()
 
 
 def test_reader_never_raises_on_random_bytes_after_the_magic():

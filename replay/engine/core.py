@@ -8,6 +8,7 @@ said once per cause (`Engine.notes`), never raised.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from array import array
@@ -23,7 +24,7 @@ from replay.engine.usbl import positioning
 from replay.engine.usbl.epochs import UsblEpochBuilder
 from replay.events import EpochResult, ErrorSample, Fix, FollowerScores, Listener, RunResults, RunScores, UsblEpoch
 from replay.run.config import RunConfig
-from replay.stack.methods import method_names
+from replay.stack.methods import INPUTS, method_names
 from replay.stack.model import horizontal_offset_m, offset_to_latlon
 from replay.stack.positioning.kmcdf import KmcdfParams
 from replay.stack.training import TrainingSet
@@ -55,7 +56,9 @@ class Engine:
         for plan in layout.followers:
             self.notes.extend(plan.notes)
             if plan.runnable:
-                self.followers[plan.name] = FollowerPipeline(plan, config, self.tracks, self._on_epoch,
+                # each follower runs the configured methods whose inputs it holds (the layout's plan)
+                own = dataclasses.replace(config, stack=dataclasses.replace(config.stack, methods=plan.methods))
+                self.followers[plan.name] = FollowerPipeline(plan, own, self.tracks, self._on_epoch,
                                                              self._on_estimates, self._on_errors, training_set)
                 self._scores[plan.name] = FollowerScores()
         self._trained: set[str] = set()
@@ -280,8 +283,16 @@ class Engine:
         """What the metrics need of the run so far: per-follower scores after t_a, positioning errors, notes."""
         counts = {**dict(self.counts), **{f"{f}:{k}": v for f, p in self.followers.items()
                                           for k, v in p.counts.items()}}
-        return RunScores(tuple(self.config.stack.methods), self.training_end_s, dict(self._scores),
-                         dict(self.positioning_errors), self.usbl_epochs, list(self.notes), counts)
+        ran = tuple(m for m in self.config.stack.methods if m not in self.layout.skipped)
+        return RunScores(ran, self.training_end_s, dict(self._scores),
+                         dict(self.positioning_errors), self.usbl_epochs, list(self.notes), counts, self.skipped())
+
+    def skipped(self) -> dict[str, str]:
+        """Every method this trial could not run, with the input it lacked (the layout's, and USBL positioning)."""
+        out = dict(self.layout.skipped)
+        if self.config.engine.kmcdf and not any(self.layout.has(b, "usbl") for b in self.layout.by_role("buoy")):
+            out.update({m: f"needs {INPUTS['usbl']}" for m in method_names("positioning")})
+        return out
 
     @property
     def origin(self) -> tuple[float, float] | None:

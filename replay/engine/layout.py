@@ -4,11 +4,19 @@ Roles come from the archive's `trial` metadata; when it is missing, they are
 guessed from the topics (a vehicle with USBL observations is a buoy, one with
 a DVL a follower, or one with modem ranges where no vehicle has a DVL, the
 rest leaders) and the guess is reported.
+
+Each follower runs the configured methods whose inputs it holds (the method
+table's ``needs``: DVL, modem ranges from a leader with a position, GPS on
+the vehicle, USBL fixes); `TrialLayout.skipped` names every method no
+vehicle could run, with the input it lacked.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+
+from replay.stack.methods import INPUTS, method
 
 
 @dataclass(frozen=True)
@@ -20,6 +28,7 @@ class FollowerPlan:
     leaders: tuple[str, ...]
     heading_topic: str | None
     notes: tuple[str, ...] = ()
+    methods: tuple[str, ...] = ()            # the configured methods whose inputs this follower holds
 
 
 @dataclass
@@ -30,6 +39,7 @@ class TrialLayout:
     topics: dict[str, int]                         # topic -> message count
     followers: list[FollowerPlan] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    skipped: dict[str, str] = field(default_factory=dict)   # method -> what no vehicle held ("needs ...")
 
     def has(self, vehicle: str, sensor: str) -> bool:
         """True when /<vehicle>/<sensor> holds messages."""
@@ -38,6 +48,18 @@ class TrialLayout:
     def by_role(self, role: str) -> list[str]:
         """Vehicle names with a role, in archive order."""
         return [v for v, r in self.roles.items() if r == role]
+
+    def inputs(self, vehicle: str) -> frozenset[str]:
+        """The method-table inputs a vehicle holds (USBL fixes are the trial's: a buoy's observations)."""
+        leaders = [ld for ld in self.by_role("leader") if self.has(ld, "ins") or self.has(ld, "gps")]
+        held = {"dvl": self.has(vehicle, "dvl"), "gps": self.has(vehicle, "gps"),
+                "ranges": self.has(vehicle, "modem/range") and bool(leaders),
+                "usbl": any(self.has(b, "usbl") for b in self.by_role("buoy"))}
+        return frozenset(k for k, v in held.items() if v)
+
+    def positions(self) -> list[str]:
+        """The vehicles with a position of any kind (GPS fixes or an INS solution)."""
+        return [v for v in self.roles if self.has(v, "gps") or self.has(v, "ins")]
 
 
 def _guess_roles(topics: dict[str, int]) -> dict[str, str]:
@@ -59,8 +81,12 @@ def _guess_roles(topics: dict[str, int]) -> dict[str, str]:
     return roles
 
 
-def plan_trial(trial_meta: dict | None, topics: dict[str, int]) -> TrialLayout:
-    """Work out roles and per-follower plans, with one note per thing that cannot run."""
+def plan_trial(trial_meta: dict | None, topics: dict[str, int], methods: Sequence[str] = ()) -> TrialLayout:
+    """Work out roles and per-follower plans, with one note per thing that cannot run.
+
+    `methods` (the configuration's) are given to each follower that holds
+    their inputs; those no follower holds go to `TrialLayout.skipped`.
+    """
     vehicles = (trial_meta or {}).get("vehicles") or []
     if vehicles:
         roles = {v["name"]: v.get("role", "leader") for v in vehicles if isinstance(v, dict) and "name" in v}
@@ -71,14 +97,31 @@ def plan_trial(trial_meta: dict | None, topics: dict[str, int]) -> TrialLayout:
                             + ", ".join(f"{v}={r}" for v, r in layout.roles.items()))
     leaders = layout.by_role("leader")
     for f in layout.by_role("follower"):
-        layout.followers.append(_plan_follower(layout, f, leaders))
+        layout.followers.append(_plan_follower(layout, f, leaders, methods))
+    layout.skipped = _skipped(layout, methods)
     for leader in leaders:
         if not (layout.has(leader, "ins") or layout.has(leader, "gps")):
             layout.notes.append(f"leader {leader}: no INS and no GPS: its ranges cannot be used")
     return layout
 
 
-def _plan_follower(layout: TrialLayout, name: str, leaders: list[str]) -> FollowerPlan:
+def _skipped(layout: TrialLayout, methods: Sequence[str]) -> dict[str, str]:
+    """Each method that no runnable follower runs, with the inputs it lacked on the vehicle closest to running it."""
+    running = {m for p in layout.followers if p.runnable for m in p.methods}
+    vehicles = [v for v, r in layout.roles.items() if r != "buoy"] or list(layout.roles)
+    out = {}
+    for name in methods:
+        if name in running:
+            continue
+        lacking = min((method(name).missing(layout.inputs(v)) for v in vehicles), key=len,
+                      default=list(method(name).needs))
+        if not lacking:      # its inputs are there, on a vehicle that cannot run (no initial position)
+            lacking = ["a position to start from"]
+        out[name] = "needs " + " and ".join(INPUTS.get(n, n) for n in lacking)
+    return out
+
+
+def _plan_follower(layout: TrialLayout, name: str, leaders: list[str], methods: Sequence[str]) -> FollowerPlan:
     notes: list[str] = []
     usable = tuple(ld for ld in leaders if layout.has(ld, "ins") or layout.has(ld, "gps"))
     runnable = True
@@ -96,4 +139,6 @@ def _plan_follower(layout: TrialLayout, name: str, leaders: list[str]) -> Follow
         notes.append(f"follower {name}: no /{name}/gps: no labels and no errors; detectors cannot be trained")
     if not layout.has(name, "modem/range"):
         notes.append(f"follower {name}: no /{name}/modem/range: dead reckoning only")
-    return FollowerPlan(name, runnable, usable, heading, tuple(notes))
+    held = layout.inputs(name)
+    runs = tuple(m for m in methods if not method(m).missing(held)) if runnable else ()
+    return FollowerPlan(name, runnable, usable, heading, tuple(notes), runs)

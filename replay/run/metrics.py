@@ -51,6 +51,7 @@ def run_metrics(scores: RunScores, results: dict[str, RunResults], run_id: str, 
         "training_errors": {f: r.training_errors for f, r in results.items() if r.training_errors},
         "notes": list(scores.notes),
         "counts": dict(scores.counts),
+        "skipped": dict(scores.skipped),
     }
 
 

@@ -59,7 +59,7 @@ class OnlineRun:
                  max_lag_s: float = MAX_LAG_S, start_hold_s: float = START_HOLD_S,
                  label: str = "live", earliest: Callable[[], int | None] = lambda: None):
         self.trial, self.config = trial, config
-        self.layout: TrialLayout = plan_trial(trial, {t: 1 for t in topics})
+        self.layout: TrialLayout = plan_trial(trial, {t: 1 for t in topics}, self.config.stack.methods)
         self.wanted = {t for t in topics if t == "/diagnostics"
                        or any(t == f"/{v}/{s}" for v in self.layout.roles for s in SENSORS)}
         self.run_id = run_id(config, hashlib.sha256(f"capture:{label}".encode()).hexdigest(), package_version())

@@ -107,9 +107,9 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
     The results archive and its metrics files are claimed (replay.run.outputs) before the run:
     an existing one is refused unless `force`. `listeners` hear the run too, after the review
     collector and the results writer; `training_set` (another run's `RunResults.training_set`) is
-    what `stack.training_source` "given" or "both" trains on. With `require_work`, a replay with
-    nothing to run (no follower that can run, or no scored epoch) is a UserError naming why, and
-    writes nothing.
+    what `stack.training_source` "given" or "both" trains on. With `require_work`, a trial that
+    holds no position of any kind is a UserError naming why, and writes nothing; any other trial
+    runs what its inputs allow (metrics["skipped"] names the rest).
     """
     config = config or RunConfig()
     sha = file_sha256(archive)
@@ -129,10 +129,10 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
             raise UserError(_nothing_to_run(archive, "the archive holds no messages", [], reader))
         trial = trial_metadata(reader.metadata_json("trial"))
         readable = _readable_topics(summary, reader)
-        layout = plan_trial(trial, readable)
-        if require_work and not any(p.runnable for p in layout.followers):
-            raise UserError(_nothing_to_run(archive, "no follower can run", layout.notes
-                                            + [n for p in layout.followers for n in p.notes], reader))
+        layout = plan_trial(trial, readable, config.stack.methods)
+        if require_work and not layout.positions():
+            raise UserError(_nothing_to_run(archive, "the trial holds no position of any kind (no GPS fix and no "
+                                            "INS or autopilot position)", layout.notes, reader))
         t0_ns = summary.start_ns
         topics = [t for t in readable
                   if t == "/diagnostics" or any(t == f"/{v}/{s}" for v in layout.roles for s in SENSORS)]
@@ -157,9 +157,6 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
             results = engine.finish()
             end_s = max(engine.last_s, 0.0)
             metrics = run_metrics(engine.scores(), results, rid, end_s)
-            if require_work and not metrics.get("epochs"):
-                raise UserError(_nothing_to_run(archive, f"0 scored epochs from {engine.messages} messages",
-                                                list(engine.notes), reader))
             wall = time.monotonic() - wall0
             metrics["wall_s"] = wall
             if writer is not None:
