@@ -321,7 +321,7 @@ def _velocity(ctx: LogContext, msgtype: str, msg: Any, t: int, publish: int,
 
 def convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     """ROS 1 .bag, ROS 2 .mcap/.db3 (rosbags): NavSatFix, NMEA/text sentences, Imu, Odometry, Twist, DVL."""
-    return checked_times(_convert_rosbag(data, ctx))
+    return checked_times(_convert_rosbag(data, ctx), ctx)
 
 
 def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
