@@ -302,6 +302,10 @@ def _convert_mavlink(data: bytes, ctx: LogContext) -> Iterator[Output | Reject |
 MANIFEST_EXAMPLE = """[[vehicles.logs]]
 format = "mavlink"                 # ArduSub/ArduPilot telemetry .tlog or dataflash .BIN
 path = "bluerov/2016-10-12 02-00-00.tlog"
+# a dataflash log without GPS time: the UTC instant of its boot (docs/time-bases.md)
+# time_base = "boot"
+# start = "2016-10-12T01:58:00Z"
+# baro_instance = 1                # the depth sensor's BARO instance (default: the log's highest)
 """
 
 CONVERTERS: dict[str, Converter] = {"mavlink": convert_mavlink}
