@@ -135,4 +135,4 @@ def date_text(t_ns: float) -> str:
     """ISO UTC text of any ns since the epoch: datetime's years 1..9999, beyond them the year alone."""
     if -62_135_596_800 * NS <= t_ns < 253_402_300_800 * NS:
         return str(iso_utc(int(t_ns)))
-    return f"the year {t_ns / NS / 86400 / 365.2425 + 1970:.0f}"
+    return f"the year {t_ns / NS / 86400 / 365.2425 + 1970:.6g}"
