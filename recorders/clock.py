@@ -86,8 +86,8 @@ TIME_BASES = ("utc", "sim", "boot")
 RELATIVE_BASES = ("sim", "boot")  # clocks counting from a zero that `start` places in UTC
 # where a log's times may land once its clock offset or start is applied: 1980-01-01 .. 2100-01-01 UTC
 OFFSET_TIMES_NS = (315_532_800 * NS, 4_102_444_800 * NS)
-# the largest clock offset (~133 years): beyond it no log clock counting from 1970 or from 0 lands in 1980-2100,
-# and times stay within int64 ns where they are handled as arrays
+# the largest clock offset (~133 years): beyond it no clock counting from 0, nor a UTC clock before 2100, lands
+# in 1980-2100; and times stay within int64 ns where they are handled as arrays
 MAX_OFFSET_S = 4.2e9
 
 
