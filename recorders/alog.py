@@ -147,7 +147,7 @@ def _range_report(p: alog.Posting, ctx: LogContext) -> Output | Reject:
 
 def convert_alog(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     """MOOS-IvP .alog: NAV_* -> INS state, GPS_* -> fixes, range reports, raw sentences via our decoders."""
-    return checked_times(_convert_alog(data, ctx))
+    return checked_times(_convert_alog(data, ctx), ctx)
 
 
 def _convert_alog(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:

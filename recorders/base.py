@@ -36,7 +36,8 @@ class LogContext:
     role: str = "follower"
     path: str = ""
     trial_date: date | None = None
-    clock_offset_ns: int = 0
+    clock_offset_ns: int = 0     # added to every time: the log's clock offset, or its start (recorders.clock)
+    time_base: str = "utc"       # "utc", or "sim"/"boot": the log's own clock counts from clock_offset_ns
     prefix: str = "auto"
     # format-specific keys from the manifest's [[vehicles.logs]] table
     options: Mapping[str, Any] = field(default_factory=dict)

@@ -24,9 +24,10 @@ from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 
-from formats.records import Reject, Where
+from formats.records import FormatError, Reject, Where
 
 from .base import NS, Ignored, LogContext, Output
+from .clock import offset_problem, shift_text
 from .registry import family_converter
 
 NAN = math.nan
@@ -150,13 +151,21 @@ EARLIEST_NS = 315_964_800 * NS     # 1980-01-06, the GPS epoch
 LATEST_NS = 4_102_444_800 * NS     # 2100-01-01
 
 
-def checked_times(items: Iterable[Output | Reject | Ignored]) -> Iterator[Output | Reject | Ignored]:
+def checked_times(items: Iterable[Output | Reject | Ignored], ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     """The items, with each Output whose log or publish time lies outside 1980-2100 turned into a Reject.
 
     A record's other outputs at such a time (a fix and its status) give no second Reject: one record, one count.
+    When the manifest moves the log's times (a clock offset, a start), its first Output outside is a FormatError
+    naming the key and the date it gave instead (`recorders.clock.offset_problem`): a setting, not a record, is wrong.
     """
     rejected: Where | None = None
+    unchecked = bool(shift_text(ctx.time_base, ctx.clock_offset_ns))
     for item in items:
+        if unchecked and type(item) is Output:
+            unchecked = False
+            problem = offset_problem(item.log_time_ns, ctx.time_base, ctx.clock_offset_ns)
+            if problem is not None:
+                raise FormatError(problem)
         if type(item) is Output and not (EARLIEST_NS <= item.log_time_ns <= LATEST_NS
                                          and EARLIEST_NS <= item.publish_time_ns <= LATEST_NS):
             where = item.where if item.where is not None else Where(0)

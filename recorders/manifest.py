@@ -2,6 +2,13 @@
 
 See DESIGN.md "The trial manifest". Every problem is reported as one
 `ManifestError` naming the manifest, the vehicle and log concerned.
+
+A log's table (`[[vehicles.logs]]`) takes `sensor`, `format`, `path` (a path,
+a glob or a list), `source` (a live log), `prefix`, `order`, and for its clock
+either `clock_offset_s` (seconds added to a UTC clock's times) or
+`time_base = "sim"` / `"boot"` with `start = "2024-05-01T10:00:00Z"`, the UTC
+instant of the log's time zero (a bag in simulated time; a dataflash log's
+boot): docs/time-bases.md. Every other key is a format option.
 """
 
 from __future__ import annotations
@@ -13,6 +20,7 @@ from datetime import date
 from pathlib import Path, PurePosixPath
 from typing import Any
 
+from .clock import RELATIVE_BASES, TIME_BASES, in_offset_window, parse_utc
 from .manifest_checks import ValueProblem, check_log_paths, check_values
 
 ROLES = ("leader", "follower", "buoy")
@@ -20,7 +28,7 @@ SENSORS = ("gps", "dvl", "ins", "modem", "usbl")
 # formats whose one file holds several sensors: their log entry needs no `sensor`
 CONTAINER_FORMATS = ("rosbag", "alog", "mavlink")
 ORDERS = ("name", "time")
-_LOG_KEYS = {"sensor", "format", "path", "source", "clock_offset_s", "prefix", "order"}
+_LOG_KEYS = {"sensor", "format", "path", "source", "clock_offset_s", "prefix", "order", "time_base", "start"}
 _GLOB_CHARS = frozenset("*?[")
 # a manifest is a small TOML file; one from another lab may be anything (a huge file, a device that never ends)
 MAX_MANIFEST_BYTES = 4 << 20
@@ -49,6 +57,10 @@ class LogSpec:
     # "name" as listed or globbed, "time" sorted by content time when recording); () means just `path`
     parts: tuple[str, ...] = ()
     order: str = "name"
+    # what the log's clock counts (recorders.clock, docs/time-bases.md): "utc", or "sim"/"boot" seconds from
+    # a zero whose UTC instant is `start_ns`
+    time_base: str = "utc"
+    start_ns: int | None = None
 
     def files(self) -> tuple[str, ...]:
         """The log's files in manifest order: its parts, or its one path."""
@@ -135,9 +147,35 @@ def _parse_log(raw: Any, vehicle: str, index: int, where: str) -> LogSpec:
         offset = float(raw.get("clock_offset_s", 0.0))
     except (TypeError, ValueError) as exc:
         raise ManifestError(f"{label} ({raw['path']}): clock_offset_s must be a number") from exc
+    time_base, start_ns = _time_base(raw, offset, f"{label} ({raw['path']})")
     options = {k: v for k, v in raw.items() if k not in _LOG_KEYS}
     return LogSpec(vehicle, sensor, raw["format"], str(path), offset, str(raw.get("prefix", "auto")), options,
-                   source, parts=parts, order=order)
+                   source, parts=parts, order=order, time_base=time_base, start_ns=start_ns)
+
+
+def _time_base(raw: dict[str, Any], offset: float, label: str) -> tuple[str, int | None]:
+    """A log's `time_base` and `start` (UTC ns), checked: a sim/boot clock needs its start, a UTC one has none."""
+    base = raw.get("time_base", "utc")
+    if base not in TIME_BASES:
+        raise ManifestError(f"{label}: time_base = {base!r}; use one of {', '.join(TIME_BASES)}")
+    if "start" not in raw:
+        if base in RELATIVE_BASES:
+            raise ManifestError(f"{label}: time_base = {base!r} needs start = \"YYYY-MM-DDTHH:MM:SSZ\", "
+                                "the UTC instant of the log's time zero")
+        return base, None
+    start = parse_utc(raw["start"])
+    if start is None:
+        raise ManifestError(f"{label}: start = {raw['start']!r} is not an ISO 8601 UTC instant "
+                            "such as \"2024-05-01T10:00:00Z\" (with its Z or UTC offset)")
+    if not in_offset_window(start):
+        raise ManifestError(f"{label}: start = {raw['start']!s} is outside 1980-01-01 .. 2100-01-01 UTC")
+    if base not in RELATIVE_BASES:
+        raise ManifestError(f"{label}: start places the zero of a clock that is not UTC: give it with "
+                            "time_base = \"sim\" (a bag in simulated time) or \"boot\" (a dataflash log's "
+                            "time since boot)")
+    if offset:
+        raise ManifestError(f"{label}: give start or clock_offset_s, not both (start already places the log in UTC)")
+    return base, start
 
 
 def _parse_vehicle(raw: Any, index: int, where: str) -> Vehicle:

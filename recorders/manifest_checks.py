@@ -15,9 +15,13 @@ from typing import Any
 
 from formats.lines import PREFIX_STYLES
 
+from .clock import MAX_OFFSET_S, NS, date_text
+
 # (low, high) for numbers a manifest may give; the limits are physical (or the format's), never a tuning
 RANGES: dict[str, tuple[float, float]] = {
-    "clock_offset_s": (-1e9, 1e9),          # about 31 years either way
+    # about 133 years either way: a bag in simulated time needs ~1.7e9; whether the offset puts the log's
+    # own times in 1980-2100 is checked when it is recorded (recorders.clock.offset_problem)
+    "clock_offset_s": (-MAX_OFFSET_S, MAX_OFFSET_S),
     "sound_speed_mps": (1000.0, 2000.0),    # water: 1400-1600 m/s
     "uere_m": (1e-6, 1e4),
     "beam_angle_deg": (0.0, 90.0),
@@ -44,7 +48,10 @@ def check_number(key: str, value: Any, label: str) -> None:
         raise ValueProblem(f"{label}: {key} = {value} is too large") from None
     low, high = RANGES.get(key, (-ANY_NUMBER, ANY_NUMBER))
     if not math.isfinite(x) or not low <= x <= high:
-        raise ValueProblem(f"{label}: {key} = {value!r} is out of range [{low:g}, {high:g}]")
+        # an offset's own date: where it puts a clock counting from 0 (a bag in simulated time)
+        when = f": it puts time 0 of the log's clock at {date_text(x * NS)}" \
+            if key == "clock_offset_s" and math.isfinite(x) else ""
+        raise ValueProblem(f"{label}: {key} = {value!r} is out of range [{low:g}, {high:g}]{when}")
 
 
 def check_values(data: dict[str, Any], where: str) -> None:

@@ -13,13 +13,22 @@ MAVLink (tlog) messages:
   ``DISTANCE_SENSOR`` facing down (orientation 25) -> ``/<v>/dvl`` altitude only (velocity NaN, not valid).
 
 Dataflash records are mapped the same way by name: ``GPS`` -> fixes, ``ATT`` with ``POS`` -> INS state,
-``VISV`` -> EARTH_NED velocity, ``VISO`` -> BODY_FRD velocity, ``RFND`` -> altitude.
+``VISV`` -> EARTH_NED velocity, ``VISO`` -> BODY_FRD velocity, ``RFND`` -> altitude. A log without ``POS``
+(an EKF without an origin logs none) takes its INS states from the EKF's own ``XKF1`` (EKF3; ``NKF1``,
+EKF2) of core 0: attitude, NED velocity, depth = its down position PD (ArduSub's height reference is the
+depth sensor, zeroed at the surface), latitude/longitude from PN/PE about the log's ``ORGN`` EKF origin or
+else the manifest's ``origin = [lat, lon]`` (NaN without either); ``ATT`` is then ignored. A log with
+neither POS nor XKF1 gives attitude-only states from ``ATT`` with the depth of the latest ``BARO`` of
+the depth sensor (``baro_instance``, default the log's highest instance; depth = -Alt).
 
 Times are the log's own plus the clock offset: a tlog's receive time; for dataflash, each record's
-microseconds since boot (TimeUS) put on UTC by the first GPS record with a GPS week (`formats.gpstime`'s
-leap-second table: pymavlink's own dataflash clock assumes today's 18 s); a dataflash log without one
-has no UTC time, and its records are rejected saying so. BAD_DATA runs are rejected
-and counted; every other message is archived, merged (ATTITUDE into the next INS state) or ignored by type.
+microseconds since boot (TimeUS) put on UTC by the first record with a GPS week and time (GPS GWk/GMS;
+`formats.gpstime`'s leap-second table: pymavlink's own dataflash clock assumes today's 18 s), or, for a log
+without GPS time, by the manifest's `time_base = "boot"` with `start` = the UTC instant of boot
+(docs/time-bases.md). A log with neither is refused in one line naming those keys; a log with both is
+refused too (its GPS time is never overridden silently: `clock_offset_s` corrects it). BAD_DATA runs are
+rejected and counted; every other message is archived, merged (ATTITUDE into the next INS state) or ignored
+by type.
 """
 
 from __future__ import annotations
@@ -34,7 +43,8 @@ from formats.records import FormatError, Reject, Where
 
 from . import dvl
 from .base import Converter, Ignored, LogContext, Output, output
-from .containers import checked_times
+from .clock import RELATIVE_BASES, iso_utc
+from .containers import checked_times, local_to_geodetic, origin_option
 from .gnss_velocity import SUFFIX as VELOCITY
 from .gnss_velocity import gnss_velocity, has_velocity
 from .gps import gnss_status
@@ -99,9 +109,10 @@ def _attitude(m: mv.MavMessage) -> tuple[float, float, float]:
     return math.degrees(_f(f, "roll")), math.degrees(_f(f, "pitch")), math.degrees(_f(f, "yaw")) % 360.0
 
 
-def _ins(ctx: LogContext, m: mv.MavMessage | None, att: mv.MavMessage | None, t: int, where: Where) -> Output:
+def _ins(ctx: LogContext, m: mv.MavMessage | None, att: mv.MavMessage | None, t: int, where: Where,
+         depth: float = NAN) -> Output:
     roll, pitch, heading = _attitude(att) if att is not None else (NAN, NAN, NAN)
-    lat = lon = depth = vn = ve = vd = NAN
+    lat = lon = vn = ve = vd = NAN
     if m is not None:
         f = m.fields
         if m.type == "POS":
@@ -146,30 +157,82 @@ def _velocity(ctx: LogContext, m: mv.MavMessage, t: int, where: Where) -> Output
                                          source=source), t, where)
 
 
-def _dataflash_boot_ns(messages: list[tuple[mv.MavMessage, Where]]) -> int | None:
-    """UTC (ns) of a dataflash log's boot, from its first GPS record with a week; None for a tlog."""
-    if not any("TimeUS" in m.fields for m, _ in messages[:50]):
-        return None
+def _gps_boot_ns(messages: list[tuple[mv.MavMessage, Where]]) -> int | None:
+    """UTC (ns) of a dataflash log's boot by its first record carrying GPS week and time (GPS's GWk/GMS)."""
     for m, _ in messages:
         f = m.fields
-        if m.type == "GPS" and int(f.get("GWk", 0) or 0) > 0 and "TimeUS" in f:
-            return gpstime.gps_to_unix_ns(int(f["GWk"]), float(f.get("GMS", 0)) / 1000.0) - int(f["TimeUS"]) * 1000
-    return 0  # dataflash without GPS time: every record is rejected as untimed
+        if "GWk" in f and "GMS" in f and isinstance(f.get("TimeUS"), int) and int(f["GWk"] or 0) > 0:
+            return gpstime.gps_to_unix_ns(int(f["GWk"]), float(f["GMS"]) / 1000.0) - int(f["TimeUS"]) * 1000
+    return None
+
+
+def _dataflash_boot_ns(messages: list[tuple[mv.MavMessage, Where]], ctx: LogContext) -> int | None:
+    """UTC (ns, before the clock offset) of a dataflash log's boot; None for a tlog. FormatError when the log has
+    no anchor, or two (its own GPS time and a manifest start): one line naming the key that settles it."""
+    with ctx.files[0].open("rb") as fh:
+        dataflash = mv.is_dataflash(fh.read(2))
+    if not dataflash:
+        if ctx.time_base in RELATIVE_BASES:
+            raise FormatError(f"time_base = {ctx.time_base!r}: a tlog's times are the receiving computer's UTC "
+                              "clock; give it no time_base or start (clock_offset_s corrects that clock)")
+        return None
+    gps = _gps_boot_ns(messages)
+    if ctx.time_base in RELATIVE_BASES:
+        if gps is not None:  # two anchors that may disagree: the log's own GPS time is not overridden silently
+            raise FormatError(f"the dataflash log has its own GPS time (boot at {iso_utc(gps)}): give it no "
+                              "time_base or start (clock_offset_s corrects its GPS time)")
+        return 0  # TimeUS counts from boot, and the clock offset is the manifest's start
+    if gps is None:
+        raise FormatError("no UTC time: the dataflash log has no GPS week and time; give the UTC instant of its boot "
+                          "in its [[vehicles.logs]] entry: time_base = \"boot\" and start = \"YYYY-MM-DDTHH:MM:SSZ\"")
+    return gps
 
 
 def _on_utc(m: mv.MavMessage, boot_ns: int) -> mv.MavMessage:
+    """A dataflash record at boot + TimeUS (time -1: none)."""
     us = m.fields.get("TimeUS")
-    if not boot_ns or not isinstance(us, int):
-        return mv.MavMessage(m.type, 0, m.index, m.fields, m.problem)
-    return mv.MavMessage(m.type, boot_ns + us * 1000, m.index, m.fields, m.problem)
+    return mv.MavMessage(m.type, boot_ns + us * 1000 if isinstance(us, int) else -1, m.index, m.fields, m.problem)
+
+
+def _ekf_origin(messages: list[tuple[mv.MavMessage, Where]], ctx: LogContext) -> tuple[float, float] | None:
+    """The datum of a dataflash EKF's local NED frame: its first ORGN record of the EKF origin (Type 0), else the
+    manifest's `origin = [lat, lon]`; None without either (XKF1 states then have no latitude/longitude)."""
+    for m, _ in messages:
+        f = m.fields
+        if m.type == "ORGN" and int(f.get("Type", 0) or 0) == 0:
+            lat, lon = _f(f, "Lat"), _f(f, "Lng")
+            if math.isfinite(lat) and math.isfinite(lon) and (lat, lon) != (0.0, 0.0):
+                return lat, lon
+    return origin_option(ctx)
+
+
+def _baro_instance(messages: list[tuple[mv.MavMessage, Where]], ctx: LogContext) -> int:
+    """The BARO instance that measures depth: the manifest's `baro_instance`, else the log's highest (ArduSub
+    probes the external water-pressure sensor after the board's own barometers and makes it primary)."""
+    chosen = ctx.options.get("baro_instance")
+    if isinstance(chosen, int) and not isinstance(chosen, bool):
+        return chosen
+    return max((int(m.fields.get("I", 0) or 0) for m, _ in messages if m.type == "BARO"), default=0)
+
+
+def _xkf_ins(ctx: LogContext, m: mv.MavMessage, origin: tuple[float, float] | None, t: int,
+             where: Where) -> Output:
+    """An INS state from an EKF3/EKF2 XKF1/NKF1 record: attitude, NED velocity, NED position (depth = PD)."""
+    f = m.fields
+    lat, lon = local_to_geodetic(_f(f, "PN"), _f(f, "PE"), origin)
+    state = ins_state(t, ctx, "mavlink:" + m.type, latitude=lat, longitude=lon, depth_m=_f(f, "PD"),
+                      roll_deg=_f(f, "Roll"), pitch_deg=_f(f, "Pitch"), heading_deg=_f(f, "Yaw") % 360.0,
+                      velocity_north_mps=_f(f, "VN"), velocity_east_mps=_f(f, "VE"), velocity_down_mps=_f(f, "VD"))
+    return output(ctx, "ins", state, t, where)
 
 
 VELOCITY_TYPES = ("VISION_SPEED_ESTIMATE", "VISION_POSITION_DELTA", "DISTANCE_SENSOR", "VISV", "VISO", "RFND")
+XKF_TYPES = ("XKF1", "NKF1")  # EKF3, EKF2: one record per core (C) at the EKF's rate
 
 
 def convert_mavlink(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     """ArduSub/ArduPilot .tlog and dataflash .BIN (pymavlink): GPS, EKF position + attitude, vision/DVL, range."""
-    return checked_times(_convert_mavlink(data, ctx))
+    return checked_times(_convert_mavlink(data, ctx), ctx)
 
 
 def _convert_mavlink(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
@@ -183,33 +246,53 @@ def _convert_mavlink(data: bytes, ctx: LogContext) -> Iterator[Output | Reject |
             number += 1
             messages.append((m, Where(start + min(m.index, max(size - 1, 0)), None, m.time_ns or None, number)))
         start += size
-    boot_ns = _dataflash_boot_ns(messages)
+    boot_ns = _dataflash_boot_ns(messages, ctx)
     if boot_ns is not None:
         messages = [(_on_utc(m, boot_ns), w) for m, w in messages]
     types = {m.type for m, _ in messages}
     ekf_as_fix = not types & {"GPS_RAW_INT", "GPS_INPUT", "GPS"}
-    ekf_types = {"GLOBAL_POSITION_INT", "POS"}
+    # the INS state's source: POS (the EKF's latitude/longitude) where the log has it, else XKF1/NKF1
+    xkf = "" if "POS" in types else next((x for x in XKF_TYPES if x in types), "")
+    ekf_types = {"GLOBAL_POSITION_INT", "POS", xkf} - {""}
     has_ekf = bool(types & ekf_types)
+    origin = _ekf_origin(messages, ctx) if xkf else None
+    baro = _baro_instance(messages, ctx)
     attitude: mv.MavMessage | None = None
+    depth = NAN  # the latest BARO depth, for attitude-only states
     for m, where in messages:
         t = m.time_ns + ctx.clock_offset_ns
         if m.problem:
             yield Reject(where, m.problem)
-        elif m.time_ns <= 0:
-            yield Reject(where, f"{m.type} without a time" if boot_ns is None else
-                         f"{m.type}: no UTC time (the dataflash log has no GPS record with a GPS week)")
+        elif m.time_ns < 0 or (m.time_ns == 0 and boot_ns is None):  # a dataflash record's 0: TimeUS 0 at boot
+            yield Reject(where, f"{m.type} without a time")
         elif m.type in FIX_TYPES:
             yield from _fix(ctx, m, t, where)
+        elif m.type == xkf:
+            core = int(m.fields.get("C", 0) or 0)
+            if core:
+                yield Ignored(where, f"{m.type} of EKF core {core} (core 0's is archived)")
+            else:
+                yield _xkf_ins(ctx, m, origin, t, where)
         elif m.type in ekf_types:
             yield _ins(ctx, m, attitude, t, where)
             if ekf_as_fix and m.type == "GLOBAL_POSITION_INT":
                 yield from _fix(ctx, m, t, where)
         elif m.type in ("ATTITUDE", "ATT"):
             attitude = m
-            if has_ekf:
+            if xkf:
+                yield Ignored(where, f"{m.type}: the {xkf} INS state carries the attitude")
+            elif has_ekf:
                 yield Ignored(where, f"{m.type} merged into the next INS state")
             else:
-                yield _ins(ctx, None, m, t, where)
+                yield _ins(ctx, None, m, t, where, depth)
+        elif m.type == "BARO":
+            if has_ekf:
+                yield Ignored(where, "BARO: the EKF's depth is archived")
+            elif int(m.fields.get("I", 0) or 0) != baro:
+                yield Ignored(where, f"BARO instance {m.fields.get('I')} (instance {baro} measures depth)")
+            else:
+                depth = -_f(m.fields, "Alt")
+                yield Ignored(where, "BARO depth merged into the next INS state")
         elif m.type in VELOCITY_TYPES:
             yield _velocity(ctx, m, t, where)
         else:
@@ -219,6 +302,10 @@ def _convert_mavlink(data: bytes, ctx: LogContext) -> Iterator[Output | Reject |
 MANIFEST_EXAMPLE = """[[vehicles.logs]]
 format = "mavlink"                 # ArduSub/ArduPilot telemetry .tlog or dataflash .BIN
 path = "bluerov/2016-10-12 02-00-00.tlog"
+# a dataflash log without GPS time: the UTC instant of its boot (docs/time-bases.md)
+# time_base = "boot"
+# start = "2016-10-12T01:58:00Z"
+# baro_instance = 1                # the depth sensor's BARO instance (default: the log's highest)
 """
 
 CONVERTERS: dict[str, Converter] = {"mavlink": convert_mavlink}

@@ -21,7 +21,7 @@ from formats.mcap_writer import ArchiveWriter
 from formats.records import FormatError, Reject, Where
 
 from .base import NS, BlockConverter, Converter, Ignored, LogContext, Output
-from .clock import date_to_ns, iso_utc
+from .clock import date_to_ns, iso_utc, log_offset_ns, offset_problem, shift_text
 from .manifest import LogSpec, Manifest, ManifestError
 from .output_checks import OutputProblem, check_output, remove_stale_parts
 from .record_parallel import (
@@ -114,7 +114,8 @@ def log_context(manifest: Manifest, log: LogSpec, files: tuple[str, ...] | None 
     options = dict(log.options)
     return LogContext(
         vehicle=log.vehicle, role=manifest.role_of(log.vehicle), path=log.path, trial_date=manifest.date,
-        clock_offset_ns=round(log.clock_offset_s * NS), prefix=log.prefix, options=options,
+        clock_offset_ns=log_offset_ns(log.time_base, log.start_ns, log.clock_offset_s), time_base=log.time_base,
+        prefix=log.prefix, options=options,
         address_book=manifest.address_book(),
         sound_speed_mps=float(options.get("sound_speed_mps", manifest.sound_speed_mps)),
         files=tuple(manifest.root / name for name in (log.files() if files is None else files)),
@@ -273,6 +274,9 @@ class LogRecorder:
         # a split log: the byte offset where each file starts, and each file's message time span
         self.part_starts = part_starts or []
         self.part_spans: list[list[int]] = [[] for _ in self.part_starts]
+        # a log put on UTC by the manifest (an offset, or a start): its first time must land in 1980-2100
+        self.offset_ns = log_offset_ns(log.time_base, log.start_ns, log.clock_offset_s)
+        self.unchecked = bool(shift_text(log.time_base, self.offset_ns))
 
     def add(self, item: Output | Reject | Ignored) -> None:
         if type(item) is not Output:
@@ -281,6 +285,8 @@ class LogRecorder:
             else:
                 self._reject(item)  # type: ignore[arg-type]
             return
+        if self.unchecked:  # before the value checks, which would refuse each message of a log in 2250 alone
+            self._check_shift(item.log_time_ns)
         problem = self.checks.problem(item.message, item.log_time_ns)
         if problem is not None:
             # stamped at the message's own time when it has one: a log whose every message is refused must not
@@ -317,6 +323,13 @@ class LogRecorder:
             span[0], span[1] = min(span[0], t), max(span[1], t)
         if self.pending:
             self.flush(t)
+
+    def _check_shift(self, t_ns: int) -> None:
+        """The log's first message time, its offset or start applied, in 1980-2100; else a ManifestError."""
+        self.unchecked = False
+        problem = offset_problem(t_ns, self.log.time_base, self.offset_ns)
+        if problem is not None:
+            raise ManifestError(f"{self.log.path}: {problem}")
 
     def _reject(self, item: Reject, t_hint: int | None = None) -> None:
         self.stats.skipped += 1

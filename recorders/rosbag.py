@@ -321,7 +321,7 @@ def _velocity(ctx: LogContext, msgtype: str, msg: Any, t: int, publish: int,
 
 def convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     """ROS 1 .bag, ROS 2 .mcap/.db3 (rosbags): NavSatFix, NMEA/text sentences, Imu, Odometry, Twist, DVL."""
-    return checked_times(_convert_rosbag(data, ctx))
+    return checked_times(_convert_rosbag(data, ctx), ctx)
 
 
 def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
@@ -354,6 +354,8 @@ MANIFEST_EXAMPLE = """[[vehicles.logs]]
 format = "rosbag"                  # ROS 1 .bag, ROS 2 .mcap or .db3 (the storage file inside the bag folder)
 path = "auv1/dive3/dive3_0.mcap"
 origin = [45.70, 126.60]           # datum of the bag's local (odom/map) frame, for Odometry positions
+# time_base = "sim"                # a bag in simulated time: start is the UTC instant of its time 0
+# start = "2024-05-01T10:00:00Z"   # (docs/time-bases.md)
 
 [vehicles.logs.topics]             # optional: topic -> sensor (else by message type); others are not mapped
 "/gps/fix" = "gps"

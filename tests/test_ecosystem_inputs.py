@@ -588,11 +588,10 @@ def test_dataflash_maps_gps_att_pos_and_dvl(tmp_path):
     assert stats["skipped"] == 0
 
 
-def test_dataflash_without_gps_time_is_rejected_not_guessed(tmp_path):
+def test_dataflash_without_gps_time_is_refused_not_guessed(tmp_path):
     write_dataflash(tmp_path / "nogps.BIN", with_gps=False)
-    by, info = messages(tmp_path, manifest(tmp_path, log("mavlink", "nogps.BIN")))
-    assert set(by) == {"/diagnostics"}
-    assert info["recording"]["files"][0]["skipped"] == 6
+    with pytest.raises(ManifestError, match='no GPS week and time; .*time_base = "boot" and start = '):
+        messages(tmp_path, manifest(tmp_path, log("mavlink", "nogps.BIN")))
 
 
 # ---------------------------------------------------------------- rotated logs
