@@ -77,8 +77,10 @@ INS_SUFFIX = "ins/sbg"
 EMPTY = {"NAV": "position, depth, heading or speed", "GPS": "position, depth, heading or speed",
          "INS": "position or attitude"}
 NODE_REPORTS = ("NODE_REPORT", "NODE_REPORT_LOCAL")
-# a vehicle name that is one topic level: what a NODE_REPORT's NAME must be to name a topic
-_NAME = re.compile(r"^[A-Za-z0-9_.-]{1,64}$")
+# a vehicle name that is one topic level: what a NODE_REPORT's NAME must be to name a topic; not one of the
+# archive's own namespaces (a run's /replay/..., /diagnostics/...)
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
+RESERVED = ("replay", "diagnostics")
 
 
 class _Epoch:
@@ -205,7 +207,8 @@ def _pairs(text: str) -> dict[str, str]:
 
 
 def _report_time_ns(p: alog.Posting, fields: dict[str, str], ctx: LogContext) -> int:
-    """A report's own Unix time (its time= or utc_time= field) when it has a usable one, else the posting's; with the offset."""
+    """A report's own Unix time (its time= or utc_time= field) when it has a usable one, else the posting's;
+    with the log's clock offset."""
     own = _number(fields.get("time", fields.get("utc_time", "nan")))  # utc_time: older pNodeReporter
     if math.isfinite(own) and abs(own) < 1e11:    # anything else is not a Unix time
         return round(own * 1e9) + ctx.clock_offset_ns
@@ -216,7 +219,7 @@ def _node_report(p: alog.Posting, ctx: LogContext, origin: tuple[float, float] |
     """A pNodeReporter report as an InsState on /<vehicle>/node_report (see the module docstring)."""
     fields = _pairs(p.text)
     name = ctx.vehicle if p.variable == "NODE_REPORT_LOCAL" else fields.get("name", "")
-    if not _NAME.match(name):
+    if not _NAME.match(name) or name in RESERVED:
         return Reject(p.where, f"{p.variable}: NAME={name[:40]!r} is not a vehicle name ({p.text[:60]!r})")
     f = {k: _number(v) for k, v in fields.items() if k in ("lat", "lon", "x", "y", "spd", "hdg", "dep", "depth")}
     g = f.get

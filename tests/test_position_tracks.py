@@ -10,13 +10,13 @@ from __future__ import annotations
 import json
 import math
 import struct
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from formats import schemas as S
 from formats.mcap_reader import ArchiveReader
 from recorders.alog import convert_alog, moos_yaw_heading
 from recorders.base import Ignored, LogContext, Output
@@ -27,6 +27,7 @@ from replay.cli import main
 T0 = 1476237600  # 2016-10-12 02:00:00 UTC, s
 R = 6_378_137.0
 LAT0, LON0 = 45.7, 126.6
+KML = "{http://www.opengis.net/kml/2.2}"
 
 
 def _trial(tmp: Path, fmt: str, path: str, extra: str = "") -> Path:
@@ -96,6 +97,7 @@ def _alog() -> str:
     lines += [f"5.000 NODE_REPORT_LOCAL pNodeReporter NAME=auv_moos,X=30,Y=-40,SPD=2,HDG=90,TIME={T0 + 5}",
               "5.000 NODE_REPORT pShare NAME=bad/name,X=1,Y=2",
               "5.000 NODE_REPORT pShare NAME=bravo,SPD=1",
+              "5.000 NODE_REPORT pShare NAME=replay,LAT=45.7,LON=126.6",
               "5.500 INS_NAV iInsSBG no key value here"]
     return "\n".join(lines) + "\n"
 
@@ -124,13 +126,19 @@ def test_alog_nav_ins_and_node_reports_are_tracks(tmp_path):
     props = tracks["auv ins/sbg"]["properties"]
     assert (props["vehicle"], props["source"], props["topic"]) == ("auv", "ins/sbg", "/auv/ins/sbg")
 
+    kml = tmp_path / "tracks.kml"
+    assert main(["export", str(archive), "--format", "kml", "-o", str(kml)]) == 0
+    names = [p.findtext(f"{KML}name") for p in ET.parse(kml).getroot().iter(f"{KML}Placemark")]
+    assert sorted(names) == sorted(tracks)
+
     one = _geojson(archive, tmp_path, "/auv/ins")
     assert list(one) == ["auv ins"] and len(_points(one["auv ins"])) == 2
 
     stats = _stats(archive)
     lines = _alog().count("\n") - 1
     assert stats["parsed"] + stats["skipped"] + stats["ignored"] == lines  # every posting counted
-    assert stats["skipped"] == 3  # bad/name, bravo without a position, INS_NAV that is no key=value
+    # bad/name, replay (a namespace of the archive), bravo without a position, INS_NAV that is no key=value
+    assert stats["skipped"] == 4
 
 
 def test_a_topic_that_is_no_position_says_so(tmp_path, capsys):
