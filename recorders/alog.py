@@ -3,10 +3,23 @@
 Variables, by name (the manifest's ``variables = { "MY_DEPTH" = "NAV_DEPTH", "NMEA_RAW" = "gps:nmea" }``
 renames a variable to one of these, sends it to a raw-text stream of a sensor family, or "ignore"s it):
 
-- ``NAV_LAT``, ``NAV_LONG``, ``NAV_X``, ``NAV_Y``, ``NAV_DEPTH``, ``NAV_HEADING``, ``NAV_SPEED``, ``NAV_PITCH``,
-  ``NAV_ROLL``, ``NAV_Z`` -> ``/<v>/ins``, one InsState per epoch (consecutive postings at one time, no variable
-  twice). Position: NAV_LAT/LONG, else NAV_X/Y (east/north of the manifest's ``origin = [lat, lon]``); depth:
-  NAV_DEPTH, else -NAV_Z; velocity north/east from NAV_SPEED along NAV_HEADING (MOOS has no sideslip).
+- ``NAV_LAT``, ``NAV_LONG``, ``NAV_X``, ``NAV_Y``, ``NAV_DEPTH``, ``NAV_HEADING``, ``NAV_YAW``, ``NAV_SPEED``,
+  ``NAV_PITCH``, ``NAV_ROLL``, ``NAV_Z`` -> ``/<v>/ins``, the vehicle's navigation solution (pNav, uSimMarine, an
+  INS driver's NAV_*), one InsState per epoch (consecutive postings at one time, no variable twice). Position:
+  NAV_LAT/LONG, else NAV_X/Y (east/north of the manifest's ``origin = [lat, lon]``); depth: NAV_DEPTH, else
+  -NAV_Z; heading: NAV_HEADING (degrees), else NAV_YAW (radians, MOOS's convention "yaw = -heading·π/180",
+  zero north, positive anticlockwise: heading = -degrees(yaw) mod 360); velocity north/east from NAV_SPEED
+  along the heading (MOOS has no sideslip).
+- ``INS_NAV``, ``INS_EULER``, ``INS_EEULER``: an INS driver's own key=value postings (iInsSBG for an SBG
+  Ellipse: ``INS_NAV = "TIME=…,LAT=…,LON=…,ALT=…"`` in degrees and metres; ``INS_EULER = "ROLL=…,PITCH=…,YAW=…"``
+  and ``INS_EEULER = "EROLL=…,EPITCH=…,EYAW=…"``, the EKF's NED Euler angles and their sigmas in radians) ->
+  ``/<v>/ins/sbg``, one InsState per epoch, grouped as NAV_* is. A separate topic from ``/<v>/ins``: the
+  device's solution is a second position source beside the vehicle's NAV_* (which may itself come from it).
+- ``NODE_REPORT``, ``NODE_REPORT_LOCAL`` (pNodeReporter: ``NAME=alpha,X=…,Y=…,LAT=…,LON=…,SPD=…,HDG=…,DEP=…,
+  TIME=…``) -> ``/<NAME>/node_report``, an InsState per report: LAT/LON, else X/Y about the manifest's
+  ``origin``; HDG degrees; velocity from SPD along HDG; at the report's own TIME (Unix seconds) when it has
+  one. NODE_REPORT_LOCAL is the log's own vehicle's report: it goes to ``/<v>/node_report`` whatever its
+  NAME (a MOOS community name need not be the manifest's); NODE_REPORT names another vehicle.
 - ``GPS_LAT``, ``GPS_LON``/``GPS_LONG``, ``GPS_X``, ``GPS_Y``, ``GPS_SPEED``, ``GPS_HEADING``, ``GPS_QUALITY``,
   ``GPS_SAT``, ``GPS_HDOP`` -> ``/<v>/gps``, ``/<v>/gps/status`` and (with GPS_SPEED; GPS_HEADING is the
   course) ``/<v>/gps/velocity``, grouped the same way.
@@ -24,7 +37,9 @@ with their count).
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterator
+from dataclasses import replace
 
 from formats import alog
 from formats import schemas as S
@@ -47,27 +62,47 @@ from .ins import ins_state
 from .manifest import SENSORS
 
 NAN = math.nan
-NAV_VARS = {"NAV_LAT", "NAV_LONG", "NAV_X", "NAV_Y", "NAV_DEPTH", "NAV_HEADING", "NAV_SPEED", "NAV_PITCH",
-            "NAV_ROLL", "NAV_Z"}
+NAV_VARS = {"NAV_LAT", "NAV_LONG", "NAV_X", "NAV_Y", "NAV_DEPTH", "NAV_HEADING", "NAV_YAW", "NAV_SPEED",
+            "NAV_PITCH", "NAV_ROLL", "NAV_Z"}
 GPS_VARS = {"GPS_LAT", "GPS_LON", "GPS_LONG", "GPS_X", "GPS_Y", "GPS_SPEED", "GPS_HEADING", "GPS_QUALITY",
             "GPS_SAT", "GPS_HDOP"}
+# an INS driver's key=value postings: variable -> {key: our field}; angles of INS_EULER/INS_EEULER in radians
+INS_VARS = {
+    "INS_NAV": {"LAT": "lat", "LATITUDE": "lat", "LON": "lon", "LONG": "lon", "LONGITUDE": "lon",
+                "ALT": "alt", "ALTITUDE": "alt", "DEPTH": "depth", "VN": "vn", "VE": "ve", "VD": "vd"},
+    "INS_EULER": {"ROLL": "roll", "PITCH": "pitch", "YAW": "yaw"},
+    "INS_EEULER": {"EROLL": "roll_std", "EPITCH": "pitch_std", "EYAW": "yaw_std"},
+}
+INS_SUFFIX = "ins/sbg"
+EMPTY = {"NAV": "position, depth, heading or speed", "GPS": "position, depth, heading or speed",
+         "INS": "position or attitude"}
+NODE_REPORTS = ("NODE_REPORT", "NODE_REPORT_LOCAL")
+# a vehicle name that is one topic level: what a NODE_REPORT's NAME must be to name a topic; not one of the
+# archive's own namespaces (a run's /replay/..., /diagnostics/...)
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
+RESERVED = ("replay", "diagnostics")
 
 
 class _Epoch:
-    """Consecutive numeric postings of one group (NAV_* or GPS_*) at one time."""
+    """Consecutive postings of one group (NAV_*, GPS_* or INS_*) at one time, each variable once.
+
+    `values` holds a numeric posting under its variable, a key=value posting's fields under our field names.
+    """
 
     def __init__(self) -> None:
+        self.names: list[str] = []
         self.values: dict[str, float] = {}
         self.wheres: list[Where] = []
         self.time_ns = 0
 
     def accepts(self, name: str, t_ns: int) -> bool:
-        return not self.values or (name not in self.values and t_ns == self.time_ns)
+        return not self.names or (name not in self.names and t_ns == self.time_ns)
 
-    def add(self, name: str, value: float, t_ns: int, where: Where) -> None:
-        if not self.values:
+    def add(self, name: str, values: dict[str, float], t_ns: int, where: Where) -> None:
+        if not self.names:
             self.time_ns = t_ns
-        self.values[name] = value
+        self.names.append(name)
+        self.values.update(values)
         self.wheres.append(where)
 
 
@@ -78,15 +113,68 @@ def _nav_output(ep: _Epoch, ctx: LogContext, origin: tuple[float, float] | None)
         lat, lon = local_to_geodetic(v("NAV_Y", NAN), v("NAV_X", NAN), origin)
     depth = v("NAV_DEPTH", -v("NAV_Z", NAN))
     heading, speed = v("NAV_HEADING", NAN), v("NAV_SPEED", NAN)
+    if not math.isfinite(heading):
+        heading = moos_yaw_heading(v("NAV_YAW", NAN))
     vn = speed * math.cos(math.radians(heading))
     ve = speed * math.sin(math.radians(heading))
     if not any(map(math.isfinite, (lat, depth, heading, vn))):
         return None
-    state = ins_state(ep.time_ns, ctx, "alog:" + ",".join(ep.values), latitude=lat, longitude=lon, depth_m=depth,
+    state = ins_state(ep.time_ns, ctx, "alog:" + ",".join(ep.names), latitude=lat, longitude=lon, depth_m=depth,
                       heading_deg=heading % 360.0 if math.isfinite(heading) else NAN,
                       pitch_deg=v("NAV_PITCH", NAN), roll_deg=v("NAV_ROLL", NAN),
                       velocity_north_mps=vn, velocity_east_mps=ve)
     return output(ctx, "ins", state, ep.time_ns, ep.wheres[0])
+
+
+def moos_yaw_heading(yaw_rad: float) -> float:
+    """Heading (degrees true, clockwise from north, in [0, 360)) of a MOOS yaw: radians, zero north, positive
+    anticlockwise ("yaw = -heading·π/180", MOOS Conventions); NaN for NaN."""
+    return (-math.degrees(yaw_rad)) % 360.0 if math.isfinite(yaw_rad) else NAN
+
+
+def _ins_output(ep: _Epoch, ctx: LogContext) -> Output | None:
+    """The INS driver's own solution (INS_NAV + INS_EULER + INS_EEULER) as an InsState on /<v>/ins/sbg."""
+    v = ep.values.get
+    lat, lon = v("lat", NAN), v("lon", NAN)
+    roll, pitch, yaw = (math.degrees(v(k, NAN)) for k in ("roll", "pitch", "yaw"))
+    if not any(map(math.isfinite, (lat, lon, roll, pitch, yaw))):
+        return None
+    state = ins_state(ep.time_ns, ctx, "alog:" + ",".join(ep.names), latitude=lat,
+                      longitude=_wrap_lon(lon),
+                      altitude_m=v("alt", NAN), depth_m=v("depth", NAN),
+                      roll_deg=roll, pitch_deg=pitch, heading_deg=yaw % 360.0 if math.isfinite(yaw) else NAN,
+                      roll_std_deg=math.degrees(v("roll_std", NAN)), pitch_std_deg=math.degrees(v("pitch_std", NAN)),
+                      heading_std_deg=math.degrees(v("yaw_std", NAN)), velocity_north_mps=v("vn", NAN),
+                      velocity_east_mps=v("ve", NAN), velocity_down_mps=v("vd", NAN))
+    return output(ctx, INS_SUFFIX, state, ep.time_ns, ep.wheres[0])
+
+
+def _ins_fields(p: alog.Posting, keys: dict[str, str]) -> dict[str, float] | Reject:
+    """Our fields of an INS_* key=value posting (a value that is no number is NaN), or why it is none."""
+    fields = _pairs(p.text)
+    if not fields:
+        return Reject(p.where, f"{p.variable}: not key=value text ({p.text[:60]!r})")
+    out = {}
+    for key, value in fields.items():
+        name = keys.get(key.upper())
+        if name is not None:
+            out[name] = _number(value)
+    if not out:
+        return Reject(p.where, f"{p.variable}: none of {', '.join(sorted(keys))} in {p.text[:60]!r}")
+    return out
+
+
+def _wrap_lon(lon: float) -> float:
+    """Longitude in [-180, 180), as it came when it already is (the wrap's arithmetic moves the last digit)."""
+    return lon if -180.0 <= lon < 180.0 else (lon + 180.0) % 360.0 - 180.0
+
+
+def _number(text: str) -> float:
+    try:
+        f = float(text)
+    except ValueError:
+        return NAN
+    return f if math.isfinite(f) else NAN
 
 
 def _gps_outputs(ep: _Epoch, ctx: LogContext, origin: tuple[float, float] | None) -> Iterator[Output]:
@@ -118,6 +206,40 @@ def _pairs(text: str) -> dict[str, str]:
     return out
 
 
+def _report_time_ns(p: alog.Posting, fields: dict[str, str], ctx: LogContext) -> int:
+    """A report's own Unix time (its time= or utc_time= field) when it has a usable one, else the posting's;
+    with the log's clock offset."""
+    own = _number(fields.get("time", fields.get("utc_time", "nan")))  # utc_time: older pNodeReporter
+    if math.isfinite(own) and abs(own) < 1e11:    # anything else is not a Unix time
+        return round(own * 1e9) + ctx.clock_offset_ns
+    return p.time_ns + ctx.clock_offset_ns
+
+
+def _node_report(p: alog.Posting, ctx: LogContext, origin: tuple[float, float] | None) -> Output | Reject:
+    """A pNodeReporter report as an InsState on /<vehicle>/node_report (see the module docstring)."""
+    fields = _pairs(p.text)
+    name = ctx.vehicle if p.variable == "NODE_REPORT_LOCAL" else fields.get("name", "")
+    if not _NAME.match(name) or name in RESERVED:
+        return Reject(p.where, f"{p.variable}: NAME={name[:40]!r} is not a vehicle name ({p.text[:60]!r})")
+    f = {k: _number(v) for k, v in fields.items() if k in ("lat", "lon", "x", "y", "spd", "hdg", "dep", "depth")}
+    g = f.get
+    lat, lon = g("lat", NAN), g("lon", NAN)
+    if not (math.isfinite(lat) and math.isfinite(lon)):
+        lat, lon = local_to_geodetic(g("y", NAN), g("x", NAN), origin)
+    if not (math.isfinite(lat) and math.isfinite(lon)):
+        why = "X=/Y= without a manifest origin" if "x" in f else "no LAT=/LON= or X=/Y="
+        return Reject(p.where, f"{p.variable}: no position: {why} ({p.text[:60]!r})")
+    heading, speed = g("hdg", NAN), g("spd", NAN)
+    heading = heading % 360.0 if math.isfinite(heading) else NAN
+    t = _report_time_ns(p, fields, ctx)
+    vctx = ctx if name == ctx.vehicle else replace(ctx, vehicle=name)
+    state = ins_state(t, vctx, "alog:" + p.variable, latitude=lat, longitude=_wrap_lon(lon),
+                      depth_m=g("dep", g("depth", NAN)), heading_deg=heading,
+                      velocity_north_mps=speed * math.cos(math.radians(heading)),
+                      velocity_east_mps=speed * math.sin(math.radians(heading)))
+    return Output(f"/{name}/node_report", state, t, p.time_ns + ctx.clock_offset_ns, p.where)
+
+
 def _range_report(p: alog.Posting, ctx: LogContext) -> Output | Reject:
     fields = _pairs(p.text)
     try:
@@ -127,14 +249,7 @@ def _range_report(p: alog.Posting, ctx: LogContext) -> Output | Reject:
     heard = fields.get("target") or fields.get("contact") or ""
     if not math.isfinite(range_m) or range_m < 0 or not heard:
         return Reject(p.where, f"{p.variable}: a range report needs range= and target= ({p.text[:60]!r})")
-    t = p.time_ns + ctx.clock_offset_ns
-    if "time" in fields:
-        try:
-            own = float(fields["time"])
-        except ValueError:
-            own = NAN
-        if math.isfinite(own) and abs(own) < 1e11:    # the report's own Unix time; anything else is not one
-            t = round(own * 1e9) + ctx.clock_offset_ns
+    t = _report_time_ns(p, fields, ctx)
     measured_by = fields.get("vname") or ctx.vehicle
     book = {name: address for address, name in ctx.address_book.items()}
     msg = S.AcousticRange(
@@ -146,7 +261,8 @@ def _range_report(p: alog.Posting, ctx: LogContext) -> Output | Reject:
 
 
 def convert_alog(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
-    """MOOS-IvP .alog: NAV_* -> INS state, GPS_* -> fixes, range reports, raw sentences via our decoders."""
+    """MOOS-IvP .alog: NAV_* and INS_* -> INS states, GPS_* -> fixes, node and range reports, raw sentences via
+    our decoders."""
     return checked_times(_convert_alog(data, ctx), ctx)
 
 
@@ -154,19 +270,20 @@ def _convert_alog(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | 
     mapping = ctx.options.get("variables")
     mapping = mapping if isinstance(mapping, dict) else {}
     origin = origin_option(ctx)
-    epochs = {"NAV": _Epoch(), "GPS": _Epoch()}
+    epochs = {"NAV": _Epoch(), "GPS": _Epoch(), "INS": _Epoch()}
     streams: dict[str, TextStream] = {}
 
     def close(group: str) -> Iterator[Output | Ignored]:
         ep = epochs[group]
-        if not ep.values:
+        if not ep.names:
             return
-        outs = [_nav_output(ep, ctx, origin)] if group == "NAV" else list(_gps_outputs(ep, ctx, origin))
+        outs = ([_nav_output(ep, ctx, origin)] if group == "NAV" else [_ins_output(ep, ctx)] if group == "INS"
+                else list(_gps_outputs(ep, ctx, origin)))
         outs = [o for o in outs if o is not None]
         yield from outs
         for where in ep.wheres[1:] if outs else ep.wheres:
             yield Ignored(where, f"{group}_* posting merged into its epoch's message" if outs else
-                          f"{group}_* epoch without position, depth, heading or speed")
+                          f"{group}_* epoch without {EMPTY[group]}")
         epochs[group] = _Epoch()
 
     for p in alog.decode(data):
@@ -185,7 +302,19 @@ def _convert_alog(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | 
                 continue
             if not epochs[group].accepts(name, t):
                 yield from close(group)
-            epochs[group].add(name, p.number, t, p.where)
+            epochs[group].add(name, {name: p.number}, t, p.where)
+            continue
+        if name in INS_VARS:
+            fields = _ins_fields(p, INS_VARS[name])
+            if isinstance(fields, Reject):
+                yield fields
+                continue
+            if not epochs["INS"].accepts(name, t):
+                yield from close("INS")
+            epochs["INS"].add(name, fields, t, p.where)
+            continue
+        if name in NODE_REPORTS:
+            yield _node_report(replace(p, variable=name), ctx, origin)
             continue
         if "RANGE_REPORT" in name:
             yield _range_report(p, ctx)

@@ -8,6 +8,10 @@ MAVLink (tlog) messages:
   two interleaved.
 - ``GLOBAL_POSITION_INT`` with the latest ``ATTITUDE`` -> ``/<v>/ins`` (depth = -relative altitude, velocity
   NED); a log without GLOBAL_POSITION_INT gives attitude-only states from ATTITUDE.
+- ``LOCAL_POSITION_NED`` (the EKF's x/y/z north/east/down of its origin) -> ``/<v>/ins/local``, an InsState with
+  latitude/longitude about the origin (flat earth), depth = z, velocity NED. The origin: the latest
+  ``GPS_GLOBAL_ORIGIN`` before it, else the log's first (the EKF sets it once per boot; a GCS may ask for it
+  late), else the manifest's ``origin = [lat, lon]``; without any it is ignored, saying so.
 - ``VISION_SPEED_ESTIMATE`` -> ``/<v>/dvl`` EARTH_NED; ``VISION_POSITION_DELTA`` (the DVL's path into ArduSub)
   -> ``/<v>/dvl`` BODY_FRD, position delta / time delta, valid when its confidence is above 0;
   ``DISTANCE_SENSOR`` facing down (orientation 25) -> ``/<v>/dvl`` altitude only (velocity NaN, not valid).
@@ -128,6 +132,27 @@ def _ins(ctx: LogContext, m: mv.MavMessage | None, att: mv.MavMessage | None, t:
     return output(ctx, "ins", state, t, where)
 
 
+def _global_origin(m: mv.MavMessage) -> tuple[float, float] | None:
+    """(lat, lon) degrees of a GPS_GLOBAL_ORIGIN, or None when it is not a position."""
+    lat, lon = _f(m.fields, "latitude", 1e-7), _f(m.fields, "longitude", 1e-7)
+    ok = math.isfinite(lat) and math.isfinite(lon) and abs(lat) <= 90 and abs(lon) <= 180 and (lat, lon) != (0, 0)
+    return (lat, lon) if ok else None
+
+
+def _local(ctx: LogContext, m: mv.MavMessage, origin: tuple[float, float] | None, t: int,
+           where: Where) -> Output | Ignored:
+    """A LOCAL_POSITION_NED as an InsState on /<v>/ins/local, placed on the EKF origin."""
+    f = m.fields
+    if origin is None:
+        return Ignored(where, "LOCAL_POSITION_NED without an origin (no GPS_GLOBAL_ORIGIN in the log, no manifest "
+                              "origin)")
+    north, east, down = _f(f, "x"), _f(f, "y"), _f(f, "z")
+    lat, lon = local_to_geodetic(north, east, origin)
+    state = ins_state(t, ctx, "mavlink:LOCAL_POSITION_NED", latitude=lat, longitude=lon, depth_m=down,
+                      velocity_north_mps=_f(f, "vx"), velocity_east_mps=_f(f, "vy"), velocity_down_mps=_f(f, "vz"))
+    return output(ctx, LOCAL, state, t, where)
+
+
 def _velocity(ctx: LogContext, m: mv.MavMessage, t: int, where: Where) -> Output | Reject | Ignored:
     f, source = m.fields, "mavlink:" + m.type
     if m.type in ("VISION_SPEED_ESTIMATE", "VISV"):
@@ -226,6 +251,7 @@ def _xkf_ins(ctx: LogContext, m: mv.MavMessage, origin: tuple[float, float] | No
     return output(ctx, "ins", state, t, where)
 
 
+LOCAL = "ins/local"
 VELOCITY_TYPES = ("VISION_SPEED_ESTIMATE", "VISION_POSITION_DELTA", "DISTANCE_SENSOR", "VISV", "VISO", "RFND")
 XKF_TYPES = ("XKF1", "NKF1")  # EKF3, EKF2: one record per core (C) at the EKF's rate
 
@@ -255,10 +281,12 @@ def _convert_mavlink(data: bytes, ctx: LogContext) -> Iterator[Output | Reject |
     xkf = "" if "POS" in types else next((x for x in XKF_TYPES if x in types), "")
     ekf_types = {"GLOBAL_POSITION_INT", "POS", xkf} - {""}
     has_ekf = bool(types & ekf_types)
-    origin = _ekf_origin(messages, ctx) if xkf else None
+    ekf_origin = _ekf_origin(messages, ctx) if xkf else None
     baro = _baro_instance(messages, ctx)
     attitude: mv.MavMessage | None = None
     depth = NAN  # the latest BARO depth, for attitude-only states
+    origins = [o for o in (_global_origin(m) for m, _ in messages if m.type == "GPS_GLOBAL_ORIGIN") if o]
+    origin = origins[0] if origins else origin_option(ctx)     # of LOCAL_POSITION_NED (a tlog's EKF)
     for m, where in messages:
         t = m.time_ns + ctx.clock_offset_ns
         if m.problem:
@@ -272,7 +300,7 @@ def _convert_mavlink(data: bytes, ctx: LogContext) -> Iterator[Output | Reject |
             if core:
                 yield Ignored(where, f"{m.type} of EKF core {core} (core 0's is archived)")
             else:
-                yield _xkf_ins(ctx, m, origin, t, where)
+                yield _xkf_ins(ctx, m, ekf_origin, t, where)
         elif m.type in ekf_types:
             yield _ins(ctx, m, attitude, t, where)
             if ekf_as_fix and m.type == "GLOBAL_POSITION_INT":
@@ -295,6 +323,13 @@ def _convert_mavlink(data: bytes, ctx: LogContext) -> Iterator[Output | Reject |
                 yield Ignored(where, "BARO depth merged into the next INS state")
         elif m.type in VELOCITY_TYPES:
             yield _velocity(ctx, m, t, where)
+        elif m.type == "LOCAL_POSITION_NED":
+            yield _local(ctx, m, origin, t, where)
+        elif m.type == "GPS_GLOBAL_ORIGIN":
+            here = _global_origin(m)
+            origin = here or origin
+            yield Ignored(where, "GPS_GLOBAL_ORIGIN: the origin of LOCAL_POSITION_NED" if here else
+                          "GPS_GLOBAL_ORIGIN at 0, 0 or out of range: not an origin")
         else:
             yield Ignored(where, f"MAVLink {m.type} is not mapped")
 

@@ -1,8 +1,10 @@
 """Export an archive: one topic to CSV or Parquet (one column per scalar field, the UTC time index and
 `mission_s`, seconds from the trial start), or position tracks to GeoJSON or KML.
 
-For geojson and kml every position track is written (a trial's GPS fixes, a
-run's estimates and fixes per vehicle and method) unless --topic names some:
+For geojson and kml every position track is written (a trial's GPS fixes, INS
+and autopilot solutions, local positions on an origin and other vehicles' node
+reports; a run's estimates and fixes per vehicle and method: see
+`replay.run.track_export`) unless --topic names some:
 one LineString (GeoJSON) or time-stamped gx:Track Placemark (KML) per track,
 with UTC times and mission seconds.
 """
