@@ -2,7 +2,7 @@
 
 Features at a range epoch are ``[f1, f2, f3]`` = innovation magnitude (m),
 squared Mahalanobis distance on the unadapted P_zz, adapted measurement
-variance R* (m²) (STACK.md section 2).
+variance R* (m²) (docs/design.md section 8).
 """
 
 from __future__ import annotations
