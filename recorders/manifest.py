@@ -1,6 +1,6 @@
 """The trial manifest (TOML): trial name and date, vehicles, roles and their logs.
 
-See DESIGN.md "The trial manifest". Every problem is reported as one
+See docs/design.md section 4. Every problem is reported as one
 `ManifestError` naming the manifest, the vehicle and log concerned.
 
 A log's table (`[[vehicles.logs]]`) takes `sensor`, `format`, `path` (a path,

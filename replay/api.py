@@ -28,7 +28,9 @@ def open_archive(path: str | Path) -> ArchiveReader:
 
 def run(archive: str | Path, overrides: Mapping[str, Any] | Sequence[str] = (), config: str | Path | None = None,
         output: str | Path | None = None) -> RunOutcome:
-    """Replay with STACK.md defaults, a TOML file and overrides ({"r_m": 2.5} or ["r_m=2.5"]); review data kept.
+    """Replay with the defaults, a TOML file and overrides ({"r_m": 2.5} or ["r_m=2.5"]); review data kept.
+
+    The defaults are those of docs/design.md sections 7-14.
 
     No results file is written unless `output` is given; a program asked for it, so it replaces one there.
     """
@@ -38,5 +40,5 @@ def run(archive: str | Path, overrides: Mapping[str, Any] | Sequence[str] = (), 
 
 
 def metrics_frame(outcome: RunOutcome) -> pd.DataFrame:
-    """The run's metrics, one row per method (DESIGN.md result keys as columns)."""
+    """The run's metrics, one row per method (the result keys of docs/design.md section 6 as columns)."""
     return pd.DataFrame(metrics_table(outcome.metrics)).set_index("method")

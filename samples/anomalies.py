@@ -2,7 +2,7 @@
 
 Kinds (seed A section 1 and 4.1, seed P background): `stale` — the modem
 keeps reporting its last range; `drift` — a slowly growing error; `outlier` —
-one wild range; `dropout` — no reply. Labels follow STACK.md section 3
+one wild range; `dropout` — no reply. Labels follow docs/design.md section 9
 (seed A eqs. 26-27): an epoch is anomalous when |Z_gps - Z| > T1, Z_gps from
 the vehicles' GPS fixes, Z the measured range made horizontal.
 """
@@ -105,13 +105,13 @@ def apply_events(t: np.ndarray, noisy_m: np.ndarray,
 
 
 def horizontal_range(slant_m: np.ndarray, depth_a_m: np.ndarray, depth_b_m: np.ndarray) -> np.ndarray:
-    """Slant to horizontal range, clamped at 0 (STACK.md section 1)."""
+    """Slant to horizontal range, clamped at 0 (docs/design.md section 7)."""
     return np.sqrt(np.maximum(slant_m**2 - (depth_a_m - depth_b_m) ** 2, 0.0))
 
 
 def gps_range(lat_a: np.ndarray, lon_a: np.ndarray, lat_b: np.ndarray, lon_b: np.ndarray,
               depth_a: np.ndarray, depth_b: np.ndarray) -> np.ndarray:
-    """Horizontal range between two fixes with common mid-point radii (STACK.md section 1, A.4)."""
+    """Horizontal range between two fixes with common mid-point radii (docs/design.md section 7, A.4)."""
     la, lb = np.radians(lat_a), np.radians(lat_b)
     mid = 0.5 * (la + lb)
     h = 0.5 * (depth_a + depth_b)

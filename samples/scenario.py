@@ -1,6 +1,6 @@
 """The sample lake trial's scenario: every number the simulator uses, with TOML in and out.
 
-Defaults follow the source lake trial (STACK.md section 8; seed A section 4,
+Defaults follow the source lake trial (docs/design.md section 15; seed A section 4,
 table 1): three boats, 1700 s, GPS 1.8 m RMS, DVL 0.2 kn, ranging sigma 3 m,
 two leaders pinged alternately, leader 1 stale 100-150 s and drifting
 1100-1170 s. Choices the sources leave open are made here once, before any

@@ -1,8 +1,8 @@
 """The lake trial in memory: `simulate_trial(scenario, seed)` returns every truth and measurement array.
 
 Vehicles: leader1 and leader2 (high-grade INS + GPS), one or more followers
-(low-grade INS, DVL, GPS as reference), and a ring of USBL buoys (STACK.md
-sections 1, 7 and 8). Times are seconds from the trial start; `start_ns` is
+(low-grade INS, DVL, GPS as reference), and a ring of USBL buoys (docs/design.md
+sections 7, 13 and 15). Times are seconds from the trial start; `start_ns` is
 the UTC start in ns. Deterministic per (scenario, seed).
 """
 

@@ -20,7 +20,7 @@ FLATTENING = 1.0 / 298.257
 
 
 def radii(lat_rad: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
-    """Meridian and prime-vertical radii R_M, R_N (seed A eq. 3, STACK.md section 1)."""
+    """Meridian and prime-vertical radii R_M, R_N (A.2, docs/design.md section 7)."""
     s2 = np.sin(lat_rad) ** 2
     return RE_M * (1 - 2 * FLATTENING + 3 * FLATTENING * s2), RE_M * (1 + FLATTENING * s2)
 

@@ -8,7 +8,7 @@ float formatting, vehicles in manifest order, no wall-clock time anywhere.
 Directory layout::
 
     README.md             what is here
-    trial.toml            the manifest (DESIGN.md "Trial manifest")
+    trial.toml            the manifest (docs/design.md section 4)
     scenario.toml         the scenario used, `auvreplay simulate --scenario` reads it back
     truth.csv             every vehicle's true track at `truth_csv_rate_hz`
     ranges.csv            every ranging epoch: true and measured range, GPS range, label
@@ -151,7 +151,7 @@ def readme(trial: SimulatedTrial) -> str:
         "",
         "Written by `auvreplay simulate` (package `samples`); `auvreplay record trial.toml -o trial.mcap`",
         "archives it. Nothing here was measured: the scenario (`scenario.toml`) follows the source lake",
-        "trial described in STACK.md section 8.",
+        "trial described in docs/design.md section 15.",
         "",
         f"- {t.date} from {t.start_time_utc} UTC, {t.duration_s:g} s, around {t.origin_lat_deg:g} N "
         f"{t.origin_lon_deg:g} E",

@@ -172,7 +172,7 @@ def test_hybrid_anfis_fpr_threshold_gives_the_target_on_training() -> None:
     x[:, col("f2")] = (np.abs(err) + rng.normal(0, 3, n)) ** 2 / 9.0
     x[:, col("repeat_count")] = rng.poisson(0.2, n)
     x[:, col("lag_residual_m")] = err + rng.normal(0, 4, n)
-    x[:, col("drift_residual_m")] = x[:, col("lag_residual_m")]     # the default input (since session 13)
+    x[:, col("drift_residual_m")] = x[:, col("lag_residual_m")]     # the default input (since 531fadf)
     x[:, col("drift_cusum_m")] = np.abs(x[:, col("lag_residual_m")])
     for target in (0.02, 0.05):
         det = HybridAnfisDetector(replace(CONFIG, detection_fpr_target=target))

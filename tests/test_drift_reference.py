@@ -25,7 +25,7 @@ from replay.stack.training import TrainingSet
 SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"
 COL = FEATURE_NAMES.index("drift_residual_m")
 ZCOL = FEATURE_NAMES.index("drift_z")
-METRES = StackConfig(drift_reference_input="drift_residual_m")     # the session-12 form: |residual| in metres
+METRES = StackConfig(drift_reference_input="drift_residual_m")     # the first form (586eecb): |residual| in metres
 LAT, LON = math.radians(45.7), math.radians(126.6)
 
 

@@ -99,7 +99,7 @@ def test_recorded_ranges_are_truth_plus_noise_outside_injected_anomalies(archive
 
 
 def test_recorded_statistics_match_the_source_trial(archive):
-    """About 340 ranges per leader; ~462 epochs in 600-1700 s, ~57 of them anomalous (STACK.md section 8)."""
+    """About 340 ranges per leader; ~462 epochs in 600-1700 s, ~57 of them anomalous (docs/design.md section 15)."""
     from samples.anomalies import gps_range, horizontal_range, label
 
     _, _, reader = archive

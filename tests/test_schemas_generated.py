@@ -28,7 +28,7 @@ def test_generated_modules_are_current(tmp_path):
 
 
 def test_design_table_fields_exist():
-    """Field names of DESIGN.md's archive schema table are a public contract."""
+    """Field names of the archive schema table of docs/design.md section 3 are a public contract."""
     wanted = {
         "GnssStatus": "timestamp fix_quality satellites hdop source_format",
         "InsState": "timestamp latitude longitude depth_m roll_deg pitch_deg heading_deg velocity_north_mps "

@@ -133,7 +133,7 @@ def test_labels_follow_the_9_m_rule():
     assert an.label(z_gps, np.array([109.0, 109.01, 91.0])).tolist() == [0, 1, 0]
 
 
-# ---- the default trial: the source statistics (STACK.md section 8)
+# ---- the default trial: the source statistics (docs/design.md section 15)
 
 def test_range_statistics_match_the_source_within_5_percent(trial):
     r = trial.ranges

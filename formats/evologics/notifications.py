@@ -33,7 +33,7 @@ cross with 1 at +x, 3 at -x, 2 at +y, 4 at -y (x east, y north when the head is 
 in the centre, ``d_ij`` = arrival time at i minus at j. The across-array delays are then
 ``tau_x = t3 - t1`` and ``tau_y = t4 - t2``, and the phase differences
 ``phase = 2 pi f tau`` (f the carrier), which is the seed's ``psi = kappa d0 (x - x_i)/r``
-(KMCDF, seeds/003, K.1) for a baseline d0 between opposite elements.
+(KMCDF, K.2, docs/design.md section 13) for a baseline d0 between opposite elements.
 """
 
 from __future__ import annotations

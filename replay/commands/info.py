@@ -18,7 +18,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def describe(path: str) -> dict[str, Any]:
-    """The `info --json` object for an archive (DESIGN.md "Command line").
+    """The `info --json` object for an archive (docs/design.md section 6).
 
     Metadata comes from other people's machines: a value of the wrong shape
     is left out and counted in the warning, never trusted.

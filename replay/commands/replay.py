@@ -17,7 +17,7 @@ from replay.run.pipeline import replay_archive
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `auvreplay replay`."""
     parser.add_argument("archive", help="a trial archive (.mcap) from `auvreplay record`")
-    parser.add_argument("-c", "--config", help="configuration TOML (defaults: STACK.md)")
+    parser.add_argument("-c", "--config", help="configuration TOML (defaults: docs/design.md sections 7-14)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one parameter, e.g. --set r_m=2.5 --set anfis.epochs=50")
     parser.add_argument("--window", nargs=2, type=float, metavar=("T0", "T1"),

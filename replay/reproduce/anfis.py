@@ -3,7 +3,7 @@
 The trial goes the way a user's would: logs -> `record` -> archive ->
 `replay`. Both ANFIS model modes are run (per leader, as paper A does, and
 one shared model), since a per-leader model that saw no anomaly in its
-training window cannot flag one later (STACK.md section 4).
+training window cannot flag one later (docs/design.md section 10).
 """
 
 from __future__ import annotations
@@ -109,7 +109,7 @@ def reproduce(trial: str | Path | None = None, overrides: Sequence[str] = ()) ->
 
 
 def json_object(modes: dict[str, dict[str, Any]]) -> dict[str, Any]:
-    """DESIGN.md's result object of the paper's mode (per leader), with both modes under `modes`."""
+    """The result object (docs/design.md section 6) of the paper's mode (per leader), with both modes under `modes`."""
     out = dict(modes["per_leader"])
     out["modes"] = modes
     out["paper"] = {"epochs": PAPER_EPOCHS, "anomalous": PAPER_ANOMALOUS, "methods": PAPER_A}

@@ -3,7 +3,7 @@
 Success probability for N = 6 and N = 4 nodes, every abnormal-node count
 0..N, KMCDF1 (abnormal delays), KMCDF2 (abnormal delays and phases), GAR,
 EAR, LMS and LHC; a table beside the paper's published numbers, JSON as
-DESIGN.md "Machine-readable results" says, a PNG and an .rrd. Points run in
+docs/design.md section 6 says, a PNG and an .rrd. Points run in
 worker processes, each from its own seeded stream, so the numbers do not
 depend on the number of workers, nor on whether the workers are a process
 pool or a Dask cluster (`client`, see `replay.run.batch.dask_client`).
@@ -69,7 +69,7 @@ class KmcdfReproduction:
     layouts: Curves
 
     def to_json(self) -> dict[str, object]:
-        """The object DESIGN.md specifies: phase_noise_rad, trials, layouts (plus the seed)."""
+        """The object docs/design.md section 6 specifies: phase_noise_rad, trials, layouts (plus the seed)."""
         return {"phase_noise_rad": self.phase_noise_rad, "trials": self.trials,
                 "seed": self.seed, "layouts": self.layouts}
 

@@ -1,4 +1,4 @@
-"""Replay configuration: a TOML file over STACK.md's defaults, `--set key=value` overrides, run ids.
+"""Replay configuration: a TOML file over the defaults (docs/design.md sections 7-14), `--set` overrides, run ids.
 
 A run is a pure function of (archive, configuration): the run id is a hash of
 the input's sha256, the canonical configuration and the package version, so

@@ -1,4 +1,4 @@
-"""The metrics of a replay run: DESIGN.md "Machine-readable results", pooled over followers."""
+"""The metrics of a replay run: docs/design.md section 6, pooled over followers."""
 
 from __future__ import annotations
 

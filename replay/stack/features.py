@@ -41,7 +41,7 @@ filter, and are the same for every method of a run:
   scale error, fed the USBL fixes too; its current innovation for the
   first ``lag_s`` and while a USBL fix younger than ``lag_s`` exists,
   since fixes keep the filter off a drift); with "stiff" the innovation of the `StiffReference` (a
-  2-D random walk of the DR error, the session-13 form, which takes the
+  2-D random walk of the DR error, the default before 95521e9, which takes the
   USBL fixes too); otherwise ``usbl_residual_m`` where finite, else
   ``exclusion_residual_m`` or ``lag_residual_m`` (``drift_source``), else
   ``dr_residual_m``. What the drift CUSUM sums and ``drift_reference`` tests;
@@ -57,7 +57,7 @@ filter, and are the same for every method of a run:
   a young drift; long, because over seeds 0-19 a longer pool separated
   drift from normal better (stiff reference: drift recall at 0.3 m/s at
   2 % FPR 0.47, 0.61, 0.75 for 300, 600, 900 s). With ``scale_pooled`` False: per leader over ``scale_window_s``
-  (300 s), repeated ranges included (the session-12 form);
+  (300 s), repeated ranges included (the form before 4b6fc32);
 - ``exclusion_z``: ``exclusion_residual_m`` standardized the same way (its
   offset is the follower's DR error across the other links' lines of
   sight, which changes slowly along the mission);
@@ -108,7 +108,7 @@ NAN = float("nan")
 
 def range_to(lat: float, lon: float, depth_m: float, leader_lat: float, leader_lon: float,
              leader_depth_m: float) -> float:
-    """Horizontal range (m) with common radii at the mid latitude and mean depth (STACK.md section 1)."""
+    """Horizontal range (m) with common radii at the mid latitude and mean depth (docs/design.md section 7)."""
     b, a = metric_scales_scalar(0.5 * (lat + leader_lat), 0.5 * (depth_m + leader_depth_m))
     return math.hypot(b * (lat - leader_lat), a * (lon - leader_lon))
 

@@ -1,4 +1,4 @@
-"""Ground-truth labels of range epochs (seed A, eqs. A.26-A.27; STACK.md section 3).
+"""Ground-truth labels of range epochs (seed A, eqs. A.26-A.27; docs/design.md section 9).
 
 The true range Z_gps comes from the vehicles' GPS fixes interpolated to the
 ranging instant; the label is γ = 1 when |Z_gps - Z| > T1, 0 otherwise, and

@@ -1,7 +1,7 @@
 """Cooperative-localization model (seed A, eqs. A.1-A.5): earth radii, dead reckoning, ranges.
 
 State order everywhere in the stack: ``X = [L, λ]`` = [latitude, longitude] in
-radians (STACK.md section 1). Covariances are given by users in metres
+radians (docs/design.md section 7). Covariances are given by users in metres
 (north, east) and converted to radians with the local radii.
 
 All functions broadcast over leading axes, so the same code propagates one
@@ -75,7 +75,7 @@ def horizontal_range(
     of radii times a whole latitude or longitude leaves hundreds of metres
     (971 m at 126.6° E in a prototype). We use common radii at the mid-point
     latitude and mean depth of the two vehicles times the angle differences
-    (STACK.md section 1):  b̄ = R_M(L̄) + h̄,  ā = (R_N(L̄) + h̄) cos L̄,
+    (docs/design.md section 7):  b̄ = R_M(L̄) + h̄,  ā = (R_N(L̄) + h̄) cos L̄,
     Z = sqrt((b̄ ΔL)² + (ā Δλ)²).
     """
     lat = state[..., 0]

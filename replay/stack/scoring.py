@@ -1,4 +1,4 @@
-"""Scoring of detectors and filters (seed A, eqs. A.36-A.40; STACK.md section 5).
+"""Scoring of detectors and filters (seed A, eqs. A.36-A.40; docs/design.md section 11).
 
 * confusion counts and rates over epochs after t_a with known labels;
 * ROC curves from open-loop scores (a threshold sweep over the same
@@ -7,8 +7,8 @@
   GPS (the track interpolated to the GPS fix times), percentiles, RMS and the
   empirical CDF.
 
-``score_run`` gives per method a dict with exactly the keys of DESIGN.md
-"Machine-readable results" plus ``recall_at_fpr_1``, ``recall_at_fpr_10`` and
+``score_run`` gives per method a dict with exactly the keys of docs/design.md
+section 6 plus ``recall_at_fpr_1``, ``recall_at_fpr_10`` and
 ``capped``; undefined values (no positives, a non-detecting method) are None.
 """
 
@@ -29,7 +29,7 @@ RESULT_KEYS: tuple[str, ...] = (
     "tp", "tn", "fp", "fn", "accuracy", "precision", "recall", "fpr", "fnr", "auc",
     "recall_at_fpr_5", "error_p50_m", "error_p90_m", "error_rms_m",
 )
-"""The per-method keys of DESIGN.md's machine-readable results, in order."""
+"""The per-method keys of the machine-readable results (docs/design.md section 6), in order."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -158,7 +158,7 @@ def score_run(
     results: RunResults, gps_t: np.ndarray, gps_lat_rad: np.ndarray, gps_lon_rad: np.ndarray,
     window: tuple[float, float] | None = None,
 ) -> dict[str, dict[str, float | int | None]]:
-    """Per method the DESIGN.md result dict over a window (default: after t_a to the end).
+    """Per method the result dict (docs/design.md section 6) over a window (default: after t_a to the end).
 
     Detection figures use epochs with time in (t0, t1] and known labels;
     position errors use the follower's GPS fixes in [t0, t1].

@@ -4,7 +4,7 @@ Layers (seed 000, Xu et al. 2023, eqs. A.21-A.25): bell memberships, product
 firing strengths, normalization, linear consequents, weighted sum. Rule bases:
 ``grid`` (every combination of one MF per input, n^D rules, what MATLAB's
 ``genfis1``/``anfis`` build) or ``diagonal`` (the literal A.22 form: rule i uses
-MF i of every input, n rules). STACK.md section 4 fixes the training choices.
+MF i of every input, n rules). docs/design.md section 10 fixes the training choices.
 
 Shapes: inputs ``X`` (n, D); premise ``a, b, c`` (..., D, M) where the leading
 axes, if any, are a batch of models (AQPSO-GA evaluates a whole population this
@@ -146,7 +146,7 @@ def minmax_bounds(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def normalize(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, clip: bool = True) -> np.ndarray:
-    """Scale inputs to [0, 1] by training bounds; clipped so online values outside stay on the edge (STACK.md 4)."""
+    """Scale inputs to [0, 1] by training bounds; values outside clipped to the edge (docs/design.md section 10)."""
     z = (np.asarray(x, dtype=float) - lo) / (hi - lo)
     return np.clip(z, 0.0, 1.0) if clip else z
 
@@ -203,7 +203,7 @@ def fit_consequents(x: np.ndarray, wbar: np.ndarray, y: np.ndarray, ridge: float
     """Consequents by ridge least squares on the whole set, (..., R, D+1); batched over leading axes.
 
     MATLAB's recursive estimator starts from 1e6 I, about a 1e-6 ridge; the
-    plain normal equations are near-singular on lake-like data (STACK.md 4).
+    plain normal equations are near-singular on lake-like data (docs/design.md section 10).
     """
     phi = design_matrix(x, wbar)
     gram = np.swapaxes(phi, -1, -2) @ phi

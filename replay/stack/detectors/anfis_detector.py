@@ -6,7 +6,7 @@ error. Detection mode learns ``|Z - Z_gps|`` and flags an epoch when the
 output exceeds ``T2`` (``3 sigma`` of the training RMSE by default, A.32).
 Compensation mode learns the signed ``Z - Z_gps`` and, when the predicted
 error exceeds the compensation threshold (9 m), returns it as the range
-correction instead of isolating the epoch (STACK.md sections 4 and 6).
+correction instead of isolating the epoch (docs/design.md sections 10 and 12).
 
 One instance per leader (``per_leader``, as A does) or one instance fed every
 leader's epochs (``shared``): :func:`detectors_for` builds either mapping.
@@ -141,7 +141,7 @@ class AnfisDetector:
 
         Epochs with a non-finite feature or error are left out. The labels are
         not a training target; their count of anomalies is kept because a
-        window without one cannot teach the model to see one (STACK.md 4).
+        window without one cannot teach the model to see one (docs/design.md section 10).
         """
         x = np.atleast_2d(np.asarray(features, dtype=float))
         err = np.asarray(range_error, dtype=float).ravel()

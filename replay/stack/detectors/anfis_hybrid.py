@@ -5,7 +5,7 @@ default f2 (the innovation's Mahalanobis distance: the outliers),
 repeat_count (stale ranges), |drift_residual_m| (with the default
 ``drift_source`` "model", the range against the DR error model of 60 s ago,
 `replay.stack.dr_error_model`: drift and stale; the stiff reference's
-residual replaced |lag_residual_m| in session 13, development seeds 1-5
+residual replaced |lag_residual_m| in 531fadf (2026-12-01), development seeds 1-5
 trained on 0: AUC 0.971 against 0.911, FNR at 2 % 0.258 against 0.309,
 drift recall at 0.3 m/s 0.21 against 0) and
 |usbl_residual_m| (a range off the USBL-anchored position). The leader-exclusion input exclusion_z

@@ -1,6 +1,6 @@
 """AQPSO-GA: ANFIS premise search by adaptive quantum-behaved PSO hybridized with a GA.
 
-Patent P (seed 004, steps 3.2.1-3.2.8, eqs. P.29-P.34; STACK.md section 6).
+Patent P (seed 004, steps 3.2.1-3.2.8, eqs. P.29-P.34; docs/design.md section 12).
 A particle is the flattened premise ``[a, b, c]`` of every bell (3 D M values);
 each particle's consequents are solved by ridge least squares, and its
 fitness is the training RMSE (P.34). The whole population is evaluated at

@@ -3,8 +3,8 @@
 A detector reads the feature columns its method-table entry names
 (`replay.stack.methods.Method.features`): paper A's ``[f1, f2, f3]`` =
 innovation magnitude (m), squared Mahalanobis distance on the unadapted
-P_zz, adapted measurement variance R* (m²), or every column of
-`replay.stack.features.FEATURE_NAMES` (docs/design.md, the features).
+P_zz, adapted measurement variance R* (m²) (docs/design.md section 8), or
+every column of `replay.stack.features.FEATURE_NAMES`.
 """
 
 from __future__ import annotations

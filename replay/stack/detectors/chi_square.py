@@ -1,4 +1,4 @@
-"""Residual chi-square test (seed A §4.2 baseline, STACK.md section 5).
+"""Residual chi-square test (seed A §4.2 baseline, docs/design.md section 11).
 
 γ = 1 when f2 = rᵀ P_zz⁻¹ r (A.29, on the unadapted P_zz) exceeds the
 chi-square quantile χ²₁(1 - α) of a one-dimensional measurement.

@@ -8,7 +8,7 @@ median and MAD of 60-300 s before, with k and h in sigmas
 (``cusum_k_sigma``, ``cusum_h_sigma``); or the raw ``drift_residual_m`` in
 metres (``cusum_k_m``, ``cusum_h_m``), the first cut. The ACKF follows a
 slow drift, so no innovation sees it; these residuals do not involve the
-filter. The sums restart after every alarm (STACK.md section 2).
+filter. The sums restart after every alarm (docs/design.md section 8).
 
 The detector's h is set at training so that its alarm rate over the training
 window's normal epochs is ``StackConfig.detection_fpr_target`` (default 2 %),

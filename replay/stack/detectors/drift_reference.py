@@ -8,8 +8,8 @@ follows the DR error as the vehicle turns, and holds none of a drift
 younger than the lag, where the ACKF follows a slow drift (features module
 docstring). It takes the USBL fixes where they exist. One epoch's score,
 no memory: it flags every epoch while the residual stays beyond the
-threshold, so there is no sum to restart after an alarm (STACK.md section
-2) and its per-epoch recall is not capped as a restarting CUSUM's is.
+threshold, so there is no sum to restart after an alarm (docs/design.md
+section 8) and its per-epoch recall is not capped as a restarting CUSUM's is.
 
 It flags an epoch when |drift_z| > h_z and |drift_residual_m| > ``t1_m``
 (a residual under the label threshold is not an anomaly). drift_z is the
@@ -27,12 +27,12 @@ decides: the (1 - ``detection_fpr_target``) quantile of |drift_residual_m|
 over the training rows labelled normal, never below ``t1_m``. The runner
 trains it on every leader's rows together.
 
-``drift_reference_input = "drift_residual_m"`` keeps the session-12 form:
+``drift_reference_input = "drift_residual_m"`` keeps the first form (586eecb):
 |drift_residual_m| against h_m alone. Its h_m did not carry its false-alarm
 rate to other trials: over training seeds 0-19 the 98 % quantile of a
 600 s window ranged 9-18 m, and the false-alarm rate it gave on the other
-seeds 1.2-17 % (mean 5.0 %; session 12 measured 0.7-13.5 %, mean 3.7 %,
-on other runs): the residual's spread is the trial's DR error.
+seeds 1.2-17 % (mean 5.0 %; f07ec8a, 2026-12-01, measured 0.7-13.5 %, mean
+3.7 %, on other runs): the residual's spread is the trial's DR error.
 For a ramp residual rate·t its detection delay is h_m / rate (tests check
 it).
 """

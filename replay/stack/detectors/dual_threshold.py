@@ -1,4 +1,4 @@
-"""Dual-threshold test assisted by a BP neural network (seed A ref. 21 baseline, STACK.md section 5).
+"""Dual-threshold test assisted by a BP neural network (seed A ref. 21 baseline, docs/design.md section 11).
 
 The seed names the method (Zhao et al., Control and Decision 2020) but gives
 no detail, so this is our exact form:

@@ -140,7 +140,7 @@ class RangeInnovation:
 
     @property
     def features(self) -> tuple[float, float, float]:
-        """(f1, f2, f3) = (|r|, r² / P_zz unadapted (A.29), R* (A.31)) (STACK.md section 2)."""
+        """(f1, f2, f3) = (|r|, r² / P_zz unadapted (A.29), R* (A.31)) (docs/design.md section 8)."""
         return abs(self.residual), self.residual * self.residual / self.pzz, self.r_adapted
 
 
@@ -286,7 +286,7 @@ def position_update(s: State2, lat: float, lon: float, r11: float, r12: float, r
 
 
 def isolation_action(flagged: bool, streak: int, cap: int) -> tuple[str, int]:
-    """Isolation with a cap (A.33-A.35, STACK.md section 2): ('update'|'isolate'|'capped', new streak).
+    """Isolation with a cap (A.33-A.35, docs/design.md section 8): ('update'|'isolate'|'capped', new streak).
 
     A flagged epoch is isolated unless this leader's previous ``cap``
     consecutive epochs were all isolated; past the cap every flagged epoch is

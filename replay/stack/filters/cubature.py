@@ -3,8 +3,8 @@
 Every function broadcasts over leading batch axes: ``x`` is (..., n), ``P``
 is (..., n, n), cubature points are (..., 2n, n). Covariances are computed as
 centred sums ``Σ w (Y - ȳ)(Y - ȳ)ᵀ``; the raw second moments printed in A.11,
-A.16 and A.17 lose about 13 digits when the state is in radians (STACK.md
-section 1).
+A.16 and A.17 lose about 13 digits when the state is in radians (docs/design.md
+section 8).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """KMCDF: anti-outlier LBL/USBL positioning by k-means clustering and decision fusion.
 
-Seed `003` (Wang, Li, Zhang, JEIT 2018, eq. (1)-(10)); STACK.md section 7.
+Seed `003` (Wang, Li, Zhang, JEIT 2018, eq. (1)-(10)); docs/design.md section 13.
 Pipeline: preliminary fixes from parameter subsets (`usbl_geometry`), a support
 matrix and its Perron weights, k-means (k = 2) on the weights with the rho
 re-clustering, OR-rule decision fusion of the parameter states, and the final
@@ -36,7 +36,7 @@ class KmcdfParams:
     element_spacing_m: float = 0.18
     rho_m: float = 30.0                  # spread of fixes from normal parameters only
     sigma_delay_s: float = 0.5e-3
-    sigma_phase_rad: float = 0.1         # not given by the seed (STACK.md section 7)
+    sigma_phase_rad: float = 0.1         # not given by the seed (docs/design.md section 13)
     max_range_m: float = 2830.0
     min_bearing_sin: float = 0.05        # bearing pairs closer than ~2.9 deg give no fix
     ml_iterations: int = 10
@@ -122,7 +122,7 @@ def cluster_fixes(points: FloatArray, valid: BoolArray, rho_m: float) -> Cluster
     """k-means on the Perron weights, re-clustering C1 as a new data set until its spread is <= rho.
 
     Seed 003 section 3.2. Each round recomputes A, Amax, B and the weights on
-    the current C1 alone (STACK.md section 7 step 3); re-clustering the old
+    the current C1 alone (docs/design.md section 13, step 3); re-clustering the old
     weights instead collapses the success rate. C1 strictly shrinks each
     round, so the loop ends within M rounds.
     """

@@ -7,7 +7,7 @@ KMCDF1: abnormal nodes have abnormal delays; KMCDF2: abnormal delays and
 phases. Abnormal delays are uniform on (0, Rmax/c), abnormal phases on (-pi,
 pi); normal errors Gaussian (eq. (4)). A trial succeeds when every parameter
 state is estimated right: all 3N for KMCDF, the N delays for the delay-only
-baselines (STACK.md section 7).
+baselines (docs/design.md section 13).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Preliminary position fixes of an integrated LBL/USBL system, vectorized over trials.
 
-Seed `003` (KMCDF, Wang et al., JEIT 2018) section 3.1; STACK.md section 7 step 1.
+Seed `003` (KMCDF, Wang et al., JEIT 2018) section 3.1; docs/design.md section 13, step 1.
 Every function takes a leading batch axis `T` (trials or epochs) on the
 measurements; node positions are shared, shape (N, 2) in metres, or per
 trial, shape (T, N, 2) (an epoch's buoys move), axes x and y of the local
@@ -39,7 +39,7 @@ def usbl_fixes(
 
     Seed 003 eq. (1)-(3) inverted: the raw direction cosines are used, not a
     normalized bearing, so an abnormal phase (at most pi / (kappa d0) ~ 0.056 as
-    a cosine) lands near its own node (STACK.md section 7 step 1).
+    a cosine) lands near its own node (docs/design.md section 13, step 1).
     """
     cosines = np.stack([phase_x, phase_y], axis=-1) / kappa_d0
     return node_xy + ranges_m[..., None] * cosines
@@ -102,7 +102,7 @@ def circle_fixes(
     """Two-node TOA fixes: the circle intersection nearer `reference` (T, P, 2), NaN if none.
 
     Seed 003 section 3.1 (3); the ambiguity is resolved with the mean of the
-    pair's own USBL fixes (STACK.md section 7 step 1). A NaN reference keeps
+    pair's own USBL fixes (docs/design.md section 13, step 1). A NaN reference keeps
     the first solution.
     """
     first, second, _ = circle_intersections(node_xy, ranges_m, pairs)
