@@ -19,9 +19,9 @@ import pandas as pd
 import rerun as rr
 
 from replay.review.data import ReviewData
+from replay.review.naming import run_labels
 from replay.review.palette import METHOD_RGB
 from replay.review.palette import method_rgb as palette_rgb
-from replay.run.compare import run_labels
 
 # the palette's order fixes the class ids (1-based) and never changes: new names are added at its end
 METHOD_STYLE: tuple[tuple[str, tuple[int, int, int]], ...] = tuple(METHOD_RGB.items())
