@@ -45,7 +45,8 @@ def sample_trial(repeats: int, all_methods: bool = False) -> list[list[object]]:
     """Rows of the sample trial's replay: the default methods, and with `all_methods` every method."""
     from recorders.manifest import load_manifest
     from recorders.record import record
-    from replay.run.config import RunConfig, load_config
+    from replay.engine.config import RunConfig
+    from replay.run.config import load_config
     from replay.run.pipeline import replay_archive
     from replay.stack.methods import runnable_names
 

@@ -24,11 +24,11 @@ from recorders.manifest import load_manifest
 from recorders.record import record
 from replay.cli import main
 from replay.review.anomaly_kinds import load_intervals
-from replay.review.rebuild import run_metadata
 from replay.review.report import build_report, detection_tallies
 from replay.review.scoreboard import format_value
 from replay.run.config import load_config
 from replay.run.pipeline import replay_archive
+from replay.run.rebuild import run_metadata
 
 SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"
 FAST = ["methods=dead_reckoning,ckf,ackf,chi_square,anfis"]

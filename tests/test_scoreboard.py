@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from replay.review.naming import run_labels
 from replay.review.scoreboard import format_value, method_kind, scoreboard, window_text
-from replay.run.compare import run_labels
 
 
 def _metrics() -> dict:

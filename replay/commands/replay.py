@@ -7,11 +7,11 @@ import json
 import sys
 
 from replay.errors import UserError, warn_damage
-from replay.review.rebuild import review_from_results
 from replay.run.config import load_config
 from replay.run.metrics import format_table
 from replay.run.outputs import claim_outputs
 from replay.run.pipeline import replay_archive
+from replay.run.rebuild import review_from_results
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

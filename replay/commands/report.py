@@ -16,9 +16,9 @@ from pathlib import Path
 
 from replay.errors import UserError, warn_damage
 from replay.review.anomaly_kinds import load_intervals
-from replay.review.rebuild import review_from_results, run_metadata
 from replay.review.report import build_report
 from replay.run.outputs import claim_output
+from replay.run.rebuild import review_from_results, run_metadata
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

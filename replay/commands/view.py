@@ -20,8 +20,8 @@ from pathlib import Path
 
 from formats.mcap_reader import ArchiveReader
 from replay.errors import UserError, warn_damage
-from replay.review.rebuild import review_from_results, run_metadata
 from replay.run.outputs import claim_output
+from replay.run.rebuild import review_from_results, run_metadata
 
 SUFFIXES = (".rrd", ".mcap")
 

@@ -18,12 +18,12 @@ from typing import Any
 
 import numpy as np
 
+from replay.engine.config import RunConfig
 from replay.engine.follower import FollowerPipeline, VehicleTracks
 from replay.engine.layout import TrialLayout
 from replay.engine.usbl import positioning
 from replay.engine.usbl.epochs import UsblEpochBuilder
 from replay.events import EpochResult, ErrorSample, Fix, FollowerScores, Listener, RunResults, RunScores, UsblEpoch
-from replay.run.config import RunConfig
 from replay.stack.methods import INPUTS, method_names
 from replay.stack.model import horizontal_offset_m, offset_to_latlon
 from replay.stack.positioning.kmcdf import KmcdfParams

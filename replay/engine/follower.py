@@ -15,10 +15,10 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from replay.engine.config import RunConfig
 from replay.engine.layout import FollowerPlan
 from replay.engine.tracks import Track
 from replay.events import EpochResult, ErrorSample, Fix
-from replay.run.config import RunConfig
 from replay.stack.model import horizontal_distance_scalar
 from replay.stack.runner import CooperativeRunner
 from replay.stack.training import TrainingSet

@@ -16,8 +16,9 @@ from typing import Any
 
 from recorders.manifest import ManifestError, load_manifest
 from recorders.record import record
+from replay.engine.config import RunConfig
 from replay.errors import UserError
-from replay.run.config import RunConfig, load_config
+from replay.run.config import load_config
 from replay.run.pipeline import replay_archive
 
 # Paper A, section 4 table, 600-1700 s, 462 epochs of which 57 anomalous

@@ -22,6 +22,7 @@ import pandas as pd
 
 from replay.review.anomaly_kinds import NONE, KindInterval, epoch_kinds, not_ranging
 from replay.review.data import ReviewData
+from replay.review.naming import flatten
 from replay.review.palette import method_hex
 from replay.review.report_plots import (
     Lane,
@@ -38,7 +39,6 @@ from replay.review.scoreboard import (
     scoreboard,
     window_text,
 )
-from replay.run.compare import flatten
 from replay.stack.methods import detecting_names
 
 KIND_ORDER = ("stale", "drift", "outlier", "dropout", "usbl_delay")

@@ -13,7 +13,6 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from replay.run.metrics import format_value
 from replay.stack.methods import METHOD_TABLE
 
 __all__ = ["DETECTION_COLUMNS", "ERROR_COLUMNS", "ScoreRow", "format_value", "method_kind", "scoreboard",
@@ -21,6 +20,15 @@ __all__ = ["DETECTION_COLUMNS", "ERROR_COLUMNS", "ScoreRow", "format_value", "me
 
 ERROR_COLUMNS: tuple[str, ...] = ("error_p50_m", "error_p90_m", "error_rms_m")
 DETECTION_COLUMNS: tuple[str, ...] = ("tp", "fp", "fn", "fpr", "fnr", "auc")
+
+
+def format_value(value: Any) -> str:
+    """A figure as printed in metrics tables and the scoreboard: '-' for none, 3 decimals under 100, 1 above."""
+    if value is None:
+        return "-"
+    if isinstance(value, float):
+        return f"{value:.3f}" if abs(value) < 100 else f"{value:.1f}"
+    return str(value)
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """Comparing two replay runs: parameters, metrics and per-epoch detections, in mission seconds.
 
-Runs are named by what differs in their configuration (`run_labels`); every
+Runs are named by what differs in their configuration (`replay.review.naming.run_labels`); every
 decision that differs is listed with its truth label, and each run is credited
 with the differing decisions it got right (flagged an anomalous range, or
 passed a normal one).
@@ -14,7 +14,8 @@ from typing import Any
 
 from formats.mcap_reader import ArchiveReader
 from replay.errors import UserError
-from replay.run.metrics import format_value
+from replay.review.naming import flatten, run_labels
+from replay.review.scoreboard import format_value
 from replay.run.mission_time import NS, trial_start_ns
 from replay.stack.scoring import RESULT_KEYS
 
@@ -41,44 +42,6 @@ def load_run(path: str | Path) -> tuple[dict[str, Any], dict[DetectionKey, tuple
         if isinstance(meta.get(key), str):
             meta[key] = json.loads(meta[key])
     return meta, detections
-
-
-def flatten(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    """Nested parameters as one level of dotted keys ('stack.anfis.model')."""
-    out = {}
-    for k, v in d.items():
-        if isinstance(v, dict):
-            out.update(flatten(v, f"{prefix}{k}."))
-        else:
-            out[f"{prefix}{k}"] = v
-    return out
-
-
-def run_labels(parameters: list[dict[str, Any]]) -> list[str]:
-    """A name per run from what differs in its configuration ("r_m=2.5"); "defaults" when nothing does.
-
-    Keys are the flattened parameter names without their section ("stack.r_m" reads "r_m") unless another
-    section has a key of that name; runs with equal configurations get "#2", "#3" after their name.
-    """
-    flat = [flatten(p) for p in parameters]
-    keys = sorted({k for f in flat for k in f if len({repr(g.get(k)) for g in flat}) > 1})
-    every_leaf = [k.rsplit(".", 1)[-1] for k in {k for f in flat for k in f}]
-    short = {k: (leaf if every_leaf.count(leaf) == 1 else k) for k in keys for leaf in [k.rsplit(".", 1)[-1]]}
-    names = [", ".join(f"{short[k]}={_short_value(f.get(k))}" for k in keys) or "defaults" for f in flat]
-    seen: dict[str, int] = {}
-    out = []
-    for name in names:
-        seen[name] = seen.get(name, 0) + 1
-        out.append(name if seen[name] == 1 else f"{name} #{seen[name]}")
-    return out
-
-
-def _short_value(value: Any) -> str:
-    if isinstance(value, (list, tuple)):
-        return "[" + ",".join(_short_value(v) for v in value) + "]"
-    if isinstance(value, float):
-        return f"{value:g}"
-    return str(value)
 
 
 def compare_runs(a: str | Path, b: str | Path) -> dict[str, Any]:

@@ -1,4 +1,8 @@
-"""Replay configuration: a TOML file over the defaults (docs/design.md sections 7-14), `--set` overrides, run ids.
+"""Reading a run's configuration: a TOML file over the defaults (docs/design.md sections 7-14), `--set key=value`
+overrides, run ids.
+
+The configuration itself (`RunConfig`, `EngineConfig`) is in `replay.engine.config`, where the
+engine may import it.
 
 A run is a pure function of (archive, configuration): the run id is a hash of
 the input's sha256, the canonical configuration and the package version, so
@@ -16,43 +20,13 @@ import tomllib
 import types
 import typing
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from replay.engine.config import USBL_UPDATE_METHODS, EngineConfig, RunConfig
 from replay.errors import UserError
-from replay.stack.config import CHOICES, AnfisConfig, StackConfig
+from replay.stack.config import CHOICES
 from replay.stack.methods import runnable_names
-
-# the positioning methods the engine runs on archived USBL epochs (replay.engine.usbl.positioning)
-USBL_UPDATE_METHODS: tuple[str, ...] = ("kmcdf2", "gar", "ear", "lms", "lhc")
-
-
-@dataclass(frozen=True)
-class EngineConfig:
-    """What the engine does around the stack: windows, pacing, gaps, USBL grouping."""
-
-    window_s: tuple[float, float] | None = None   # replay only [t0, t1] s from the trial start
-    rate: float = 0.0                             # 0 = as fast as possible; X = X times real time
-    lag_s: float = 5.0                            # how far the engine looks ahead for leader positions
-    max_gap_s: float = 3.0                        # longest gap to interpolate a position across
-    node_max_gap_s: float = 30.0                  # moored USBL buoys report GPS seldom; they barely move
-    usbl_group_s: float = 2.5                     # observations of one ping: within this of the first
-    kmcdf: bool = True                            # USBL epochs through KMCDF
-    kmcdf_rho_m: float = 30.0
-    kmcdf_phase_noise_rad: float = 0.1
-    # a positioning method whose USBL fixes of a follower update its filters (every method but
-    # dead reckoning) as position measurements; "" = none, as in paper A's comparison
-    usbl_update: str = ""
-    usbl_update_sigma_m: float = 3.0              # fix sigma per axis where the method gives no covariance
-
-
-@dataclass(frozen=True)
-class RunConfig:
-    """The whole configuration of one replay run."""
-
-    stack: StackConfig = field(default_factory=StackConfig)
-    engine: EngineConfig = field(default_factory=EngineConfig)
 
 
 def to_dict(cfg: Any) -> dict[str, Any]:
@@ -211,4 +185,4 @@ def _merge(into: dict[str, Any], new: dict[str, Any]) -> None:
             into[k] = v
 
 
-__all__ = ["AnfisConfig", "EngineConfig", "RunConfig", "StackConfig", "canonical_json", "load_config", "run_id"]
+__all__ = ["canonical_json", "config_from_parameters", "load_config", "run_id", "to_dict"]

@@ -60,9 +60,9 @@ import numpy as np
 from formats.mcap_reader import ArchiveReader
 from recorders.manifest import load_manifest
 from recorders.record import record
+from replay.engine.config import RunConfig
 from replay.errors import UserError
 from replay.events import EpochResult, ErrorSample, Fix, Listener
-from replay.run.config import RunConfig
 from replay.run.pipeline import RunOutcome, replay_archive
 from replay.stack.scoring import error_stats, recall_at_fpr, roc_auc, roc_curve
 from replay.stack.training import TRAINING_SOURCES, TrainingSet

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from replay.events import RunResults, RunScores
+from replay.review.scoreboard import format_value
 from replay.stack.methods import METHOD_TABLE
 from replay.stack.scoring import RESULT_KEYS, detection_scores, error_stats
 
@@ -82,12 +83,3 @@ def format_table(metrics: dict[str, Any]) -> str:
     lines.append("  ".join("-" * w for w in widths))
     lines += ["  ".join(v.rjust(w) if i else v.ljust(w) for i, (v, w) in enumerate(zip(r, widths))) for r in rows]
     return "\n".join(lines)
-
-
-def format_value(value: Any) -> str:
-    """A figure as printed in metrics tables and the scoreboard: '-' for none, 3 decimals under 100, 1 above."""
-    if value is None:
-        return "-"
-    if isinstance(value, float):
-        return f"{value:.3f}" if abs(value) < 100 else f"{value:.1f}"
-    return str(value)

@@ -29,11 +29,12 @@ from pathlib import Path
 from typing import Any
 
 from formats.mcap_writer import ArchiveWriter
+from replay.engine.config import RunConfig
 from replay.engine.core import Engine
 from replay.engine.layout import TrialLayout, plan_trial
 from replay.events import Listener
 from replay.review.collector import ReviewCollector
-from replay.run.config import RunConfig, run_id
+from replay.run.config import run_id
 from replay.run.metrics import run_metrics
 from replay.run.pipeline import (
     SENSORS,

@@ -15,12 +15,13 @@ from typing import Any
 from formats import schemas as S
 from formats.mcap_reader import ArchiveReader
 from formats.mcap_writer import ArchiveWriter
+from replay.engine.config import RunConfig
 from replay.engine.core import Engine, pace
 from replay.engine.layout import plan_trial
 from replay.errors import UserError
 from replay.events import Listener, RunResults
 from replay.review.collector import ReviewCollector
-from replay.run.config import RunConfig, canonical_json, run_id, to_dict
+from replay.run.config import canonical_json, run_id, to_dict
 from replay.run.metrics import format_table, metrics_table, run_metrics
 from replay.run.outputs import claim_outputs
 from replay.run.results_writer import ResultsWriter

@@ -19,9 +19,9 @@ import pandas as pd
 import rerun as rr
 
 from replay.review.data import ReviewData
+from replay.review.naming import run_labels
 from replay.review.palette import method_rgb as palette_rgb
 from replay.review.palette import palette
-from replay.run.compare import run_labels
 
 # the palette's order fixes the class ids (1-based): sources, then the method table's order; a method
 # registered later gets a stable id from its hash (class_id)

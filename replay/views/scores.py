@@ -15,6 +15,7 @@ from typing import Any
 
 import rerun as rr
 
+from replay.review.naming import run_labels
 from replay.review.scoreboard import (
     DETECTION_COLUMNS,
     ERROR_COLUMNS,
@@ -23,7 +24,6 @@ from replay.review.scoreboard import (
     scoreboard,
     window_text,
 )
-from replay.run.compare import run_labels
 from replay.views.common import Run
 
 HEADINGS = {"error_p50_m": "p50 (m)", "error_p90_m": "p90 (m)", "error_rms_m": "RMS (m)", "tp": "TP", "fp": "FP",

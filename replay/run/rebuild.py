@@ -12,9 +12,10 @@ from pathlib import Path
 from typing import Any
 
 from formats.mcap_reader import ArchiveReader
+from replay.engine.config import RunConfig
 from replay.errors import UserError
 from replay.review.data import ReviewData
-from replay.run.config import RunConfig, config_from_parameters
+from replay.run.config import config_from_parameters
 from replay.run.pipeline import file_sha256, replay_archive
 
 
