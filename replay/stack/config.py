@@ -1,7 +1,7 @@
-"""Parameters of the cooperative-localization stack, with STACK.md's defaults.
+"""Parameters of the cooperative-localization stack, with the defaults of docs/design.md sections 7-14.
 
 Users give covariances in metres; the filter converts them to radians with the
-local radii (STACK.md section 1).
+local radii (docs/design.md section 7).
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ CHOICES: dict[str, tuple[str, ...]] = {
 
 @dataclass(frozen=True)
 class AnfisConfig:
-    """ANFIS structure and training (STACK.md section 4, patent steps 3-4)."""
+    """ANFIS structure and training (docs/design.md sections 10 and 12, patent steps 3-4)."""
 
     mfs_per_input: int = 2
     rule_structure: str = "grid"        # "grid" (n^3 rules, genfis1) or "diagonal" (n rules, A.22)
@@ -78,7 +78,7 @@ class FeatureConfig:
     cusum_h_sigma: float = 5.0          # cusum_drift's alarm level before calibration; its floor is half of it
     cusum_k_m: float = 4.0              # drift CUSUM allowance (m), feature and cusum_drift detector
     # the drift residual: "model" (the range against the DR error model of lag_s ago, fed USBL fixes too),
-    # "stiff" (the stiff reference's innovation, the session-13 form), else without USBL lag_residual_m
+    # "stiff" (the stiff reference's innovation, the default before 95521e9), else without USBL lag_residual_m
     # ("lag") or exclusion_residual_m ("exclusion"), with usbl_residual_m where finite
     drift_source: str = "model"
     # the DR error model (replay.stack.dr_error_model): DR error, heading error and DVL scale error, whose
@@ -145,7 +145,7 @@ class StackConfig:
     injection: InjectionConfig = field(default_factory=InjectionConfig)
     detection_fpr_target: float = 0.02           # the new methods' threshold: this false-alarm rate on training
     # drift_reference tests |drift_z| (the residual against the mission's own pooled scale) against
-    # drift_reference_z, or, the session-12 form, |drift_residual_m| against the training quantile (m)
+    # drift_reference_z, or, the first form (586eecb), |drift_residual_m| against the training quantile (m)
     drift_reference_input: str = "drift_z"
     # h_z, not trained: a training window's 98 % quantile of drift_z does not predict the later one's
     # (r = 0.01 over seeds 0-19); 2.5 flags about 2 % of the normal epochs after t_a of seeds 0-19

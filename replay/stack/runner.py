@@ -1,6 +1,6 @@
 """The side-by-side runner: every method of the stack driven push-style on the same data.
 
-Usage (STYLE.md convention 7: the engine pushes samples from an archive,
+Usage (docs/design.md section 2, convention 7: the engine pushes samples from an archive,
 the reproduction from the simulator's arrays)::
 
     runner = CooperativeRunner(config, follower="follower", leaders=["leader1", "leader2"],

@@ -1,7 +1,7 @@
 """Helpers every detector's why-line shares: numbers, comparison signs and an epoch's feature vector.
 
 A why-line names the statistic a detector compared at an epoch, its value, the
-threshold and the outcome (docs/design.md, "Why (not) flagged"). Lines are
+threshold and the outcome (docs/design.md section 5, the method table; docs/views.md, the Detection tab). Lines are
 plain ASCII: the Rerun viewer aborts on a glyph its font lacks.
 """
 
