@@ -21,8 +21,9 @@ SOURCE_RGB: dict[str, tuple[int, int, int]] = {
 
 
 def palette() -> dict[str, tuple[int, int, int]]:
-    """Source or method name -> RGB: the sources, then every method of the table in its order (the class ids)."""
-    return {**SOURCE_RGB, **{m.name: m.colour for m in methods()}}
+    """Name -> RGB: GPS and INS, every method of the table in its order, then the truth (the class ids' order)."""
+    first = {k: SOURCE_RGB[k] for k in ("gps", "ins")}
+    return {**first, **{m.name: m.colour for m in methods()}, **SOURCE_RGB}
 
 
 def method_rgb(name: str) -> tuple[int, int, int]:
