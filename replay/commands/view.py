@@ -1,11 +1,13 @@
-"""Open a recording (.rrd) or an archive (.mcap, which Rerun reads natively) in Rerun.
+"""Open a recording (.rrd), a trial archive or replay results (.mcap) in Rerun, with the workstation's views.
 
 The native viewer needs a display ($DISPLAY or $WAYLAND_DISPLAY); without one,
 and without --web, the command prints the command to run elsewhere and exits 0.
 --web serves Rerun's web viewer bound to 127.0.0.1 only.
 
-Results archives are made into a recording first: `a.rrd` beside `a.mcap`, or
-`a-vs-b.rrd` for two. A file that is already there is never replaced (it may be
+Archives are made into a recording first: a trial archive is replayed with
+the default methods (those its inputs allow), results archives are re-run
+from their input; the recording is `a.rrd` beside `a.mcap`, or `a-vs-b.rrd`
+for two. A file that is already there is never replaced (it may be
 someone's earlier recording): the recording takes the next free name (`a-2.rrd`)
 and says so; `--save NAME` refuses an existing NAME; `--force` replaces either.
 """
@@ -20,7 +22,9 @@ from pathlib import Path
 
 from formats.mcap_reader import ArchiveReader
 from replay.errors import UserError, warn_damage
+from replay.run.config import load_config
 from replay.run.outputs import claim_output
+from replay.run.pipeline import replay_archive
 from replay.run.rebuild import review_from_results, run_metadata
 
 SUFFIXES = (".rrd", ".mcap")
@@ -29,11 +33,11 @@ SUFFIXES = (".rrd", ".mcap")
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `auvreplay view`."""
     parser.add_argument("file", nargs="+",
-                        help="a Rerun recording (.rrd), an MCAP archive (.mcap), or one or two replay results "
-                             "archives (shown with every view; two are compared in one recording)")
+                        help="a Rerun recording (.rrd), a trial archive (.mcap: replayed and shown with every view), or one "
+                             "or two replay results archives (two are compared in one recording)")
     parser.add_argument("--web", action="store_true", help="serve the web viewer on 127.0.0.1 instead")
     parser.add_argument("--archive", help="the input trial archive of the results, if not found by itself")
-    parser.add_argument("--save", help="with results archives: where to save the recording (.rrd); an existing "
+    parser.add_argument("--save", help="with archives: where to save the recording (.rrd); an existing "
                                        "file is refused unless --force")
     parser.add_argument("--force", action="store_true", help="replace an existing recording")
 
@@ -60,14 +64,19 @@ def _recording_of_results(args: argparse.Namespace) -> tuple[Path | None, list[s
     """
     paths = [check_file(f) for f in args.file]
     metas = [run_metadata(p) if p.suffix.lower() == ".mcap" else None for p in paths]
-    if len(paths) == 1 and metas[0] is None:
+    if len(paths) == 1 and paths[0].suffix.lower() == ".rrd":
         return None, []
-    if any(m is None for m in metas) or len(paths) > 2:
+    trial = len(paths) == 1 and metas[0] is None
+    if not trial and (any(m is None for m in metas) or len(paths) > 2):
         raise UserError("give one .rrd or .mcap file, or one or two replay results archives")
     from replay.views.recording import save_rrd
 
     out = recording_path(paths, args.save, args.force)
-    reviews = [review_from_results(p, args.archive) for p in paths]
+    if trial:     # a trial archive: replayed in memory with what its inputs allow, drawn by our views
+        outcome = replay_archive(paths[0], load_config(), write_output=False, review=True, require_work=True)
+        reviews = [outcome.review]
+    else:
+        reviews = [review_from_results(p, args.archive) for p in paths]
     save_rrd(reviews, out)
     default = default_recording(paths)
     print(f"saved {out}" + (f" ({default} exists and was kept; --force replaces it)" if out != default and

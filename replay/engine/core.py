@@ -64,6 +64,7 @@ class Engine:
         self._trained: set[str] = set()
         self._usbl: UsblEpochBuilder | None = None
         self._origin: tuple[float, float] | None = None
+        self._has_gps = any(layout.has(v, "gps") for v in layout.roles)   # the origin: the first GPS fix
         self.usbl_epochs = 0
         self.positioning_errors: dict[str, array] = {m: array("d") for m in method_names("positioning")}
         self.messages = 0
@@ -100,9 +101,28 @@ class Engine:
             return None, None
         parts = topic.strip("/").split("/")
         vehicle, sensor = parts[0], "/".join(parts[1:])
+        if topic in self.layout.sources:      # another position source: drawn and scored, not fed to the stack
+            return vehicle, lambda engine, v, t_s, msg: engine._source(v, sensor, t_s, msg)
         if vehicle not in self.tracks:
             return None, None
         return vehicle, _HANDLERS.get(sensor)
+
+    def _source(self, vehicle: str, source: str, t_s: float, msg: Any) -> None:
+        """A position of another source (an INS of its own, a local x/y on an origin, a node report)."""
+        if not (math.isfinite(msg.latitude) and math.isfinite(msg.longitude)):
+            return
+        depth = getattr(msg, "depth_m", 0.0)
+        fix = Fix(t_s, msg.latitude * DEG, msg.longitude * DEG, depth if math.isfinite(depth) else 0.0)
+        self._first_position(fix)
+        for listener in self._hear_position:
+            listener.position(vehicle, source, fix)
+
+    def _first_position(self, fix: Fix) -> None:
+        """The local frame's origin from the first position of any kind, in a trial without GPS."""
+        if self._origin is None and not self._has_gps:
+            self._origin = (fix.lat_rad, fix.lon_rad)
+            for listener in self.listeners:
+                listener.origin(*self._origin)
 
     def _gps(self, vehicle: str, t_s: float, msg: Any) -> None:
         if not (math.isfinite(msg.latitude) and math.isfinite(msg.longitude)):
@@ -123,6 +143,7 @@ class Engine:
         if math.isfinite(msg.latitude) and math.isfinite(msg.longitude):
             depth = msg.depth_m if math.isfinite(msg.depth_m) else 0.0
             fix = Fix(t_s, msg.latitude * DEG, msg.longitude * DEG, depth)
+            self._first_position(fix)
             self.tracks[vehicle].ins.add(fix)
             for listener in self._hear_position:
                 listener.position(vehicle, "ins", fix)

@@ -40,6 +40,8 @@ class TrialLayout:
     followers: list[FollowerPlan] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     skipped: dict[str, str] = field(default_factory=dict)   # method -> what no vehicle held ("needs ...")
+    # the other position topics (an INS of its own, a local x/y on an origin, node reports): topic -> (vehicle, source)
+    sources: dict[str, tuple[str, str]] = field(default_factory=dict)
 
     def has(self, vehicle: str, sensor: str) -> bool:
         """True when /<vehicle>/<sensor> holds messages."""
@@ -58,8 +60,9 @@ class TrialLayout:
         return frozenset(k for k, v in held.items() if v)
 
     def positions(self) -> list[str]:
-        """The vehicles with a position of any kind (GPS fixes or an INS solution)."""
-        return [v for v in self.roles if self.has(v, "gps") or self.has(v, "ins")]
+        """The vehicles with a position of any kind (GPS fixes, an INS or autopilot solution, another source)."""
+        held = [v for v in self.roles if self.has(v, "gps") or self.has(v, "ins")]
+        return held + sorted({v for v, _ in self.sources.values()} - set(held))
 
 
 def _guess_roles(topics: dict[str, int]) -> dict[str, str]:
@@ -81,11 +84,14 @@ def _guess_roles(topics: dict[str, int]) -> dict[str, str]:
     return roles
 
 
-def plan_trial(trial_meta: dict | None, topics: dict[str, int], methods: Sequence[str] = ()) -> TrialLayout:
+def plan_trial(trial_meta: dict | None, topics: dict[str, int], methods: Sequence[str] = (),
+               positions: Sequence[str] = ()) -> TrialLayout:
     """Work out roles and per-follower plans, with one note per thing that cannot run.
 
     `methods` (the configuration's) are given to each follower that holds
     their inputs; those no follower holds go to `TrialLayout.skipped`.
+    `positions` are the archive's position topics (LocationFix or InsState);
+    those beyond /<v>/gps and /<v>/ins become `TrialLayout.sources`.
     """
     vehicles = (trial_meta or {}).get("vehicles") or []
     if vehicles:
@@ -99,6 +105,10 @@ def plan_trial(trial_meta: dict | None, topics: dict[str, int], methods: Sequenc
     for f in layout.by_role("follower"):
         layout.followers.append(_plan_follower(layout, f, leaders, methods))
     layout.skipped = _skipped(layout, methods)
+    for topic in positions:
+        parts = topic.strip("/").split("/", 1)
+        if len(parts) == 2 and parts[1] not in ("gps", "ins") and topics.get(topic, 0) > 0:
+            layout.sources[topic] = (parts[0], parts[1])
     for leader in leaders:
         if not (layout.has(leader, "ins") or layout.has(leader, "gps")):
             layout.notes.append(f"leader {leader}: no INS and no GPS: its ranges cannot be used")

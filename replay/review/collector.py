@@ -63,11 +63,12 @@ class ReviewCollector(Listener):
                                     "std_east_m": std_e, "std_north_m": std_n})
 
     def position(self, vehicle: str, source: str, fix: Fix) -> None:
-        if source == "ins":
-            last = self._last_ins.get(vehicle, -math.inf)
+        if source != "gps":       # INS and other solutions come at tens of Hz: one point a second is a track
+            key = f"{vehicle}/{source}"
+            last = self._last_ins.get(key, -math.inf)
             if fix.t_s - last < INS_DECIMATE_S:
                 return
-            self._last_ins[vehicle] = fix.t_s
+            self._last_ins[key] = fix.t_s
         self._track_row(fix.t_s, vehicle, source, fix.lat_rad, fix.lon_rad)
 
     def estimates(self, follower: str, t_s: float, est: Mapping[str, tuple[float, ...]]) -> None:

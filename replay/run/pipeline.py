@@ -32,6 +32,8 @@ SENSORS = ("gps", "ins", "dvl", "modem/range", "usbl")
 SENSOR_SCHEMAS = {"gps": "foxglove.LocationFix", "ins": "auvreplay.InsState", "dvl": "auvreplay.DvlVelocity",
                   "modem/range": "auvreplay.AcousticRange", "usbl": "auvreplay.UsblObservation"}
 DIAGNOSTICS_SCHEMA = "foxglove.Log"
+# the schemas of a position: every topic of one is a track (GPS fixes, INS and autopilot solutions, node reports)
+POSITION_SCHEMAS = ("foxglove.LocationFix", "auvreplay.InsState")
 ROLES = ("leader", "follower", "buoy")
 NS = 1_000_000_000
 
@@ -130,13 +132,14 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
             raise UserError(_nothing_to_run(archive, "the archive holds no messages", [], reader))
         trial = trial_metadata(reader.metadata_json("trial"))
         readable = _readable_topics(summary, reader)
-        layout = plan_trial(trial, readable, config.stack.methods)
+        positions = [t for t, v in summary.topics.items() if v["schema"] in POSITION_SCHEMAS]
+        layout = plan_trial(trial, readable, config.stack.methods, positions)
         if require_work and not layout.positions():
             raise UserError(_nothing_to_run(archive, "the trial holds no position of any kind (no GPS fix and no "
                                             "INS or autopilot position)", layout.notes, reader))
         t0_ns = summary.start_ns
-        topics = [t for t in readable
-                  if t == "/diagnostics" or any(t == f"/{v}/{s}" for v in layout.roles for s in SENSORS)]
+        topics = [t for t in readable if t == "/diagnostics" or t in layout.sources
+                  or any(t == f"/{v}/{s}" for v in layout.roles for s in SENSORS)]
         window = config.engine.window_s
         start_ns = t0_ns + round(window[0] * NS) if window else None
         end_ns = t0_ns + round(window[1] * NS) + 1 if window else None
