@@ -30,6 +30,12 @@ def _f64(values: Any) -> np.ndarray:
     return np.asarray(values, dtype=np.float64).reshape(-1)
 
 
+def _col(values: Any, n: int, dtype: Any = np.float64) -> np.ndarray:
+    """A column of n rows from an array-like of n values or one scalar for all of them."""
+    return np.broadcast_to(np.asarray(values, dtype=dtype).reshape(-1) if np.ndim(values) else
+                           np.asarray(values, dtype=dtype), (n,)).copy()
+
+
 def _sorted(t_s: np.ndarray, *cols: np.ndarray) -> tuple[np.ndarray, ...]:
     """Columns in time order (stable, so equal times keep the archive's order)."""
     order = np.argsort(t_s, kind="stable")
@@ -70,13 +76,11 @@ class DvlColumns:
     @classmethod
     def build(cls, t_s: Any, vx_mps: Any, vy_mps: Any, valid: Any, frame: Any = BODY_FRD,
               altitude_m: Any = np.nan) -> DvlColumns:
-        """DVL columns from array-likes (frame and altitude may be scalars): rows without a time dropped, sorted."""
+        """DVL columns from array-likes (any but the time may be one scalar): rows without a time dropped, sorted."""
         t = _f64(t_s)
         n = t.size
-        vx, vy = _f64(vx_mps), _f64(vy_mps)
-        ok = np.broadcast_to(np.asarray(valid, dtype=bool), (n,)).copy()
-        fr = np.broadcast_to(np.asarray(frame, dtype=np.int64), (n,)).copy()
-        alt = np.broadcast_to(_f64(altitude_m) if np.ndim(altitude_m) else np.float64(altitude_m), (n,)).copy()
+        vx, vy, ok = _col(vx_mps, n), _col(vy_mps, n), _col(valid, n, bool)
+        fr, alt = _col(frame, n, np.int64), _col(altitude_m, n)
         keep = np.isfinite(t)
         return cls(*_sorted(t[keep], vx[keep], vy[keep], ok[keep], fr[keep], alt[keep]))
 
@@ -102,10 +106,9 @@ class InsColumns:
     @classmethod
     def build(cls, t_s: Any, lat_deg: Any = np.nan, lon_deg: Any = np.nan, heading_deg: Any = np.nan,
               depth_m: Any = np.nan, vn_mps: Any = np.nan, ve_mps: Any = np.nan) -> InsColumns:
-        """INS columns from array-likes (any but the time may be a scalar NaN): rows without a time dropped."""
+        """INS columns from array-likes (any but the time may be one scalar): rows without a time dropped, sorted."""
         t = _f64(t_s)
-        cols = [np.broadcast_to(_f64(c) if np.ndim(c) else np.float64(c), t.shape).copy()
-                for c in (lat_deg, lon_deg, heading_deg, depth_m, vn_mps, ve_mps)]
+        cols = [_col(c, t.size) for c in (lat_deg, lon_deg, heading_deg, depth_m, vn_mps, ve_mps)]
         keep = np.isfinite(t)
         return cls(*_sorted(t[keep], *(c[keep] for c in cols)))
 

@@ -107,7 +107,8 @@ class VelocityModel:
         if n == 0:
             return out
         ka = np.searchsorted(self.t_s, t_from, side="right") - 1
-        kb = np.searchsorted(self.t_s, t_to, side="right") - 1
+        # the interval that ends at t_to: a position at a grid time needs no velocity after it
+        kb = np.maximum(np.searchsorted(self.t_s, t_to, side="left") - 1, ka)
         ok = (ka >= 0) & (kb >= ka) & (t_to >= t_from)
         kac, kbc = np.clip(ka, 0, n - 1), np.clip(kb, 0, n - 1)
         ok &= self.broken_before[kbc] == self.broken_before[kac]
