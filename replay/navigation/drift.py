@@ -49,7 +49,6 @@ def ins_before(ins: InsColumns, t_s: np.ndarray, max_age_s: float) -> tuple[np.n
         fd_n, fd_e = np.where(span > 0, dn / span, np.nan), np.where(span > 0, de / span, np.nan)
     own = np.isfinite(v_n) & np.isfinite(v_e)
     v_n, v_e = np.where(own, v_n, fd_n), np.where(own, v_e, fd_e)
-    # a solution at the fix time itself (dt = 0 cannot happen: strictly before) needs no velocity
     la, lo = offset_to_latlon(v_n * dt, v_e * dt, lat[k], lon[k])
     out_lat[ok], out_lon[ok] = np.degrees(la), np.degrees(lo)
     return out_lat, out_lon

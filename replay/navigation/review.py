@@ -114,8 +114,9 @@ def review_vehicle(source: ArchiveReader | VehicleColumns, vehicle: str,
         if not any(f"/{vehicle}/{t}" in topics for t in ("gps", "dvl", "ins")):
             raise UserError(f"{source.path}: no /{vehicle}/gps, /{vehicle}/dvl or /{vehicle}/ins to review")
         cols = read_columns(source, vehicle, trial_start_ns(source))
+        damage = source.warning()
     else:
-        cols = source
+        cols, damage = source, None
     dr = dead_reckon(cols.fixes, cols.dvl, cols.ins, config.dvl_hold_s, config.heading_max_gap_s)
     errors = fix_errors(cols.fixes, dr, cols.ins, config.dive_gap_s, config.ins_max_age_s)
     dv = dives(errors)
@@ -129,7 +130,7 @@ def review_vehicle(source: ArchiveReader | VehicleColumns, vehicle: str,
         dives=dv,
         bottom_lock=bottom_lock(cols.dvl, config.lock_min_gap_s, config.lock_bin_s),
         series=navigation_series(cols.dvl, cols.ins, cols.depth),
-        notes=_notes(cols, dr, errors, dv, config),
+        notes=_notes(cols, dr, errors, dv, config) + ((f"archive: {damage}",) if damage else ()),
     )
 
 
