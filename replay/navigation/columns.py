@@ -1,0 +1,212 @@
+"""One vehicle's navigation sensors as columns (numpy arrays in mission seconds), read from an archive.
+
+The review computes on columns, never on messages: `read_columns` makes one
+pass over the vehicle's topics and keeps only the numbers it needs (8 bytes
+a value), so memory grows with the samples kept, not with the messages.
+Times are the archive's log times in mission seconds (seconds from the
+trial start). Rows whose time or position is not finite are dropped and
+counted in `VehicleColumns.dropped`; each column set is sorted by time.
+"""
+
+from __future__ import annotations
+
+from array import array
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from formats.mcap_reader import ArchiveReader
+
+NS = 1_000_000_000
+BODY_FRD, EARTH_NED = 1, 2  # auvreplay.DvlVelocity.Frame; INSTRUMENT (3) and UNKNOWN (0) cannot be rotated to earth
+
+__all__ = ["BODY_FRD", "EARTH_NED", "DvlColumns", "FixColumns", "InsColumns", "SeriesColumns", "VehicleColumns",
+           "read_columns"]
+
+
+def _f64(values: Any) -> np.ndarray:
+    return np.asarray(values, dtype=np.float64).reshape(-1)
+
+
+def _col(values: Any, n: int, dtype: Any = np.float64) -> np.ndarray:
+    """A column of n rows from an array-like of n values or one scalar for all of them."""
+    return np.broadcast_to(np.asarray(values, dtype=dtype).reshape(-1) if np.ndim(values) else
+                           np.asarray(values, dtype=dtype), (n,)).copy()
+
+
+def _sorted(t_s: np.ndarray, *cols: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Columns in time order (stable, so equal times keep the archive's order)."""
+    order = np.argsort(t_s, kind="stable")
+    return (t_s[order],) + tuple(c[order] for c in cols)
+
+
+@dataclass(frozen=True)
+class FixColumns:
+    """GPS fixes: time (mission s), latitude and longitude (deg)."""
+
+    t_s: np.ndarray
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+
+    @classmethod
+    def build(cls, t_s: Any, lat_deg: Any, lon_deg: Any) -> FixColumns:
+        """Fixes from array-likes: non-finite rows dropped, sorted by time."""
+        t, la, lo = _f64(t_s), _f64(lat_deg), _f64(lon_deg)
+        keep = np.isfinite(t) & np.isfinite(la) & np.isfinite(lo)
+        return cls(*_sorted(t[keep], la[keep], lo[keep]))
+
+
+@dataclass(frozen=True)
+class DvlColumns:
+    """DVL samples: time, velocity x/y (m/s) in `frame` (DvlVelocity.Frame), bottom-lock flag, altitude (m).
+
+    A sample is usable when its `valid` flag is set, x and y are finite and
+    its frame is BODY_FRD or EARTH_NED: `usable` is that mask.
+    """
+
+    t_s: np.ndarray
+    vx_mps: np.ndarray
+    vy_mps: np.ndarray
+    valid: np.ndarray
+    frame: np.ndarray
+    altitude_m: np.ndarray
+
+    @classmethod
+    def build(cls, t_s: Any, vx_mps: Any, vy_mps: Any, valid: Any, frame: Any = BODY_FRD,
+              altitude_m: Any = np.nan) -> DvlColumns:
+        """DVL columns from array-likes (any but the time may be one scalar): rows without a time dropped, sorted."""
+        t = _f64(t_s)
+        n = t.size
+        vx, vy, ok = _col(vx_mps, n), _col(vy_mps, n), _col(valid, n, bool)
+        fr, alt = _col(frame, n, np.int64), _col(altitude_m, n)
+        keep = np.isfinite(t)
+        return cls(*_sorted(t[keep], vx[keep], vy[keep], ok[keep], fr[keep], alt[keep]))
+
+    @property
+    def usable(self) -> np.ndarray:
+        """Samples with bottom lock, finite x/y and a frame that can be put on the earth (bool per sample)."""
+        return (self.valid & np.isfinite(self.vx_mps) & np.isfinite(self.vy_mps)
+                & ((self.frame == BODY_FRD) | (self.frame == EARTH_NED)))
+
+
+@dataclass(frozen=True)
+class InsColumns:
+    """INS solutions: time, position (deg), heading (deg true), depth (m), NED velocity (m/s); NaN where absent."""
+
+    t_s: np.ndarray
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+    heading_deg: np.ndarray
+    depth_m: np.ndarray
+    vn_mps: np.ndarray
+    ve_mps: np.ndarray
+
+    @classmethod
+    def build(cls, t_s: Any, lat_deg: Any = np.nan, lon_deg: Any = np.nan, heading_deg: Any = np.nan,
+              depth_m: Any = np.nan, vn_mps: Any = np.nan, ve_mps: Any = np.nan) -> InsColumns:
+        """INS columns from array-likes (any but the time may be one scalar): rows without a time dropped, sorted."""
+        t = _f64(t_s)
+        cols = [_col(c, t.size) for c in (lat_deg, lon_deg, heading_deg, depth_m, vn_mps, ve_mps)]
+        keep = np.isfinite(t)
+        return cls(*_sorted(t[keep], *(c[keep] for c in cols)))
+
+
+@dataclass(frozen=True)
+class SeriesColumns:
+    """One scalar over time (e.g. a depth sensor): time (mission s) and value; non-finite rows dropped."""
+
+    t_s: np.ndarray
+    values: np.ndarray
+
+    @classmethod
+    def build(cls, t_s: Any, values: Any) -> SeriesColumns:
+        """A series from array-likes, finite rows only, sorted by time."""
+        t, v = _f64(t_s), _f64(values)
+        keep = np.isfinite(t) & np.isfinite(v)
+        return cls(*_sorted(t[keep], v[keep]))
+
+
+def _empty_ins() -> InsColumns:
+    return InsColumns.build(np.empty(0))
+
+
+def _empty_dvl() -> DvlColumns:
+    return DvlColumns.build(np.empty(0), np.empty(0), np.empty(0), np.empty(0, dtype=bool))
+
+
+@dataclass(frozen=True)
+class VehicleColumns:
+    """Everything the review reads of one vehicle; absent sensors are empty columns.
+
+    `start_ns` is the trial start (UTC ns) the mission seconds count from;
+    `dropped` counts rows left out per topic and reason.
+    """
+
+    fixes: FixColumns
+    dvl: DvlColumns = field(default_factory=_empty_dvl)
+    ins: InsColumns = field(default_factory=_empty_ins)
+    depth: SeriesColumns | None = None
+    start_ns: int = 0
+    dropped: dict[str, int] = field(default_factory=dict)
+
+
+def _depth_value(msg: Any) -> float:
+    for name in ("depth_m", "depth"):
+        value = getattr(msg, name, None)
+        if isinstance(value, (int, float)):
+            return float(value)
+    return float("nan")
+
+
+def read_columns(reader: ArchiveReader, vehicle: str, start_ns: int) -> VehicleColumns:
+    """The columns of `vehicle` from `/<v>/gps`, `/<v>/dvl`, `/<v>/ins` and `/<v>/depth` (where present).
+
+    One pass over those topics; times are log times in seconds from `start_ns`.
+    A depth topic is read from a ``depth_m`` (or ``depth``) field of its messages.
+    """
+    topics = {f"/{vehicle}/{name}": name for name in ("gps", "dvl", "ins", "depth")}
+    present = set(reader.summary().topics)
+    wanted = [t for t in topics if t in present]
+    cols: dict[str, list[array[Any]]] = {
+        "gps": [array("d") for _ in range(3)],
+        "dvl": [array("d") for _ in range(4)] + [array("b"), array("b")],
+        "ins": [array("d") for _ in range(7)],
+        "depth": [array("d") for _ in range(2)],
+    }
+    dropped: Counter[str] = Counter()
+    for m in reader.messages(wanted):
+        kind, msg, t = topics[m.topic], m.message, (m.log_time_ns - start_ns) / NS
+        c = cols[kind]
+        try:
+            if kind == "gps":
+                row: tuple[float, ...] = (t, msg.latitude, msg.longitude)
+            elif kind == "ins":
+                row = (t, msg.latitude, msg.longitude, msg.heading_deg, msg.depth_m, msg.velocity_north_mps,
+                       msg.velocity_east_mps)
+            elif kind == "dvl":
+                row = (t, msg.velocity_x_mps, msg.velocity_y_mps, msg.altitude_m)
+                c[4].append(1 if msg.valid else 0)
+                c[5].append(int(msg.frame) if 0 <= int(msg.frame) <= 3 else 0)
+            else:
+                row = (t, _depth_value(msg))
+        except AttributeError:  # a topic of that name holding another schema
+            dropped[f"{m.topic}: not a {kind} message"] += 1
+            continue
+        for col, value in zip(c, row):
+            col.append(value)
+    g, d, i, z = cols["gps"], cols["dvl"], cols["ins"], cols["depth"]
+    fixes = FixColumns.build(*g)
+    dropped_fixes = len(g[0]) - fixes.t_s.size
+    if dropped_fixes:
+        dropped[f"/{vehicle}/gps: fixes without a finite position"] += dropped_fixes
+    depth = SeriesColumns.build(*z) if len(z[0]) else None
+    return VehicleColumns(
+        fixes=fixes,
+        dvl=DvlColumns.build(d[0], d[1], d[2], np.asarray(d[4], dtype=bool), np.asarray(d[5]), d[3]),
+        ins=InsColumns.build(*i),
+        depth=depth,
+        start_ns=start_ns,
+        dropped=dict(dropped),
+    )
