@@ -33,8 +33,8 @@ SUFFIXES = (".rrd", ".mcap")
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `auvreplay view`."""
     parser.add_argument("file", nargs="+",
-                        help="a Rerun recording (.rrd), a trial archive (.mcap: replayed and shown with every view), or one "
-                             "or two replay results archives (two are compared in one recording)")
+                        help="a Rerun recording (.rrd), a trial archive (.mcap: replayed and shown with every "
+                             "view), or one or two replay results archives (two are compared in one recording)")
     parser.add_argument("--web", action="store_true", help="serve the web viewer on 127.0.0.1 instead")
     parser.add_argument("--archive", help="the input trial archive of the results, if not found by itself")
     parser.add_argument("--save", help="with archives: where to save the recording (.rrd); an existing "

@@ -16,7 +16,6 @@ import numpy as np
 
 from formats.mcap_reader import ArchiveReader
 from replay.errors import UserError
-from replay.run.mission_time import trial_start_ns
 
 from .bottom_lock import BottomLock, bottom_lock
 from .columns import VehicleColumns, read_columns
@@ -24,8 +23,8 @@ from .dead_reckoning import DeadReckoning, dead_reckon
 from .drift import Dives, FixErrors, dives, fix_errors
 from .series import NavigationSeries, navigation_series
 
-__all__ = ["DR_METHOD", "INS_METHOD", "NavigationConfig", "NavigationReview", "NavigationScore", "review_vehicle",
-           "scores"]
+__all__ = ["DR_METHOD", "INS_METHOD", "NavigationConfig", "NavigationReview", "NavigationScore", "review_metrics",
+           "review_vehicle", "scores"]
 
 DR_METHOD = "dead_reckoning (DVL)"
 INS_METHOD = "ins"
@@ -103,9 +102,10 @@ def _notes(cols: VehicleColumns, dr: DeadReckoning, errors: FixErrors, dv: Dives
 
 
 def review_vehicle(source: ArchiveReader | VehicleColumns, vehicle: str,
-                   config: NavigationConfig | None = None) -> NavigationReview:
+                   config: NavigationConfig | None = None, start_ns: int | None = None) -> NavigationReview:
     """Review one vehicle's navigation from an open archive (its `/<v>/gps|dvl|ins|depth` topics) or columns.
 
+    Mission seconds count from `start_ns` (default: the archive's first message, as the engine's).
     Raises `UserError` when the archive holds none of the vehicle's navigation topics.
     """
     config = config or NavigationConfig()
@@ -113,7 +113,10 @@ def review_vehicle(source: ArchiveReader | VehicleColumns, vehicle: str,
         topics = set(source.summary().topics)
         if not any(f"/{vehicle}/{t}" in topics for t in ("gps", "dvl", "ins")):
             raise UserError(f"{source.path}: no /{vehicle}/gps, /{vehicle}/dvl or /{vehicle}/ins to review")
-        cols = read_columns(source, vehicle, trial_start_ns(source))
+        start = start_ns if start_ns is not None else source.summary().start_ns
+        if start is None:
+            raise UserError(f"{source.path}: the archive holds no messages")
+        cols = read_columns(source, vehicle, int(start))
         damage = source.warning()
     else:
         cols, damage = source, None
@@ -184,3 +187,28 @@ def scores(review: NavigationReview) -> list[NavigationScore]:
         out.append(NavigationScore(INS_METHOD, review.vehicle, _figures(fe.t_s[rows], fe.ins_error_m[rows], pct,
                                                                          scored_at)))
     return out
+
+
+def _json_number(v: Any) -> Any:
+    """A figure as JSON takes it: None for NaN, plain Python numbers."""
+    if isinstance(v, (float, np.floating)):
+        return float(v) if math.isfinite(float(v)) else None
+    if isinstance(v, np.integer):
+        return int(v)
+    return v
+
+
+def review_metrics(review: NavigationReview) -> dict[str, Any]:
+    """The review as metrics.json holds it: scoreboard rows, dives, bottom lock and notes, in mission seconds."""
+    dv, lock = review.dives, review.bottom_lock
+    return {
+        "methods": {s.method: {k: _json_number(v) for k, v in s.figures.items()} for s in scores(review)},
+        "dives": [{k: _json_number(getattr(dv, k)[i]) for k in ("start_s", "end_s", "duration_s", "dr_error_m",
+                                                                 "ins_error_m", "distance_m", "dr_pct", "ins_pct")}
+                  for i in range(len(dv))],
+        "bottom_lock": {"samples": lock.samples, "sample_share": _json_number(lock.sample_share),
+                        "time_share": _json_number(lock.time_share),
+                        "gaps": [[_json_number(a), _json_number(b)] for a, b in
+                                 zip(lock.gap_start_s, lock.gap_end_s, strict=True)]},
+        "notes": list(review.notes),
+    }

@@ -19,6 +19,7 @@ from replay.events import (
     TrainedDetectors,
     UsblEpoch,
 )
+from replay.navigation.review import DR_METHOD, NavigationReview
 from replay.review.data import ReviewData
 from replay.stack.features import EXTRA_FEATURES
 from replay.stack.methods import detecting_names, short_names, why_line
@@ -201,8 +202,15 @@ class ReviewCollector(Listener):
     def finished(self, follower: str, results: RunResults) -> None:
         pass
 
-    def finish(self, metrics: dict[str, Any]) -> ReviewData:
-        """The collected ReviewData."""
+    def finish(self, metrics: dict[str, Any], navigation: Mapping[str, NavigationReview] | None = None) -> ReviewData:
+        """The collected ReviewData; each navigation review's dead reckoning becomes a track (one point a second)."""
+        for vehicle, nav in (navigation or {}).items():
+            dr = nav.dead_reckoning
+            keep = np.isfinite(dr.lat_deg) & np.isfinite(dr.lon_deg)
+            t, lat, lon = dr.t_s[keep], dr.lat_deg[keep], dr.lon_deg[keep]
+            second = np.r_[True, np.floor(t[1:] / INS_DECIMATE_S) > np.floor(t[:-1] / INS_DECIMATE_S)]
+            for ti, la, lo in zip(t[second].tolist(), lat[second].tolist(), lon[second].tolist(), strict=True):
+                self._track_row(ti, vehicle, DR_METHOD, la / RAD, lo / RAD)
         origin = self._origin
         data = ReviewData(self.run_id, str(self.trial.get("name", "")), self.t0_ns,
                           origin[0] * RAD if origin else math.nan, origin[1] * RAD if origin else math.nan,
@@ -213,5 +221,6 @@ class ReviewCollector(Listener):
             if rows:
                 setattr(data, name, pd.DataFrame(rows))
         data.parameters = self.parameters
+        data.navigation = dict(navigation or {})
         data.events = data.events.sort_values("t_s", kind="stable", ignore_index=True)
         return data

@@ -10,7 +10,7 @@ in metres; local east/north metres are relative to `origin_lat_deg`,
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pandas as pd
 
@@ -35,6 +35,10 @@ ANFIS_EXPLAIN_COLUMNS = ["t_s", "model", "inputs", "memberships", "firing", "out
 KMCDF_COLUMNS = ["t_s", "target", "method", "east_m", "north_m", "fixes_east_m", "fixes_north_m", "fixes_cluster",
                  "nodes_east_m", "nodes_north_m", "delay_normal", "phase_normal", "nodes"]
 EVENT_COLUMNS = ["t_s", "level", "text"]
+
+
+if TYPE_CHECKING:
+    from replay.navigation.review import NavigationReview
 
 
 @dataclass
@@ -79,3 +83,5 @@ class ReviewData:
     parameters: dict[str, Any] = field(default_factory=dict)    # the run's configuration (to_dict)
     # what reading the input archive skipped, "<path>: <warning>", when a results archive's run was re-run
     input_warning: str | None = None
+    # per vehicle with a DVL or an INS: its navigation review (replay.navigation: DR, drift at fixes, lock, series)
+    navigation: dict[str, NavigationReview] = field(default_factory=dict)

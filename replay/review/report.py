@@ -31,12 +31,17 @@ from replay.review.report_plots import (
     figure_uri,
     series_figure,
     timeline_figure,
+    tracks_figure,
 )
 from replay.review.scoreboard import (
     DETECTION_COLUMNS,
     ERROR_COLUMNS,
+    NAV_HEADINGS,
+    NAVIGATION_COLUMNS,
     format_value,
+    navigation_rows,
     scoreboard,
+    skipped_lines,
     window_text,
 )
 from replay.stack.methods import detecting_names
@@ -122,6 +127,46 @@ def _scoreboard_html(metrics: dict[str, Any]) -> str:
                     f'<td class="num">{r.rank}</td><td>{swatch}{_esc(r.method)}</td><td>{r.kind}</td>{cells}</tr>')
     return (f'<table id="scoreboard-table"><tr><th>rank</th><th>method</th><th>kind</th>{head}</tr>'
             + "".join(rows) + "</table>")
+
+
+def _navigation_html(metrics: dict[str, Any]) -> str:
+    """Each vehicle's own navigation against GPS at its fixes, ranked, and the methods the trial could not run."""
+    out = []
+    rows = navigation_rows(metrics)
+    if rows:
+        head = "".join(f"<th>{_esc(NAV_HEADINGS[c])}</th>" for c in NAVIGATION_COLUMNS)
+        body = "".join(
+            f'<tr><td class="num">{r.rank}</td><td>{_esc(r.vehicle)}</td><td>{_esc(r.method)}</td>'
+            + "".join(f'<td class="num">{_esc(format_value(r.figures.get(c)))}</td>' for c in NAVIGATION_COLUMNS)
+            + "</tr>" for r in rows)
+        out.append('<h3>Own navigation against GPS at the fixes</h3><p class="sub">Dead reckoning from the DVL '
+                   "and heading, restarted at each GPS fix, and the INS, each against the fix; scored at the fixes "
+                   "that end a dive where the trial has dives (GPS gaps), else at every fix.</p>"
+                   f'<table id="navigation-table"><tr><th>rank</th><th>vehicle</th><th>source</th>{head}</tr>'
+                   f"{body}</table>")
+    skipped = skipped_lines(metrics)
+    if skipped:
+        out.append('<h3>Not run</h3><ul id="skipped">' + "".join(f"<li>{_esc(s)}</li>" for s in skipped) + "</ul>")
+    return "\n".join(out)
+
+
+def _tracks_section(review: ReviewData) -> str:
+    """Every position track of the run (GPS, INS, other sources, dead reckoning, estimates) on one local plot."""
+    tr = review.tracks
+    if tr.empty:
+        return '<p class="note">No position track in this run.</p>'
+    lines, colours, rows = {}, {}, []
+    for (vehicle, source), g in tr.groupby(["vehicle", "source"], sort=True):
+        name = f"{vehicle} {source}"
+        lines[name] = (g["east_m"].to_numpy(float), g["north_m"].to_numpy(float))
+        colours[name] = method_hex(str(source))
+        t = g["t_s"].to_numpy(float)
+        rows.append(f"<tr><td>{_esc(vehicle)}</td><td>{_esc(source)}</td><td class=\"num\">{len(g)}</td>"
+                    f'<td class="num">{t.min():.0f}</td><td class="num">{t.max():.0f}</td></tr>')
+    fig = tracks_figure(lines, colours)
+    return (f'<img alt="tracks" src="{figure_uri(fig)}">'
+            '<table id="tracks-table"><tr><th>vehicle</th><th>source</th><th>points</th><th>first (s)</th>'
+            "<th>last (s)</th></tr>" + "".join(rows) + "</table>")
 
 
 def _error_sections(review: ReviewData, metrics: dict[str, Any], t_a: float, end_s: float) -> tuple[str, str]:
@@ -261,13 +306,16 @@ def build_report(meta: dict[str, Any], review: ReviewData, intervals: list[KindI
          f"followers {_esc(', '.join(metrics.get('followers', [])))}. "
          + (f"Best by p50 error: <b>{_esc(best[0].method)}</b>.</p>" if best_p50 is not None else
            " No epoch was scored: the run ended before t_a.</p>")),
-        ('<nav><a href="#scoreboard">Scoreboard</a><a href="#cdf">Error CDF</a><a href="#series">Error over time</a>'
+        ('<nav><a href="#scoreboard">Scoreboard</a><a href="#tracks">Tracks</a>'
+         '<a href="#cdf">Error CDF</a><a href="#series">Error over time</a>'
          '<a href="#timeline">Detections</a><a href="#kinds">By anomaly kind</a><a href="#run">Run</a></nav>'),
         '<h2 id="scoreboard">Scoreboard</h2>',
         (f'<p class="sub">Every method ranked by horizontal error p50 {_esc(window_text(metrics))}; figures '
          "exactly those of the run's metrics.json; detection columns for the detectors (an ACKF isolating what "
          "they flag).</p>"),
         _scoreboard_html(metrics),
+        _navigation_html(metrics),
+        '<h2 id="tracks">Tracks</h2>', _tracks_section(review),
         '<h2 id="cdf">Error CDF</h2>', cdf,
         '<h2 id="series">Error over time</h2>',
         '<p class="sub">The whole mission; dashed: t_a, where scoring starts.</p>', over_time,

@@ -161,3 +161,19 @@ def timeline_figure(lanes: Sequence[Lane], spans: Sequence[Span], t_a: float, en
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.5 / max(n, 1) - 0.08),
               ncol=4, fontsize=8, frameon=False)
     return fig
+
+
+def tracks_figure(tracks: dict[str, tuple[np.ndarray, np.ndarray]], colours: dict[str, str]) -> Figure:
+    """Every track in local metres (east, north of the trial's origin), one line per vehicle and source."""
+    fig = Figure(figsize=(8, 6.5))
+    ax = fig.subplots()
+    for name, (east, north) in tracks.items():
+        ax.plot(east, north, lw=1.0, color=colours.get(name), label=name)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, color="#eeeeee", lw=0.6)
+    ax.set_xlabel("east (m)", fontsize=8)
+    ax.set_ylabel("north (m)", fontsize=8)
+    ax.tick_params(labelsize=8)
+    if tracks:
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    return fig

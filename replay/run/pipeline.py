@@ -20,6 +20,7 @@ from replay.engine.core import Engine, pace
 from replay.engine.layout import plan_trial
 from replay.errors import UserError
 from replay.events import Listener, RunResults
+from replay.navigation.review import review_metrics, review_vehicle
 from replay.review.collector import ReviewCollector
 from replay.run.config import canonical_json, run_id, to_dict
 from replay.run.metrics import format_table, metrics_table, run_metrics
@@ -161,6 +162,9 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
             results = engine.finish()
             end_s = max(engine.last_s, 0.0)
             metrics = run_metrics(engine.scores(), results, rid, end_s)
+            navigation = {v: review_vehicle(reader, v, start_ns=t0_ns) for v in layout.roles
+                          if layout.has(v, "dvl") or layout.has(v, "ins")}
+            metrics["navigation"] = {v: review_metrics(r) for v, r in navigation.items()}
             wall = time.monotonic() - wall0
             metrics["wall_s"] = wall
             if writer is not None:
@@ -176,7 +180,7 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
     notes = list(engine.notes) + ([refused] if refused else []) + [f"archive: {p}" for p in problems]
     outcome = RunOutcome(rid, metrics, results, out_path, notes, wall, None, engine.messages, warning=warning)
     if collector is not None:
-        outcome.review = collector.finish(metrics)
+        outcome.review = collector.finish(metrics, navigation)
     if out_path is not None:
         save_metrics(metrics, out_path)
     return outcome

@@ -19,9 +19,13 @@ from replay.review.naming import run_labels
 from replay.review.scoreboard import (
     DETECTION_COLUMNS,
     ERROR_COLUMNS,
+    NAV_HEADINGS,
+    NAVIGATION_COLUMNS,
     ScoreRow,
     format_value,
+    navigation_rows,
     scoreboard,
+    skipped_lines,
     window_text,
 )
 from replay.views.common import Run
@@ -52,8 +56,9 @@ def scoreboard_markdown(run: Run) -> str:
     metrics = run.review.metrics
     rows = scoreboard(metrics)
     title = f"Scoreboard{' [' + run.label + ']' if run.label else ''}: {window_text(metrics)}"
+    tail = _navigation_markdown(metrics) + _skipped_markdown(metrics)
     if not rows:
-        return f"**{title}**\n\nno metrics in this run"
+        return f"**{title}**\n\nno cooperative method ran in this run" + tail
     cols = ERROR_COLUMNS + DETECTION_COLUMNS
     lines = [f"**{title}**", "", "| # | method | kind | " + " | ".join(HEADINGS[c] for c in cols) + " |",
              "|---:|---|---|" + "---:|" * len(cols)]
@@ -67,7 +72,26 @@ def scoreboard_markdown(run: Run) -> str:
         said.append(f"Best detector: **{det.method}** ({format_value(f.get('fp'))} false alarms, "
                     f"{format_value(f.get('fn'))} misses, AUC {format_value(f.get('auc'))}).")
     return "\n".join(lines + ["", " ".join(said),
-                              "", "Ranked by error p50, then p90. Detection columns only for detectors."])
+                              "", "Ranked by error p50, then p90. Detection columns only for detectors."]) + tail
+
+
+def _navigation_markdown(metrics: dict[str, Any]) -> str:
+    """Each vehicle's dead reckoning and INS against GPS at its fixes, ranked (empty without a navigation review)."""
+    rows = navigation_rows(metrics)
+    if not rows:
+        return ""
+    lines = ["", "", "**Own navigation against GPS at the fixes** (dead reckoning restarted at each fix)", "",
+             "| # | vehicle | source | " + " | ".join(NAV_HEADINGS[c] for c in NAVIGATION_COLUMNS) + " |",
+             "|---:|---|---|" + "---:|" * (len(NAVIGATION_COLUMNS) - 1) + "---|"]
+    lines += [f"| {r.rank} | {r.vehicle} | {r.method} | "
+              + " | ".join(format_value(r.figures.get(c)) for c in NAVIGATION_COLUMNS) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def _skipped_markdown(metrics: dict[str, Any]) -> str:
+    """The methods this trial could not run, each with the input it lacked."""
+    lines = skipped_lines(metrics)
+    return "\n\n**Not run** (the trial lacks their inputs):\n\n" + "\n".join(f"- {s}" for s in lines) if lines else ""
 
 
 def changes_markdown(runs: list[Run]) -> str:
