@@ -44,6 +44,7 @@ from replay.views.features import (
 from replay.views.lanes import LANES_ROOT, training_end_s
 from replay.views.positioning import fix_methods, kmcdf_half_width
 from replay.views.tracks import KEY, KEY_STEP, geo_bounds, key_rows, track_bounds
+from replay.views.vehicle import PANELS
 
 TIMELINES = ("time", "mission_s")
 
@@ -124,6 +125,23 @@ def _navigation(runs: list[Run]) -> rrb.Container:
             x_range=[-0.5, 9.0], y_range=[-1.0, 1.0 + KEY_STEP * key_rows(runs)])),
         column_shares=[5, 5, 1.6], name="Navigation",
     )
+
+
+def _vehicles(runs: list[Run]) -> rrb.Container | None:
+    """Per vehicle with a navigation review: its summary and drift at the fixes beside its series."""
+    tabs = []
+    for run in runs:
+        tag = f" [{run.label}]" if run.label else ""
+        for vehicle in run.review.navigation:
+            base = run.path("vehicle", vehicle)
+            plots = [_series(title, [f"+ {base}/{key}/**"], y_range=(0.0, 1.05) if key == "lock" else None)
+                     for key, title in PANELS]
+            left = rrb.Vertical(
+                rrb.TextDocumentView(name=f"{vehicle}: drift, dives, bottom lock", contents=[f"+ {base}/summary"]),
+                _series("Error at each GPS fix (m): DR restarted at fixes, INS", [f"+ {base}/error/**"]),
+                row_shares=[1.2, 1])
+            tabs.append(rrb.Horizontal(left, rrb.Vertical(*plots), column_shares=[1, 1.3], name=f"{vehicle}{tag}"))
+    return rrb.Tabs(*tabs, name="Vehicles") if tabs else None
 
 
 def _scoreboard(runs: list[Run], error_top: float) -> rrb.Container:
@@ -291,7 +309,7 @@ def _kmcdf(runs: list[Run]) -> rrb.Container | None:
 def build_blueprint(runs: list[Run], error_top: float, active_tab: int | str = 0) -> rrb.Blueprint:
     """The workstation layout for one run or two compared; `error_top` the error plots' y extent."""
     tabs = [_scoreboard(runs, error_top), _detection(runs), _scores(runs), _features(runs), _navigation(runs),
-            _anfis(runs), _kmcdf(runs)]
+            _vehicles(runs), _anfis(runs), _kmcdf(runs)]
     main = rrb.Tabs(*(t for t in tabs if t is not None), active_tab=active_tab)
     log = rrb.TextLogView(name="Events", contents=_contents(runs, "events"),
                           columns=rrb.archetypes.TextLogColumns(

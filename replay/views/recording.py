@@ -37,6 +37,7 @@ from replay.views.positioning import log_events, log_kmcdf
 from replay.views.scores import log_scores
 from replay.views.series import error_ceiling, log_detections, log_errors, log_ranges
 from replay.views.tracks import log_colour_key, log_range_circles, log_tracks
+from replay.views.vehicle import log_vehicles
 
 WEB_BIND = "127.0.0.1"
 
@@ -72,6 +73,7 @@ def log_review(rec: rr.RecordingStream, run: Run, axes: dict, error_top: float) 
     log_cdfs(rec, run, axes)
     log_anfis(rec, run)
     log_kmcdf(rec, run)
+    log_vehicles(rec, run)
     log_events(rec, run)
 
 
