@@ -30,13 +30,24 @@ def _gps(trial: SimulatedTrial, name: str) -> GpsSeries:
     return trial.vehicle(name).gps
 
 
+def surfaced(trial: SimulatedTrial, name: str, t_s: np.ndarray) -> np.ndarray:
+    """Where a vehicle's GPS receiver has sky: always, but for a follower during its dives (scenario `gps`)."""
+    cfg = trial.scenario.gps
+    role = next((v.role for v in trial.vehicles if v.name == name), "buoy")
+    if cfg.follower_dive_s <= 0 or role != "follower":
+        return np.ones(np.shape(t_s), dtype=bool)
+    phase = (np.asarray(t_s) - cfg.follower_first_dive_s) % (cfg.follower_dive_s + cfg.follower_surface_s)
+    return (np.asarray(t_s) < cfg.follower_first_dive_s) | (phase >= cfg.follower_dive_s)
+
+
 def nmea_gps(trial: SimulatedTrial, name: str) -> bytes:
-    """GGA, GST and RMC every fix (buoys: GGA and RMC), straight from the receiver."""
+    """GGA, GST and RMC every fix (buoys: GGA and RMC), straight from the receiver; none while submerged."""
     g = _gps(trial, name)
     buoy = name.startswith("buoy")
     t_ns = trial.t_ns(g.t_s)
+    sky = surfaced(trial, name, g.t_s)
     out = []
-    for i in range(len(g.t_s)):
+    for i in np.flatnonzero(sky):
         t = int(t_ns[i])
         lines = [nmea.encode_gga(t, float(g.lat_deg[i]), float(g.lon_deg[i]), satellites=int(g.satellites[i]),
                                  hdop=float(g.hdop[i]), altitude_msl_m=float(g.altitude_m[i]),
@@ -62,7 +73,7 @@ def novatel_gps(trial: SimulatedTrial, name: str) -> bytes:
             int(t_ns[i]), float(g.lat_deg[i]), float(g.lon_deg[i]), float(g.altitude_m[i]),
             lat_std_m=g.sigma_m, lon_std_m=g.sigma_m, height_std_m=sigma_v, undulation_m=GEOID_SEPARATION_M,
             satellites_tracked=int(g.satellites[i]) + 2, satellites_used=int(g.satellites[i]), sequence=0)
-        for i in range(len(g.t_s))
+        for i in np.flatnonzero(surfaced(trial, name, g.t_s))
     ]
     return "".join(out).encode("ascii")
 

@@ -44,6 +44,12 @@ class GpsConfig:
     # single-point errors wander over tens of seconds; first-order Gauss-Markov
     correlation_time_s: float = 30.0
     buoy_rate_hz: float = 0.2
+    # an AUV's receiver has no sky while it is submerged: followers dive for follower_dive_s (0: never), from
+    # follower_first_dive_s on, surfacing for follower_surface_s between dives (typical survey AUVs: dives of
+    # 5-30 min, a minute or two at the surface for a fix); their GPS logs hold no fix while submerged
+    follower_dive_s: float = 0.0
+    follower_surface_s: float = 60.0
+    follower_first_dive_s: float = 60.0
 
 
 @dataclass(frozen=True)
