@@ -127,7 +127,7 @@ def test_standardized_residual_matches_its_definition(steps: list[tuple[float, f
     from replay.stack.features import FeatureTracker
 
     cfg = FeatureConfig()
-    tracker = FeatureTracker(cfg, ("leader1",), LAT, LON)
+    tracker = FeatureTracker(cfg, ("leader1",), (LAT, LON))
     t, seen = 0.0, []
     for dt, x in steps:
         t += dt

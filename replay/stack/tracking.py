@@ -42,7 +42,7 @@ def leader_exclusion(config: StackConfig, leaders: Sequence[str], start: Start) 
 
 def feature_tracker(config: StackConfig, leaders: Sequence[str], start: Start) -> FeatureTracker:
     """A feature tracker at the start position, with the leader-exclusion filters when a method uses them."""
-    return FeatureTracker(config.features, tuple(leaders), float(start.lat_rad), float(start.lon_rad),
+    return FeatureTracker(config.features, tuple(leaders), (float(start.lat_rad), float(start.lon_rad)),
                           leader_exclusion(config, leaders, start), config.r_m, config.p0_m)
 
 
