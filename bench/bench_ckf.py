@@ -29,7 +29,7 @@ from replay.stack.config import StackConfig
 from replay.stack.filters import ckf
 from replay.stack.filters.ckf import State2
 from replay.stack.methods import default_names
-from replay.stack.runner import CooperativeRunner, RunResults
+from replay.stack.runner import CooperativeRunner, RunResults, Start
 
 LAT, LON = math.radians(45.7), math.radians(126.6)
 OWN = ("dead_reckoning", "ckf", "ackf", "chi_square", "dual_threshold")
@@ -98,8 +98,8 @@ def drive(trial: object, samples: np.ndarray, methods: tuple[str, ...]) -> tuple
     rows = samples.tolist()
     cfg = StackConfig(methods=methods)
     start = time.perf_counter()
-    runner = CooperativeRunner(cfg, "follower", ["leader1", "leader2"], rows[0][0],
-                               math.radians(fol.gps.lat_deg[0]), math.radians(fol.gps.lon_deg[0]), rows[0][4])
+    runner = CooperativeRunner(cfg, "follower", ["leader1", "leader2"], Start(
+        rows[0][0], math.radians(fol.gps.lat_deg[0]), math.radians(fol.gps.lon_deg[0]), rows[0][4]))
     k = 0
     for row in rows[1:]:
         while k < len(epochs) and epochs[k][0] <= row[0]:

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from replay.stack.config import StackConfig
-from replay.stack.runner import CooperativeRunner, RunResults
+from replay.stack.runner import CooperativeRunner, RunResults, Start
 from replay.stack.scoring import score_run
 
 
@@ -31,8 +31,8 @@ def run_on_arrays(trial: Any, config: StackConfig) -> tuple[RunResults, dict[str
                       np.radians(r.leader_ins_lon_deg).tolist(), r.leader_depth_m.tolist(), r.range_m.tolist(),
                       r.z_gps_m.tolist()))
     leaders = sorted({e[1] for e in epochs})
-    runner = CooperativeRunner(config, fol.name, leaders, 0.0, math.radians(fol.gps.lat_deg[0]),
-                               math.radians(fol.gps.lon_deg[0]), samples[0][4])
+    runner = CooperativeRunner(config, fol.name, leaders, Start(0.0, math.radians(fol.gps.lat_deg[0]),
+                                                                math.radians(fol.gps.lon_deg[0]), samples[0][4]))
     k = 0
     for row in samples:
         while k < len(epochs) and epochs[k][0] <= row[0]:

@@ -116,7 +116,7 @@ def test_runner_database_holds_every_kind_at_its_configured_share() -> None:
 
 def test_features_repeat_dr_residual_and_usbl() -> None:
     """Exact DR, exact ranges: residuals 0; a stale range counts repeats and leaves the DR range; a fix anchors."""
-    tr = FeatureTracker(FeatureConfig(), ("a", "b"), LAT, LON)
+    tr = FeatureTracker(FeatureConfig(), ("a", "b"), (LAT, LON))
     leader = (LAT + 0.004, LON + 0.003, 0.0)
     z0 = range_to(LAT, LON, 0.0, *leader)
     first = tr.epoch(0.0, "a", z0, z0, 0.0, leader)
@@ -138,7 +138,7 @@ def test_features_repeat_dr_residual_and_usbl() -> None:
 
 def test_lag_residual_sees_a_drift_the_reference_follows() -> None:
     """With an exact reference and exact DR the lagged prediction is the true range: the residual is the drift."""
-    tr = FeatureTracker(FeatureConfig(lag_s=60.0), ("a",), LAT, LON)
+    tr = FeatureTracker(FeatureConfig(lag_s=60.0), ("a",), (LAT, LON))
     leader = (LAT + 0.004, LON + 0.003, 0.0)
     lags = []
     for k in range(200):

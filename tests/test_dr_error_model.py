@@ -187,7 +187,7 @@ def _tracker_run(source: str, drift_from_s: float) -> np.ndarray:
     lat0, lon0, depth = math.radians(45.7), math.radians(126.6), 2.0
     b, a = metric_scales_scalar(lat0, depth)
     leaders = [(lat0 + 400.0 / b, lon0 - 300.0 / a, 1.5), (lat0 - 350.0 / b, lon0 + 500.0 / a, 1.5)]
-    tracker = FeatureTracker(replace(FeatureConfig(), drift_source=source), ("leader1", "leader2"), lat0, lon0)
+    tracker = FeatureTracker(replace(FeatureConfig(), drift_source=source), ("leader1", "leader2"), (lat0, lon0))
     truth = [lat0, lon0]
     bias = math.radians(2.0)
     rows, k, next_ping = [], 0, 2.4
@@ -231,7 +231,7 @@ def test_with_a_fresh_usbl_fix_the_drift_residual_is_the_current_innovation(monk
     lat0, lon0, depth = math.radians(45.7), math.radians(126.6), 2.0
     b, a = metric_scales_scalar(lat0, depth)
     leaders = [(lat0 + 400.0 / b, lon0 - 300.0 / a, 1.5), (lat0 - 350.0 / b, lon0 + 500.0 / a, 1.5)]
-    tracker = FeatureTracker(FeatureConfig(), ("leader1", "leader2"), lat0, lon0)
+    tracker = FeatureTracker(FeatureConfig(), ("leader1", "leader2"), (lat0, lon0))
     assert tracker.model is not None
     seen = []
     model_range = tracker.model.range

@@ -141,7 +141,7 @@ def test_drift_z_is_the_residual_against_both_leaders_recent_non_repeated_residu
     than scale_min_samples of them. Ranges are noisy, a fifth repeated.
     """
     cfg = replace(FeatureConfig(), scale_pooled=pooled)
-    tracker = FeatureTracker(cfg, ("leader1", "leader2"), LAT, LON)
+    tracker = FeatureTracker(cfg, ("leader1", "leader2"), (LAT, LON))
     rng = np.random.default_rng(5)
     geos = {"leader1": (LAT + 4e-5, LON, 0.0), "leader2": (LAT, LON + 6e-5, 0.0)}
     ix, iz, irep = (EXTRA_FEATURES.index(n) for n in ("drift_residual_m", "drift_z", "repeat_count"))

@@ -11,8 +11,10 @@ from hypothesis import strategies as st
 
 from replay.stack.config import StackConfig
 from replay.stack.exclusion import LeaderExclusion
-from replay.stack.features import EXTRA_FEATURES, FeatureTracker
-from replay.stack.runner import CooperativeRunner
+from replay.stack.features import EXTRA_FEATURES
+from replay.stack.hybrid_database import HybridDatabase
+from replay.stack.runner import CooperativeRunner, RunnerOptions, RunnerParts, Start
+from replay.stack.tracking import feature_tracker, leader_exclusion
 from replay.stack.training import RECORDED
 from tests.test_runner import A0, B0, LAT, LON, make_trial, run_trial
 
@@ -87,16 +89,18 @@ def test_lean_open_loop_copy_equals_an_ackf_only_runner() -> None:
     """The hybrid database's pass gives the rows a runner holding only ``ackf`` would (the slow reference)."""
     cfg = StackConfig(methods=("ackf", "cusum_drift"), training_window_s=300.0, features=EXCLUSION)
     runner, _ = run_trial(make_trial(4), cfg)
-    window = runner._window
+    window = runner.parts.trainer.window
+    start, leaders = Start(0.0, LAT, LON, 4.0), ("leader1", "leader2")
     n = sum(kind == "range" for kind, _ in window)
     rng = np.random.default_rng(0)
     slant = np.array([a[5] for kind, a in window if kind == "range"]) + rng.normal(0.0, 5.0, n)
     replied = rng.random(n) > 0.1
-    lean = runner._open_loop_copy(slant, replied)
-    child = CooperativeRunner(replace(cfg, methods=("ackf",)), "follower", ["leader1", "leader2"], 0.0,
-                              *runner._initial, keep_history=False)
-    # the child runs no new method, so it has no feature tracker: it gets the one the lean pass builds
-    child._features = FeatureTracker(cfg.features, child.leaders, *runner._initial[:2], runner._exclusion())
+    lean = HybridDatabase(cfg, leaders, start).copy_rows(window, slant, replied)
+    only_ackf = replace(cfg, methods=("ackf",))
+    # the child runs no new method, so it would have no feature tracker: it is handed the one the lean pass builds
+    parts = replace(RunnerParts.build(only_ackf, leaders, start, RunnerOptions(keep_history=False)),
+                    features=feature_tracker(cfg, leaders, start))
+    child = CooperativeRunner(only_ackf, "follower", leaders, start, parts=parts)
     k = 0
     for kind, args in window:
         if kind == "dr":
@@ -106,10 +110,10 @@ def test_lean_open_loop_copy_equals_an_ackf_only_runner() -> None:
                 t, leader, lat, lon, depth, _, truth = args
                 child.range_epoch(t, leader, lat, lon, depth, float(slant[k]), truth)
             k += 1
-    assert len(lean) == len(child._train_rows) > 50
-    np.testing.assert_array_equal(np.array([r[2:] for r in lean], float),
-                                  np.array([r[2:] for r in child._train_rows], float))
-    assert [r[:2] for r in lean] == [r[:2] for r in child._train_rows]
+    child_rows = child.parts.trainer.rows
+    assert len(lean) == len(child_rows) > 50
+    np.testing.assert_array_equal(np.array([r[2:] for r in lean], float), np.array([r[2:] for r in child_rows], float))
+    assert [r[:2] for r in lean] == [r[:2] for r in child_rows]
     assert np.isfinite(np.array([r[2 + 3 + EXTRA_FEATURES.index("exclusion_residual_m")] for r in lean])).mean() > 0.9
     assert RECORDED == ""
 
@@ -123,7 +127,7 @@ def test_standardized_residual_matches_its_definition(steps: list[tuple[float, f
     from replay.stack.features import FeatureTracker
 
     cfg = FeatureConfig()
-    tracker = FeatureTracker(cfg, ("leader1",), LAT, LON)
+    tracker = FeatureTracker(cfg, ("leader1",), (LAT, LON))
     t, seen = 0.0, []
     for dt, x in steps:
         t += dt
@@ -143,10 +147,12 @@ def test_exclusion_filters_run_only_when_a_method_uses_them() -> None:
     """Default (stiff drift residual): no exclusion filters and NaN features; either switch turns them on."""
     base = StackConfig(methods=("ackf", "cusum_drift"), training_window_s=300.0)
     on = [replace(base, features=EXCLUSION), replace(base, hybrid_inputs=("f2", "exclusion_z"))]
-    off_runner = CooperativeRunner(base, "f", ["leader1", "leader2"], 0.0, LAT, LON)
-    assert off_runner._features.exclusion is None and off_runner._exclusion() is None
-    assert all(CooperativeRunner(c, "f", ["leader1", "leader2"], 0.0, LAT, LON)._features.exclusion is not None
-               for c in on)
+    start = Start(0.0, LAT, LON)
+    off_runner = CooperativeRunner(base, "f", ["leader1", "leader2"], start)
+    assert off_runner.parts.features is not None and off_runner.parts.features.exclusion is None
+    assert leader_exclusion(base, ["leader1", "leader2"], start) is None
+    on_runners = [CooperativeRunner(c, "f", ["leader1", "leader2"], start) for c in on]
+    assert all(r.parts.features is not None and r.parts.features.exclusion is not None for r in on_runners)
     _, out = run_trial(make_trial(6), base)
     rows = [r[0] for r in out if r]
     assert all(math.isnan(r.exclusion_residual_m) and math.isnan(r.exclusion_z) for r in rows)

@@ -10,7 +10,7 @@ import numpy as np
 from replay.stack.config import AnfisConfig, StackConfig
 from replay.stack.detectors.base import Decision
 from replay.stack.model import metric_scales_scalar
-from replay.stack.runner import CooperativeRunner, EpochResult, RunResults
+from replay.stack.runner import CooperativeRunner, EpochResult, RunnerOptions, RunResults, Start
 from replay.stack.scoring import RESULT_KEYS, score_run
 from replay.stack.training import TrainingSet
 
@@ -61,7 +61,8 @@ def make_trial(seed: int = 0, duration: float = 700.0, stale: tuple = ((120, 160
 
 def run_trial(trial: Trial, config: StackConfig = CONFIG, **kwargs) -> tuple[CooperativeRunner, list]:
     """Push the trial through a runner in time order; returns the runner and every epoch's results."""
-    runner = CooperativeRunner(config, "follower", ["leader1", "leader2"], 0.0, LAT, LON, 4.0, **kwargs)
+    runner = CooperativeRunner(config, "follower", ["leader1", "leader2"], Start(0.0, LAT, LON, 4.0),
+                               RunnerOptions(**kwargs))
     out, k = [], 0
     for i in range(1, trial.t.size):
         while k < len(trial.epochs) and trial.epochs[k][0] <= trial.t[i]:
@@ -122,7 +123,7 @@ def test_tracks_cover_every_step() -> None:
 
 
 def test_range_epoch_carries_the_last_dr_sample() -> None:
-    runner = CooperativeRunner(replace(CONFIG, methods=("dead_reckoning",)), "f", ["leader1"], 0.0, LAT, LON)
+    runner = CooperativeRunner(replace(CONFIG, methods=("dead_reckoning",)), "f", ["leader1"], Start(0.0, LAT, LON))
     assert runner.dead_reckon(1.0, 1.0, 0.0, 0.0, 0.0)           # 1 m north over (0, 1]
     (r,) = runner.range_epoch(3.0, "leader1", LAT + 300 / B0, LON + 400 / A0, 0.0, 500.0)
     assert abs((r.lat_rad - LAT) * B0 - 3.0) < 1e-6               # carried to t = 3 at 1 m/s
@@ -131,7 +132,7 @@ def test_range_epoch_carries_the_last_dr_sample() -> None:
 
 
 def test_bad_inputs_are_rejected_and_counted() -> None:
-    runner = CooperativeRunner(CONFIG, "f", ["leader1", "leader2"], 0.0, LAT, LON)
+    runner = CooperativeRunner(CONFIG, "f", ["leader1", "leader2"], Start(0.0, LAT, LON))
     leader = (LAT + 300 / B0, LON + 400 / A0, 0.0)
     assert runner.dead_reckon(1.0, 1.0, 0.0, 0.0, 0.0)
     assert not runner.dead_reckon(1.0, 1.0, 0.0, 0.0, 0.0)       # Δt = 0
@@ -167,7 +168,7 @@ def test_missed_slow_drift_recovers_with_the_isolation_cap() -> None:
         cfg = StackConfig(methods=("ackf", "chi_square"), training_window_s=100.0, q_m_per_s=(0.3, 0.3),
                           isolation_cap=cap)
         rng = np.random.default_rng(5)
-        runner = CooperativeRunner(cfg, "f", ["l1", "l2"], 0.0, LAT, LON)
+        runner = CooperativeRunner(cfg, "f", ["l1", "l2"], Start(0.0, LAT, LON))
         n = e = 0.0
         errors = {}
         for k in range(1, 1201):
@@ -251,7 +252,7 @@ def test_leader_without_training_truth_is_reported_and_run_goes_on() -> None:
 
 
 def test_run_without_epochs_scores_cleanly() -> None:
-    runner = CooperativeRunner(CONFIG, "f", ["leader1"], 0.0, LAT, LON)
+    runner = CooperativeRunner(CONFIG, "f", ["leader1"], Start(0.0, LAT, LON))
     for k in range(1, 400):
         runner.dead_reckon(float(k), 1.0, 0.0, 0.0, 0.0)
     res = runner.finish()
@@ -264,14 +265,14 @@ def test_run_without_epochs_scores_cleanly() -> None:
 
 
 def test_factories_come_from_the_method_table_by_default() -> None:
-    runner = CooperativeRunner(CONFIG, "f", ["leader1"], 0.0, LAT, LON)
-    assert runner._factories == {}
+    runner = CooperativeRunner(CONFIG, "f", ["leader1"], Start(0.0, LAT, LON))
+    assert runner.parts.trainer._factories == {}
 
 
 def test_position_fixes_update_every_filter_but_dead_reckoning() -> None:
     """USBL-like fixes pull the filters onto the truth; dead reckoning ignores them; bad fixes are counted."""
     trial = make_trial(seed=4, duration=400.0, stale=(), outlier_rate=0.0)
-    runner = CooperativeRunner(CONFIG, "follower", ["leader1", "leader2"], 0.0, LAT, LON, 4.0)
+    runner = CooperativeRunner(CONFIG, "follower", ["leader1", "leader2"], Start(0.0, LAT, LON, 4.0))
     rng = np.random.default_rng(1)
     for i in range(1, trial.t.size):
         runner.dead_reckon(trial.t[i], *trial.dr[i], 4.0)
@@ -303,7 +304,7 @@ def test_training_on_threads_gives_the_same_run() -> None:
     runs = []
     for threads in (1, 4):
         runner, _ = run_trial(trial, config, training_threads=threads)
-        assert runner.training_threads == threads
+        assert runner.parts.trainer.threads == threads
         runs.append(runner.finish())
     one, four = runs
     assert one.trained and not one.training_errors

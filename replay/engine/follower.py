@@ -20,7 +20,7 @@ from replay.engine.layout import FollowerPlan
 from replay.engine.tracks import Track
 from replay.events import EpochResult, ErrorSample, Fix
 from replay.stack.model import horizontal_distance_scalar
-from replay.stack.runner import CooperativeRunner
+from replay.stack.runner import CooperativeRunner, RunnerOptions, Start
 from replay.stack.training import TrainingSet
 
 DEG = math.pi / 180.0
@@ -148,9 +148,8 @@ class FollowerPipeline:
         if fix is None:
             return None
         self.runner = CooperativeRunner(
-            self.config.stack, self.plan.name, self.plan.leaders, start_time_s=0.0,
-            initial_lat_rad=fix.lat_rad, initial_lon_rad=fix.lon_rad, initial_depth_m=self._depth,
-            keep_history=False, training_set=self.training_set)
+            self.config.stack, self.plan.name, self.plan.leaders, Start(0.0, fix.lat_rad, fix.lon_rad, self._depth),
+            RunnerOptions(keep_history=False, training_set=self.training_set))
         self._prev = (0.0, self.runner.positions())
         return self.runner
 

@@ -183,12 +183,13 @@ class StiffReference:
 class FeatureTracker:
     """Pure dead reckoning, the USBL anchor and per-leader memory: the EXTRA_FEATURES of each range epoch."""
 
-    def __init__(self, config: FeatureConfig, leaders: tuple[str, ...], lat_rad: float, lon_rad: float,
+    def __init__(self, config: FeatureConfig, leaders: tuple[str, ...], position: tuple[float, float],
                  exclusion: LeaderExclusion | None = None, range_sigma_m: float = 3.0,
                  p0_m: tuple[float, float] = (1.0, 1.0)) -> None:
-        """Start dead reckoning at the initial position; no USBL anchor yet; ``exclusion``: its filters, or none.
+        """Start dead reckoning at the initial position (lat, lon in rad); no USBL anchor yet.
 
-        ``range_sigma_m`` and ``p0_m`` (the stack's r_m and p0_m) set the stiff reference's R and P0.
+        ``exclusion``: the leader-exclusion filters, or none. ``range_sigma_m`` and
+        ``p0_m`` (the stack's r_m and p0_m) set the stiff reference's R and P0.
         """
         if config.drift_source not in DRIFT_SOURCES:
             raise ConfigError(f"features.drift_source must be one of {DRIFT_SOURCES}, got {config.drift_source!r}")
@@ -201,7 +202,7 @@ class FeatureTracker:
             config.model_scale_walk_per_sqrt_s, range_sigma_m, p0_m, math.radians(config.model_heading_sigma_deg),
             config.model_scale_sigma, config.lag_s, config.model_gate_sigma, config.model_cap,
         ) if config.drift_source == "model" else None
-        self.dr = [float(lat_rad), float(lon_rad)]
+        self.dr = [float(position[0]), float(position[1])]
         self.anchor: list[float] | None = None
         self.anchor_t = -math.inf
         self._last_slant: dict[str, float] = {}

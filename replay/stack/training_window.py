@@ -1,0 +1,172 @@
+"""The runner's training window: what it collects before t_a and the detectors it trains at t_a.
+
+During the window ``start < t <= t_a = start + training_window_s`` every
+detecting method runs its own ACKF without isolation, and the ``ackf``
+method's epochs with GPS truth give the rows: the features, the signed
+range error Z - Z_gps and the label. When a new method is configured the
+window's inputs are kept too, for the hybrid database
+(`replay.stack.hybrid_database`).
+
+At the first sample after t_a each detector is trained: with
+``config.anfis.model == "per_leader"`` one instance per leader on that
+leader's rows; with ``"shared"`` (or a method-table entry with
+``pooled_training``) one instance on every leader's rows, then copied per
+leader so that detectors with memory (the dual threshold's CUSUM) keep one
+memory per acoustic link. A detector that cannot be trained (no labelled
+rows, or its training fails) is left out (None) and reported in
+``errors``; its method then runs as a plain ACKF.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+
+from replay.stack.config import ConfigError, StackConfig
+from replay.stack.detectors.base import Detector
+from replay.stack.features import FEATURE_NAMES, PAPER_FEATURES
+from replay.stack.hybrid_database import HybridDatabase, WindowInput, rows_to_set
+from replay.stack.methods import Method, method
+from replay.stack.runner_options import RunnerOptions, Start
+from replay.stack.tracking import needs_features
+from replay.stack.training import RECORDED, TRAINING_SOURCES, TrainingSet
+
+Trained = dict[str, dict[str, Detector | None]]
+"""Method name -> leader -> its trained detector (None: it could not be trained)."""
+_Job = tuple[Method, str, TrainingSet]     # a method, the leader it trains for (or "all"), its rows
+
+
+def threshold_report(det: Detector | None) -> dict[str, float]:
+    """A trained detector's named thresholds (its ``thresholds`` mapping, else its ``threshold`` as "used")."""
+    named = getattr(det, "thresholds", None)
+    if isinstance(named, dict):
+        return {str(k): float(v) for k, v in named.items()}
+    thr = getattr(det, "threshold", None)
+    return {"used": float(thr)} if isinstance(thr, (int, float)) else {}
+
+
+class TrainingWindow:
+    """Collects one runner's training rows and window inputs, and trains its detectors once at t_a."""
+
+    def __init__(self, config: StackConfig, leaders: Sequence[str], start: Start, options: RunnerOptions) -> None:
+        """Check the training source against the given set; ConfigError or ValueError naming the problem."""
+        given = options.training_set
+        if config.training_source not in TRAINING_SOURCES:
+            raise ConfigError(f"unknown training_source {config.training_source!r}; expected one of "
+                              f"{', '.join(TRAINING_SOURCES)}")
+        if config.training_source != "own" and given is None:
+            raise ValueError(f"training_source {config.training_source!r} needs a training_set")
+        if given is not None and given.feature_names != FEATURE_NAMES:
+            raise ValueError(f"the given training set's features {given.feature_names} are not {FEATURE_NAMES}")
+        self.config = config
+        self.leaders = tuple(leaders)
+        self.end_s = float(start.time_s) + config.training_window_s
+        self.threads = options.threads()
+        self.keeps_window = needs_features(config)     # the hybrid database replays the window
+        self._given = given
+        self._factories = dict(options.factories)      # overrides of the method table's factories (tests)
+        self._database = HybridDatabase(config, leaders, start)
+        self.rows: list[tuple] = []            # (t, leader, features..., Z - Z_gps, label) of ackf in the window
+        self.window: list[WindowInput] = []    # the window's inputs in push order
+        self.trained = False
+        self.training_set: TrainingSet | None = None
+        self.thresholds: dict[str, dict[str, dict[str, float]]] = {}
+        self.notes: dict[str, str] = {}
+        self.errors: dict[str, str] = {}
+
+    def due(self, t_s: float) -> bool:
+        """True at the first sample after t_a, when the detectors are to be trained."""
+        return not self.trained and t_s > self.end_s
+
+    def keep(self, kind: str, args: tuple) -> None:
+        """Remember one input (its time first) for the hybrid database, when inside the window and needed."""
+        if self.keeps_window and args[0] <= self.end_s:
+            self.window.append((kind, args))
+
+    def train(self, entries: Sequence[Method]) -> Trained:
+        """Train every detecting method's detectors (AQPSO-GA models on threads); thresholds and notes kept."""
+        self.trained = True
+        ts = self._assemble()
+        self.training_set = ts
+        jobs = [(e, key, data) for e in entries if e.detects for key, data in self._split(e, ts)]
+        out: Trained = {e.name: {} for e in entries if e.detects}
+        for (e, key, _), (det, error) in zip(jobs, self._run(jobs), strict=True):
+            if error:
+                self.errors[f"{e.name}/{key}"] = error
+            if key == "all":        # shared: one model, a copy per leader (memory per acoustic link)
+                out[e.name] = {ld: copy.deepcopy(det) if det is not None else None for ld in self.leaders}
+            else:
+                out[e.name][key] = det
+        for name, per_leader in out.items():
+            self.thresholds[name] = {ld: threshold_report(det) for ld, det in per_leader.items() if det is not None}
+        for name, named_per_leader in self.thresholds.items():
+            if named_per_leader:
+                self.notes[f"{name}/thresholds"] = "; ".join(
+                    f"{ld}: " + ", ".join(f"{k} {v:.3g}" for k, v in named.items())
+                    for ld, named in named_per_leader.items())
+        return out
+
+    def _run(self, jobs: list[_Job]) -> list[tuple[Detector | None, str]]:
+        """Every job's (detector or None, error): the threaded ones side by side, the others here in turn."""
+        # AQPSO-GA evaluates whole populations, where numpy and LAPACK release the GIL: two such
+        # models train ~1.5x faster side by side. The other trainers are many small numpy calls
+        # that only contend for the GIL (3x slower each on threads), so they run here, in turn.
+        # Each job has its own data and seed: results do not depend on the threads.
+        outcomes: list[tuple[Detector | None, str] | None] = [None] * len(jobs)
+        heavy = [i for i, job in enumerate(jobs) if job[0].threaded_training]
+        if self.threads > 1 and len(heavy) > 1:
+            from concurrent.futures import ThreadPoolExecutor
+
+            with ThreadPoolExecutor(min(self.threads, len(heavy))) as pool:
+                futures = {i: pool.submit(self._train_one, jobs[i][0], jobs[i][2]) for i in heavy}
+            for i, future in futures.items():
+                outcomes[i] = future.result()
+        for i, (e, _, data) in enumerate(jobs):
+            if outcomes[i] is None:
+                outcomes[i] = self._train_one(e, data)
+        return [o for o in outcomes if o is not None]     # every job has its outcome by now
+
+    def _assemble(self) -> TrainingSet:
+        """The rows every detector trains on, by ``config.training_source`` (see the module doc)."""
+        source = self.config.training_source
+        if source == "given" and self._given is not None:
+            self.notes["source"] = f"given: {len(self._given)} rows"
+            return self._given
+        own = rows_to_set(self.rows, RECORDED)
+        recorded = len(own)
+        if self.keeps_window:
+            database, note = self._database.build(self.window)
+            if note:
+                self.notes["database"] = note
+            own = own.concat(database)
+        note = f"own window: {recorded} rows, hybrid database: {len(own) - recorded} rows"
+        if source == "both" and self._given is not None:
+            self.notes["source"] = note + f", given: {len(self._given)} rows"
+            return own.concat(self._given)
+        self.notes["source"] = note
+        return own
+
+    def _split(self, entry: Method, ts: TrainingSet) -> list[tuple[str, TrainingSet]]:
+        """(leader or "all", its rows) to train for one method (see the module doc).
+
+        Paper A's detectors get the recorded rows only, as published; the new
+        ones every row, the hybrid database included.
+        """
+        sub = (ts if entry.wide else ts.recorded()).with_features(entry.features or PAPER_FEATURES)
+        if self.config.anfis.model == "shared" or entry.pooled_training:
+            return [("all", sub)]
+        return [(ld, sub.for_leader(ld)) for ld in self.leaders]
+
+    def _train_one(self, entry: Method, ts: TrainingSet) -> tuple[Detector | None, str]:
+        """One detector trained on the given rows (the method's feature columns), or (None, why not)."""
+        if len(ts) == 0:
+            return None, "no labelled epochs in the training window"
+        factory = self._factories.get(entry.name) or method(entry.name).factory
+        if factory is None:
+            return None, f"{entry.name} has no detector factory"
+        det = factory(self.config)
+        try:
+            det.train_on(ts)
+        except Exception as exc:  # noqa: BLE001 - a detector that cannot train is disabled, the run goes on
+            return None, f"{type(exc).__name__}: {exc}"
+        return det, ""
