@@ -184,9 +184,10 @@ def _parse_vehicle(raw: Any, index: int, where: str) -> Vehicle:
     name = raw["name"]
     if "/" in name or name.strip() != name:
         raise ManifestError(f"{where}: vehicle name {name!r} cannot contain '/' or surrounding spaces")
-    role = raw.get("role")
-    if role not in ROLES:
-        raise ManifestError(f"{where}: vehicle {name!r} has role {role!r}; use one of {', '.join(ROLES)}")
+    role = raw.get("role", "")      # left out: the replay guesses it from the vehicle's sensors
+    if role not in ROLES + ("",):
+        raise ManifestError(f"{where}: vehicle {name!r} has role {role!r}; use one of {', '.join(ROLES)}, or leave "
+                            "it out (a vehicle alone needs none)")
     address = raw.get("modem_address")
     if address is not None and (not isinstance(address, int) or isinstance(address, bool)):
         raise ManifestError(f"{where}: vehicle {name!r}: modem_address must be an integer")

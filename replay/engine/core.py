@@ -24,7 +24,7 @@ from replay.engine.layout import TrialLayout
 from replay.engine.usbl import positioning
 from replay.engine.usbl.epochs import UsblEpochBuilder
 from replay.events import EpochResult, ErrorSample, Fix, FollowerScores, Listener, RunResults, RunScores, UsblEpoch
-from replay.stack.methods import INPUTS, method_names
+from replay.stack.methods import INPUTS, method, method_names
 from replay.stack.model import horizontal_offset_m, offset_to_latlon
 from replay.stack.positioning.kmcdf import KmcdfParams
 from replay.stack.training import TrainingSet
@@ -193,6 +193,8 @@ class Engine:
         runner = pipe.runner
         if runner is not None and name not in self._trained and getattr(runner, "trained", False):
             self._trained.add(name)
+            if not any(method(m).detects for m in pipe.plan.methods):
+                return      # nothing was trained: no detector among the methods this follower runs
             for listener in self.listeners:
                 listener.event(runner.training_end_s, "INFO", f"{name}: detectors trained at t_a = "
                                f"{runner.training_end_s:.0f} s" + "".join(

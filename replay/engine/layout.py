@@ -95,7 +95,10 @@ def plan_trial(trial_meta: dict | None, topics: dict[str, int], methods: Sequenc
     """
     vehicles = (trial_meta or {}).get("vehicles") or []
     if vehicles:
-        roles = {v["name"]: v.get("role", "leader") for v in vehicles if isinstance(v, dict) and "name" in v}
+        roles = {v["name"]: v.get("role") or "" for v in vehicles if isinstance(v, dict) and "name" in v}
+        if "" in roles.values():      # a role left out of the manifest: guessed from the vehicle's sensors
+            guessed = _guess_roles(topics)
+            roles = {name: role or guessed.get(name, "leader") for name, role in roles.items()}
         layout = TrialLayout(roles, dict(topics))
     else:
         layout = TrialLayout(_guess_roles(topics), dict(topics))

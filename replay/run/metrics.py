@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from replay.events import RunResults, RunScores
-from replay.review.scoreboard import format_value
+from replay.review.scoreboard import NAV_HEADINGS, NAVIGATION_COLUMNS, format_value, navigation_rows, skipped_lines
 from replay.stack.methods import METHOD_TABLE
 from replay.stack.scoring import RESULT_KEYS, detection_scores, error_stats
 
@@ -77,9 +77,22 @@ def metrics_table(metrics: dict[str, Any]) -> list[dict[str, Any]]:
 def format_table(metrics: dict[str, Any]) -> str:
     """The printed metrics table."""
     cols = ["method", "tp", "tn", "fp", "fn", "accuracy", "fpr", "fnr", "auc", "error_p50_m", "error_p90_m"]
-    rows = [[format_value(r.get(c)) for c in cols] for r in metrics_table(metrics)]
-    widths = [max(len(c), *(len(r[i]) for r in rows)) if rows else len(c) for i, c in enumerate(cols)]
-    lines = ["  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in enumerate(zip(cols, widths)))]
-    lines.append("  ".join("-" * w for w in widths))
-    lines += ["  ".join(v.rjust(w) if i else v.ljust(w) for i, (v, w) in enumerate(zip(r, widths))) for r in rows]
+    lines = _plain_table(cols, [[format_value(r.get(c)) for c in cols] for r in metrics_table(metrics)])
+    nav = navigation_rows(metrics)
+    if nav:
+        heads = ["vehicle", "source", *(NAV_HEADINGS[c] for c in NAVIGATION_COLUMNS)]
+        lines += ["", "own navigation against GPS at the fixes (dead reckoning restarted at each fix):"]
+        lines += _plain_table(heads, [[r.vehicle, r.method, *(format_value(r.figures.get(c))
+                                                             for c in NAVIGATION_COLUMNS)] for r in nav], left=2)
+    skipped = skipped_lines(metrics)
+    if skipped:
+        lines += ["", "not run:"] + [f"  {s}" for s in skipped]
     return "\n".join(lines)
+
+
+def _plain_table(heads: list[str], rows: list[list[str]], left: int = 1) -> list[str]:
+    """Lines of a fixed-width table: the first `left` columns left-aligned, the others right-aligned."""
+    widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h) for i, h in enumerate(heads)]
+    def line(cells: list[str]) -> str:
+        return "  ".join(v.ljust(w) if i < left else v.rjust(w) for i, (v, w) in enumerate(zip(cells, widths)))
+    return [line(heads), "  ".join("-" * w for w in widths)] + [line(r) for r in rows]

@@ -78,12 +78,12 @@ def default_output(archive: str | Path, rid: str) -> Path:
 
 
 def trial_metadata(raw: Any) -> dict[str, Any] | None:
-    """The archive's `trial` metadata with only vehicles of the recorded shape (a name, a known role)."""
+    """The archive's `trial` metadata with only vehicles of the recorded shape (a name, a known role or none)."""
     if not isinstance(raw, dict):
         return None
     vehicles = raw.get("vehicles")
     keep = [v for v in (vehicles if isinstance(vehicles, list) else [])
-            if isinstance(v, dict) and isinstance(v.get("name"), str) and v.get("role", "leader") in ROLES]
+            if isinstance(v, dict) and isinstance(v.get("name"), str) and v.get("role") in ROLES + ("", None)]
     return {**raw, "vehicles": keep}
 
 

@@ -24,6 +24,7 @@ from replay.review.scoreboard import method_kind
 from replay.views.common import Run, class_id, floats, method_rgb
 
 MAX_STATIC_VERTICES = 4000
+GAP_S = 30.0     # a track silent for longer (a dive, a lost link) is drawn as separate strips
 KEY = "/colour_key"
 KEY_STEP = 1.6
 """The colour key's entity (one for the recording, every run's names in it)."""
@@ -41,6 +42,17 @@ def decimate(n: int, limit: int = MAX_STATIC_VERTICES) -> np.ndarray:
         return np.arange(n)
     idx = np.arange(0, n, int(np.ceil(n / (limit - 1))))
     return np.append(idx, n - 1) if idx[-1] != n - 1 else idx
+
+
+def strips(t_s: np.ndarray, points: np.ndarray, gap_s: float = GAP_S) -> list[np.ndarray]:
+    """The decimated points as line strips, broken where the track has no sample for more than `gap_s`.
+
+    A GPS silent while its vehicle dives would otherwise draw a straight line across the lake.
+    """
+    idx = decimate(points.shape[0])
+    gaps = np.r_[0, np.cumsum(np.diff(t_s) > gap_s)]      # gaps before each sample, decimated or not
+    cuts = np.flatnonzero(np.diff(gaps[idx]) > 0) + 1
+    return [points[part] for part in np.split(idx, cuts) if part.size]
 
 
 def log_tracks(rec: rr.RecordingStream, run: Run) -> None:
@@ -86,8 +98,8 @@ def _log_track(rec: rr.RecordingStream, run: Run, vehicle: str, source: str, row
             rec.log(base + "/track", rr.GeoPoints(lat_lon=ll, radii=rr.Radius.ui_points(1.0), colors=[faint]),
                     static=True)
         else:
-            rec.log(base + "/track", rr.GeoLineStrings(lat_lon=[ll[decimate(ll.shape[0])]],
-                                                       radii=rr.Radius.ui_points(1.0), colors=[faint]), static=True)
+            rec.log(base + "/track", rr.GeoLineStrings(lat_lon=strips(t[geo_ok], ll), radii=rr.Radius.ui_points(1.0),
+                                                       colors=[faint]), static=True)
         rec.log(base + "/position", rr.GeoPoints.from_fields(colors=[rgb], class_ids=[cid],
                                                             radii=rr.Radius.ui_points(size)), static=True)
         rec.send_columns(base + "/position", indexes=times,
@@ -103,7 +115,7 @@ def _log_track(rec: rr.RecordingStream, run: Run, vehicle: str, source: str, row
         if scatter:
             rec.log(base + "/track", rr.Points2D(xy, colors=[faint], radii=rr.Radius.ui_points(1.0)), static=True)
         else:
-            rec.log(base + "/track", rr.LineStrips2D([xy[decimate(xy.shape[0])]], colors=[faint],
+            rec.log(base + "/track", rr.LineStrips2D(strips(t[local_ok], xy), colors=[faint],
                                                      radii=rr.Radius.ui_points(0.75)), static=True)
         rec.log(base + "/position", rr.Points2D.from_fields(
             class_ids=[cid], labels=[run.name(mark_label(vehicle, source))], show_labels=truth,

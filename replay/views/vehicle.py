@@ -10,12 +10,14 @@ Entities under a run prefix P, per vehicle V with a navigation review (`replay.n
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import rerun as rr
 
 from replay.navigation.review import DR_METHOD, INS_METHOD, NavigationReview, review_metrics
-from replay.review.scoreboard import NAV_HEADINGS, NAVIGATION_COLUMNS, format_value
-from replay.views.common import Run, method_rgb
+from replay.review.scoreboard import NAV_HEADINGS, format_value
+from replay.views.common import Run
 
 # (key, title of its plot, unit): the panels of a vehicle, in screen order
 PANELS: tuple[tuple[str, str], ...] = (
@@ -25,7 +27,10 @@ PANELS: tuple[tuple[str, str], ...] = (
     ("lock", "Bottom lock: share of DVL samples per bin"),
 )
 SOURCE_RGB = {"depth": (90, 160, 255), "altitude": (200, 160, 0), "heading": (160, 120, 220),
-              "dvl": (60, 200, 120), "ins": (176, 150, 110), "lock": (60, 200, 120)}
+              "dvl": (60, 200, 120), "ins": (176, 150, 110), "lock": (60, 200, 120),
+              # the two errors side by side need two hues far apart (the palette's DR and INS are both browns)
+              "dr_error": (255, 140, 30), "ins_error": (100, 180, 255)}
+SUMMARY_COLUMNS = ("error_p50_m", "error_p90_m", "error_max_m", "final_drift_pct", "worst_fix_s")
 MAX_ROWS = 12     # dives and gaps listed in the summary; the rest counted
 
 
@@ -44,11 +49,14 @@ def _series(rec: rr.RecordingStream, run: Run, path: str, t_s: np.ndarray, v: np
 def summary_markdown(nav: NavigationReview) -> str:
     """The vehicle's ranked sources, its dives, its bottom-lock gaps and the notes, in mission seconds."""
     m = review_metrics(nav)
-    lines = [f"**{nav.vehicle}: own navigation against GPS at the fixes**", "",
-             "| source | " + " | ".join(NAV_HEADINGS[c] for c in NAVIGATION_COLUMNS) + " |",
-             "|---|" + "---:|" * (len(NAVIGATION_COLUMNS) - 1) + "---|"]
-    lines += [f"| {name} | " + " | ".join(format_value(row.get(c)) for c in NAVIGATION_COLUMNS) + " |"
-              for name, row in m["methods"].items()]
+    rows = m["methods"]
+    first: dict[str, Any] = next(iter(rows.values()), {})
+    lines = [f"**{nav.vehicle}: own navigation against GPS**, at {first.get('fixes', 0)} fixes "
+             f"({first.get('scored_at', 'none')})", "",
+             "| source | " + " | ".join(NAV_HEADINGS[c] for c in SUMMARY_COLUMNS) + " |",
+             "|---|" + "---:|" * len(SUMMARY_COLUMNS)]
+    lines += [f"| {name} | " + " | ".join(format_value(row.get(c)) for c in SUMMARY_COLUMNS) + " |"
+              for name, row in rows.items()]
     dives = m["dives"]
     lines += ["", f"**Dives** (GPS gaps longer than {nav.config.dive_gap_s:g} s): {len(dives)}"]
     if dives:
@@ -91,7 +99,7 @@ def log_vehicles(rec: rr.RecordingStream, run: Run) -> None:
                 SOURCE_RGB["lock"], step=True)
         fe = nav.fix_errors
         _series(rec, run, path("error", "dead_reckoning"), fe.t_s, fe.dr_error_m, run.name(DR_METHOD),
-                method_rgb("dead_reckoning", run.index), markers=True)
+                SOURCE_RGB["dr_error"], markers=True)
         _series(rec, run, path("error", "ins"), fe.t_s, fe.ins_error_m, run.name(INS_METHOD),
-                method_rgb("ins", run.index), markers=True)
+                SOURCE_RGB["ins_error"], markers=True)
         rec.log(path("summary"), rr.TextDocument(summary_markdown(nav), media_type="text/markdown"), static=True)
