@@ -117,7 +117,7 @@ def test_report_fetches_nothing(report):
     assert parsed.links and not [u for u in parsed.links if re.match(r"\s*(https?:)?//", u, re.IGNORECASE)]
     assert "<script" not in text and "<link" not in text and "@import" not in text and "url(" not in text
     images = [u for u in parsed.links if u.startswith("data:")]
-    assert len(images) == 3
+    assert len(images) == 4           # tracks, CDF, error series, timeline
     for uri in images:                    # inside the SVGs: only references to their own elements
         svg = base64.b64decode(uri.split(",", 1)[1]).decode()
         assert re.findall(r'href="([^"]*)"', svg) and all(h.startswith("#") for h in re.findall(r'href="([^"]*)"', svg))
@@ -300,3 +300,21 @@ def test_geojson_and_kml_keep_every_finite_point(points, name):
     if name.isprintable():
         assert root.findtext(f"{KML}Document/{KML}name") == name
     assert len(list(root.iter(f"{GX}coord"))) == ok.sum() == len(list(root.iter(f"{KML}when")))
+
+
+def test_report_has_every_track_and_each_vehicles_own_navigation(report):
+    text, meta, review = report
+    table = re.search(r'<table id="tracks-table">(.*?)</table>', text, re.S)
+    assert table is not None
+    shown = set(re.findall(r"<tr><td>([^<]+)</td><td>([^<]+)</td>", table.group(1)))
+    assert shown == {(str(v), str(s)) for v, s in review.tracks[["vehicle", "source"]].drop_duplicates()
+                     .itertuples(index=False)}
+    assert ("follower", "dead_reckoning (DVL)") in shown and ("leader1", "ins") in shown
+    nav = re.search(r'<table id="navigation-table">(.*?)</table>', text, re.S)
+    assert nav is not None
+    rows = re.findall(r'<tr><td class="num">(\d+)</td><td>([^<]+)</td><td>([^<]+)</td><td class="num">([^<]+)</td>',
+                      nav.group(1))
+    stored = meta["metrics"]["navigation"]
+    assert {(v, m) for _, v, m, _ in rows} == {(v, m) for v, n in stored.items() for m in n["methods"]}
+    for _, vehicle, method, p50 in rows:
+        assert p50 == format_value(stored[vehicle]["methods"][method]["error_p50_m"])

@@ -18,7 +18,7 @@ from rerun.chunk import RrdReader
 from replay.commands import view as view_cmd
 from replay.errors import UserError
 from replay.review.data import ReviewData
-from replay.review.scoreboard import format_value, scoreboard
+from replay.review.scoreboard import format_value, navigation_rows, scoreboard
 from replay.stack.detectors.anfis import AnfisModel, predict
 from replay.views import recording as views
 from replay.views.anfis import SURFACE_GRID, grid_triangles, history_of, surface
@@ -420,9 +420,19 @@ def test_sample_scoreboard_shows_metrics_json_exactly(sample: tuple[ReviewData, 
     review, metrics, rrd = sample
     doc = rrd.static[f"/{review.run_id}/scoreboard"][0].column("TextDocument:text").to_pylist()[0][0]
     assert "after t_a: 600 s to 1700 s (mission seconds)" in doc
-    rows = [[c.strip() for c in line.strip("|").split("|")] for line in doc.splitlines()
-            if line.startswith("| ") and line[2].isdigit()]
+    methods_part, _, navigation_part = doc.partition("**Own navigation against GPS at the fixes**")
+
+    def table(text: str) -> list[list[str]]:
+        return [[c.strip() for c in line.strip("|").split("|")] for line in text.splitlines()
+                if line.startswith("| ") and line[2].isdigit()]
+    rows = table(methods_part)
     assert [r[1] for r in rows] == [r.method for r in scoreboard(metrics)]
+    # each vehicle's own navigation (DR restarted at the fixes, INS) ranked beneath, figures as metrics.json
+    nav = navigation_rows(metrics)
+    assert {r.vehicle for r in nav} == {"follower", "leader1", "leader2"}
+    assert [(r[1], r[2]) for r in table(navigation_part)] == [(r.vehicle, r.method) for r in nav]
+    for row, r in zip(table(navigation_part), nav, strict=True):
+        assert row[3] == format_value(metrics["navigation"][r.vehicle]["methods"][r.method]["error_p50_m"])
     assert {r[1] for r in rows} == set(metrics["methods"])
     columns = ("error_p50_m", "error_p90_m", "error_rms_m", "tp", "fp", "fn", "fpr", "fnr", "auc")
     for row in rows:
