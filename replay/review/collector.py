@@ -208,7 +208,8 @@ class ReviewCollector(Listener):
             dr = nav.dead_reckoning
             keep = np.isfinite(dr.lat_deg) & np.isfinite(dr.lon_deg)
             t, lat, lon = dr.t_s[keep], dr.lat_deg[keep], dr.lon_deg[keep]
-            second = np.r_[True, np.floor(t[1:] / INS_DECIMATE_S) > np.floor(t[:-1] / INS_DECIMATE_S)]
+            # the first sample of each second (none for a vehicle whose DR never started: no DVL or no heading)
+            second = np.diff(np.floor(t / INS_DECIMATE_S), prepend=-np.inf) > 0
             for ti, la, lo in zip(t[second].tolist(), lat[second].tolist(), lon[second].tolist(), strict=True):
                 self._track_row(ti, vehicle, DR_METHOD, la / RAD, lo / RAD)
         origin = self._origin
