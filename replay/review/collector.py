@@ -27,6 +27,8 @@ from replay.stack.model import horizontal_offset_m, offset_to_latlon
 
 RAD = 180.0 / math.pi
 INS_DECIMATE_S = 1.0
+# mission seconds are float differences of ns times: a 1 Hz source's 1.4 - 0.4 is 0.9999999999999999 s
+DECIMATE_SLACK_S = 1e-6
 
 
 class ReviewCollector(Listener):
@@ -67,7 +69,7 @@ class ReviewCollector(Listener):
         if source != "gps":       # INS and other solutions come at tens of Hz: one point a second is a track
             key = f"{vehicle}/{source}"
             last = self._last_ins.get(key, -math.inf)
-            if fix.t_s - last < INS_DECIMATE_S:
+            if fix.t_s - last < INS_DECIMATE_S - DECIMATE_SLACK_S:
                 return
             self._last_ins[key] = fix.t_s
         self._track_row(fix.t_s, vehicle, source, fix.lat_rad, fix.lon_rad)
