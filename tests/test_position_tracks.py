@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import math
-import struct
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -23,6 +22,7 @@ from recorders.base import Ignored, LogContext, Output
 from recorders.manifest import load_manifest
 from recorders.record import record
 from replay.cli import main
+from tests.trial_shapes import enu_quaternion, imu, mavlink, odometry, ros1_typestore, tlog_bytes, write_ros1
 
 T0 = 1476237600  # 2016-10-12 02:00:00 UTC, s
 R = 6_378_137.0
@@ -189,8 +189,7 @@ LOCAL = [(12.5, -7.25, 3.0), (15.0, -9.5, 4.25)]  # LOCAL_POSITION_NED x north, 
 
 
 def _tlog(path: Path, origin: bool = True) -> None:
-    from pymavlink.dialects.v20 import ardupilotmega as mav
-    m = mav.MAVLink(None, srcSystem=1, srcComponent=1)
+    m = mavlink()
     us = T0 * 10**6
     packets = [(0, m.gps_raw_int_encode(us, 3, 457022000, 1265974000, 109870, 90, 200, 462, 9041, 8)),
                (1, m.attitude_encode(1000, 0.0, 0.0, math.radians(45.0), 0, 0, 0))]
@@ -200,7 +199,7 @@ def _tlog(path: Path, origin: bool = True) -> None:
         packets.append((2 + k, m.global_position_int_encode(2000 + k, lat, lon, 100000, -5500, 100, -50, 10, 4500)))
     for k, (x, y, z) in enumerate(LOCAL):
         packets.append((2 + k, m.local_position_ned_encode(2000 + k, x, y, z, 1.0, -0.5, 0.1)))
-    path.write_bytes(b"".join(struct.pack(">Q", us + s * 1_000_000) + p.pack(m) for s, p in packets))
+    path.write_bytes(tlog_bytes(m, [(us + s * 1_000_000, p) for s, p in packets]))
 
 
 def test_tlog_autopilot_and_local_positions_are_tracks(tmp_path):
@@ -235,38 +234,15 @@ ODOM = [(100.0, 200.0, -5.0), (110.5, 190.25, -6.0), (121.0, 180.5, -7.0)]  # EN
 
 
 def _bag(path: Path) -> None:
-    import numpy as np
-    from rosbags.rosbag1 import Writer
-    from rosbags.typesys import Stores, get_typestore
-    ts = get_typestore(Stores.ROS1_NOETIC)
-    T = ts.types
-
-    def header(t_ns: int, frame: str):
-        return T["std_msgs/msg/Header"](seq=0, stamp=T["builtin_interfaces/msg/Time"](
-            sec=t_ns // 10**9, nanosec=t_ns % 10**9), frame_id=frame)
-
-    V3, Q = T["geometry_msgs/msg/Vector3"], T["geometry_msgs/msg/Quaternion"]
-    quat = Q(x=0.0, y=0.0, z=math.sqrt(0.5), w=math.sqrt(0.5))
+    """Odometry heading north at 1 m/s forward on ODOM's points, one a second, each with an IMU half a second on
+    (attitude only, no point of the track)."""
+    ts = ros1_typestore()
+    north = enu_quaternion(ts, 0.0)
     items = []
     for k, (x, y, z) in enumerate(ODOM):
         t = (T0 + k) * 10**9
-        pose = T["geometry_msgs/msg/PoseWithCovariance"](pose=T["geometry_msgs/msg/Pose"](
-            position=T["geometry_msgs/msg/Point"](x=x, y=y, z=z), orientation=quat), covariance=np.zeros(36))
-        twist = T["geometry_msgs/msg/TwistWithCovariance"](twist=T["geometry_msgs/msg/Twist"](
-            linear=V3(x=1.0, y=0.0, z=0.0), angular=V3(x=0.0, y=0.0, z=0.0)), covariance=np.zeros(36))
-        items.append(("/odom", "nav_msgs/msg/Odometry", t, T["nav_msgs/msg/Odometry"](
-            header=header(t, "odom"), child_frame_id="base_link", pose=pose, twist=twist)))
-        # an IMU on the same /auv/ins: attitude only, no point of the track
-        items.append(("/imu", "sensor_msgs/msg/Imu", t + 500_000_000, T["sensor_msgs/msg/Imu"](
-            header=header(t + 500_000_000, "imu_link"), orientation=quat, orientation_covariance=np.zeros(9),
-            angular_velocity=V3(x=0.0, y=0.0, z=0.0), angular_velocity_covariance=np.zeros(9),
-            linear_acceleration=V3(x=0.0, y=0.0, z=0.0), linear_acceleration_covariance=np.zeros(9))))
-    with Writer(path) as w:
-        conns = {}
-        for topic, msgtype, t, msg in items:
-            if topic not in conns:
-                conns[topic] = w.add_connection(topic, msgtype, typestore=ts)
-            w.write(conns[topic], t, ts.serialize_ros1(msg, msgtype))
+        items += [odometry(ts, t, x, y, z, north, 1.0), imu(ts, t + 500_000_000, north)]
+    write_ros1(path, ts, items)
 
 
 def test_bag_odometry_on_an_origin_is_a_track(tmp_path, capsys):

@@ -4,7 +4,6 @@ without GPS, and clock offsets of any size that put the log in 1980-2100. Logs a
 from __future__ import annotations
 
 import math
-import struct
 from pathlib import Path
 
 import pytest
@@ -17,6 +16,7 @@ from recorders.record import record
 from replay.cli import main
 from replay.run.mission_time import mission_seconds, trial_start_ns
 from tests.test_ecosystem_inputs import T0, write_dataflash
+from tests.trial_shapes import enu_quaternion, imu, navsatfix, ros1_typestore, write_nogps_bin, write_ros1
 
 START = "2024-05-01T10:00:00Z"
 START_NS = 1_714_557_600 * NS  # 2024-05-01 10:00:00 UTC
@@ -56,37 +56,11 @@ def cli_error(capsys, manifest: Path) -> str:
 
 def write_sim_bag(path: Path, t0_ns: int = 100 * NS) -> None:
     """A ROS 1 bag from a simulator: three NavSatFix at t0, t0 + 1 s, t0 + 5 s of its clock (header stamp and
-    bag time alike, as `rosbag record` with use_sim_time writes them) and an Imu at t0 + 2 s."""
-    import numpy as np
-    from rosbags.rosbag1 import Writer
-    from rosbags.typesys import Stores, get_typestore
-    ts = get_typestore(Stores.ROS1_NOETIC)
-    T = ts.types
-
-    def header(t_ns: int, frame: str):
-        return T["std_msgs/msg/Header"](seq=0, stamp=T["builtin_interfaces/msg/Time"](
-            sec=t_ns // NS, nanosec=t_ns % NS), frame_id=frame)
-
-    items = []
-    for i, dt in enumerate((0, 1, 5)):
-        t = t0_ns + dt * NS
-        items.append(("/gps/fix", "sensor_msgs/msg/NavSatFix", t, T["sensor_msgs/msg/NavSatFix"](
-            header=header(t, "gps"), status=T["sensor_msgs/msg/NavSatStatus"](status=0, service=1),
-            latitude=47.0 + i * 1e-4, longitude=8.5, altitude=400.0, position_covariance=np.eye(3).flatten(),
-            position_covariance_type=2)))
-    s = math.sqrt(0.5)  # a quarter turn about z in ENU: heading 0 (north)
-    V3 = T["geometry_msgs/msg/Vector3"]
-    items.append(("/imu", "sensor_msgs/msg/Imu", t0_ns + 2 * NS, T["sensor_msgs/msg/Imu"](
-        header=header(t0_ns + 2 * NS, "imu"), orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=s, w=s),
-        orientation_covariance=np.zeros(9), angular_velocity=V3(x=0.0, y=0.0, z=0.0),
-        angular_velocity_covariance=np.zeros(9), linear_acceleration=V3(x=0.0, y=0.0, z=0.0),
-        linear_acceleration_covariance=np.zeros(9))))
-    with Writer(path) as w:
-        conns = {}
-        for topic, msgtype, t, msg in sorted(items, key=lambda x: x[2]):
-            if topic not in conns:
-                conns[topic] = w.add_connection(topic, msgtype, typestore=ts)
-            w.write(conns[topic], t, ts.serialize_ros1(msg, msgtype))
+    bag time alike, as `rosbag record` with use_sim_time writes them) and an Imu at t0 + 2 s, heading north."""
+    ts = ros1_typestore()
+    items = [navsatfix(ts, t0_ns + dt * NS, 47.0 + i * 1e-4, 8.5, 400.0) for i, dt in enumerate((0, 1, 5))]
+    items.append(imu(ts, t0_ns + 2 * NS, enu_quaternion(ts, 0.0)))
+    write_ros1(path, ts, items)
 
 
 def test_sim_time_bag_with_its_start_gives_utc_and_mission_seconds(tmp_path):
@@ -172,44 +146,6 @@ def test_parse_utc_reads_zones_and_refuses_naive_times():
 
 
 # ---------------------------------------------------------------- a dataflash .BIN without GPS
-
-# ArduPilot's layouts (LogStructure.h); c = int16 x 0.01, C = uint16 x 0.01, L = int32 x 1e-7 deg
-_CHARS = {"B": "B", "Q": "Q", "I": "I", "h": "h", "f": "f", "n": "4s", "N": "16s", "Z": "64s", "c": "h",
-          "C": "H", "e": "i", "L": "i"}
-NOGPS_TYPES = {  # name: (id, format, columns)
-    "ATT": (131, "Qccf", "TimeUS,Roll,Pitch,Yaw"),
-    "RFND": (135, "QBfBB", "TimeUS,Instance,Dist,Stat,Orient"),
-    "XKF1": (140, "QBccCfffffffccce", "TimeUS,C,Roll,Pitch,Yaw,VN,VE,VD,dPD,PN,PE,PD,GX,GY,GZ,OH"),
-    "BARO": (141, "QBffcfIffB", "TimeUS,I,Alt,Press,Temp,CRt,SMS,Offset,GndTemp,Health"),
-    "ORGN": (142, "QBLLe", "TimeUS,Type,Lat,Lng,Alt"),
-}
-
-
-def _rec(tid: int, fmt: str, *values) -> bytes:
-    return b"\xa3\x95" + bytes([tid]) + struct.pack("<" + "".join(_CHARS[c] for c in fmt), *values)
-
-
-def write_nogps_bin(path: Path, ekf: bool = True, origin: bool = True) -> None:
-    """An ArduSub dive without GPS: EKF3 states of two cores, the board's and the depth sensor's BARO, ATT,
-    a downward rangefinder, and (with `origin`) the EKF origin set from the ground station."""
-    out = _rec(128, "BBnNZ", 128, 89, b"FMT", b"BBnNZ", b"Type,Length,Name,Format,Columns")
-    for name, (tid, fmt, cols) in NOGPS_TYPES.items():
-        size = 3 + struct.calcsize("<" + "".join(_CHARS[c] for c in fmt))
-        out += _rec(128, "BBnNZ", tid, size, name.encode(), fmt.encode(), cols.encode())
-    if origin:
-        out += _rec(142, "QBLLe", 500_000, 0, 457_000_000, 1_266_000_000, 1000)
-    for k in range(3):
-        us = 1_000_000 * (k + 1)
-        out += _rec(131, "Qccf", us, 150, -250, 30.0)
-        if ekf:
-            for core in (0, 1):
-                out += _rec(140, "QBccCfffffffccce", us + 1000, core, 150, -250, 3000 + core, 0.5, 0.25, 0.1, 0.1,
-                            100.0 * k, 50.0 * k, 2.0 + k, 0, 0, 0, 0)
-        out += _rec(141, "QBffcfIffB", us + 2000, 0, 0.3, 101325.0, 2500, 0.0, 0, 0.0, 20.0, 1)
-        out += _rec(141, "QBffcfIffB", us + 2000, 1, -(2.1 + k), 121000.0, 1500, 0.0, 0, 0.0, 15.0, 1)
-    out += _rec(135, "QBfBB", 3_500_000, 0, 8.5, 4, 25)
-    path.write_bytes(out)
-
 
 BOOT = f'format = "mavlink"\npath = "dive.BIN"\ntime_base = "boot"\nstart = "{START}"'
 

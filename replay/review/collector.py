@@ -27,6 +27,8 @@ from replay.stack.model import horizontal_offset_m, offset_to_latlon
 
 RAD = 180.0 / math.pi
 INS_DECIMATE_S = 1.0
+# mission seconds are float differences of ns times: a 1 Hz source's 1.4 - 0.4 is 0.9999999999999999 s
+DECIMATE_SLACK_S = 1e-6
 
 
 class ReviewCollector(Listener):
@@ -67,7 +69,7 @@ class ReviewCollector(Listener):
         if source != "gps":       # INS and other solutions come at tens of Hz: one point a second is a track
             key = f"{vehicle}/{source}"
             last = self._last_ins.get(key, -math.inf)
-            if fix.t_s - last < INS_DECIMATE_S:
+            if fix.t_s - last < INS_DECIMATE_S - DECIMATE_SLACK_S:
                 return
             self._last_ins[key] = fix.t_s
         self._track_row(fix.t_s, vehicle, source, fix.lat_rad, fix.lon_rad)
@@ -208,7 +210,8 @@ class ReviewCollector(Listener):
             dr = nav.dead_reckoning
             keep = np.isfinite(dr.lat_deg) & np.isfinite(dr.lon_deg)
             t, lat, lon = dr.t_s[keep], dr.lat_deg[keep], dr.lon_deg[keep]
-            second = np.r_[True, np.floor(t[1:] / INS_DECIMATE_S) > np.floor(t[:-1] / INS_DECIMATE_S)]
+            # the first sample of each second (none for a vehicle whose DR never started: no DVL or no heading)
+            second = np.diff(np.floor(t / INS_DECIMATE_S), prepend=-np.inf) > 0
             for ti, la, lo in zip(t[second].tolist(), lat[second].tolist(), lon[second].tolist(), strict=True):
                 self._track_row(ti, vehicle, DR_METHOD, la / RAD, lo / RAD)
         origin = self._origin

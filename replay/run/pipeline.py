@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -17,7 +18,7 @@ from formats.mcap_reader import ArchiveReader
 from formats.mcap_writer import ArchiveWriter
 from replay.engine.config import RunConfig
 from replay.engine.core import Engine, pace
-from replay.engine.layout import plan_trial
+from replay.engine.layout import TrialLayout, plan_trial
 from replay.errors import UserError
 from replay.events import Listener, RunResults
 from replay.navigation.review import review_metrics, review_vehicle
@@ -135,7 +136,7 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
         readable = _readable_topics(summary, reader)
         positions = [t for t, v in summary.topics.items() if v["schema"] in POSITION_SCHEMAS]
         layout = plan_trial(trial, readable, config.stack.methods, positions)
-        if require_work and not layout.positions():
+        if require_work and not _holds_position(archive, layout):
             raise UserError(_nothing_to_run(archive, "the trial holds no position of any kind (no GPS fix and no "
                                             "INS or autopilot position)", layout.notes, reader))
         t0_ns = summary.start_ns
@@ -197,6 +198,18 @@ def record_time_refusals(recording: Any) -> str | None:
         return None
     return (f"record time: {ranges} ranges refused (not above 0 m, or beyond max_range_m) and "
             f"{values - ranges} other values out of range; they are not in the archive")
+
+
+def _holds_position(archive: str | Path, layout: TrialLayout) -> bool:
+    """Whether a vehicle of the trial has a position: GPS fixes, another position source, or an INS state with a
+    finite latitude and longitude (an IMU's or an autopilot's attitude-only states, as a tlog without
+    GLOBAL_POSITION_INT gives, are no position). A reader of its own: the replay's damage counts stay its own."""
+    vehicles = layout.positions()
+    if layout.sources or any(layout.has(v, "gps") for v in vehicles):
+        return True
+    with ArchiveReader(archive) as reader:
+        return any(math.isfinite(m.message.latitude) and math.isfinite(m.message.longitude)
+                   for m in reader.messages([f"/{v}/ins" for v in vehicles]))
 
 
 def _nothing_to_run(archive: Any, what: str, notes: list[str], reader: ArchiveReader) -> str:
