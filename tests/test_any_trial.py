@@ -182,10 +182,9 @@ def static_cell(rrd: Rrd, entity: str, column: str) -> list:
 
 
 def track_vertices(rrd: Rrd, entity: str) -> list[tuple[float, float]]:
-    """The (lat, lon) vertices of a map track."""
+    """The (lat, lon) vertices of a map track, over its strips (a track breaks where it is silent over 30 s)."""
     cell = static_cell(rrd, entity, "GeoLineStrings:line_strings")
-    (line,) = cell
-    return [(a, b) for a, b in line]
+    return [(a, b) for line in cell for a, b in line]
 
 
 def near(a: tuple[float, float], b: tuple[float, float]) -> bool:

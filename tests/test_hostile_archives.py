@@ -91,8 +91,9 @@ def test_declared_16_gib_chunk_is_refused(trial, tmp_path):
         scored = next(ci.chunk_start_offset for ci in r._index.chunk_indexes if ranges in ci.message_index_offsets)
     set_declared_size(path, scored, 16 * GIB)
     rc, err, rss = run_child("replay", str(path), *REPLAY, "-o", str(tmp_path / "r.mcap"))
-    # the chunk held the window's scored follower data: nothing left to score is said as such
-    assert rc == 1 and "16.0 GiB uncompressed, over the 64 MiB limit" in one_line(err, "error"), err
+    # the chunk held the window's scored follower data: the replay runs on what is left (the trial still holds
+    # positions) and its warning names the refused chunk
+    assert rc == 0 and "16.0 GiB uncompressed, over the 64 MiB limit" in one_line(err, "warning"), err
     assert rss < RSS_LIMIT_KB
 
 
@@ -223,8 +224,8 @@ def test_flipped_byte_in_metadata_is_a_skipped_record(trial, tmp_path, capsys):
     rc, out, err = run_cli(capsys, "info", str(path))
     assert rc == 0 and "metadata record" in one_line(err, "warning")
     rc, out, err = run_cli(capsys, "replay", str(path), *REPLAY, "-o", str(tmp_path / "r.mcap"))
-    # without the trial metadata the roles are guessed (every DVL a follower): nothing scores, and it says why
-    assert rc == 1 and "roles guessed" in one_line(err, "error") and "1 metadata record" in err
+    # without the trial metadata the roles are guessed (every DVL a follower) and said; the run goes on
+    assert rc == 0 and "roles guessed" in err and "metadata records" in one_line(err, "warning")
     rc, out, err = run_cli(capsys, "unpack", str(path), str(tmp_path / "logs"))
     assert rc == 0 and "metadata record" in one_line(err, "warning") and len(out.splitlines()) == 20
 
@@ -239,7 +240,7 @@ def test_metadata_of_the_wrong_shape(trial, tmp_path, capsys):
     rc, out, err = run_cli(capsys, "info", str(path))
     assert rc == 0 and "a.log" in out and "3 log entries" in one_line(err, "warning")
     rc, out, err = run_cli(capsys, "replay", str(path), *REPLAY, "-o", str(tmp_path / "r.mcap"))
-    assert rc == 1 and "roles guessed" in one_line(err, "error")
+    assert rc == 0 and "roles guessed" in err
 
 
 def test_two_attachments_of_one_name_do_not_overwrite(tmp_path, capsys):

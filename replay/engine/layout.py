@@ -119,18 +119,27 @@ def plan_trial(trial_meta: dict | None, topics: dict[str, int], methods: Sequenc
 
 
 def _skipped(layout: TrialLayout, methods: Sequence[str]) -> dict[str, str]:
-    """Each method that no runnable follower runs, with the inputs it lacked on the vehicle closest to running it."""
+    """Each method no runnable follower runs, with what it lacked on the vehicle closest to running it.
+
+    The stack runs on followers: the candidates are the followers, else (a trial without one) every vehicle
+    but the buoys.
+    """
     running = {m for p in layout.followers if p.runnable for m in p.methods}
-    vehicles = [v for v, r in layout.roles.items() if r != "buoy"] or list(layout.roles)
+    followers = [p.name for p in layout.followers]
+    vehicles = followers or [v for v, r in layout.roles.items() if r != "buoy"] or list(layout.roles)
     out = {}
     for name in methods:
         if name in running:
             continue
-        lacking = min((method(name).missing(layout.inputs(v)) for v in vehicles), key=len,
-                      default=list(method(name).needs))
-        if not lacking:      # its inputs are there, on a vehicle that cannot run (no initial position)
-            lacking = ["a position to start from"]
-        out[name] = "needs " + " and ".join(INPUTS.get(n, n) for n in lacking)
+        entry = method(name)
+        closest = min(vehicles, key=lambda v: len(entry.missing(layout.inputs(v))), default=None)
+        lacking = entry.missing(layout.inputs(closest)) if closest is not None else list(entry.needs)
+        if lacking:
+            out[name] = "needs " + " and ".join(INPUTS.get(n, n) for n in lacking)
+        elif closest in followers:      # its inputs are there, on a follower with no position to start from
+            out[name] = "needs a position to start from (no GPS fix and no INS position on the follower)"
+        elif closest is not None:
+            out[name] = f"runs on a follower: {closest}, which holds its inputs, is a {layout.roles[closest]}"
     return out
 
 
