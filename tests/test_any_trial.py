@@ -368,9 +368,12 @@ def test_ardusub_tlog(tmp_path, capsys, monkeypatch):
     assert (ins["fixes"], ins["scored_at"], ins["worst_fix_s"]) == (30, "every fix", 30.0)
     for key, value in scored(ref, list(range(1, 31))).items():
         assert ins[key] == pytest.approx(value, abs=TOLERANCE_M), key
-    # DISTANCE_SENSOR: altitude only, never a velocity, so the DR never starts
-    dr = nav["methods"]["dead_reckoning (DVL)"]
-    assert dr["fixes"] == 0 and dr["error_max_m"] is None
+    # DISTANCE_SENSOR: altitude only, never a velocity: no dead reckoning to score, no bottom lock to judge,
+    # and its altitude is the vehicle's altitude series
+    assert "dead_reckoning (DVL)" not in nav["methods"] and nav["bottom_lock"]["samples"] == 0
+    assert any("altitude-only samples" in n for n in nav["notes"])
+    altitude = [e for e in r.results_rrd.temporal if e.endswith("/vehicle/sub/depth/altitude")]
+    assert altitude and r.results_rrd.cells(altitude[0], "Scalars:scalars")
 
 
 # ---------------------------------------------------------------- 4. an ArduSub dataflash .BIN without GPS

@@ -90,6 +90,19 @@ class DvlColumns:
         return (self.valid & np.isfinite(self.vx_mps) & np.isfinite(self.vy_mps)
                 & ((self.frame == BODY_FRD) | (self.frame == EARTH_NED)))
 
+    @property
+    def ranging(self) -> np.ndarray:
+        """Altitude-only samples (a rangefinder archived on the DVL topic: no velocity at all, an altitude)."""
+        return ~np.isfinite(self.vx_mps) & ~np.isfinite(self.vy_mps) & np.isfinite(self.altitude_m)
+
+    def velocities(self) -> DvlColumns:
+        """The samples that measure velocity (rangefinder samples left out): what bottom lock is judged on."""
+        keep = ~self.ranging
+        if keep.all():
+            return self
+        return DvlColumns(self.t_s[keep], self.vx_mps[keep], self.vy_mps[keep], self.valid[keep], self.frame[keep],
+                          self.altitude_m[keep])
+
 
 @dataclass(frozen=True)
 class InsColumns:

@@ -82,10 +82,13 @@ def _notes(cols: VehicleColumns, dr: DeadReckoning, errors: FixErrors, dv: Dives
     if n_fix < 2:
         out.append(f"{n_fix} GPS fix(es): no error at a fix can be measured")
     out.append(f"{len(dv)} dive(s) (GPS gaps longer than {config.dive_gap_s:g} s)")
-    if cols.dvl.t_s.size:
-        unusable = int((~cols.dvl.usable).sum())
+    velocity = cols.dvl.velocities()
+    if int(cols.dvl.ranging.sum()):
+        out.append(f"{int(cols.dvl.ranging.sum())} altitude-only samples (a rangefinder): altitude, not bottom lock")
+    if velocity.t_s.size:
+        unusable = int((~velocity.usable).sum())
         if unusable:
-            out.append(f"{unusable} of {cols.dvl.t_s.size} DVL samples without bottom lock or a usable frame")
+            out.append(f"{unusable} of {velocity.t_s.size} DVL samples without bottom lock or a usable frame")
         measured = np.isfinite(errors.dr_error_m[1:])
         unknown = int((~measured).sum())
         if unknown:
@@ -120,7 +123,8 @@ def review_vehicle(source: ArchiveReader | VehicleColumns, vehicle: str,
         damage = source.warning()
     else:
         cols, damage = source, None
-    dr = dead_reckon(cols.fixes, cols.dvl, cols.ins, config.dvl_hold_s, config.heading_max_gap_s)
+    velocity = cols.dvl.velocities()      # a rangefinder's altitude-only samples are not lost bottom lock
+    dr = dead_reckon(cols.fixes, velocity, cols.ins, config.dvl_hold_s, config.heading_max_gap_s)
     errors = fix_errors(cols.fixes, dr, cols.ins, config.dive_gap_s, config.ins_max_age_s)
     dv = dives(errors)
     return NavigationReview(
@@ -131,7 +135,7 @@ def review_vehicle(source: ArchiveReader | VehicleColumns, vehicle: str,
         dead_reckoning=dr,
         fix_errors=errors,
         dives=dv,
-        bottom_lock=bottom_lock(cols.dvl, config.lock_min_gap_s, config.lock_bin_s),
+        bottom_lock=bottom_lock(velocity, config.lock_min_gap_s, config.lock_bin_s),
         series=navigation_series(cols.dvl, cols.ins, cols.depth),
         notes=_notes(cols, dr, errors, dv, config) + ((f"archive: {damage}",) if damage else ()),
     )
@@ -178,7 +182,7 @@ def scores(review: NavigationReview) -> list[NavigationScore]:
     last = -1 if len(dv) else None
     out: list[NavigationScore] = []
     cols = review.columns
-    if cols.dvl.t_s.size:
+    if cols.dvl.velocities().t_s.size:
         pct = float(dv.dr_pct[last]) if last is not None else math.nan
         out.append(NavigationScore(DR_METHOD, review.vehicle, _figures(fe.t_s[rows], fe.dr_error_m[rows], pct,
                                                                         scored_at)))

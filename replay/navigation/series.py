@@ -60,7 +60,8 @@ def navigation_series(dvl: DvlColumns, ins: InsColumns, depth: SeriesColumns | N
         depth_s = Series.of("depth", "m", "depth sensor", depth.t_s, depth.values)
     else:
         depth_s = Series.of("depth", "m", "ins", ins.t_s, ins.depth_m)
-    lock = dvl.valid & np.isfinite(dvl.vx_mps) & np.isfinite(dvl.vy_mps)
+    # altitude where the DVL has bottom lock, or from a rangefinder (an altitude without velocity)
+    lock = (dvl.valid & np.isfinite(dvl.vx_mps) & np.isfinite(dvl.vy_mps)) | dvl.ranging
     t_lock, use = dvl.t_s[lock], dvl.usable
     return NavigationSeries(
         depth=depth_s,
