@@ -113,8 +113,11 @@ class ArchiveWriter:
     Times are integer nanoseconds (UTC); there is no wall-clock default.
     """
 
-    def __init__(self, path: str | os.PathLike[str], chunk_size: int = CHUNK_SIZE, part_path: Path | None = None):
+    def __init__(self, path: str | os.PathLike[str], chunk_size: int = CHUNK_SIZE, part_path: Path | None = None,
+                 keep_on_error: bool = False):
         self.path = Path(path)
+        # a live capture's part file is what was captured: a close that fails (a full disk) leaves it
+        self.keep_on_error = keep_on_error
         # a live capture grows under a name the user knows (TRIAL.mcap.part) to recover it after a crash
         self.temp_path = part_path or self.path.with_name(f".{self.path.name}.part-{os.getpid()}")
         self._stream = open(self.temp_path, "wb")
@@ -342,7 +345,10 @@ class ArchiveWriter:
                 self._stream.flush()
                 os.fsync(self._stream.fileno())
             except BaseException:
-                self.abort()
+                if self.keep_on_error:
+                    self.leave()
+                else:
+                    self.abort()
                 raise
             self._stream.close()
             os.replace(self.temp_path, self.path)
@@ -354,6 +360,15 @@ class ArchiveWriter:
         if not self._closed:
             self._stream.close()
             self.temp_path.unlink(missing_ok=True)
+            self._mark_closed()
+
+    def leave(self) -> None:
+        """Close the partial file and keep it where it is (`recover` reads it); a failing close is ignored."""
+        if not self._closed:
+            try:
+                self._stream.close()
+            except OSError:   # the buffer could not be written (a full disk): what is on disk stays
+                pass
             self._mark_closed()
 
     def _mark_closed(self) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import socket
 from abc import ABC, abstractmethod
+from collections.abc import Iterator
 from urllib.parse import urlsplit
 
 
@@ -11,11 +12,20 @@ class SourceClosed(Exception):
     """The peer or device went away: the loop closes the source and opens it again later."""
 
 
+class PeerClosed(Exception):
+    """One of a listener's clients hung up: its connection ends, the source and its other clients go on."""
+
+    def __init__(self, peer: int, why: str):
+        super().__init__(why)
+        self.peer = peer
+
+
 class SourceError(ValueError):
     """A source address that cannot be used, with a message naming the problem."""
 
 
 READ_SIZE = 1 << 16
+DRAIN_READS = 256  # at most this many reads of what a socket still holds at the stop (16 MiB)
 
 
 class Source(ABC):
@@ -42,6 +52,30 @@ class Source(ABC):
     @abstractmethod
     def close(self) -> None:
         """Release the descriptor; `open` may be called again."""
+
+    def descriptors(self) -> list[int]:
+        """Every descriptor to wait on while open (a listener's own and each client's)."""
+        return [self.fileno()]
+
+    def read_from(self, fd: int) -> tuple[int, bytes]:
+        """(peer, bytes) waiting on descriptor `fd`; peer 0 is the source's one stream.
+
+        A listener names each client by its own peer number, so that one
+        stalled client never holds back the bytes of the others; its hang-up
+        is PeerClosed.
+        """
+        return 0, self.read()
+
+    def drain(self) -> Iterator[tuple[int, bytes]]:
+        """At the stop: (peer, bytes) still waiting, bounded, so that nothing sent before the stop is missing."""
+        for _ in range(DRAIN_READS):
+            try:
+                data = self.read()
+            except (SourceClosed, OSError):
+                return
+            if not data:
+                return
+            yield 0, data
 
     def shutdown(self) -> None:
         """Release everything at the end of the capture (a listener its port too)."""

@@ -22,6 +22,13 @@ Text formats are decoded up to the last complete line; each line that has
 no host-timestamp prefix gets one with its receive time (unless the log's
 `prefix` is "none"), so formats without a clock of their own get one.
 Binary formats are decoded as received.
+
+A text line is assembled per peer (each client of a listener), so lines of
+two senders are never spliced; a peer that hangs up mid-line leaves its
+unfinished line to the next connection (a sender that reconnects goes on
+where it stopped). An unfinished line is kept in one growing buffer (linear
+time) of at most MAX_LINE_BYTES: a longer one is dropped up to its newline
+and counted as one reject.
 """
 
 from __future__ import annotations
@@ -38,6 +45,7 @@ from ..base import NS, Converter, Ignored, LogContext, Output
 BINARY_FORMATS = frozenset({("dvl", "pd0"), ("dvl", "pd4"), ("dvl", "pd5"), ("gps", "novatel"), ("ins", "novatel")})
 MIN_WARMUP = 256
 HOLD_BYTES = 4096  # kept back while a window gives no output at all (noise, or a record still arriving)
+MAX_LINE_BYTES = 1 << 20  # an unfinished line longer than this is no record of any text format we decode
 
 Item = Output | Reject | Ignored
 
@@ -61,22 +69,52 @@ class StreamDecoder:
         self._base = 0
         self._lines_before = 0      # newlines before `_base`
         self._frontier = 0          # items before it are committed
-        self._partial = b""         # an unfinished line (text formats)
+        self._partials: dict[int, bytearray] = {}  # each peer's unfinished line (text formats)
+        self._carry = bytearray()   # the unfinished line of a peer that hung up: the next one goes on with it
+        self._skipping: set[int] = set()  # peers inside an overlong line: dropped up to its newline
+        self._dropped: list[Item] = []    # rejects of overlong lines, given by the next decode
         self._windowed = True       # False once a converter gives an output without a position
         self._pending = False       # bytes since the last decode
 
-    def feed(self, data: bytes, receive_ns: int) -> None:
-        """Append bytes received at `receive_ns` (ns UTC)."""
+    def feed(self, data: bytes, receive_ns: int, peer: int = 0) -> None:
+        """Append bytes received at `receive_ns` (ns UTC) from `peer` (a listener's client; else 0)."""
         if not self.text:
             self._buf += data
             self._pending = True
             return
-        data = self._partial + data
+        part = self._partials.pop(peer, None)
+        if part is None:
+            part, self._carry = self._carry, bytearray()
+        if peer in self._skipping:
+            newline = data.find(b"\n")
+            if newline < 0:
+                self._partials[peer] = part
+                return
+            self._skipping.discard(peer)
+            data = data[newline + 1:]
         cut = data.rfind(b"\n") + 1
-        self._partial = data[cut:]
         if cut:
-            self._append_lines(data[:cut], receive_ns)
+            self._append_lines(bytes(part) + data[:cut] if part else data[:cut], receive_ns)
+            part = bytearray(data[cut:])
             self._pending = True
+        else:
+            part += data
+        if len(part) > MAX_LINE_BYTES:
+            self._dropped.append(Reject(Where(self._base + len(self._buf)),
+                                        f"a line of more than {MAX_LINE_BYTES} bytes without a newline: dropped"))
+            part = bytearray()
+            self._skipping.add(peer)
+            self._pending = True
+        self._partials[peer] = part
+
+    def end_peer(self, peer: int) -> None:
+        """A peer hung up: its unfinished line is left for the next connection to finish."""
+        self._skipping.discard(peer)
+        part = self._partials.pop(peer, None)
+        if part:
+            self._carry += part
+            if len(self._carry) > MAX_LINE_BYTES:
+                del self._carry[:]
 
     def _append_lines(self, lines: bytes, receive_ns: int) -> None:
         if not self.stamp:
@@ -99,23 +137,26 @@ class StreamDecoder:
 
     def decode(self, final: bool = False) -> list[Item]:
         """The items settled since the last call (with `final`, every item left)."""
-        if final and self._partial:
-            self._append_lines(self._partial, time.time_ns())
-            self._partial = b""
+        if final:
+            for part in (*self._partials.values(), self._carry):
+                if part:
+                    self._append_lines(bytes(part), time.time_ns())
+            self._partials, self._carry = {}, bytearray()
         self._pending = False
+        dropped, self._dropped = self._dropped, []
         if not self._buf or not (self._windowed or final):
-            return []
+            return dropped
         lines = self._lines_before
         items = [_rebase(item, self._base, lines) for item in self.convert(bytes(self._buf), self.ctx)]
         if any(type(i) is Output and i.where is None for i in items):
             self._windowed = False  # positions unknown: decode the whole stream once, at the end
             if not final:
-                return []
+                return dropped
         cut = len(self._buf) + self._base if final else self._cut(items)
         out = [i for i in items if self._frontier <= _offset(i) < cut]
         if cut > self._frontier:
             self._advance(items, cut)
-        return out
+        return dropped + out
 
     def _cut(self, items: list[Item]) -> int:
         """Where the unsettled tail starts: the trailing epoch's first output, or HOLD_BYTES from the end."""

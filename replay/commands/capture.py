@@ -11,7 +11,7 @@ import time
 from typing import TYPE_CHECKING
 
 from recorders.base import Output
-from recorders.capture.session import CaptureOptions, CaptureSession
+from recorders.capture.session import CaptureOptions, CaptureSession, CaptureStopped
 from recorders.capture.status import status_block
 from recorders.manifest import LogSpec, Manifest, ManifestError, load_manifest
 from recorders.record import trial_metadata
@@ -33,6 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet-s", type=_positive, default=5.0,
                         help="warn when a source gives nothing for this long (default 5 s)")
     parser.add_argument("--status-s", type=_positive, default=1.0, help="status refresh on a terminal (default 1 s)")
+    parser.add_argument("--allow-outside", action="store_true",
+                        help="let log paths and tail: sources reach outside the manifest's folder (as record's)")
     live = parser.add_argument_group("live view and online estimation (the engine runs as data arrive)")
     live.add_argument("--view", action="store_true", help="spawn a Rerun viewer and stream into it")
     live.add_argument("--connect", metavar="ADDRESS", default=None,
@@ -148,9 +150,10 @@ def run(args: argparse.Namespace) -> int:
     status = _StatusLines(args.status_s)
     options = CaptureOptions(flush_s=args.flush_s, duration_s=args.duration, quiet_s=args.quiet_s)
     try:
-        manifest = load_manifest(args.manifest)
+        manifest = load_manifest(args.manifest, allow_outside=args.allow_outside)
         online = _Online(args, manifest) if args.view or args.connect or args.rrd or args.results else None
-        session = CaptureSession(manifest, args.output, options, listener=online, report=status.note)
+        session = CaptureSession(manifest, args.output, options, listener=online, report=status.note,
+                                 allow_outside=args.allow_outside)
     except ManifestError as exc:
         raise UserError(str(exc)) from None
     if online is not None:
@@ -163,7 +166,10 @@ def run(args: argparse.Namespace) -> int:
         status.draw(session)
         return bool(stop)
 
-    summary = session.run(should_stop)
+    try:
+        summary = session.run(should_stop)
+    except CaptureStopped as exc:   # a full disk: one line, exit 1; the part file stays for `recover`
+        raise UserError(str(exc)) from None
     status.draw(session, force=True)
     if online is not None:
         online.finish(str(summary.path))
