@@ -13,6 +13,13 @@ only defined in lost bytes go to `/recovered/channel-<id>`.
 
 The output is written with the `mcap` library's writer (chunks, message
 indexes, statistics, summary), under a temporary name renamed at the end.
+
+Memory is bounded whatever the file holds: the scan keeps the schemas,
+channels and the file offsets of what it found, never messages; the write
+reads the kept records again, one at a time, so at most one chunk is in
+memory. A chunk is decompressed under the same cap as the readers'
+(`formats.mcap_chunks.MAX_CHUNK_BYTES`): one declaring more is lost, with
+its reason.
 This module never changes `formats.mcap_reader`: that one reads archives,
 this one repairs them.
 """
@@ -23,12 +30,13 @@ import mmap
 import os
 import struct
 import zlib
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
 
-from formats.mcap_chunks import ChunkError
+from formats.mcap_chunks import MAX_CHUNK_BYTES, ChunkError, mib
 from formats.mcap_chunks import decompress as chunk_decompress
 from formats.records import FormatError
 
@@ -40,7 +48,9 @@ _RECORD = struct.Struct("<BQ")
 _U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
 _MESSAGE = struct.Struct("<HIQQ")
 _CHUNK = struct.Struct("<QQQI")
-MAX_UNCOMPRESSED = 1 << 31  # a chunk header claiming more is damage, not data
+# zstd and lz4 add a few bytes per block to data that does not compress: a chunk's compressed bytes beyond this
+# cannot hold MAX_CHUNK_BYTES or less, and are not read
+MAX_COMPRESSED = MAX_CHUNK_BYTES + (MAX_CHUNK_BYTES >> 6) + 4096
 
 
 class _Bad(Exception):
@@ -92,13 +102,17 @@ class _Reader:
 
     __slots__ = ("buf", "end", "pos")
 
-    def __init__(self, buf: bytes | mmap.mmap, pos: int = 0, end: int | None = None):
+    def __init__(self, buf: bytes | mmap.mmap | memoryview, pos: int = 0, end: int | None = None):
         self.buf, self.pos, self.end = buf, pos, len(buf) if end is None else end
 
     def take(self, n: int) -> bytes:
+        return bytes(self.view(n))
+
+    def view(self, n: int) -> memoryview:
+        """The next n bytes without a copy (of a memoryview or bytes buffer)."""
         if n < 0 or self.pos + n > self.end:
             raise _Bad("record runs past its end")
-        out = bytes(self.buf[self.pos:self.pos + n])
+        out = memoryview(self.buf)[self.pos:self.pos + n]
         self.pos += n
         return out
 
@@ -124,14 +138,15 @@ class _Reader:
 
 @dataclass
 class _Found:
-    """Everything salvaged, in file order."""
+    """What the scan salvaged: schemas and channels, and where each kept record is (read again to write it)."""
 
     profile: str = ""
     schemas: dict[int, tuple[str, str, bytes]] = field(default_factory=dict)
     channels: dict[int, tuple[str, str, int, dict[str, str]]] = field(default_factory=dict)
-    messages: list[tuple[int, int, int, int, bytes]] = field(default_factory=list)  # channel, seq, log, pub, data
-    attachments: list[tuple[int, int, str, str, bytes]] = field(default_factory=list)
-    metadata: list[tuple[str, dict[str, str]]] = field(default_factory=list)
+    kept: list[tuple[int, int]] = field(default_factory=list)  # (opcode, file offset) of kept records, in file order
+    messages: int = 0
+    attachments: int = 0
+    metadata: int = 0
     chunk_spans: list[tuple[int, int, int]] = field(default_factory=list)  # file offset, start ns, end ns
 
 
@@ -154,17 +169,19 @@ def _message(r: _Reader, length: int) -> tuple[int, int, int, int, bytes]:
     return cid, seq, log_time, publish_time, r.take(length - _MESSAGE.size)
 
 
-def _chunk_head(r: _Reader) -> tuple[int, int, int, int, str, int]:
+def _chunk_head(r: _Reader, capped: bool = True) -> tuple[int, int, int, int, str, int]:
     start, end, size, crc = r.unpack(_CHUNK)
     compression = r.string()
     (n,) = r.unpack(_U64)
-    if size > MAX_UNCOMPRESSED or start > end:
+    if start > end:
         raise _Bad("implausible chunk header")
+    if capped and (size > MAX_CHUNK_BYTES or n > MAX_COMPRESSED):
+        raise _Bad(f"chunk of {mib(max(size, n))}, over the {mib(MAX_CHUNK_BYTES)} limit")
     return start, end, size, crc, compression, n
 
 
-def _chunk(r: _Reader, found: _Found, offset: int) -> None:
-    """A chunk whose records all parse and whose CRC holds; its records go into `found` only then."""
+def _chunk_records(r: _Reader, offset: int) -> tuple[int, int, bytes]:
+    """(start, end, uncompressed records) of a chunk whose data decompresses to its size and CRC."""
     start, end, size, crc, compression, n = _chunk_head(r)
     try:    # one bounded decompression for every reader of ours: a frame claiming 4 GiB is refused unread
         records = chunk_decompress(compression, r.take(n), size, offset)
@@ -174,58 +191,93 @@ def _chunk(r: _Reader, found: _Found, offset: int) -> None:
         raise _Bad("uncompressed size differs from the header")
     if crc and zlib.crc32(records) != crc:
         raise _Bad("chunk CRC mismatch")
+    return start, end, records
+
+
+def _chunk(r: _Reader, found: _Found, offset: int) -> None:
+    """A chunk whose records all parse and whose CRC holds; its schemas and channels go into `found` only then."""
+    start, end, records = _chunk_records(r, offset)
     inner = _Found(schemas=dict(found.schemas), channels=dict(found.channels))
     sub = _Reader(records)
     while sub.pos < sub.end:
         op, length = sub.unpack(_RECORD)
-        body = _Reader(sub.take(length))
+        body = _Reader(sub.view(length))
         if op == OP_SCHEMA:
             _schema(body, inner)
         elif op == OP_CHANNEL:
             _channel(body, inner)
         elif op == OP_MESSAGE:
-            inner.messages.append(_message(body, length))
+            _message_head(body, length)
+            inner.messages += 1
     found.schemas, found.channels = inner.schemas, inner.channels
-    found.messages.extend(inner.messages)
+    found.messages += inner.messages
     found.chunk_spans.append((offset, start, end))
 
 
-def _attachment(r: _Reader, found: _Found, raw: bytes) -> None:
+def _chunk_messages(r: _Reader, offset: int) -> list[tuple[int, int, int, int, bytes]]:
+    """The messages of a chunk the scan kept (read again: one chunk at a time in memory)."""
+    _, _, records = _chunk_records(r, offset)
+    out = []
+    sub = _Reader(records)
+    while sub.pos < sub.end:
+        op, length = sub.unpack(_RECORD)
+        body = _Reader(sub.view(length))
+        if op == OP_MESSAGE:
+            out.append(_message(body, length))
+    return out
+
+
+def _message_head(r: _Reader, length: int) -> None:
+    """A message record's fixed part is there (its data is checked by length only)."""
+    r.unpack(_MESSAGE)
+    r.view(length - _MESSAGE.size)
+
+
+def _attachment(r: _Reader, raw: memoryview) -> tuple[int, int, str, str, memoryview]:
     log_time, create_time = struct.unpack("<QQ", r.take(16))
     name, media = r.string(), r.string()
     (n,) = r.unpack(_U64)
-    data = r.take(n)
+    data = r.view(n)
     (crc,) = r.unpack(_U32)
     if crc and zlib.crc32(raw[:len(raw) - 4]) != crc:
         raise _Bad("attachment CRC mismatch")
-    found.attachments.append((log_time, create_time, name, media, data))
+    return log_time, create_time, name, media, data
 
 
 def _parse(buf: mmap.mmap, pos: int, found: _Found) -> tuple[int, int]:
-    """(opcode, end) of the valid record at `pos`, its content added to `found`; `_Bad` otherwise."""
+    """(opcode, end) of the valid record at `pos`, noted in `found`; `_Bad` otherwise."""
     if pos + _RECORD.size > len(buf):
         raise _Bad("truncated record header")
     op, length = _RECORD.unpack_from(buf, pos)
     end = pos + _RECORD.size + length
     if op not in KNOWN or end > len(buf):
         raise _Bad("truncated record" if op in KNOWN else f"unknown opcode {op:#x}")
-    raw = buf[pos + _RECORD.size:end]
-    r = _Reader(raw)
-    if op == OP_HEADER:
-        found.profile = r.string()
-    elif op == OP_SCHEMA:
-        _schema(r, found)
-    elif op == OP_CHANNEL:
-        _channel(r, found)
-    elif op == OP_MESSAGE:
-        found.messages.append(_message(r, length))
-    elif op == OP_CHUNK:
-        _chunk(r, found, pos)
-    elif op == OP_ATTACHMENT:
-        _attachment(r, found, raw)
-    elif op == OP_METADATA:
-        name = r.string()
-        found.metadata.append((name, r.string_map()))
+    with memoryview(buf) as whole:
+        raw = whole[pos + _RECORD.size:end]   # no copy: an attachment may be as large as the file
+        try:
+            r = _Reader(raw)
+            if op == OP_HEADER:
+                found.profile = r.string()
+            elif op == OP_SCHEMA:
+                _schema(r, found)
+            elif op == OP_CHANNEL:
+                _channel(r, found)
+            elif op == OP_MESSAGE:
+                _message_head(r, length)
+                found.messages += 1
+            elif op == OP_CHUNK:
+                _chunk(r, found, pos)
+            elif op == OP_ATTACHMENT:
+                _attachment(r, raw)
+                found.attachments += 1
+            elif op == OP_METADATA:
+                r.string()
+                r.string_map()
+                found.metadata += 1
+        finally:
+            raw.release()
+    if op in (OP_MESSAGE, OP_CHUNK, OP_ATTACHMENT, OP_METADATA):
+        found.kept.append((op, pos))
     return op, end
 
 
@@ -278,7 +330,7 @@ def _damaged_span(buf: mmap.mmap, pos: int) -> tuple[int | None, int | None, boo
         op, _ = _RECORD.unpack_from(buf, pos)
         if op != OP_CHUNK:
             return None, None, False
-        start, end, *_ = _chunk_head(_Reader(buf, pos + _RECORD.size))
+        start, end, *_ = _chunk_head(_Reader(buf, pos + _RECORD.size), capped=False)
         return start, end, True
     except (_Bad, struct.error):
         return None, None, False
@@ -322,7 +374,20 @@ def _fill_gap_times(report: RecoveryReport, found: _Found) -> None:
         lost.end_ns = min(after) if after else None
 
 
-def _write(found: _Found, out: Path, report: RecoveryReport) -> None:
+def _kept_records(buf: mmap.mmap, found: _Found) -> Iterator[tuple[int, _Reader, int]]:
+    """(opcode, reader of its content, file offset) of every record the scan kept, in file order."""
+    for op, pos in found.kept:
+        _, length = _RECORD.unpack_from(buf, pos)
+        with memoryview(buf) as whole:
+            raw = whole[pos + _RECORD.size:pos + _RECORD.size + length]
+            try:
+                yield op, _Reader(raw), pos
+            finally:
+                raw.release()
+
+
+def _write(buf: mmap.mmap, found: _Found, out: Path, report: RecoveryReport) -> None:
+    """The kept records into a new file, read again one at a time (one chunk in memory at most)."""
     with open(out, "wb") as f:
         w = Writer(f, compression=CompressionType.ZSTD)
         w.start(profile=found.profile, library="auvreplay recover")
@@ -330,7 +395,8 @@ def _write(found: _Found, out: Path, report: RecoveryReport) -> None:
         channel_ids: dict[int, int] = {}
         for cid, (topic, encoding, sid, meta) in found.channels.items():
             channel_ids[cid] = w.register_channel(topic, encoding, schema_ids.get(sid, 0), meta)
-        for cid, seq, log_time, publish_time, data in found.messages:
+
+        def add(cid: int, seq: int, log_time: int, publish_time: int, data: bytes) -> None:
             new = channel_ids.get(cid)
             if new is None:
                 new = channel_ids[cid] = w.register_channel(f"/recovered/channel-{cid}", "", 0)
@@ -339,10 +405,20 @@ def _write(found: _Found, out: Path, report: RecoveryReport) -> None:
             w.add_message(new, log_time, data, publish_time, seq)
             report.start_ns = log_time if report.start_ns is None else min(report.start_ns, log_time)
             report.end_ns = log_time if report.end_ns is None else max(report.end_ns, log_time)
-        for log_time, create_time, name, media, data in found.attachments:
-            w.add_attachment(create_time, log_time, name, media, data)
-        for name, meta in found.metadata:
-            w.add_metadata(name, meta)
+
+        for op, r, pos in _kept_records(buf, found):   # each parsed before: a _Bad here is a bug
+            if op == OP_CHUNK:
+                for message in _chunk_messages(r, pos):
+                    add(*message)
+            elif op == OP_MESSAGE:
+                add(*_message(r, r.end))
+            elif op == OP_ATTACHMENT:
+                log_time, create_time, name, media, data = _attachment(r, r.buf)  # type: ignore[arg-type]
+                w.add_attachment(create_time, log_time, name, media, bytes(data))
+                data.release()
+            elif op == OP_METADATA:
+                name = r.string()
+                w.add_metadata(name, r.string_map())
         w.finish()
         f.flush()
         os.fsync(f.fileno())
@@ -354,23 +430,28 @@ def recover(source: str | os.PathLike[str], output: str | os.PathLike[str]) -> R
     if src.resolve() == out.resolve():
         raise FormatError(f"{out}: recover writes a new file; give an output other than the input")
     report = RecoveryReport(str(src), str(out))
+    temp = out.with_name(f".{out.name}.part-{os.getpid()}")
     try:
-        with open(src, "rb") as f:
+        f = open(src, "rb")
+    except OSError as exc:
+        raise FormatError(f"{src}: cannot read ({exc.strerror or exc})") from None
+    with f:
+        try:
             report.size = os.fstat(f.fileno()).st_size
             if report.size < len(MAGIC) or f.read(len(MAGIC)) != MAGIC:
                 raise FormatError(f"{src}: not an MCAP file (no MCAP magic at the start)")
-            with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
-                found = scan(buf, report)
-    except OSError as exc:
-        raise FormatError(f"{src}: cannot read ({exc.strerror or exc})") from None
-    report.chunks_kept = len(found.chunk_spans)
-    report.messages = len(found.messages)
-    report.attachments, report.metadata = len(found.attachments), len(found.metadata)
-    _fill_gap_times(report, found)
-    temp = out.with_name(f".{out.name}.part-{os.getpid()}")
-    try:
-        _write(found, temp, report)
-        os.replace(temp, out)
-    finally:
-        temp.unlink(missing_ok=True)
+            buf = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+        except OSError as exc:
+            raise FormatError(f"{src}: cannot read ({exc.strerror or exc})") from None
+        with buf:
+            found = scan(buf, report)
+            report.chunks_kept = len(found.chunk_spans)
+            report.messages = found.messages
+            report.attachments, report.metadata = found.attachments, found.metadata
+            _fill_gap_times(report, found)
+            try:   # the file is read again as it is written: one chunk in memory at a time
+                _write(buf, found, temp, report)
+                os.replace(temp, out)
+            finally:
+                temp.unlink(missing_ok=True)
     return report

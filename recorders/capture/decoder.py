@@ -33,6 +33,7 @@ and counted as one reject.
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Iterable
 
@@ -48,6 +49,14 @@ HOLD_BYTES = 4096  # kept back while a window gives no output at all (noise, or 
 MAX_LINE_BYTES = 1 << 20  # an unfinished line longer than this is no record of any text format we decode
 
 Item = Output | Reject | Ignored
+# a host-timestamp prefix starts with "[" or a digit (formats.lines); a line may start with one only then
+_MAY_HAVE_PREFIX = re.compile(rb"\n[\[0-9]")
+# a line that holds more than whitespace (str.strip's, latin-1): after a newline, or at the start
+_BLANK = rb" \t\n\r\f\v\x1c-\x1f\x85\xa0"
+_NOT_BLANK = rb"(?=[" + _BLANK.replace(b"\\n", b"") + rb"]*[^" + _BLANK + rb"])"
+_NEXT_LINE = re.compile(rb"\n" + _NOT_BLANK)
+_FIRST_LINE = re.compile(_NOT_BLANK)
+_PREFIX_STARTS = frozenset(bytes([c]) for c in b"[0123456789")
 
 
 def stamp_prefix(t_ns: int, style: str) -> bytes:
@@ -120,23 +129,40 @@ class StreamDecoder:
         if not self.stamp:
             self._buf += lines
             return
-        stamp = None
+        stamp = stamp_prefix(receive_ns, self.ctx.prefix)
+        if lines[:1] not in _PREFIX_STARTS and not _MAY_HAVE_PREFIX.search(lines) \
+                and lines.count(b"\r") == lines.count(b"\r\n"):
+            # no line can start with a host prefix (the common case, "$GPGGA..."): every non-blank line
+            # gets the stamp in one pass in C, as the loop below would give it
+            if _FIRST_LINE.match(lines):
+                self._buf += stamp
+            self._buf += _NEXT_LINE.sub(b"\n" + stamp.replace(b"\\", b"\\\\"), lines)
+            return
         style = self.ctx.prefix
         for line in lines.splitlines(keepends=True):
             text = line.decode("latin-1")
             if text.strip() and strip_prefix(text, style)[1] is None:
-                if stamp is None:
-                    stamp = stamp_prefix(receive_ns, style)
                 self._buf += stamp
             self._buf += line
 
     @property
     def pending(self) -> bool:
-        """True when bytes arrived since the last decode."""
+        """True when bytes arrived since the last decode, or a budget left some undecoded."""
         return self._pending
 
-    def decode(self, final: bool = False) -> list[Item]:
-        """The items settled since the last call (with `final`, every item left)."""
+    @property
+    def backlog(self) -> int:
+        """Bytes received and not yet settled (what a decode with a budget left behind, mostly)."""
+        return self._base + len(self._buf) - self._frontier
+
+    def decode(self, final: bool = False, budget: int | None = None) -> list[Item]:
+        """The items settled since the last call (with `final`, every item left).
+
+        With a `budget`, the window ends about that many bytes past what is
+        settled (at a line end for text), as if the stream had ended there:
+        the loop decodes a fast stream in slices between its reads, and the
+        rest stays `pending`.
+        """
         if final:
             for part in (*self._partials.values(), self._carry):
                 if part:
@@ -146,22 +172,42 @@ class StreamDecoder:
         dropped, self._dropped = self._dropped, []
         if not self._buf or not (self._windowed or final):
             return dropped
-        lines = self._lines_before
-        items = [_rebase(item, self._base, lines) for item in self.convert(bytes(self._buf), self.ctx)]
+        end = self._window_end(budget) if budget is not None and not final and self._windowed else len(self._buf)
+        items = self._convert(end)
+        if end < len(self._buf) and self._windowed and self._cut(items, end) <= self._frontier:
+            end = len(self._buf)   # one epoch longer than the budget: the whole stream, as without one
+            items = self._convert(end)
+        self._pending = end < len(self._buf)
         if any(type(i) is Output and i.where is None for i in items):
             self._windowed = False  # positions unknown: decode the whole stream once, at the end
             if not final:
                 return dropped
-        cut = len(self._buf) + self._base if final else self._cut(items)
+        cut = len(self._buf) + self._base if final else self._cut(items, end)
         out = [i for i in items if self._frontier <= _offset(i) < cut]
         if cut > self._frontier:
             self._advance(items, cut)
         return dropped + out
 
-    def _cut(self, items: list[Item]) -> int:
+    def _window_end(self, budget: int) -> int:
+        """Where a window of about `budget` new bytes ends in `_buf` (after a newline for text)."""
+        want = self._frontier - self._base + budget
+        if want >= len(self._buf):
+            return len(self._buf)
+        if not self.text:
+            return want
+        newline = self._buf.find(b"\n", want)
+        return len(self._buf) if newline < 0 else newline + 1
+
+    def _convert(self, end: int) -> list[Item]:
+        lines = self._lines_before
+        with memoryview(self._buf) as view:   # released here: `_advance` resizes the buffer
+            data = bytes(view[:end])
+        return [_rebase(item, self._base, lines) for item in self.convert(data, self.ctx)]
+
+    def _cut(self, items: list[Item], window: int) -> int:
         """Where the unsettled tail starts: the trailing epoch's first output, or HOLD_BYTES from the end."""
         outputs = [i for i in items if type(i) is Output]
-        end = self._base + len(self._buf)
+        end = self._base + window
         if not outputs:
             return max(self._frontier, end - HOLD_BYTES)
         last = outputs[-1].log_time_ns

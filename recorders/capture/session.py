@@ -58,6 +58,13 @@ RETRY_MAX_S = 5.0
 # a growing file is read until it has nothing new, up to this much per turn of the loop, so that a fast
 # writer is kept up with (20 MB/s and more) and the other sources still get their turn
 POLL_BUDGET = 8 << 20
+# a file is not read further while this much of it waits to be decoded (it waits on disk instead)
+MAX_BACKLOG = 64 << 20
+# decoding is done in slices of about DECODE_SLICE bytes, for at most DECODE_TURN_S a turn, so that
+# reading (the archive: nothing lost) never waits on a converter slower than the stream; a clean stop
+# decodes whatever is left
+DECODE_SLICE = 128 << 10
+DECODE_TURN_S = 0.05
 
 
 class CaptureStopped(OSError):
@@ -282,8 +289,8 @@ class CaptureSession:
         return CaptureStopped(f"{self.part}: cannot write ({why}); capture stopped, the part file keeps what "
                               f"was captured: `auvreplay recover {self.part} -o FIXED.mcap`")
 
-    def _decode(self, live: _Live, now: float, final: bool = False) -> None:
-        items = live.decoder.decode(final)
+    def _decode(self, live: _Live, now: float, final: bool = False, budget: int | None = None) -> None:
+        items = live.decoder.decode(final, budget)
         if not items:
             return
         recorder = live.recorder
@@ -334,17 +341,23 @@ class CaptureSession:
         self._busy = False
         for live in polled:
             got = 0
-            while live.is_open and got < POLL_BUDGET:
+            while live.is_open and got < POLL_BUDGET and live.decoder.backlog < MAX_BACKLOG:
                 n = self._read(live, now)
                 if not n:
                     break
                 got += n
             self._busy |= got >= POLL_BUDGET  # more is waiting: no sleep before the next turn
         if now >= self._next_decode:
-            for live in self.logs:
-                if live.decoder.pending:
-                    self._decode(live, now)
+            until = time.monotonic() + DECODE_TURN_S
+            while True:
+                due = [live for live in self.logs if live.decoder.pending]
+                if not due or time.monotonic() >= until:
+                    break
+                for live in due:
+                    self._decode(live, now, budget=DECODE_SLICE)
             self._next_decode = now + self.options.decode_s
+            if due:   # a backlog: decode again next turn, without waiting
+                self._next_decode, self._busy = now, True
         if now >= self._next_flush:
             self._flush()
             self._check_quiet(now)
