@@ -13,21 +13,45 @@ per message (`BagMessage.problem`); a file rosbags cannot open at all is a
 (struct errors, index errors, its own reader errors), so its calls are
 guarded broadly: other labs' bags must never stop a recording with a
 traceback.
+
+A ROS 1 bag's chunks are inflated here, not by rosbags (which inflates a
+chunk whole, whatever it holds, and again for each message when chunks
+interleave in time): each chunk once, only when the size its header
+declares is under the readers' cap (`mcap_chunks.MAX_CHUNK_BYTES`) and
+never past that size. Chunks whose times overlap are merged in time order
+while they fit in MERGE_BYTES together; a chunk refused, or whose data is
+damaged, gives each of its indexed messages as a problem (a counted skip).
+Every value of a ROS 2 database row is checked the same way: a NULL or
+non-integer timestamp, or data that is not bytes, is that message's problem.
 """
 
 from __future__ import annotations
 
+import bz2
 import contextlib
+import heapq
+import struct
+from collections import defaultdict
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .mcap_chunks import MAX_CHUNK_BYTES, mib
 from .records import FormatError
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 SQLITE_MAGIC = b"SQLite format 3\x00"
+# inflated chunks held at once to merge chunks whose times overlap; past it the open ones are given first
+MERGE_BYTES = 2 * MAX_CHUNK_BYTES
+# compressed bytes of a chunk that may inflate to MAX_CHUNK_BYTES or less (bz2 and lz4 add little to random data)
+MAX_COMPRESSED = MAX_CHUNK_BYTES + (MAX_CHUNK_BYTES >> 4) + 4096
+_U32 = struct.Struct("<I")
+_TIME = struct.Struct("<II")
+OP_MSGDATA, OP_CHUNK, OP_CONNECTION = 2, 5, 7
+# (connection, bag time ns, serialized message or None, problem): one message as the storage gives it
+RawRow = tuple[Any, int, bytes | None, str]
 
 
 @dataclass(frozen=True, slots=True)
@@ -37,7 +61,7 @@ class BagMessage:
     topic: str
     msgtype: str
     bag_time_ns: int
-    index: int                 # 0-based, in bag time order within its file
+    index: int                 # 0-based, in read order within its file (bag time order, chunk by chunk)
     message: Any = None        # the decoded message (rosbags dataclass), None when `problem` says why
     problem: str = ""
 
@@ -146,18 +170,22 @@ def _messages(reader: Any, ros1: bool) -> Iterator[BagMessage]:
     connections = list(reader.connections)
     store, broken = _typestore(connections, ros1)
     index = 0
-    stream = reader.messages()
+    stream = _ros1_rows(reader) if ros1 else _ros2_rows(reader)
     while True:
         try:
-            conn, t_ns, raw = next(stream)
+            conn, t_ns, raw, problem = next(stream)
         except StopIteration:
             return
         except Exception as exc:  # noqa: BLE001 - a damaged chunk ends what can be read of the file
             yield BagMessage("", "", 0, index, None, f"the rest of the bag cannot be read ({type(exc).__name__}: "
                                                      f"{exc})")
             return
+        if conn is None:
+            yield BagMessage("", "", t_ns, index, None, problem or "a message of no connection the bag defines")
+            index += 1
+            continue
         msgtype = ros_type(conn.msgtype)
-        problem = broken.get(conn.msgtype, "")
+        problem = problem or broken.get(conn.msgtype, "")
         message = None
         if not problem:
             fmt = getattr(conn.ext, "serialization_format", "cdr")
@@ -170,5 +198,158 @@ def _messages(reader: Any, ros1: bool) -> Iterator[BagMessage]:
                     problem = f"serialization {fmt!r} is not CDR"
             except Exception as exc:  # noqa: BLE001 - unknown type, short or garbled payload: this message only
                 problem = f"does not decode as {msgtype} ({type(exc).__name__}: {exc})"
-        yield BagMessage(conn.topic, msgtype, int(t_ns), index, message, problem)
+        yield BagMessage(conn.topic, msgtype, t_ns, index, message, problem)
         index += 1
+
+
+def _ros2_rows(reader: Any) -> Iterator[RawRow]:
+    """A ROS 2 bag's rows, each value checked: a database row may hold anything (a NULL, text, a float)."""
+    for conn, t_ns, raw in reader.messages():
+        problem = ""
+        if type(t_ns) is not int or not 0 <= t_ns < 1 << 63:
+            problem, t_ns = f"timestamp {t_ns!r} is not a time in ns", 0
+        elif not isinstance(raw, (bytes, bytearray, memoryview)):
+            problem = f"data {type(raw).__name__} is not bytes"
+        yield conn, t_ns, None if problem else bytes(raw), problem
+
+
+def _ros1_rows(reader: Any) -> Iterator[RawRow]:
+    """A ROS 1 bag's messages, each chunk inflated once and bounded; overlapping chunks merged in time."""
+    connmap = {c.id: c for c in reader.connections}
+    by_chunk: dict[int, list[tuple[int, int, int]]] = defaultdict(list)  # chunk pos -> (time, offset, conn)
+    for cid, entries in reader.indexes.items():
+        for e in entries:
+            by_chunk[e.chunk_pos].append((e.time, e.offset, cid))
+    chunks = sorted(reader.chunk_infos, key=lambda ci: (ci.start_time, ci.pos))
+    # (time, chunk order, index in chunk, entries, inflated data) of every chunk open for the merge
+    heap: list[tuple[int, int, int, list[tuple[int, int, int]], bytes]] = []
+    held = 0
+    for order, info in enumerate(chunks):
+        entries = sorted(by_chunk.get(info.pos, ()))
+        if not entries:
+            continue
+        # every open message before this chunk's first comes first (the chunks' usual case: one open at a time)
+        while heap and (heap[0][0] <= entries[0][0] or held + MAX_CHUNK_BYTES > MERGE_BYTES):
+            row, freed = _next_row(heap, connmap)
+            held -= freed
+            yield row
+        data, problem = _ros1_chunk(reader.bio, info.pos)
+        if problem:
+            for t, _, cid in entries:
+                yield connmap.get(cid), t, None, problem
+            continue
+        assert data is not None
+        held += len(data)
+        heapq.heappush(heap, (entries[0][0], order, 0, entries, data))
+    while heap:
+        row, _ = _next_row(heap, connmap)
+        yield row
+
+
+def _next_row(heap: list[tuple[int, int, int, list[tuple[int, int, int]], bytes]],
+              connmap: dict[int, Any]) -> tuple[RawRow, int]:
+    """The earliest open message, and the bytes freed when its chunk has no more."""
+    _, order, i, entries, data = heap[0]
+    t, offset, cid = entries[i]
+    if i + 1 < len(entries):
+        heapq.heapreplace(heap, (entries[i + 1][0], order, i + 1, entries, data))
+        freed = 0
+    else:
+        heapq.heappop(heap)
+        freed = len(data)
+    raw, problem = _ros1_record(data, offset)
+    return (connmap.get(cid), t, raw, problem), freed
+
+
+def _ros1_chunk(bio: Any, pos: int) -> tuple[bytes | None, str]:
+    """(inflated records, "") of the chunk record at `pos`, or (None, why not): over the cap, or damaged."""
+    from rosbags.rosbag1.reader import Header, RecordType, read_uint32
+
+    where = f"chunk at byte {pos}"
+    try:
+        bio.seek(pos)
+        header = Header.read(bio, RecordType.CHUNK)
+        compression = header.get_string("compression")
+        size = header.get_uint32("size")
+        datasize = read_uint32(bio)
+    except Exception as exc:  # noqa: BLE001 - rosbags' ways of refusing a damaged header: this chunk only
+        return None, f"{where}: unreadable header ({type(exc).__name__}: {exc})"
+    if size > MAX_CHUNK_BYTES or datasize > MAX_COMPRESSED:
+        return None, f"{where} declares {mib(max(size, datasize))}, over the {mib(MAX_CHUNK_BYTES)} limit: skipped"
+    body = bio.read(datasize)
+    if len(body) != datasize:
+        return None, f"{where}: the file ends inside it"
+    try:
+        data = _inflate(compression, body, size)
+    except (ValueError, OSError, RuntimeError, EOFError) as exc:
+        return None, f"{where}: {compression} data {exc}"
+    if len(data) != size:
+        return None, f"{where}: {compression} data inflates to {mib(len(data))}, not the {mib(size)} declared"
+    return data, ""
+
+
+def _inflate(compression: str, body: bytes, size: int) -> bytes:
+    """At most `size` bytes out of a chunk's data; ValueError when it holds more, or is no such data."""
+    if compression == "none":
+        return body
+    if compression == "bz2":   # one stream or several in a row (bz2.decompress reads them all, so do we)
+        parts, left, rest = [], size, body
+        while rest:
+            bz = bz2.BZ2Decompressor()
+            parts.append(bz.decompress(rest, max_length=left))
+            left -= len(parts[-1])
+            if not bz.eof and not bz.needs_input and bz.decompress(b"", max_length=1):
+                raise ValueError(f"inflates past the {mib(size)} declared")
+            if not bz.eof:
+                raise ValueError("ends inside a bz2 stream")
+            rest = bz.unused_data
+        return b"".join(parts)
+    if compression == "lz4":
+        import lz4.frame
+
+        lz = lz4.frame.LZ4FrameDecompressor()
+        out = lz.decompress(body, max_length=size)
+        if not lz.eof and lz.decompress(b"", max_length=1):
+            raise ValueError(f"inflates past the {mib(size)} declared")
+        return out
+    raise ValueError(f"compression {compression!r} is not supported")
+
+
+def _ros1_record(data: bytes, offset: int) -> tuple[bytes | None, str]:
+    """(message bytes, "") of the message data record at `offset` of a chunk (connection records skipped)."""
+    pos = offset
+    try:
+        while True:
+            (hlen,) = _U32.unpack_from(data, pos)
+            fields = _header_fields(data, pos + 4, pos + 4 + hlen)
+            pos += 4 + hlen
+            (dlen,) = _U32.unpack_from(data, pos)
+            pos += 4
+            if pos + dlen > len(data):
+                return None, f"a record of {dlen} bytes overruns its chunk"
+            op = fields.get("op", b"")
+            if op == bytes([OP_MSGDATA]):
+                return data[pos:pos + dlen], ""
+            if op != bytes([OP_CONNECTION]):
+                return None, "the bag's index points at no message"
+            pos += dlen
+    except (struct.error, ValueError) as exc:
+        return None, f"damaged record in its chunk ({exc})"
+
+
+def _header_fields(data: bytes, start: int, end: int) -> dict[str, bytes]:
+    """A ROS 1 record header's name=value fields; ValueError when it overruns."""
+    if end > len(data):
+        raise ValueError("a record header overruns its chunk")
+    fields, pos = {}, start
+    while pos < end:
+        (n,) = _U32.unpack_from(data, pos)
+        pos += 4
+        if pos + n > end:
+            raise ValueError("a header field overruns its header")
+        name, sep, value = data[pos:pos + n].partition(b"=")
+        if not sep:
+            raise ValueError("a header field without '='")
+        fields[name.decode("latin-1")] = value
+        pos += n
+    return fields

@@ -143,3 +143,75 @@ def damage_lines(data: bytes, seed: int) -> bytes:
         else:
             lines.insert(i, lines[i])
     return b"".join(lines)
+
+
+# ---------------------------------------------------------------- ROS 1 bags, written field by field
+
+STRING_MD5 = "992ce8a1687cec8c8bd883ec73ca41d1"   # std_msgs/String
+
+
+def _ros_header(**fields: bytes) -> bytes:
+    body = b"".join(struct.pack("<I", len(k) + 1 + len(v)) + k.encode() + b"=" + v for k, v in fields.items())
+    return struct.pack("<I", len(body)) + body
+
+
+def _ros_record(data: bytes, **fields: bytes) -> bytes:
+    return _ros_header(**fields) + struct.pack("<I", len(data)) + data
+
+
+def _ros_time(t_ns: int) -> bytes:
+    return struct.pack("<II", *divmod(t_ns, 10**9))
+
+
+def ros_string(text: bytes) -> bytes:
+    """A std_msgs/String message, ROS 1 serialized."""
+    return struct.pack("<I", len(text)) + text
+
+
+def ros1_bag(chunks: list[list[tuple[int, bytes]]], topic: str = "/nmea", compression: str = "bz2",
+             chunk_data: dict[int, bytes] | None = None, declared: dict[int, int] | None = None) -> bytes:
+    """A ROS 1 (v2.0) bag of std_msgs/String messages on one topic: `chunks` lists each chunk's (time ns, message).
+
+    `chunk_data` replaces a chunk's compressed bytes (a bomb), `declared` the uncompressed size its header
+    gives; the index (message times and offsets) stays that of the real messages.
+    """
+    import bz2 as _bz2
+
+    import lz4.frame
+
+    conn = struct.pack("<I", 0)
+    connection = _ros_record(
+        _ros_header(topic=topic.encode(), type=b"std_msgs/String", md5sum=STRING_MD5.encode(),
+                    message_definition=b"string data\n")[4:],
+        op=b"\x07", conn=conn, topic=topic.encode())
+    out = bytearray(b"#ROSBAG V2.0\n")
+    head_at = len(out)
+    out += bytes(4096)   # the bag header, written at the end
+    infos = []
+    for k, messages in enumerate(chunks):
+        inner = bytearray(connection)
+        index = []
+        for t, data in messages:
+            index.append((t, len(inner)))
+            inner += _ros_record(data, op=b"\x02", conn=conn, time=_ros_time(t))
+        packed = {"bz2": _bz2.compress, "lz4": lz4.frame.compress, "none": bytes}[compression](bytes(inner))
+        packed = (chunk_data or {}).get(k, packed)
+        size = (declared or {}).get(k, len(inner))
+        pos = len(out)
+        out += _ros_record(packed, op=b"\x05", compression=compression.encode(), size=struct.pack("<I", size))
+        entries = b"".join(_ros_time(t) + struct.pack("<I", off) for t, off in index)
+        out += _ros_record(entries, op=b"\x04", ver=struct.pack("<I", 1), conn=conn,
+                           count=struct.pack("<I", len(index)))
+        times = [t for t, _ in messages]
+        infos.append(_ros_record(conn + struct.pack("<I", len(index)), op=b"\x06", ver=struct.pack("<I", 1),
+                                 chunk_pos=struct.pack("<Q", pos), start_time=_ros_time(min(times)),
+                                 end_time=_ros_time(max(times)), count=struct.pack("<I", 1)))
+    index_pos = len(out)
+    out += connection
+    for info in infos:
+        out += info
+    header = _ros_header(op=b"\x03", index_pos=struct.pack("<Q", index_pos), conn_count=struct.pack("<I", 1),
+                         chunk_count=struct.pack("<I", len(chunks)))
+    padding = 4096 - len(header) - 4
+    out[head_at:head_at + 4096] = header + struct.pack("<I", padding) + b" " * padding
+    return bytes(out)
