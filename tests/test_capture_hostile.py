@@ -290,7 +290,8 @@ def test_a_stalled_client_does_not_hold_back_another(tmp_path):
     logger.close()
     session.run(lambda: True)
     streams = raw_by_connection(tmp_path / "out.mcap")
-    assert streams == {2: gga(5000)[:20], 3: data}
+    # connections are numbered as their first bytes come: either may be first
+    assert set(streams) == {2, 3} and sorted(streams.values()) == sorted([gga(5000)[:20], data])
     assert gps_count(tmp_path / "out.mcap") == 100
 
 
