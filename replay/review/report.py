@@ -14,6 +14,7 @@ from __future__ import annotations
 import html
 import json
 import math
+import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -42,6 +43,7 @@ from replay.review.scoreboard import (
     navigation_rows,
     scoreboard,
     skipped_lines,
+    verdict,
     window_text,
 )
 from replay.stack.methods import detecting_names
@@ -127,6 +129,11 @@ def _scoreboard_html(metrics: dict[str, Any]) -> str:
                     f'<td class="num">{r.rank}</td><td>{swatch}{_esc(r.method)}</td><td>{r.kind}</td>{cells}</tr>')
     return (f'<table id="scoreboard-table"><tr><th>rank</th><th>method</th><th>kind</th>{head}</tr>'
             + "".join(rows) + "</table>")
+
+
+def _bold(escaped: str) -> str:
+    """Markdown's **bold** of an escaped verdict line as HTML <b>."""
+    return re.sub(r"\*\*(.+?)\*\*", r"<b>\1</b>", escaped)
 
 
 def _navigation_html(metrics: dict[str, Any]) -> str:
@@ -303,9 +310,9 @@ def build_report(meta: dict[str, Any], review: ReviewData, intervals: list[KindI
         f"<h1>{_esc(title)}</h1>",
         (f'<p class="sub">{_esc(window_text(metrics))}; {metrics.get("epochs")} scored ranging epochs '
          f'({metrics.get("anomalous")} labelled anomalous), {metrics.get("usbl_epochs")} USBL epochs; '
-         f"followers {_esc(', '.join(metrics.get('followers', [])))}. "
-         + (f"Best by p50 error: <b>{_esc(best[0].method)}</b>.</p>" if best_p50 is not None else
-           " No epoch was scored: the run ended before t_a.</p>")),
+         f"followers {_esc(', '.join(metrics.get('followers', [])))}."
+         + ("</p>" if best_p50 is not None else " No epoch was scored: the run ended before t_a.</p>")),
+        '<ul id="verdict">' + "".join(f"<li>{_bold(_esc(line))}</li>" for line in verdict(metrics)) + "</ul>",
         ('<nav><a href="#scoreboard">Scoreboard</a><a href="#tracks">Tracks</a>'
          '<a href="#cdf">Error CDF</a><a href="#series">Error over time</a>'
          '<a href="#timeline">Detections</a><a href="#kinds">By anomaly kind</a><a href="#run">Run</a></nav>'),
