@@ -14,9 +14,9 @@ from __future__ import annotations
 from functools import lru_cache
 
 from .schemas import AcousticRange, UsblObservation
+from .units import NS
 from .wire import ACOUSTIC_RANGE, USBL_OBSERVATION
 
-NS = 1_000_000_000
 # bound once: the builders below run per message
 _RANGE_KEYS, _RANGE_PACK = ACOUSTIC_RANGE.keys, ACOUSTIC_RANGE.struct.pack
 _USBL_KEYS, _USBL_PACK = USBL_OBSERVATION.keys, USBL_OBSERVATION.struct.pack

@@ -51,8 +51,8 @@ from .lines import PREFIX_STYLES, iter_lines, strip_prefix
 from .log_blocks import LogText
 from .numbers import finite
 from .records import FormatError, Reject, Where
+from .units import NS
 
-NS = 1_000_000_000
 TIME_FORMATS = ("tod", "iso8601", "unix")
 NUMERIC_GROUPS = (
     "travel_time_s", "range_m", "bearing_deg", "elevation_deg",

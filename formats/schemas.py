@@ -9,9 +9,8 @@ from foxglove_schemas_protobuf.Log_pb2 import Log
 from google.protobuf.timestamp_pb2 import Timestamp
 
 from . import auvreplay_pb2 as pb
+from .units import NS
 from .wire import GNSS_STATUS, INS_STATE, LOCATION_FIX
-
-NS = 1_000_000_000
 
 GnssStatus = pb.GnssStatus
 InsState = pb.InsState

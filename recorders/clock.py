@@ -8,9 +8,7 @@ from datetime import UTC, date
 from functools import lru_cache
 
 from formats.gpstime import gps_to_unix_ns
-
-NS = 1_000_000_000
-DAY_NS = 86400 * NS
+from formats.units import DAY_NS, NS
 
 
 @lru_cache(maxsize=64)

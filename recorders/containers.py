@@ -25,8 +25,9 @@ from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 
 from formats.records import Reject, Where
+from formats.units import NS
 
-from .base import NS, Ignored, LogContext, Output
+from .base import Ignored, LogContext, Output
 from .registry import family_converter
 
 NAN = math.nan

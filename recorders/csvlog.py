@@ -25,8 +25,9 @@ from formats import schemas as S
 from formats.log_blocks import LogText
 from formats.numbers import finite, integer, optional, optional_integer
 from formats.records import FormatError, Reject
+from formats.units import NS
 
-from .base import NS, LogContext, Output, output
+from .base import LogContext, Output, output
 from .clock import DayClock, plausible_ns
 
 # family -> (message class, topic suffix)

@@ -38,9 +38,10 @@ from formats.pd0 import ensembles as pd0
 from formats.pd0.frames import vehicle_velocity
 from formats.records import FormatError, Reject, Where
 from formats.schemas import DvlVelocity, timestamp
+from formats.units import NS
 from formats.wire import DVL_VELOCITY
 
-from .base import NS, BlockConverter, Converter, LogContext, Output, blockwise, output
+from .base import BlockConverter, Converter, LogContext, Output, blockwise, output
 from .clock import DayClock
 from .value_checks import TIME_RANGE_NS
 

@@ -19,8 +19,9 @@ from formats import schemas as S
 from formats.log_blocks import ChangedWhileRead, LogFiles, blocks_of
 from formats.mcap_writer import ArchiveWriter
 from formats.records import FormatError, Reject, Where
+from formats.units import NS
 
-from .base import NS, BlockConverter, Converter, Ignored, LogContext, Output
+from .base import BlockConverter, Converter, Ignored, LogContext, Output
 from .clock import date_to_ns, iso_utc
 from .manifest import LogSpec, Manifest, ManifestError
 from .output_checks import OutputProblem, check_output, remove_stale_parts

@@ -38,9 +38,10 @@ from formats.log_blocks import LogText
 from formats.records import FormatError, Reject, Where
 from formats.scanned import positions
 from formats.schemas import UsblObservation, timestamp
+from formats.units import NS
 
 from .base import BlockConverter, Converter, LogContext, Output, blockwise, output
-from .clock import NS, plausible_ns
+from .clock import plausible_ns
 from .modem import (
     NO_USBL_TIME,
     RegexOptions,

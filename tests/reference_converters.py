@@ -22,8 +22,9 @@ from formats.nmea import sentences as nmea
 from formats.novatel import logs as novatel
 from formats.pd0 import ensembles as pd0
 from formats.records import Reject
+from formats.units import NS
 from recorders.base import Ignored, LogContext, Output, output
-from recorders.clock import NS, DayClock, plausible_ns
+from recorders.clock import DayClock, plausible_ns
 from recorders.dvl import pd0_items
 from recorders.epochs import group_epochs, host_time_ns
 from recorders.gnss_covariance import Covariance, fix_covariance, sigma_covariance

@@ -12,12 +12,12 @@ from hypothesis import strategies as st
 from formats.pd0 import blocks as pd0_blocks
 from formats.pd0 import ensembles as pd0
 from formats.records import Reject
+from formats.units import NS as S1
 from recorders import dvl
 from recorders.base import LogContext, Output
 from tests import reference_converters as reference
 
 T0 = 1476259201_250_000_000  # 2016-10-12T08:00:01.25Z
-S1 = 1_000_000_000
 
 
 def _rows(items: list) -> list:

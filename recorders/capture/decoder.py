@@ -31,8 +31,9 @@ from collections.abc import Iterable
 
 from formats.lines import strip_prefix
 from formats.records import Reject, Where
+from formats.units import NS
 
-from ..base import NS, Converter, Ignored, LogContext, Output
+from ..base import Converter, Ignored, LogContext, Output
 
 # formats that are (or may be) binary: no line cutting and no stamping
 BINARY_FORMATS = frozenset({("dvl", "pd0"), ("dvl", "pd4"), ("dvl", "pd5"), ("gps", "novatel"), ("ins", "novatel")})

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from formats.units import NS
 from replay.engine.follower import FollowerPipeline, VehicleTracks
 from replay.engine.layout import TrialLayout
 from replay.engine.usbl import positioning
@@ -29,7 +30,6 @@ from replay.stack.positioning.kmcdf import KmcdfParams
 from replay.stack.training import TrainingSet
 
 DEG = math.pi / 180.0
-NS = 1_000_000_000
 
 
 class Engine:

@@ -15,6 +15,7 @@ from typing import Any
 from formats import schemas as S
 from formats.mcap_reader import ArchiveReader
 from formats.mcap_writer import ArchiveWriter
+from formats.units import NS
 from replay.engine.core import Engine, pace
 from replay.engine.layout import plan_trial
 from replay.errors import UserError
@@ -32,7 +33,6 @@ SENSOR_SCHEMAS = {"gps": "foxglove.LocationFix", "ins": "auvreplay.InsState", "d
                   "modem/range": "auvreplay.AcousticRange", "usbl": "auvreplay.UsblObservation"}
 DIAGNOSTICS_SCHEMA = "foxglove.Log"
 ROLES = ("leader", "follower", "buoy")
-NS = 1_000_000_000
 
 
 @dataclass
