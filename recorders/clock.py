@@ -50,14 +50,6 @@ class DayClock:
         return self.day_ns + tod_ns + self.offset_ns
 
 
-TIME_MIN_NS, TIME_MAX_NS = 0, 7_258_118_400 * 10**9  # 1970-01-01 .. 2200-01-01: a trial's times
-
-
-def plausible_ns(t: int) -> bool:
-    """True for a time a trial can have (1970-2200); a 400-digit field parses to none of them."""
-    return TIME_MIN_NS <= t < TIME_MAX_NS
-
-
 def gps_time_ns(week: int, seconds_of_week: float, offset_ns: int = 0) -> int:
     """UTC ns for GPS week/seconds with the log's clock offset applied."""
     return gps_to_unix_ns(week, seconds_of_week) + offset_ns
