@@ -7,10 +7,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from formats.geodesy import metric_scales_scalar
 from replay.stack.config import AnfisConfig, StackConfig
 from replay.stack.detectors.base import Decision
 from replay.stack.methods import DETECTOR_FACTORIES
-from replay.stack.model import metric_scales_scalar
 from replay.stack.runner import CooperativeRunner, EpochResult, RunResults
 from replay.stack.scoring import RESULT_KEYS, score_run
 
