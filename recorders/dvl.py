@@ -369,6 +369,8 @@ CONVERTERS: dict[str, Converter] = {
     "nortek": convert_nortek,
     "waterlinked": convert_waterlinked,
 }
+# the formats whose logs are (or may be) binary: read as bytes, never cut into lines (`recorders.registry`)
+BINARY_FORMATS = frozenset({"pd0", "pd4", "pd5"})
 # the formats whose logs are converted block by block, in bounded memory (`recorders.base.blockwise`)
 BLOCK_CONVERTERS: dict[str, BlockConverter] = {
     "pd6": blockwise(convert_pd6), "nortek": blockwise(convert_nortek), "waterlinked": blockwise(convert_waterlinked),

@@ -366,3 +366,5 @@ origin = [45.70, 126.60]           # datum of the bag's local (odom/map) frame, 
 """
 
 CONVERTERS: dict[str, Converter] = {"rosbag": convert_rosbag}
+# the formats whose logs are (or may be) binary: read as bytes, never cut into lines (`recorders.registry`)
+BINARY_FORMATS = frozenset({"rosbag"})
