@@ -1,7 +1,7 @@
 """Earth radii and local east/north metres <-> latitude/longitude, for every layer.
 
 The radii are the first-order expansion in the flattening f that the
-cooperative-localization model writes (seed A, eq. A.2; docs/design.md):
+cooperative-localization model writes (seed A, eq. A.2):
 
     R_M = R_e (1 - 2f + 3f sin²L)    (meridian)
     R_N = R_e (1 + f sin²L)          (prime vertical)
