@@ -7,7 +7,7 @@ cooperative-localization model writes (seed A, eq. A.2):
     R_N = R_e (1 + f sin²L)          (prime vertical)
 
 with the WGS84 equatorial radius R_e and f = 1/298.257 as the paper gives it.
-Against the exact WGS84 radii they differ by under 1e-5 relative (f²), far
+Against the exact WGS84 radii they differ by at most 1.2e-5 relative (order f²), far
 below any sensor's noise; every layer uses these so the simulator, the
 recorders and the estimator stack agree to the last bit.
 
