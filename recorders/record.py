@@ -19,8 +19,9 @@ from formats import schemas as S
 from formats.log_blocks import ChangedWhileRead, LogFiles, blocks_of
 from formats.mcap_writer import ArchiveWriter
 from formats.records import FormatError, Reject, Where
+from formats.units import NS, archivable_ns
 
-from .base import NS, BlockConverter, Converter, Ignored, LogContext, Output
+from .base import BlockConverter, Converter, Ignored, LogContext, Output
 from .clock import date_to_ns, iso_utc, log_offset_ns, offset_problem, shift_text
 from .manifest import LogSpec, Manifest, ManifestError
 from .output_checks import OutputProblem, check_output, remove_stale_parts
@@ -35,7 +36,7 @@ from .record_parallel import (
     write_captured,
 )
 from .registry import block_converters, converters
-from .value_checks import MAX_RANGE_M, TIME_RANGE_NS, ValueChecks
+from .value_checks import MAX_RANGE_M, ValueChecks
 
 Progress = Callable[[str, int, int], None]  # (file, bytes done, bytes total)
 # automatic mode decodes in-process below this much input: forking workers and
@@ -291,7 +292,7 @@ class LogRecorder:
         if problem is not None:
             # stamped at the message's own time when it has one: a log whose every message is refused must not
             # move its diagnostics to the fallback (the trial date's midnight) and with them the trial's start
-            t_hint = item.log_time_ns if TIME_RANGE_NS[0] <= item.log_time_ns < TIME_RANGE_NS[1] else None
+            t_hint = item.log_time_ns if archivable_ns(item.log_time_ns) else None
             self._reject(Reject(item.where if item.where is not None else Where(0), problem), t_hint)
             return
         t = item.log_time_ns

@@ -12,8 +12,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-NS = 1_000_000_000
-
+from formats.units import NS
 
 # ---------------------------------------------------------------- ROS 1 bags
 

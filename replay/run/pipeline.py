@@ -16,6 +16,7 @@ from typing import Any
 from formats import schemas as S
 from formats.mcap_reader import ArchiveReader
 from formats.mcap_writer import ArchiveWriter
+from formats.units import NS
 from replay.engine.config import RunConfig
 from replay.engine.core import Engine, pace
 from replay.engine.layout import TrialLayout, plan_trial
@@ -37,7 +38,6 @@ DIAGNOSTICS_SCHEMA = "foxglove.Log"
 # the schemas of a position: every topic of one is a track (GPS fixes, INS and autopilot solutions, node reports)
 POSITION_SCHEMAS = ("foxglove.LocationFix", "auvreplay.InsState")
 ROLES = ("leader", "follower", "buoy")
-NS = 1_000_000_000
 
 
 @dataclass
