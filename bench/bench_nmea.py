@@ -36,18 +36,18 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
-import pynmea2  # noqa: E402
-from common import interleaved  # noqa: E402
+import pynmea2
+from common import interleaved
 
-from formats import schemas as S  # noqa: E402
-from formats.mcap_writer import ArchiveWriter  # noqa: E402
-from formats.nmea import sentences as nmea  # noqa: E402
-from formats.nmea.framing import build  # noqa: E402
-from formats.records import Where  # noqa: E402
-from formats.units import NS  # noqa: E402
-from recorders.base import LogContext, Output  # noqa: E402
-from recorders.gps import convert_nmea, gnss_status  # noqa: E402
-from tests.reference_converters import convert_nmea_reference  # noqa: E402
+from formats import schemas as S
+from formats.mcap_writer import ArchiveWriter
+from formats.nmea import sentences as nmea
+from formats.nmea.framing import build
+from formats.records import Where
+from formats.units import NS
+from recorders.base import LogContext, Output
+from recorders.gps import convert_nmea, gnss_status
+from tests.reference_converters import convert_nmea_reference
 
 T0 = 1476259200 * NS  # 2016-10-12T08:00:00Z
 REPEATS = 7

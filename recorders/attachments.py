@@ -89,7 +89,7 @@ def unpack(archive_path: str | os.PathLike[str], target_dir: str | os.PathLike[s
     return result
 
 
-def _unpack_streams(reader, root: Path, expected: dict[str, str], result: UnpackResult) -> None:
+def _unpack_streams(reader: ArchiveReader, root: Path, expected: dict[str, str], result: UnpackResult) -> None:
     """A capture's streams (its RawBytes messages), each written back at its offsets: the bytes as received."""
     topics = [t for t in reader.summary().topics if t.startswith(RAW_PREFIX)]
     if not topics:

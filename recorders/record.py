@@ -38,6 +38,9 @@ from .record_parallel import (
 from .registry import block_converters, converters
 from .value_checks import MAX_RANGE_M, ValueChecks
 
+# a log's converter as the recorder calls it: whole bytes, blocks or text in, outputs, rejects and skips out
+AnyConverter = Callable[..., Iterator[Output | Reject | Ignored]]
+
 Progress = Callable[[str, int, int], None]  # (file, bytes done, bytes total)
 # automatic mode decodes in-process below this much input: forking workers and
 # shipping results back costs more than it saves on a small trial (see bench/bench_record.py)
@@ -140,7 +143,7 @@ def read_parts(manifest: Manifest, log: LogSpec) -> list[tuple[str, bytes]]:
     return [(name, (manifest.root / name).read_bytes()) for name in log.files()]
 
 
-def _first_time(convert, data: bytes, ctx: LogContext) -> float:
+def _first_time(convert: AnyConverter, data: bytes, ctx: LogContext) -> float:
     """The earliest message time of one file decoded alone (inf without any), for `order = "time"`."""
     try:
         times = [item.log_time_ns for item in convert(data, ctx) if type(item) is Output]
@@ -150,7 +153,7 @@ def _first_time(convert, data: bytes, ctx: LogContext) -> float:
 
 
 def _order_parts(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]],
-                 convert) -> list[tuple[str, bytes]]:
+                 convert: AnyConverter) -> list[tuple[str, bytes]]:
     """The parts in log order: as given, or (order = "time") by the first message time of each decoded alone."""
     if log.order != "time" or len(parts) < 2:
         return parts
@@ -402,7 +405,8 @@ def trial_metadata(manifest: Manifest) -> dict:
     }
 
 
-def _iter_outputs(convert, data: Any, ctx: LogContext, log: LogSpec) -> Iterator[Output | Reject]:
+def _iter_outputs(convert: AnyConverter, data: Any, ctx: LogContext,
+                  log: LogSpec) -> Iterator[Output | Reject | Ignored]:
     try:
         yield from convert(data, ctx)
     except FormatError as exc:
@@ -447,7 +451,7 @@ def resolve_workers(manifest: Manifest, workers: int | None = None) -> int:
     return max(1, min(workers, logs)) if can_fork() else 1
 
 
-def _decode_log(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]], convert, fallback: int,
+def _decode_log(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]], convert: AnyConverter, fallback: int,
                 sink: MessageSink, progress: Progress | None) -> tuple[FileStats, bytes]:
     """Convert one log's files (already in log order, see `_order_parts`) into `sink`; its statistics and bytes."""
     data = parts[0][1] if len(parts) == 1 else b"".join(d for _, d in parts)
@@ -645,7 +649,7 @@ def _next_captured(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[C
     return pool.result(i)
 
 
-def record(manifest: Manifest, output_path, progress: Progress | None = None,
+def record(manifest: Manifest, output_path: str | Path, progress: Progress | None = None,
            workers: int | None = None, replace: bool = True) -> RecordingSummary:
     """Record every log of the manifest into `output_path`; returns the per-file summary.
 

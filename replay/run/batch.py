@@ -215,7 +215,7 @@ def replay_task(archive: str, overrides: Sequence[str], out_dir: str, trial: str
         # the command claimed DIR's tables, so an earlier batch's runs here are replaced only under --force
         outcome = replay_archive(archive, config, output, force=True)
         record.update(output=str(output), metrics=outcome.metrics, notes=list(outcome.notes), warning=outcome.warning)
-    except Exception as exc:        # a failed run is data for the table; the batch goes on
+    except Exception as exc:  # noqa: BLE001 - a failed run is data for the table; the batch goes on
         record["error"] = describe_error(exc)
     return record
 
@@ -284,7 +284,7 @@ def run_batch(client: Client, tasks: Sequence[BatchTask], simulate: Mapping[str,
         i = index[fut.key]
         try:
             rec = fut.result()
-        except Exception as exc:    # the simulation failed, or the worker died: that run's error, not the batch's
+        except Exception as exc:  # noqa: BLE001 - a failed simulation or a dead worker is that run's error
             sim = sim_futures.get(tasks[i].archive)
             rec = _failed_record(tasks[i], exc, "simulating the trial: " if sim is not None and sim.status == "error"
                                  else "")
