@@ -54,5 +54,14 @@ bench: $(BENCH_STAMP)
 		$(BIN)/python $$script || exit 1; \
 	done
 
+# every tab of the sample trial at 620, 1140 and 1700 s, shot in the headless native viewer (1400x875)
+SHOTS ?= screenshots
+screenshots: $(STAMP) system-packages
+	mkdir -p $(SHOTS)
+	$(BIN)/auvreplay record samples/lake_trial/trial.toml -o $(SHOTS)/lake-trial.mcap --force --quiet
+	WGPU_BACKEND=vulkan $(BIN)/python -m replay.views.screenshots $(SHOTS)/lake-trial.mcap $(SHOTS) \
+		--set methods=dead_reckoning,ckf,ackf,chi_square,dual_threshold,anfis,anfis_aqpso,anfis_compensation,cusum_drift,anfis_hybrid,drift_reference
+	@echo "screenshots in $(SHOTS)/"
+
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache
