@@ -303,7 +303,8 @@ def _kmcdf(runs: list[Run]) -> rrb.Container | None:
             methods = sorted(rows["method"].astype(str).unique())
             prelim = ", ".join(with_fixes) if with_fixes else "none"
             views.append(rrb.Spatial2DView(
-                name=f"KMCDF {t}{tag}: fix - GPS (m); prelim. fixes of {prelim}: green kept, red C2",
+                name=f"KMCDF {t}{tag}: fix - GPS (m); prelim. fixes of {prelim}: green kept, red C2 "
+                     "(large on the rim: farther out)",
                 contents=[f"+ {run.path('kmcdf', t, m)}/final" for m in methods]
                 + [f"+ {run.path('kmcdf', t, m)}/fixes" for m in with_fixes]
                 + [f"+ {run.path('kmcdf', t, 'truth')}/**"],
