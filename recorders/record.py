@@ -23,7 +23,7 @@ from formats.records import FormatError, Reject, Where
 from .base import NS, BlockConverter, Converter, Ignored, LogContext, Output
 from .clock import date_to_ns, iso_utc, log_offset_ns, offset_problem, shift_text
 from .manifest import LogSpec, Manifest, ManifestError
-from .output_checks import OutputProblem, check_output, remove_stale_parts
+from .output_checks import OutputProblem, check_output
 from .record_parallel import (
     Capture,
     Captured,
@@ -652,8 +652,9 @@ def record(manifest: Manifest, output_path, progress: Progress | None = None,
     the archive is byte-for-byte the same whatever their number. The output is
     never one of the inputs nor an existing file other than an MCAP archive,
     and an existing archive only with `replace` (see recorders.output_checks);
-    the part file is removed on any failure, and stale ones of dead processes
-    before the start.
+    a second process writing the same output at the same time is refused
+    (formats.output_files); the part file is removed on any failure, and stale
+    ones of dead processes before the start.
     """
     output = Path(output_path)
     try:
@@ -667,7 +668,6 @@ def record(manifest: Manifest, output_path, progress: Progress | None = None,
         raise ManifestError(f"{manifest.path}: log {live.path} is a live source ({live.source}): "
                             "use `auvreplay capture`")
     summary = RecordingSummary(workers=resolve_workers(manifest, workers))
-    summary.removed_parts = [str(p) for p in remove_stale_parts(output)]
     fallback = date_to_ns(manifest.date) if manifest.date else 0
     writer: ArchiveWriter | None = None
     try:
@@ -678,7 +678,10 @@ def record(manifest: Manifest, output_path, progress: Progress | None = None,
                 # decoding processes and starts on the first log while the workers start
                 pool = stack.enter_context(WorkerPool(partial(_capture_log, manifest, tables, fallback),
                                                       len(manifest.logs()), summary.workers - 1, caller_first=True))
-            writer = stack.enter_context(ArchiveWriter(output))
+            # claimed here, atomically: a second run on the same output at once is refused, and without
+            # `replace` so is an archive that appeared since check_output
+            writer = stack.enter_context(ArchiveWriter(output, replace=replace))
+            summary.removed_parts = [str(p) for p in writer.removed_parts]
             # first, so that an archive cut off mid-write still says who is who
             writer.add_metadata("trial", trial_metadata(manifest))
             if pool is None:
