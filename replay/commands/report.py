@@ -45,5 +45,9 @@ def run(args: argparse.Namespace) -> int:
     text = build_report(meta, review, intervals)
     out.write_text(text, encoding="utf-8")
     print(f"wrote {out} ({len(text.encode()) / 1e6:.2f} MB)")
-    warn_damage("report", review.input_warning)
+    skipped = meta.get("skipped_values") or 0
+    warn_damage("report", "; ".join(filter(None, [
+        review.input_warning,
+        f"{results}: {skipped} values of the run metadata were not of their kind: left out of the report"
+        if skipped else None])) or None)
     return 0
