@@ -17,16 +17,12 @@ from recorders.attachments import unpack
 from recorders.capture.session import CaptureOptions, CaptureSession, part_path
 from recorders.manifest import parse_manifest
 from replay.cli import main
-from tests.test_record import GPS_CSV, MANIFEST, RANGE_CSV
+from tests.test_record import GPS_CSV, MANIFEST, RANGE_CSV, write_csv_trial
 
 
 @pytest.fixture
 def trial(tmp_path) -> Path:
-    (tmp_path / "logs").mkdir()
-    (tmp_path / "logs/gps.csv").write_bytes(GPS_CSV)
-    (tmp_path / "logs/range.csv").write_bytes(RANGE_CSV)
-    (tmp_path / "trial.toml").write_text(MANIFEST)
-    return tmp_path
+    return write_csv_trial(tmp_path)
 
 
 @pytest.fixture
