@@ -38,6 +38,7 @@ from mcap.writer import CompressionType, Writer
 
 from formats.mcap_chunks import MAX_CHUNK_BYTES, ChunkError, mib
 from formats.mcap_chunks import decompress as chunk_decompress
+from formats.output_files import OutputClaim
 from formats.records import FormatError
 
 MAGIC = b"\x89MCAP0\r\n"
@@ -424,13 +425,14 @@ def _write(buf: mmap.mmap, found: _Found, out: Path, report: RecoveryReport) -> 
         os.fsync(f.fileno())
 
 
-def recover(source: str | os.PathLike[str], output: str | os.PathLike[str]) -> RecoveryReport:
-    """Write every intact record of `source` to `output` with fresh indexes and summary; say what was lost."""
+def recover(source: str | os.PathLike[str], output: str | os.PathLike[str], replace: bool = False) -> RecoveryReport:
+    """Write every intact record of `source` to `output` with fresh indexes and summary; say what was lost.
+
+    An existing `output` is replaced only with `replace` (formats.output_files)."""
     src, out = Path(source), Path(output)
     if src.resolve() == out.resolve():
         raise FormatError(f"{out}: recover writes a new file; give an output other than the input")
     report = RecoveryReport(str(src), str(out))
-    temp = out.with_name(f".{out.name}.part-{os.getpid()}")
     try:
         f = open(src, "rb")
     except OSError as exc:
@@ -449,9 +451,11 @@ def recover(source: str | os.PathLike[str], output: str | os.PathLike[str]) -> R
             report.messages = found.messages
             report.attachments, report.metadata = found.attachments, found.metadata
             _fill_gap_times(report, found)
+            claim = OutputClaim(out, replace)  # one writer at a time; an existing file kept unless `replace`
             try:   # the file is read again as it is written: one chunk in memory at a time
-                _write(buf, found, temp, report)
-                os.replace(temp, out)
+                _write(buf, found, claim.part, report)
+                claim.publish()
             finally:
-                temp.unlink(missing_ok=True)
+                claim.part.unlink(missing_ok=True)
+                claim.abandon()
     return report

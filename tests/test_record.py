@@ -47,13 +47,18 @@ GPS_CSV = b"t,lat,lon\r\n1476259200.0,45.7,126.6\r\n1476259201.0,45.70001,126.6\
 RANGE_CSV = b"t,range,from\n23:59:58,600.5,leader1\n00:00:03,,leader1\n"
 
 
+def write_csv_trial(folder: Path) -> Path:
+    """The small CSV trial (a GPS and a range log, their manifest) written into `folder`."""
+    (folder / "logs").mkdir()
+    (folder / "logs/gps.csv").write_bytes(GPS_CSV)
+    (folder / "logs/range.csv").write_bytes(RANGE_CSV)
+    (folder / "trial.toml").write_text(MANIFEST)
+    return folder
+
+
 @pytest.fixture
 def trial(tmp_path) -> Path:
-    (tmp_path / "logs").mkdir()
-    (tmp_path / "logs/gps.csv").write_bytes(GPS_CSV)
-    (tmp_path / "logs/range.csv").write_bytes(RANGE_CSV)
-    (tmp_path / "trial.toml").write_text(MANIFEST)
-    return tmp_path
+    return write_csv_trial(tmp_path)
 
 
 def test_record_writes_topics_diagnostics_and_summary(trial, capsys):

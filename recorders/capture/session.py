@@ -157,7 +157,8 @@ class CaptureSession:
     """Captures every live log of a manifest into one archive; `run` loops until told to stop."""
 
     def __init__(self, manifest: Manifest, output: str | Path, options: CaptureOptions = CaptureOptions(),
-                 listener: Listener | None = None, report: Reporter | None = None, allow_outside: bool = False):
+                 listener: Listener | None = None, report: Reporter | None = None, allow_outside: bool = False,
+                 replace: bool = False):
         self.manifest, self.options = manifest, options
         self.output = Path(output)
         self.listener = listener
@@ -167,8 +168,10 @@ class CaptureSession:
         if self.part.exists():
             raise ManifestError(f"{self.part} exists (a capture that did not stop cleanly): "
                                 "`auvreplay recover` it or move it away first")
-        # a failed close leaves the part file as it is: a capture is never deleted, `recover` reads it
-        self.writer = ArchiveWriter(self.output, part_path=self.part, keep_on_error=True)
+        # the output is claimed for the whole capture (formats.output_files): a second capture or record
+        # into it is refused, and at the clean stop an existing file is replaced only with `replace`; a failed
+        # close leaves the part file as it is: a capture is never deleted, `recover` reads it
+        self.writer = ArchiveWriter(self.output, part_path=self.part, replace=replace, keep_on_error=True)
         fallback = date_to_ns(manifest.date) if manifest.date else 0
         self.writer.add_metadata("trial", trial_metadata(manifest))
         for live in self.logs:
