@@ -14,7 +14,7 @@ from formats.mcap_reader import ArchiveReader
 from formats.mcap_writer import ArchiveWriter
 from formats.output_files import OutputBusy, OutputClaim, OutputExists, part_name, write_new_file
 from recorders.attachments import unpack
-from recorders.capture.session import CaptureOptions, CaptureSession, part_path
+from recorders.capture.session import CaptureOptions, CaptureSession, CaptureStopped, part_path
 from recorders.manifest import parse_manifest
 from replay.cli import main
 from tests.test_record import GPS_CSV, MANIFEST, RANGE_CSV, write_csv_trial
@@ -200,7 +200,8 @@ def test_capture_keeps_its_part_file_when_the_output_appears_meanwhile(tmp_path)
     out = tmp_path / "c.mcap"
     session = CaptureSession(manifest, out, CaptureOptions(flush_s=0.05, duration_s=0.1))
     out.write_text("written by hand during the capture")
-    with pytest.raises(OutputExists):
+    # the clean stop cannot put the capture in place: one line saying so and how to recover the part file
+    with pytest.raises(CaptureStopped, match="exists: not replaced .* the part file keeps what was captured"):
         session.run()
     assert out.read_text() == "written by hand during the capture"
     with ArchiveReader(part_path(out)) as reader:  # the capture is not lost: recover reads it
