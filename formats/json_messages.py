@@ -42,6 +42,12 @@ class JsonMessage:
         return json.loads(self.data)
 
 
+def topic_level(name: str) -> str:
+    """A source's name (a message type, a variable) as one topic level: letters, digits and underscores kept,
+    anything else an underscore."""
+    return "".join(c if c.isalnum() or c == "_" else "_" for c in name) or "UNNAMED"
+
+
 def plain(value: Any) -> Any:
     """`value` as JSON holds it: NaN and infinities None, bytes a list of integers, tuples lists, other objects
     their text."""

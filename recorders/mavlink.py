@@ -38,7 +38,8 @@ without GPS time, by the manifest's `time_base = "boot"` with `start` = the UTC 
 refused too (its GPS time is never overridden silently: `clock_offset_s` corrects it). A dataflash record
 without TimeUS (FMT, FMTU, MULT, UNIT) takes the time of the record before it (the boot for the first). A packet
 whose CRC fails is a reject counted as a bad checksum, with its byte offset; a run of bytes that are no packet
-is one reject; every other message is archived as itself, and as ours where it maps.
+is one reject; every other message is archived as itself, and as ours where it maps (where a message of a
+mapped type gives none of ours, an ignored reason says why: an origin missing, an EKF core other than 0).
 """
 
 from __future__ import annotations
@@ -280,13 +281,7 @@ class _RawMessages:
         if schema is None:
             schema = self.schemas[m.type] = J.schema_text(J.object_schema(f"{self.family}.{m.type}", value))
         message = J.JsonMessage(f"{self.family}.{m.type}", schema, J.encode(value))
-        return output(self.ctx, f"{TOPIC}/{_topic_name(m.type)}", message, t, where)
-
-
-def _topic_name(kind: str) -> str:
-    """A message type as one topic level (a dataflash name is at most 4 characters of ours, a MAVLink one an
-    identifier; anything else is spelled safely)."""
-    return "".join(c if c.isalnum() or c == "_" else "_" for c in kind) or "UNNAMED"
+        return output(self.ctx, f"{TOPIC}/{J.topic_level(m.type)}", message, t, where)
 
 
 # MAV_SEVERITY (0 emergency .. 7 debug) -> foxglove.Log level
@@ -390,9 +385,8 @@ def _convert_mavlink(data: bytes, ctx: LogContext) -> Iterator[Output | Reject |
         else:
             last_t = t
             yield raw.output(m, t, where)
-            for item in mapper.map(m, t, where):
-                if type(item) is not Ignored:  # archived as itself: a record not mapped is no record left out
-                    yield item
+            # an Ignored here says why a record archived as itself gave none of ours (an origin missing, say)
+            yield from mapper.map(m, t, where)
 
 
 MANIFEST_EXAMPLE = """[[vehicles.logs]]

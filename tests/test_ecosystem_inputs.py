@@ -479,10 +479,15 @@ def test_alog_maps_variables_and_raw_nmea(tmp_path):
     rng = S.AcousticRange.FromString(by["/auv/modem/range"][0][1])
     assert (rng.source, rng.destination, rng.range_m, rng.source_address) == ("buddy", "auv", 87.2, 2)
     stats = info["recording"]["files"][0]
-    assert stats["skipped"] == 2  # the junk line and the non-number depth
-    assert stats["ignored_reasons"]["variable DEPLOY is not mapped"] == 1
-    # every posting counted
-    assert stats["parsed"] + stats["skipped"] + stats["ignored"] == 19
+    # the line with no time is the next line of DEPLOY's value; the depth that is no number is kept as its posting
+    assert stats["skipped"] == 0 and stats["ignored_reasons"] == {
+        "NAV_DEPTH = 'not-a-number' is not a number": 1,
+        "NMEA_GPS: nmea record merged into its epoch's message or with nothing archived": 3}
+    (_, deploy), = by["/auv/moos/DEPLOY"]
+    assert json.loads(deploy) == {"value": "true\njunk", "source": "pHelmIvP", "aux": "", "community": "auv"}
+    assert json.loads(by["/auv/moos/NAV_DEPTH"][1][1])["value"] == "not-a-number"
+    # every posting archived as itself: 18 postings (19 lines, one a value's second line)
+    assert stats["parsed"] == sum(len(v) for k, v in by.items() if k.startswith("/auv/moos/")) == 18
 
 
 # ---------------------------------------------------------------- MAVLink tlog

@@ -172,13 +172,15 @@ def test_any_key_value_posting_is_counted_once(postings):
         lines.append(f"{k * 0.5:.3f} {var} proc {text}")
     ctx = LogContext("auv", options={"origin": [LAT0, LON0]})
     items = list(convert_alog(("\n".join(lines) + "\n").encode(), ctx))
-    # each posting line gives one Output or Reject, and each merged one its Ignored
+    # each posting line is archived as itself, and gives its mapped Output or an Ignored reason
     assert len({item.where.offset for item in items if item.where is not None}) == len(postings)
+    assert [item.topic for item in items if isinstance(item, Output) and "/moos/" in item.topic] == \
+        [f"/auv/moos/{var}" for var, _ in postings]
     for item in items:
-        if isinstance(item, Output):  # its vehicle's topic; out-of-range values are the recorder's checks'
+        if isinstance(item, Output) and "/moos/" not in item.topic:  # out-of-range values: the recorder's checks
             assert item.topic in ("/auv/ins/sbg", f"/{item.message.frame_id}/node_report")
-        else:
-            assert isinstance(item, Ignored) or item.reason
+        elif not isinstance(item, Output):
+            assert isinstance(item, Ignored) and item.reason
 
 
 # ---------------------------------------------------------------- MAVLink tlog
