@@ -111,12 +111,12 @@ def _posting(p: alog.Posting, t: int, community: str, ctx: LogContext) -> Output
     return output(ctx, f"{TOPIC}/{J.topic_level(p.variable)}", message, t, p.where)
 
 
-def _empty_reason(group: str, ep: _Epoch, origin: tuple[float, float] | None) -> str:
-    """Why an epoch gave no message; for NAV_X/NAV_Y (or GPS_X/GPS_Y) without an origin, the key to give."""
+def _origin_note(group: str, ep: _Epoch, origin: tuple[float, float] | None) -> str:
+    """For an epoch of NAV_X/NAV_Y (or GPS_X/GPS_Y) without an origin, why it has no position: the key to give."""
     if origin is None and {f"{group}_X", f"{group}_Y"} & set(ep.names):
-        return (f"{group}_X/{group}_Y without an origin: give the log's origin = [lat, lon] (MOOS LatOrigin, "
-                "LongOrigin) in its [[vehicles.logs]] entry")
-    return f"{group}_* epoch without {EMPTY[group]}"
+        return (f"{group}_X/{group}_Y without an origin, so no position: give the log's origin = [lat, lon] "
+                "(MOOS LatOrigin, LongOrigin) in its [[vehicles.logs]] entry")
+    return ""
 
 
 class _Epoch:
@@ -318,8 +318,9 @@ def _convert_alog(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | 
                 else list(_gps_outputs(ep, ctx, origin)))
         outs = [o for o in outs if o is not None]
         yield from outs
-        if not outs:  # its postings are archived as themselves: one reason for the epoch
-            yield Ignored(ep.wheres[0], _empty_reason(group, ep, origin))
+        note = _origin_note(group, ep, origin)
+        if note or not outs:  # its postings are archived as themselves: one reason for the epoch
+            yield Ignored(ep.wheres[0], note or f"{group}_* epoch without {EMPTY[group]}")
         epochs[group] = _Epoch()
 
     def mapped(p: alog.Posting, name: str, t: int) -> Iterator[Output | Reject | Ignored]:
