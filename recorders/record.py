@@ -24,7 +24,7 @@ from formats.units import NS, archivable_ns
 from .base import BlockConverter, Converter, Ignored, LogContext, Output
 from .clock import date_to_ns, iso_utc, log_offset_ns, offset_problem, shift_text
 from .manifest import LogSpec, Manifest, ManifestError
-from .output_checks import OutputProblem, check_output, remove_stale_parts
+from .output_checks import OutputProblem, check_output
 from .record_parallel import (
     Capture,
     Captured,
@@ -657,8 +657,9 @@ def record(manifest: Manifest, output_path: str | Path, progress: Progress | Non
     the archive is byte-for-byte the same whatever their number. The output is
     never one of the inputs nor an existing file other than an MCAP archive,
     and an existing archive only with `replace` (see recorders.output_checks);
-    the part file is removed on any failure, and stale ones of dead processes
-    before the start.
+    a second process writing the same output at the same time is refused
+    (formats.output_files); the part file is removed on any failure, and stale
+    ones of dead processes before the start.
     """
     output = Path(output_path)
     try:
@@ -672,7 +673,6 @@ def record(manifest: Manifest, output_path: str | Path, progress: Progress | Non
         raise ManifestError(f"{manifest.path}: log {live.path} is a live source ({live.source}): "
                             "use `auvreplay capture`")
     summary = RecordingSummary(workers=resolve_workers(manifest, workers))
-    summary.removed_parts = [str(p) for p in remove_stale_parts(output)]
     fallback = date_to_ns(manifest.date) if manifest.date else 0
     writer: ArchiveWriter | None = None
     try:
@@ -683,7 +683,10 @@ def record(manifest: Manifest, output_path: str | Path, progress: Progress | Non
                 # decoding processes and starts on the first log while the workers start
                 pool = stack.enter_context(WorkerPool(partial(_capture_log, manifest, tables, fallback),
                                                       len(manifest.logs()), summary.workers - 1, caller_first=True))
-            writer = stack.enter_context(ArchiveWriter(output))
+            # claimed here, atomically: a second run on the same output at once is refused, and without
+            # `replace` so is an archive that appeared since check_output
+            writer = stack.enter_context(ArchiveWriter(output, replace=replace))
+            summary.removed_parts = [str(p) for p in writer.removed_parts]
             # first, so that an archive cut off mid-write still says who is who
             writer.add_metadata("trial", trial_metadata(manifest))
             if pool is None:

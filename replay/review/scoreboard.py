@@ -20,8 +20,8 @@ from typing import Any
 from replay.stack.methods import METHOD_TABLE
 
 __all__ = ["DETECTION_COLUMNS", "ERROR_COLUMNS", "NAV_HEADINGS", "NAVIGATION_COLUMNS", "NavigationRow", "ScoreRow",
-           "best_detector", "format_value", "method_kind", "navigation_rows", "scoreboard", "skipped_lines", "verdict",
-           "window_text"]
+           "best_detector", "detectors_by_merit", "format_value", "method_kind", "navigation_rows", "scoreboard",
+           "skipped_lines", "verdict", "window_text"]
 
 ERROR_COLUMNS: tuple[str, ...] = ("error_p50_m", "error_p90_m", "error_rms_m")
 DETECTION_COLUMNS: tuple[str, ...] = ("tp", "fp", "fn", "fpr", "fnr", "auc")
@@ -93,13 +93,17 @@ def _number(value: Any) -> float:
     return float(value) if isinstance(value, (int, float)) and math.isfinite(value) else math.nan
 
 
+def detectors_by_merit(rows: list[ScoreRow]) -> list[ScoreRow]:
+    """The scored detectors, fewest wrong decisions (FP + FN) after t_a first; ties by AUC, then name."""
+    det = [r for r in rows if r.kind == "detector" and r.figures.get("fp") is not None]
+    return sorted(det, key=lambda r: (_number(r.figures["fp"]) + _number(r.figures["fn"]),
+                                      -_number(r.figures.get("auc")), r.method))
+
+
 def best_detector(rows: list[ScoreRow]) -> ScoreRow | None:
     """The detector with the fewest wrong decisions (FP + FN) after t_a; ties by AUC, then name."""
-    det = [r for r in rows if r.kind == "detector" and r.figures.get("fp") is not None]
-    if not det:
-        return None
-    return min(det, key=lambda r: (_number(r.figures["fp"]) + _number(r.figures["fn"]),
-                                   -_number(r.figures.get("auc")), r.method))
+    ranked = detectors_by_merit(rows)
+    return ranked[0] if ranked else None
 
 
 def verdict(metrics: dict[str, Any]) -> list[str]:

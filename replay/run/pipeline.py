@@ -151,7 +151,7 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
             collector = ReviewCollector(rid, trial or {}, t0_ns, layout,
                                         to_dict(config))
             heard.append(collector)
-        writer = ArchiveWriter(out_path) if out_path is not None else None
+        writer = ArchiveWriter(out_path, replace=force) if out_path is not None else None
         try:
             if writer is not None:
                 heard.append(ResultsWriter(writer, rid, t0_ns))

@@ -69,8 +69,10 @@ def tab_names(review: ReviewData) -> list[str]:
     return [str(getattr(tab, "name", "") or i) for i, tab in enumerate(getattr(main, "contents", []))]
 
 
-def shoot(review: ReviewData, out_dir: Path, times_s: list[float], size: tuple[int, int]) -> list[Path]:
-    """Every tab of `review` at every mission time, as PNG files in `out_dir`; the files written."""
+def shoot(review: ReviewData, out_dir: Path, times_s: list[float], size: tuple[int, int],
+          tabs: set[str] | None = None) -> list[Path]:
+    """Every tab of `review` (or those named in `tabs`, lower case) at every mission time, as PNG files in
+    `out_dir`; the files written."""
     from replay.views.recording import save_rrd
 
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -86,6 +88,8 @@ def shoot(review: ReviewData, out_dir: Path, times_s: list[float], size: tuple[i
     try:
         client = _connect(port, proc)
         for i, name in enumerate(tab_names(review)):
+            if tabs and name.lower() not in tabs:
+                continue
             rrd = save_rrd([review], out_dir / f".tab{i}.rrd", application_id=f"screenshot_{i}", active_tab=i)
             client.open(str(rrd))
             _wait_loaded(client)
@@ -113,6 +117,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--times", default="620,1140,1700", help="mission seconds, comma-separated")
     parser.add_argument("--size", default="1400x875", help="window size WxH")
     parser.add_argument("--set", action="append", default=[], help="replay configuration key=value")
+    parser.add_argument("--tabs", default="", help="only these tabs, comma-separated (default: every tab)")
     args = parser.parse_args(argv)
     try:
         times = [float(t) for t in args.times.split(",") if t.strip()]
@@ -122,7 +127,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         review = replay_archive(args.archive, load_config(overrides=args.set), write_output=False, review=True).review
-        for path in shoot(review, Path(args.out_dir), times, (w, h)):
+        tabs = {t.strip().lower() for t in args.tabs.split(",") if t.strip()} or None
+        for path in shoot(review, Path(args.out_dir), times, (w, h), tabs):
             print(path)
     except UserError as exc:
         print(f"screenshots: {exc}", file=sys.stderr)
