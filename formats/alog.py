@@ -7,15 +7,17 @@ A posting is: seconds since the header's LOGSTART, the variable, the source
 process (optionally `:aux`), and the value: the rest of the line, a number
 or a string (which may contain spaces, commas and `=`). Times are absolute:
 LOGSTART plus the line's seconds; a second `%% LOGSTART` (rotated logs read
-as one) starts a new epoch. Postings before any LOGSTART, or whose time is
-not a number, are rejected.
+as one) starts a new epoch. Postings before any LOGSTART are rejected. A
+string value that holds line breaks is written by pLogger as it is: the
+lines after a posting that start with no time are its value's next lines,
+joined to it with "\n" (before any posting, such a line is rejected).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from .lines import iter_lines
 from .log_blocks import LogText
@@ -47,11 +49,18 @@ def _seconds_ns(text: str) -> int | None:
 
 
 def decode(data: LogText) -> Iterator[Posting | Reject]:
-    """Every posting of an alog, or a Reject saying why a line is not one; header lines give neither."""
+    """Every posting of an alog, or a Reject saying why a line is not one; header lines give neither.
+
+    A posting is given once its next line shows it ended (a multi-line value's lines are joined to it).
+    """
     epoch: int | None = None
+    pending: Posting | None = None
     for line in iter_lines(data, "none"):
         text = line.text
         if text.startswith("%%"):
+            if pending is not None:
+                yield pending
+                pending = None
             words = text[2:].split()
             if len(words) >= 2 and words[0] == "LOGSTART":
                 start = _seconds_ns(words[1])
@@ -61,10 +70,16 @@ def decode(data: LogText) -> Iterator[Posting | Reject]:
                     epoch = start
             continue
         parts = text.split(None, 3)
+        offset = _seconds_ns(parts[0])
+        if offset is None and pending is not None:  # the next line of a multi-line value
+            pending = replace(pending, text=pending.text + "\n" + text, number=math.nan)
+            continue
+        if pending is not None:
+            yield pending
+            pending = None
         if len(parts) < 3:
             yield Reject(line.where, "not an alog posting (time, variable, source, value)")
             continue
-        offset = _seconds_ns(parts[0])
         if offset is None:
             yield Reject(line.where, f"posting time {parts[0][:20]!r} is not a number")
             continue
@@ -76,4 +91,6 @@ def decode(data: LogText) -> Iterator[Posting | Reject]:
             number = finite(value)
         except ValueError:
             number = math.nan
-        yield Posting(line.where, epoch + offset, parts[1], parts[2], value, number)
+        pending = Posting(line.where, epoch + offset, parts[1], parts[2], value, number)
+    if pending is not None:
+        yield pending

@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 from google.protobuf.descriptor import FieldDescriptor
 
+from .json_messages import JsonMessage
 from .units import NS
 
 _TIMESTAMP = "google.protobuf.Timestamp"
@@ -54,7 +55,8 @@ def messages_to_dataframe(messages: Iterable[Any]) -> pd.DataFrame:
     times: list[int] = []
     for item in messages:
         msg = item.message
-        rows.append(flatten(msg) if hasattr(msg, "DESCRIPTOR") else {"data": msg})
+        rows.append(flatten(msg) if hasattr(msg, "DESCRIPTOR") else msg.value if isinstance(msg, JsonMessage)
+                    else {"data": msg})
         times.append(item.log_time_ns)
     index = pd.DatetimeIndex(pd.to_datetime(np.asarray(times, dtype="int64"), unit="ns", utc=True), name="log_time")
     return pd.DataFrame(rows, index=index)

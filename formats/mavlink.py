@@ -5,7 +5,9 @@ dependency (it builds its dialect modules at import) that only ArduSub
 trials need. A tlog is a stream of (big-endian u64 Unix microseconds,
 MAVLink packet); a dataflash log describes its own messages with FMT
 records. pymavlink reads both from a path. Bytes it cannot frame come back
-as BAD_DATA runs: each run is one `MavMessage` with its `problem`. Its
+as BAD_DATA runs: each run is one `MavMessage` with its `problem`; a packet
+whose CRC fails is one `MavMessage` of its own, `bad_crc` set. Every message
+carries the byte offset in the file where its record starts. Its
 readers raise on some damaged inputs, so they are guarded broadly (other
 people's logs must not stop a recording with a traceback). pymavlink prints its complaints about
 damaged records ("bad header 0x..."): they are kept off our output, since each such record is
@@ -29,13 +31,16 @@ DATAFLASH_MAGIC = b"\xa3\x95"
 
 @dataclass(frozen=True, slots=True)
 class MavMessage:
-    """One message: type ("GPS_RAW_INT", or a dataflash name like "GPS"), time (ns), fields, 0-based index."""
+    """One message: type ("GPS_RAW_INT", or a dataflash name like "GPS"), time (ns), fields, 0-based index,
+    byte offset of its record in the file."""
 
     type: str
     time_ns: int
     index: int
     fields: dict[str, Any] = field(default_factory=dict)
-    problem: str = ""        # set for BAD_DATA runs and unreadable rest of file
+    problem: str = ""        # set for BAD_DATA runs, packets failing their CRC and an unreadable rest of file
+    offset: int = 0
+    bad_crc: bool = False
 
 
 def is_dataflash(head: bytes) -> bool:
@@ -98,40 +103,56 @@ def _connect(path: Path, head: bytes, mavutil: Any) -> Any:
     return mavutil.mavlogfile(str(path), notimestamps=False)
 
 
+def _position(conn: Any) -> int:
+    """The reader's byte offset in its file: where its next record starts."""
+    try:
+        return int(conn.offset) if hasattr(conn, "offset") else int(conn.f.tell())  # dataflash, tlog
+    except (AttributeError, OSError, TypeError, ValueError):
+        return 0
+
+
 def _read(conn: Any) -> Iterator[MavMessage]:
-    """The messages of an open pymavlink reader, BAD_DATA runs joined, self-description records left out."""
+    """The messages of an open pymavlink reader, runs of unframed bytes joined, dataflash FMT records included."""
     index = 0
-    bad: list[int] = []  # a run of BAD_DATA: bytes, time
+    bad: list[int] = []  # a run of BAD_DATA: bytes, time, offset
     while True:
+        at = _position(conn)
         try:
             with _quiet():
                 msg = conn.recv_match()
         except Exception as exc:  # noqa: BLE001 - a damaged record stops what can be read of the file
-            yield MavMessage("", 0, index, {}, f"the rest of the log cannot be read ({type(exc).__name__}: {exc})")
+            yield MavMessage("", 0, index, {}, f"the rest of the log cannot be read ({type(exc).__name__}: {exc})",
+                             at)
             return
         if msg is None:
             break
         kind = msg.get_type()
         t_ns = round(float(getattr(msg, "_timestamp", 0.0) or 0.0) * 1e6) * 1000
-        if kind == "BAD_DATA":
+        reason = str(getattr(msg, "reason", "") or "")
+        if kind == "BAD_DATA" and "CRC" not in reason:
             data = getattr(msg, "data", b"")
             if not bad:
-                bad = [0, t_ns]
+                bad = [0, t_ns, at]
             bad[0] += len(data) if data else 1
             continue
         if bad:
-            yield MavMessage("BAD_DATA", bad[1], index, {}, f"{bad[0]} bytes that are no MAVLink packet (BAD_DATA)")
+            yield MavMessage("BAD_DATA", bad[1], index, {}, f"{bad[0]} bytes that are no MAVLink packet (BAD_DATA)",
+                             bad[2])
             index += 1
             bad = []
-        if kind in ("FMT", "FMTU", "MULT", "UNIT"):
-            continue  # dataflash self-description, not data
+        if kind == "BAD_DATA":  # a whole packet whose CRC fails: pymavlink's "invalid MAVLink CRC in msgID ..."
+            yield MavMessage("BAD_DATA", t_ns, index, {}, f"bad crc at byte {at}: {reason}", at, bad_crc=True)
+            index += 1
+            continue
         try:
             fields = msg.to_dict()
         except Exception as exc:  # noqa: BLE001 - a record whose fields do not unpack
-            yield MavMessage(kind, t_ns, index, {}, f"{kind} fields cannot be read ({type(exc).__name__})")
+            yield MavMessage(kind, t_ns, index, {}, f"{kind} fields cannot be read ({type(exc).__name__})", at)
             index += 1
             continue
-        yield MavMessage(kind, t_ns, index, fields)
+        fields.pop("mavpackettype", None)  # the type, which the topic names
+        yield MavMessage(kind, t_ns, index, fields, "", at)
         index += 1
     if bad:
-        yield MavMessage("BAD_DATA", bad[1], index, {}, f"{bad[0]} bytes that are no MAVLink packet (BAD_DATA)")
+        yield MavMessage("BAD_DATA", bad[1], index, {}, f"{bad[0]} bytes that are no MAVLink packet (BAD_DATA)",
+                         bad[2])

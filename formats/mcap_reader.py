@@ -32,6 +32,9 @@ from mcap.stream_reader import StreamReader
 from mcap.summary import Summary
 from mcap_protobuf.decoder import DecoderFactory
 
+from .json_messages import MESSAGE_ENCODING as JSON_ENCODING
+from .json_messages import SCHEMA_ENCODING as JSON_SCHEMA_ENCODING
+from .json_messages import JsonMessage
 from .mcap_chunks import MAX_CHUNK_BYTES, RawMessage, ordered_messages
 from .mcap_records import MAGIC, OP_ATTACHMENT, OP_METADATA, RecordError, read_record, read_summary, scan
 from .records import FormatError
@@ -131,6 +134,19 @@ class Damage:
             parts.append(f"skipped {kinds} ({self.record_texts[0]})")
         parts.extend(self.problems)
         return "; ".join(parts)
+
+
+def _json_decoder(schema: Schema | None) -> Callable[[bytes], JsonMessage]:
+    """A json channel's messages as JsonMessages, checked to be JSON (text that is not is a message that does not
+    decode)."""
+    name = schema.name if schema is not None else ""
+    text = schema.data.decode("utf-8", "replace") if schema is not None else ""
+
+    def decode(data: bytes) -> JsonMessage:
+        raw = bytes(data)
+        json.loads(raw)  # ValueError (JSONDecodeError, UnicodeDecodeError) on bytes that are no JSON
+        return JsonMessage(name, text, raw)
+    return decode
 
 
 def _check_magic(path: Path) -> int:
@@ -234,6 +250,8 @@ class ArchiveReader:
 
     def _decoder(self, channel: Channel, schema: Schema | None) -> tuple[Callable[[bytes], Any] | None, str]:
         """(decode function, "") for a channel, or (None, why its messages are skipped)."""
+        if channel.message_encoding == JSON_ENCODING and (schema is None or schema.encoding == JSON_SCHEMA_ENCODING):
+            return _json_decoder(schema), ""
         if channel.message_encoding != "protobuf":
             return None, f"of encoding {channel.message_encoding[:40]!r}, not protobuf"
         if schema is None:

@@ -1,4 +1,4 @@
-"""Writing archives: chunked, indexed, zstd-compressed MCAP with protobuf messages.
+"""Writing archives: chunked, indexed, zstd-compressed MCAP with protobuf messages (and JSON ones).
 
 The records are laid out as the MCAP specification (mcap.dev/spec, major
 version 0) describes them; we build them ourselves because the per-message
@@ -23,6 +23,10 @@ before the channel's first message (as the spec requires); a chunk left with
 such records and no message is written out as plain records, so a channel
 registered without messages is still in the data section.
 
+A record of a source log that has no schema of ours is a `formats.json_messages.JsonMessage`: its topic
+is a `json` channel whose schema is a `jsonschema` (one class for every such topic, so a topic's schema is
+that of its first message).
+
 The file is written under a temporary name next to the target and renamed
 only when `close()` finishes, so an interrupted write never leaves a file
 that looks complete.
@@ -43,6 +47,9 @@ import zstandard
 from google.protobuf.message import Message
 from mcap_protobuf.schema import build_file_descriptor_set
 
+from .json_messages import MESSAGE_ENCODING as JSON_ENCODING
+from .json_messages import SCHEMA_ENCODING as JSON_SCHEMA_ENCODING
+from .json_messages import JsonMessage
 from .output_files import OutputClaim
 
 PROFILE = ""  # protobuf-encoded MCAP has no well-known profile
@@ -139,7 +146,7 @@ class ArchiveWriter:
         self._zstd = zstandard.ZstdCompressor(level=ZSTD_LEVEL)
         self._topics: dict[str, _Channel] = {}
         self._by_id: dict[int, _Channel] = {}
-        self._schemas: dict[str, int] = {}
+        self._schemas: dict[str | tuple[str, str], int] = {}  # protobuf: by name; JSON: by name and text
         self._summary_schemas: list[bytes] = []
         self._summary_channels: list[bytes] = []
         self._chunk_indexes: list[bytes] = []
@@ -163,32 +170,46 @@ class ArchiveWriter:
         """The channel id for a topic, registering it (and its schema) on first use."""
         return self._channel(topic, message_class).id
 
-    def _channel(self, topic: str, message_class: type[Message]) -> _Channel:
+    def json_channel(self, topic: str, schema_name: str, schema: str) -> int:
+        """The channel id for a topic of JSON messages (`formats.json_messages`), registering it and its JSON
+        Schema on first use."""
+        return self._channel(topic, JsonMessage, JsonMessage(schema_name, schema, b"")).id
+
+    def _channel(self, topic: str, message_class: type[Message] | type[JsonMessage],
+                 example: Any = None) -> _Channel:
         if self._closed:
             raise ValueError(f"{self.path}: the archive is closed")
         known = self._topics.get(topic)
         if known is not None:
             if known.cls is not message_class:
                 raise TypeError(
-                    f"topic {topic} carries {known.cls.DESCRIPTOR.full_name}, "
+                    f"topic {topic} carries {getattr(getattr(known.cls, 'DESCRIPTOR', None), 'full_name', 'JSON')}, "
                     f"not {getattr(getattr(message_class, 'DESCRIPTOR', None), 'full_name', message_class)}"
                 )
             return known
-        name = message_class.DESCRIPTOR.full_name
-        schema_id = self._schemas.get(name)
+        key: str | tuple[str, str]
+        if message_class is JsonMessage:  # one class for every JSON topic: the schema is the example message's
+            name, encoding, key = example.schema_name, JSON_ENCODING, (example.schema_name, example.schema)
+        else:
+            name = key = message_class.DESCRIPTOR.full_name  # type: ignore[union-attr]
+            encoding = "protobuf"
+        schema_id = self._schemas.get(key)
         if schema_id is None:
             schema_id = len(self._schemas) + 1  # 0 means "no schema"
-            data = build_file_descriptor_set(message_class).SerializeToString()
-            rec = record(OP_SCHEMA,
-                         _U16.pack(schema_id) + _string(name) + _string("protobuf") + _U32.pack(len(data)) + data)
+            if message_class is JsonMessage:
+                data, schema_encoding = example.schema.encode("utf-8"), JSON_SCHEMA_ENCODING
+            else:
+                data, schema_encoding = build_file_descriptor_set(message_class).SerializeToString(), "protobuf"
+            rec = record(OP_SCHEMA, _U16.pack(schema_id) + _string(name) + _string(schema_encoding)
+                         + _U32.pack(len(data)) + data)
             self._chunk += rec
             self._summary_schemas.append(rec)
-            self._schemas[name] = schema_id
+            self._schemas[key] = schema_id
         channel_id = len(self._topics) + 1
         if channel_id > 0xFFFF:
             raise ValueError(f"{self.path}: more than 65535 channels")
         rec = record(OP_CHANNEL, struct.pack("<HH", channel_id, schema_id) + _string(topic)
-                     + _string("protobuf") + _string_map({}))
+                     + _string(encoding) + _string_map({}))
         self._chunk += rec
         self._summary_channels.append(rec)
         ch = self._topics[topic] = self._by_id[channel_id] = _Channel(channel_id, message_class)
@@ -198,7 +219,7 @@ class ArchiveWriter:
         """Append one message; publish time defaults to the log time (never the wall clock)."""
         ch = self._topics.get(topic)
         if ch is None or ch.cls is not type(message):
-            ch = self._channel(topic, type(message))
+            ch = self._channel(topic, type(message), message)
         data = message.SerializeToString()
         buf = self._chunk
         offset = len(buf)

@@ -29,9 +29,15 @@ renames a variable to one of these, sends it to a raw-text stream of a sensor fa
 - string values that are vendor sentences (``$GPGGA...``, ``$CACMR...``, ``$PIXSE...``) -> through our NMEA,
   Micro-Modem, PHINS, EvoLogics converters (`recorders.containers`), one text stream per variable.
 
+Every posting is archived as itself too, on ``/<v>/moos/<VARIABLE>`` (one topic per variable, as alogview
+lists them): JSON of the shared schema ``moos.Posting``: ``value`` (a number, or the text; a multi-line value's
+lines joined with "\n"), ``source`` (the posting app), ``aux`` (the source's ``:aux`` part, "" without),
+``community`` (the MOOS community: an alog names none per posting, so the manifest's ``community``, else the
+vehicle's name, MOOS-IvP's convention). A variable the manifest maps to "ignore" is left out.
+
 Times: the alog's ``%% LOGSTART`` plus each posting's seconds, and the log's clock offset. Every posting is
-counted: archived, rejected with a reason, or ignored with a reason (unmapped variables are listed once each,
-with their count).
+counted: archived, or rejected with a reason; where a posting of a mapped variable gives none of ours, an
+ignored reason says why (a NAV_X/NAV_Y epoch without the manifest's ``origin``, a value that is no number).
 """
 
 from __future__ import annotations
@@ -42,6 +48,7 @@ from collections.abc import Iterator
 from dataclasses import replace
 
 from formats import alog
+from formats import json_messages as J
 from formats import schemas as S
 from formats.log_blocks import LogText
 from formats.records import Reject, Where
@@ -81,6 +88,35 @@ NODE_REPORTS = ("NODE_REPORT", "NODE_REPORT_LOCAL")
 # archive's own namespaces (a run's /replay/..., /diagnostics/...)
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 RESERVED = ("replay", "diagnostics")
+TOPIC = "moos"  # /<v>/moos/<VARIABLE>: every posting as itself
+POSTING = "moos.Posting"
+POSTING_SCHEMA = J.schema_text({
+    "$schema": "https://json-schema.org/draft/2020-12/schema", "title": POSTING, "type": "object",
+    "properties": {
+        "value": {"type": ["number", "string"], "description": "the posting's number, else its text"},
+        "source": {"type": "string", "description": "the MOOS app that posted it"},
+        "aux": {"type": "string", "description": "the source's auxiliary part (after ':'), '' without"},
+        "community": {"type": "string", "description": "the MOOS community (the manifest's, else the vehicle)"},
+    },
+    "required": ["value", "source", "aux", "community"],
+})
+
+
+def _posting(p: alog.Posting, t: int, community: str, ctx: LogContext) -> Output:
+    """A posting as itself: JSON on /<v>/moos/<VARIABLE>."""
+    source, _, aux = p.source.partition(":")
+    value: float | str = p.number if math.isfinite(p.number) else p.text
+    message = J.JsonMessage(POSTING, POSTING_SCHEMA, J.encode(
+        {"value": value, "source": source, "aux": aux, "community": community}))
+    return output(ctx, f"{TOPIC}/{J.topic_level(p.variable)}", message, t, p.where)
+
+
+def _origin_note(group: str, ep: _Epoch, origin: tuple[float, float] | None) -> str:
+    """For an epoch of NAV_X/NAV_Y (or GPS_X/GPS_Y) without an origin, why it has no position: the key to give."""
+    if origin is None and {f"{group}_X", f"{group}_Y"} & set(ep.names):
+        return (f"{group}_X/{group}_Y without an origin, so no position: give the log's origin = [lat, lon] "
+                "(MOOS LatOrigin, LongOrigin) in its [[vehicles.logs]] entry")
+    return ""
 
 
 class _Epoch:
@@ -270,6 +306,7 @@ def _convert_alog(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | 
     mapping = ctx.options.get("variables")
     mapping = mapping if isinstance(mapping, dict) else {}
     origin = origin_option(ctx)
+    community = str(ctx.options.get("community") or ctx.vehicle)
     epochs = {"NAV": _Epoch(), "GPS": _Epoch(), "INS": _Epoch()}
     streams: dict[str, TextStream] = {}
 
@@ -281,10 +318,43 @@ def _convert_alog(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | 
                 else list(_gps_outputs(ep, ctx, origin)))
         outs = [o for o in outs if o is not None]
         yield from outs
-        for where in ep.wheres[1:] if outs else ep.wheres:
-            yield Ignored(where, f"{group}_* posting merged into its epoch's message" if outs else
-                          f"{group}_* epoch without {EMPTY[group]}")
+        note = _origin_note(group, ep, origin)
+        if note or not outs:  # its postings are archived as themselves: one reason for the epoch
+            yield Ignored(ep.wheres[0], note or f"{group}_* epoch without {EMPTY[group]}")
         epochs[group] = _Epoch()
+
+    def mapped(p: alog.Posting, name: str, t: int) -> Iterator[Output | Reject | Ignored]:
+        """Our messages of one posting: an epoch closed by it, a report, a line for a vendor stream."""
+        group = name[:3]
+        if name in NAV_VARS or name in GPS_VARS:
+            if not math.isfinite(p.number):
+                yield Reject(p.where, f"{p.variable} = {p.text[:40]!r} is not a number")
+                return
+            if not epochs[group].accepts(name, t):
+                yield from close(group)
+            epochs[group].add(name, {name: p.number}, t, p.where)
+            return
+        if name in INS_VARS:
+            fields = _ins_fields(p, INS_VARS[name])
+            if isinstance(fields, Reject):
+                yield fields
+                return
+            if not epochs["INS"].accepts(name, t):
+                yield from close("INS")
+            epochs["INS"].add(name, fields, t, p.where)
+            return
+        if name in NODE_REPORTS:
+            yield _node_report(replace(p, variable=name), ctx, origin)
+            return
+        if "RANGE_REPORT" in name:
+            yield _range_report(p, ctx)
+            return
+        wanted = name if name.partition(":")[0] in SENSORS else ""
+        if wanted or sentence_format(p.text)[0]:
+            stream = streams.get(p.variable)
+            if stream is None:
+                stream = streams[p.variable] = TextStream(ctx.vehicle, wanted)
+            stream.add(p.text, Where(p.where.offset, p.where.line, p.time_ns), p.time_ns, t)
 
     for p in alog.decode(data):
         if isinstance(p, Reject):
@@ -295,38 +365,11 @@ def _convert_alog(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | 
         if name == "ignore":
             yield Ignored(p.where, f"variable {p.variable} ignored by the manifest")
             continue
-        group = name[:3]
-        if name in NAV_VARS or name in GPS_VARS:
-            if not math.isfinite(p.number):
-                yield Reject(p.where, f"{p.variable} = {p.text[:40]!r} is not a number")
-                continue
-            if not epochs[group].accepts(name, t):
-                yield from close(group)
-            epochs[group].add(name, {name: p.number}, t, p.where)
-            continue
-        if name in INS_VARS:
-            fields = _ins_fields(p, INS_VARS[name])
-            if isinstance(fields, Reject):
-                yield fields
-                continue
-            if not epochs["INS"].accepts(name, t):
-                yield from close("INS")
-            epochs["INS"].add(name, fields, t, p.where)
-            continue
-        if name in NODE_REPORTS:
-            yield _node_report(replace(p, variable=name), ctx, origin)
-            continue
-        if "RANGE_REPORT" in name:
-            yield _range_report(p, ctx)
-            continue
-        wanted = name if name.partition(":")[0] in SENSORS else ""
-        if wanted or sentence_format(p.text)[0]:
-            stream = streams.get(p.variable)
-            if stream is None:
-                stream = streams[p.variable] = TextStream(ctx.vehicle, wanted)
-            stream.add(p.text, Where(p.where.offset, p.where.line, p.time_ns), p.time_ns, t)
-            continue
-        yield Ignored(p.where, f"variable {p.variable} is not mapped")
+        yield _posting(p, t, community, ctx)
+        for item in mapped(p, name, t):
+            # the posting is archived: where ours cannot be made of it, that is a reason, not a record refused
+            yield Ignored(item.where, item.reason) if type(item) is Reject else item
+
     for group in epochs:
         yield from close(group)
     for variable, stream in streams.items():
@@ -338,6 +381,7 @@ format = "alog"                    # MOOS-IvP pLogger .alog
 path = "auv1/LOG_AUV1_12_10_2016/LOG_AUV1_12_10_2016.alog"
 origin = [45.70, 126.60]           # MOOS LatOrigin/LongOrigin, for NAV_X/NAV_Y
 variables = { "DEPTH_SENSOR" = "NAV_DEPTH", "NMEA_FROM_GPS" = "gps:nmea", "ACOMMS_RAW" = "modem" }
+# community = "auv1"               # the MOOS community named on /<v>/moos/* postings (default: the vehicle)
 """
 
 CONVERTERS: dict[str, Converter] = {"alog": convert_alog}

@@ -84,10 +84,16 @@ def message(ctx: LogContext, t_ns: int, frame: str, velocity: Sequence[float], *
             error: float = NAN, ranges: Sequence[float] = (), altitude: float = NAN,
             valid: bool | None = None, fom: float = NAN, sound_speed: float = NAN,
             temperature: float = NAN, source: str = "") -> Any:
-    """A DvlVelocity; `valid` defaults to 'every given component is finite'."""
+    """A DvlVelocity; `valid` defaults to 'every given component is finite'.
+
+    A negative altitude is a DVL's "no altitude" (Water Linked's -1): the ping is kept, its altitude NaN and
+    not valid (no bottom in range), rather than refused by the record-time range check.
+    """
     vx, vy, vz = velocity
     if valid is None:
         valid = all(math.isfinite(v) for v in velocity)
+    if altitude < 0.0:
+        altitude, valid = NAN, False
     return DvlVelocity(
         timestamp=timestamp(t_ns), frame_id=ctx.vehicle, frame=FRAMES[frame],
         velocity_x_mps=vx, velocity_y_mps=vy, velocity_z_mps=vz, error_velocity_mps=error,

@@ -2,10 +2,15 @@
 
 MAVLink (tlog) messages:
 
-- ``GPS_RAW_INT``, ``GPS_INPUT`` (a Water Linked UGPS or other external fix) -> ``/<v>/gps``,
-  ``/<v>/gps/status`` (fix type 0/1 -> status only) and ``/<v>/gps/velocity``; ``GLOBAL_POSITION_INT``
-  (the EKF's fused position) also when the log has neither, so that the vehicle has one fix source, never
-  two interleaved.
+- Every message (every dataflash record, FMT included) that passes its CRC -> ``/<v>/mavlink/<TYPE>`` as it
+  is: JSON with a JSON Schema (`formats.json_messages`; schema ``mavlink.<TYPE>``, ``dataflash.<TYPE>``), its
+  fields as pymavlink gives them (NaN as null). The messages below are mapped to our schemas as well.
+- ``GPS_RAW_INT`` (the autopilot's GPS) -> ``/<v>/gps``, ``/<v>/gps/status`` (fix type 0/1 -> status only) and
+  ``/<v>/gps/velocity``. ``GPS_INPUT`` (a Water Linked UGPS or other external fix sent to the autopilot) is a
+  source of its own: ``/<v>/gps/input`` (with ``/status`` and ``/velocity`` below it) when the log has
+  GPS_RAW_INT, else the vehicle's ``/<v>/gps``; two receivers' clocks never share a topic.
+  ``GLOBAL_POSITION_INT`` (the EKF's fused position) gives fixes too when the log has neither.
+- ``STATUSTEXT`` (dataflash ``MSG``) -> ``/<v>/log`` (foxglove.Log; MAV_SEVERITY as its level).
 - ``GLOBAL_POSITION_INT`` with the latest ``ATTITUDE`` -> ``/<v>/ins`` (depth = -relative altitude, velocity
   NED); a log without GLOBAL_POSITION_INT gives attitude-only states from ATTITUDE.
 - ``LOCAL_POSITION_NED`` (the EKF's x/y/z north/east/down of its origin) -> ``/<v>/ins/local``, an InsState with
@@ -30,9 +35,11 @@ microseconds since boot (TimeUS) put on UTC by the first record with a GPS week 
 `formats.gpstime`'s leap-second table: pymavlink's own dataflash clock assumes today's 18 s), or, for a log
 without GPS time, by the manifest's `time_base = "boot"` with `start` = the UTC instant of boot
 (docs/time-bases.md). A log with neither is refused in one line naming those keys; a log with both is
-refused too (its GPS time is never overridden silently: `clock_offset_s` corrects it). BAD_DATA runs are
-rejected and counted; every other message is archived, merged (ATTITUDE into the next INS state) or ignored
-by type.
+refused too (its GPS time is never overridden silently: `clock_offset_s` corrects it). A dataflash record
+without TimeUS (FMT, FMTU, MULT, UNIT) takes the time of the record before it (the boot for the first). A packet
+whose CRC fails is a reject counted as a bad checksum, with its byte offset; a run of bytes that are no packet
+is one reject; every other message is archived as itself, and as ours where it maps (where a message of a
+mapped type gives none of ours, an ignored reason says why: an origin missing, an EKF core other than 0).
 """
 
 from __future__ import annotations
@@ -41,6 +48,7 @@ import math
 from collections.abc import Iterator
 
 from formats import gpstime
+from formats import json_messages as J
 from formats import mavlink as mv
 from formats import schemas as S
 from formats.records import FormatError, Reject, Where
@@ -70,7 +78,8 @@ def _f(fields: dict, key: str, scale: float = 1.0) -> float:
     return f if math.isfinite(f) else NAN
 
 
-def _fix(ctx: LogContext, m: mv.MavMessage, t: int, where: Where) -> Iterator[Output]:
+def _fix(ctx: LogContext, m: mv.MavMessage, t: int, where: Where, base: str = "gps") -> Iterator[Output]:
+    """The fix, status and velocity of a GPS message on `base`, `base`/status and `base`/velocity."""
     f = m.fields
     north = east = up = NAN
     if m.type == "GPS_RAW_INT":
@@ -97,13 +106,14 @@ def _fix(ctx: LogContext, m: mv.MavMessage, t: int, where: Where) -> Iterator[Ou
         speed, course = math.hypot(north, east), math.degrees(math.atan2(east, north)) % 360.0
     quality = FIX_QUALITY.get(fix_type, 1)
     if quality > 0 and math.isfinite(lat) and math.isfinite(lon) and (lat, lon) != (0.0, 0.0):
-        yield output(ctx, "gps", S.location_fix(t, ctx.vehicle, lat, lon, alt), t, where)
+        yield output(ctx, base, S.location_fix(t, ctx.vehicle, lat, lon, alt), t, where)
     sats = sats if 0 <= sats < 255 else -1
-    yield output(ctx, "gps/status", gnss_status(t, ctx.vehicle, quality, sats, hdop, "mavlink:" + m.type,
+    yield output(ctx, base + "/status", gnss_status(t, ctx.vehicle, quality, sats, hdop, "mavlink:" + m.type,
                                                 speed, course, NAN), t, where)
     if quality > 0 and has_velocity(speed, north):
-        yield output(ctx, VELOCITY, gnss_velocity(ctx, t, "mavlink:" + m.type, north=north, east=east, up=up,
-                                                  speed=speed, course=course), t, where)
+        velocity = gnss_velocity(ctx, t, "mavlink:" + m.type, north=north, east=east, up=up, speed=speed,
+                                 course=course)
+        yield output(ctx, VELOCITY if base == "gps" else base + "/velocity", velocity, t, where)
 
 
 def _attitude(m: mv.MavMessage) -> tuple[float, float, float]:
@@ -254,6 +264,92 @@ def _xkf_ins(ctx: LogContext, m: mv.MavMessage, origin: tuple[float, float] | No
 LOCAL = "ins/local"
 VELOCITY_TYPES = ("VISION_SPEED_ESTIMATE", "VISION_POSITION_DELTA", "DISTANCE_SENSOR", "VISV", "VISO", "RFND")
 XKF_TYPES = ("XKF1", "NKF1")  # EKF3, EKF2: one record per core (C) at the EKF's rate
+TEXT_TYPES = ("STATUSTEXT", "MSG")
+TOPIC = "mavlink"  # /<v>/mavlink/<TYPE>: every message as itself
+
+
+class _RawMessages:
+    """Each message as itself on /<v>/mavlink/<TYPE>: JSON, with a JSON Schema per type from its first message."""
+
+    def __init__(self, ctx: LogContext, family: str):
+        self.ctx, self.family = ctx, family
+        self.schemas: dict[str, str] = {}
+
+    def output(self, m: mv.MavMessage, t: int, where: Where) -> Output:
+        value = J.plain(m.fields)
+        schema = self.schemas.get(m.type)
+        if schema is None:
+            schema = self.schemas[m.type] = J.schema_text(J.object_schema(f"{self.family}.{m.type}", value))
+        message = J.JsonMessage(f"{self.family}.{m.type}", schema, J.encode(value))
+        return output(self.ctx, f"{TOPIC}/{J.topic_level(m.type)}", message, t, where)
+
+
+# MAV_SEVERITY (0 emergency .. 7 debug) -> foxglove.Log level
+SEVERITY = {0: S.Log.FATAL, 1: S.Log.FATAL, 2: S.Log.FATAL, 3: S.Log.ERROR, 4: S.Log.WARNING, 5: S.Log.INFO,
+            6: S.Log.INFO, 7: S.Log.DEBUG}
+
+
+def _text(ctx: LogContext, m: mv.MavMessage, t: int, where: Where) -> Output:
+    """A STATUSTEXT (or dataflash MSG) as a foxglove.Log on the vehicle's /<v>/log."""
+    f = m.fields
+    text = f.get("text", f.get("Message", ""))
+    severity = f.get("severity")
+    level = SEVERITY.get(severity, S.Log.UNKNOWN) if isinstance(severity, int) else S.Log.INFO
+    log = S.Log(timestamp=S.timestamp(t), level=level, message=str(text).rstrip("\x00"), name=ctx.vehicle,
+                file="mavlink:" + m.type, line=where.message or 0)
+    return output(ctx, "log", log, t, where)
+
+
+class _Mapper:
+    """The messages mapped to our schemas, with what carries from one to the next (attitude, depth, origin)."""
+
+    def __init__(self, ctx: LogContext, messages: list[tuple[mv.MavMessage, Where]]):
+        self.ctx = ctx
+        types = {m.type for m, _ in messages}
+        self.ekf_as_fix = not types & {"GPS_RAW_INT", "GPS_INPUT", "GPS"}
+        # GPS_INPUT is a source of its own beside the autopilot's GPS_RAW_INT: its own topics
+        self.input_base = "gps/input" if "GPS_RAW_INT" in types else "gps"
+        # the INS state's source: POS (the EKF's latitude/longitude) where the log has it, else XKF1/NKF1
+        self.xkf = "" if "POS" in types else next((x for x in XKF_TYPES if x in types), "")
+        self.ekf_types = {"GLOBAL_POSITION_INT", "POS", self.xkf} - {""}
+        self.has_ekf = bool(types & self.ekf_types)
+        self.ekf_origin = _ekf_origin(messages, ctx) if self.xkf else None
+        self.baro = _baro_instance(messages, ctx)
+        self.attitude: mv.MavMessage | None = None
+        self.depth = NAN  # the latest BARO depth, for attitude-only states
+        origins = [o for o in (_global_origin(m) for m, _ in messages if m.type == "GPS_GLOBAL_ORIGIN") if o]
+        self.origin = origins[0] if origins else origin_option(ctx)     # of LOCAL_POSITION_NED (a tlog's EKF)
+
+    def map(self, m: mv.MavMessage, t: int, where: Where) -> Iterator[Output | Reject | Ignored]:
+        """Our messages of one message (none for most types)."""
+        ctx, xkf = self.ctx, self.xkf
+        if m.type in FIX_TYPES:
+            yield from _fix(ctx, m, t, where, self.input_base if m.type == "GPS_INPUT" else "gps")
+        elif m.type in TEXT_TYPES:
+            yield _text(ctx, m, t, where)
+        elif m.type == xkf:
+            core = int(m.fields.get("C", 0) or 0)
+            if core:
+                yield Ignored(where, f"{m.type} of EKF core {core} (core 0's is archived)")
+            else:
+                yield _xkf_ins(ctx, m, self.ekf_origin, t, where)
+        elif m.type in self.ekf_types:
+            yield _ins(ctx, m, self.attitude, t, where)
+            if self.ekf_as_fix and m.type == "GLOBAL_POSITION_INT":
+                yield from _fix(ctx, m, t, where)
+        elif m.type in ("ATTITUDE", "ATT"):
+            self.attitude = m
+            if not xkf and not self.has_ekf:
+                yield _ins(ctx, None, m, t, where, self.depth)
+        elif m.type == "BARO":
+            if not self.has_ekf and int(m.fields.get("I", 0) or 0) == self.baro:
+                self.depth = -_f(m.fields, "Alt")
+        elif m.type in VELOCITY_TYPES:
+            yield _velocity(ctx, m, t, where)
+        elif m.type == "LOCAL_POSITION_NED":
+            yield _local(ctx, m, self.origin, t, where)
+        elif m.type == "GPS_GLOBAL_ORIGIN":
+            self.origin = _global_origin(m) or self.origin
 
 
 def convert_mavlink(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
@@ -270,68 +366,27 @@ def _convert_mavlink(data: bytes, ctx: LogContext) -> Iterator[Output | Reject |
         size = path.stat().st_size
         for m in mv.read_mavlink(path):
             number += 1
-            messages.append((m, Where(start + min(m.index, max(size - 1, 0)), None, m.time_ns or None, number)))
+            messages.append((m, Where(start + min(m.offset, max(size - 1, 0)), None, m.time_ns or None, number)))
         start += size
     boot_ns = _dataflash_boot_ns(messages, ctx)
     if boot_ns is not None:
         messages = [(_on_utc(m, boot_ns), w) for m, w in messages]
-    types = {m.type for m, _ in messages}
-    ekf_as_fix = not types & {"GPS_RAW_INT", "GPS_INPUT", "GPS"}
-    # the INS state's source: POS (the EKF's latitude/longitude) where the log has it, else XKF1/NKF1
-    xkf = "" if "POS" in types else next((x for x in XKF_TYPES if x in types), "")
-    ekf_types = {"GLOBAL_POSITION_INT", "POS", xkf} - {""}
-    has_ekf = bool(types & ekf_types)
-    ekf_origin = _ekf_origin(messages, ctx) if xkf else None
-    baro = _baro_instance(messages, ctx)
-    attitude: mv.MavMessage | None = None
-    depth = NAN  # the latest BARO depth, for attitude-only states
-    origins = [o for o in (_global_origin(m) for m, _ in messages if m.type == "GPS_GLOBAL_ORIGIN") if o]
-    origin = origins[0] if origins else origin_option(ctx)     # of LOCAL_POSITION_NED (a tlog's EKF)
+    raw = _RawMessages(ctx, "mavlink" if boot_ns is None else "dataflash")
+    mapper = _Mapper(ctx, messages)
+    last_t = (boot_ns or 0) + ctx.clock_offset_ns  # a dataflash record without TimeUS: the time of the one before
     for m, where in messages:
         t = m.time_ns + ctx.clock_offset_ns
         if m.problem:
-            yield Reject(where, m.problem)
+            yield Reject(where, m.problem, m.bad_crc)
+        elif m.time_ns < 0 and boot_ns is not None:  # FMT, FMTU, MULT, UNIT: no TimeUS, no mapping
+            yield raw.output(m, last_t, where)
         elif m.time_ns < 0 or (m.time_ns == 0 and boot_ns is None):  # a dataflash record's 0: TimeUS 0 at boot
             yield Reject(where, f"{m.type} without a time")
-        elif m.type in FIX_TYPES:
-            yield from _fix(ctx, m, t, where)
-        elif m.type == xkf:
-            core = int(m.fields.get("C", 0) or 0)
-            if core:
-                yield Ignored(where, f"{m.type} of EKF core {core} (core 0's is archived)")
-            else:
-                yield _xkf_ins(ctx, m, ekf_origin, t, where)
-        elif m.type in ekf_types:
-            yield _ins(ctx, m, attitude, t, where)
-            if ekf_as_fix and m.type == "GLOBAL_POSITION_INT":
-                yield from _fix(ctx, m, t, where)
-        elif m.type in ("ATTITUDE", "ATT"):
-            attitude = m
-            if xkf:
-                yield Ignored(where, f"{m.type}: the {xkf} INS state carries the attitude")
-            elif has_ekf:
-                yield Ignored(where, f"{m.type} merged into the next INS state")
-            else:
-                yield _ins(ctx, None, m, t, where, depth)
-        elif m.type == "BARO":
-            if has_ekf:
-                yield Ignored(where, "BARO: the EKF's depth is archived")
-            elif int(m.fields.get("I", 0) or 0) != baro:
-                yield Ignored(where, f"BARO instance {m.fields.get('I')} (instance {baro} measures depth)")
-            else:
-                depth = -_f(m.fields, "Alt")
-                yield Ignored(where, "BARO depth merged into the next INS state")
-        elif m.type in VELOCITY_TYPES:
-            yield _velocity(ctx, m, t, where)
-        elif m.type == "LOCAL_POSITION_NED":
-            yield _local(ctx, m, origin, t, where)
-        elif m.type == "GPS_GLOBAL_ORIGIN":
-            here = _global_origin(m)
-            origin = here or origin
-            yield Ignored(where, "GPS_GLOBAL_ORIGIN: the origin of LOCAL_POSITION_NED" if here else
-                          "GPS_GLOBAL_ORIGIN at 0, 0 or out of range: not an origin")
         else:
-            yield Ignored(where, f"MAVLink {m.type} is not mapped")
+            last_t = t
+            yield raw.output(m, t, where)
+            # an Ignored here says why a record archived as itself gave none of ours (an origin missing, say)
+            yield from mapper.map(m, t, where)
 
 
 MANIFEST_EXAMPLE = """[[vehicles.logs]]

@@ -44,6 +44,7 @@ from typing import Any, Generic, TypeVar, cast
 
 from google.protobuf.message import Message
 
+from formats.json_messages import JsonMessage
 from formats.mcap_writer import ArchiveWriter
 from formats.schemas import MESSAGE_CLASSES
 
@@ -75,6 +76,8 @@ class Captured:
     """One log's archive writes, serialized: the topics, a blob of message bytes and their index."""
 
     topics: list[tuple[str, str]] = field(default_factory=list)  # (topic, schema name), by first use
+    # a JSON topic's (schema name, JSON Schema text), by its number in `topics`
+    json_schemas: dict[int, tuple[str, str]] = field(default_factory=dict)
     index: array = field(default_factory=lambda: array("q"))
     blob: bytes = b""
     stats: Any = None  # the log's FileStats, filled by the recorder
@@ -95,14 +98,19 @@ class Capture:
         cls = type(message)
         number = self._numbers.get((topic, cls))
         if number is None:
-            number = self._register(topic, cls)
+            number = self._register(topic, cls, message)
         data = message.SerializeToString()
         self._parts.append(data)
         self._size += len(data)
         self.captured.index.extend(
             (number, self._size, log_time_ns, log_time_ns if publish_time_ns is None else publish_time_ns))
 
-    def _register(self, topic: str, cls: type[Message]) -> int:
+    def _register(self, topic: str, cls: type[Message], message: Any) -> int:
+        if cls is JsonMessage:  # its schema travels with it: JSON topics have no class to find again
+            number = self._numbers[(topic, cls)] = len(self.captured.topics)
+            self.captured.topics.append((topic, message.schema_name))
+            self.captured.json_schemas[number] = (message.schema_name, message.schema)
+            return number
         name = cls.DESCRIPTOR.full_name
         # the main process finds the class again by name (foxglove's classes do not pickle)
         if MESSAGE_CLASSES.get(name) is not cls:
@@ -130,7 +138,9 @@ def write_captured(writer: ArchiveWriter, captured: Captured) -> None:
         cid = ids[number]
         if cid is None:
             topic, name = captured.topics[number]
-            cid = ids[number] = writer.channel(topic, MESSAGE_CLASSES[name])
+            json_schema = captured.json_schemas.get(number)
+            cid = ids[number] = writer.channel(topic, MESSAGE_CLASSES[name]) if json_schema is None \
+                else writer.json_channel(topic, *json_schema)
         write(cid, blob[start:end], log_time, publish_time)
         start = end
 

@@ -93,7 +93,7 @@ class ValueChecks:
         self._by_class: dict[type, tuple[tuple[tuple[str, float, float, bool], ...], Any]] = {}
 
     def _rules(self, cls: type) -> tuple[tuple[tuple[str, float, float, bool], ...], Any]:
-        name = cls.DESCRIPTOR.full_name  # type: ignore[attr-defined]
+        name = getattr(getattr(cls, "DESCRIPTOR", None), "full_name", "")  # JSON messages have no rules
         rules = _RULES.get(name, ())
         if name in _RANGE_NAN_OK:
             rules = (("range_m", _ABOVE_ZERO, self.max_range_m, _RANGE_NAN_OK[name]), *rules)

@@ -7,6 +7,7 @@ messages as the equivalent vendor log" compares decoded messages and log times t
 from __future__ import annotations
 
 import functools
+import json
 import math
 import struct
 from pathlib import Path
@@ -478,10 +479,15 @@ def test_alog_maps_variables_and_raw_nmea(tmp_path):
     rng = S.AcousticRange.FromString(by["/auv/modem/range"][0][1])
     assert (rng.source, rng.destination, rng.range_m, rng.source_address) == ("buddy", "auv", 87.2, 2)
     stats = info["recording"]["files"][0]
-    assert stats["skipped"] == 2  # the junk line and the non-number depth
-    assert stats["ignored_reasons"]["variable DEPLOY is not mapped"] == 1
-    # every posting counted
-    assert stats["parsed"] + stats["skipped"] + stats["ignored"] == 19
+    # the line with no time is the next line of DEPLOY's value; the depth that is no number is kept as its posting
+    assert stats["skipped"] == 0 and stats["ignored_reasons"] == {
+        "NAV_DEPTH = 'not-a-number' is not a number": 1,
+        "NMEA_GPS: nmea record merged into its epoch's message or with nothing archived": 3}
+    (_, deploy), = by["/auv/moos/DEPLOY"]
+    assert json.loads(deploy) == {"value": "true\njunk", "source": "pHelmIvP", "aux": "", "community": "auv"}
+    assert json.loads(by["/auv/moos/NAV_DEPTH"][1][1])["value"] == "not-a-number"
+    # every posting archived as itself: 18 postings (19 lines, one a value's second line)
+    assert stats["parsed"] == sum(len(v) for k, v in by.items() if k.startswith("/auv/moos/")) == 18
 
 
 # ---------------------------------------------------------------- MAVLink tlog
@@ -514,8 +520,11 @@ def test_tlog_maps_fixes_ins_and_dvl(tmp_path):
     write_tlog(tmp_path / "sub.tlog", damage=b"\x00garbage\x00")
     by, info = messages(tmp_path, manifest(tmp_path, log("mavlink", "sub.tlog")))
     fixes = {t: S.LocationFix.FromString(b) for t, b in by["/auv/gps"]}
-    assert sorted(fixes) == [T0, T0 + 4 * 10**9]  # GPS_RAW_INT and GPS_INPUT; the EKF is not a second fix source
+    assert sorted(fixes) == [T0]  # GPS_RAW_INT; the EKF is not a second fix source
     assert fixes[T0].latitude == pytest.approx(45.7022621) and fixes[T0].altitude == pytest.approx(109.87)
+    # GPS_INPUT is a source of its own beside the autopilot's GPS: its own topics, its own clock
+    (ugps_t, ugps_fix), = by["/auv/gps/input"]
+    assert ugps_t == T0 + 4 * 10**9 and S.LocationFix.FromString(ugps_fix).latitude == pytest.approx(45.7023)
     ins = {t: S.InsState.FromString(b) for t, b in by["/auv/ins"]}
     ekf = ins[T0 + 3 * 10**9]
     assert ekf.heading_deg == pytest.approx(45.0) and ekf.roll_deg == pytest.approx(2.0)
@@ -525,7 +534,7 @@ def test_tlog_maps_fixes_ins_and_dvl(tmp_path):
     delta = dvl[T0 + 6 * 10**9]
     assert delta.frame == S.DvlVelocity.BODY_FRD and delta.velocity_x_mps == pytest.approx(1.0) and delta.valid
     assert dvl[T0 + 7 * 10**9].altitude_m == pytest.approx(12.34) and not dvl[T0 + 7 * 10**9].valid
-    vel = {t: S.GnssVelocity.FromString(b) for t, b in by["/auv/gps/velocity"]}
+    vel = {t: S.GnssVelocity.FromString(b) for t, b in by["/auv/gps/velocity"] + by["/auv/gps/input/velocity"]}
     assert sorted(vel) == [T0, T0 + 4 * 10**9]
     raw, ugps = vel[T0], vel[T0 + 4 * 10**9]
     assert (raw.speed_over_ground_mps, raw.course_over_ground_deg) == (pytest.approx(4.62), pytest.approx(90.41))
@@ -534,7 +543,9 @@ def test_tlog_maps_fixes_ins_and_dvl(tmp_path):
         (pytest.approx(0.5), pytest.approx(0.2), pytest.approx(-0.25))
     assert ugps.speed_over_ground_mps == pytest.approx(math.hypot(0.5, 0.2))
     stats = info["recording"]["files"][0]
-    assert stats["skipped"] >= 1 and stats["ignored_reasons"]["MAVLink HEARTBEAT is not mapped"] == 1
+    # every message is archived as itself too; the garbage after the last packet is one reject
+    assert stats["skipped"] == 1 and stats["ignored"] == 0 and stats["parsed"] == 8
+    assert json.loads(by["/auv/mavlink/HEARTBEAT"][0][1])["type"] == 12
 
 
 # dataflash: records described by FMT records (ArduPilot's layout), written by hand: pymavlink has no writer
@@ -588,8 +599,11 @@ def test_dataflash_maps_gps_att_pos_and_dvl(tmp_path):
     assert dvl[T0 + 3 * 10**9].velocity_x_mps == pytest.approx(1.0) and dvl[T0 + 3 * 10**9].valid
     assert dvl[T0 + 4 * 10**9].altitude_m == 12.5
     stats = info["recording"]["files"][0]
-    assert stats["ignored_reasons"] == {"ATT merged into the next INS state": 1, "MAVLink MSG is not mapped": 1}
-    assert stats["skipped"] == 0
+    # every record is archived as itself (the 8 FMT records too, at boot); MSG is the vehicle's log line
+    assert stats["ignored_reasons"] == {} and stats["skipped"] == 0 and stats["parsed"] == 15
+    assert len(by["/auv/mavlink/FMT"]) == 8 and json.loads(by["/auv/mavlink/ATT"][0][1])["Yaw"] == 45.0
+    (_, text), = by["/auv/log"]
+    assert S.Log.FromString(text).message == "ArduSub V4.1.0"
 
 
 def test_dataflash_without_gps_time_is_refused_not_guessed(tmp_path):

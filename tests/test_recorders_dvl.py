@@ -143,3 +143,18 @@ def test_garbage_never_raises() -> None:
     for fmt in CONVERTERS:
         outs, rejects = _run(fmt, junk)
         assert not outs and rejects
+
+
+@pytest.mark.parametrize("altitude", [-1.0, -0.5])
+def test_no_altitude_keeps_the_ping_not_valid(altitude: float) -> None:
+    """A DVL's "no altitude" (Water Linked's -1, as its ROS driver passes it on) keeps the ping: altitude NaN,
+    not valid; the record-time range check then has nothing to refuse."""
+    from recorders.dvl import message
+    from recorders.value_checks import ValueChecks
+
+    msg = message(LogContext("auv"), T0, "BODY_FRD", (0.25, -0.1, 0.02), altitude=altitude, valid=True,
+                  fom=0.004, source="waterlinked:velocity")
+    assert math.isnan(msg.altitude_m) and not msg.valid and msg.velocity_x_mps == 0.25
+    assert ValueChecks().problem(msg, T0) is None
+    kept = message(LogContext("auv"), T0, "BODY_FRD", (0.25, -0.1, 0.02), altitude=0.0, valid=True)
+    assert kept.altitude_m == 0.0 and kept.valid  # 0 m is an altitude (sitting on the bottom)
