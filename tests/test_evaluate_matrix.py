@@ -76,6 +76,7 @@ def test_the_json_has_the_issues_shape(matrix: tuple[dict[str, Any], str]) -> No
                 assert fig["recall_by_kind"]["multipath"] is not None
                 assert 0.0 <= fig["drift_recall_by_rate"]["0.5"] <= 1.0
     assert "2 conditions" in err and "s wall" in err
+    assert "multipath_usbl: median over trials of fpr_closed: chi_square " in err
 
 
 def test_usbl_fixes_feed_the_filters_in_the_usbl_condition(matrix: tuple[dict[str, Any], str]) -> None:
