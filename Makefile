@@ -8,7 +8,7 @@ BENCH_STAMP := $(VENV)/.installed-bench
 # the headless viewer test renders with software Vulkan: Debian's packages, installed by `make test` when root
 SYSTEM_PACKAGES := mesa-vulkan-drivers libvulkan1
 
-.PHONY: demo test lint fuzz system-packages bench clean
+.PHONY: demo test lint fuzz fuzz-hypothesis system-packages bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -34,9 +34,15 @@ test: $(STAMP) system-packages
 	$(BIN)/mypy
 	WGPU_BACKEND=vulkan $(BIN)/python -m pytest -q
 
-# every decoder entry point and archive-damage kind, 100,000 cases each (a share runs in make test)
-fuzz: $(STAMP)
+# every decoder entry point and archive-damage kind, 100,000 cases each (a share runs in make test),
+# then the hypothesis tests with fresh random examples
+fuzz: $(STAMP) fuzz-hypothesis
 	$(BIN)/python tests/fuzz/fuzz.py --cases 100000
+
+# the hypothesis tests under the "fuzz" profile (tests/conftest.py): random, 10x the examples of make test's
+# derandomized "ci" profile; pin any failing case it prints in its test with @example
+fuzz-hypothesis: $(STAMP)
+	HYPOTHESIS_PROFILE=fuzz $(BIN)/python -m pytest -q -m hypothesis
 
 $(BENCH_STAMP): $(STAMP)
 	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
@@ -47,6 +53,15 @@ bench: $(BENCH_STAMP)
 		echo "== $$script"; \
 		$(BIN)/python $$script || exit 1; \
 	done
+
+# every tab of the sample trial at 620, 1140 and 1700 s, shot in the headless native viewer (1400x875)
+SHOTS ?= screenshots
+screenshots: $(STAMP) system-packages
+	mkdir -p $(SHOTS)
+	$(BIN)/auvreplay record samples/lake_trial/trial.toml -o $(SHOTS)/lake-trial.mcap --force --quiet
+	WGPU_BACKEND=vulkan $(BIN)/python -m replay.views.screenshots $(SHOTS)/lake-trial.mcap $(SHOTS) \
+		--set methods=dead_reckoning,ckf,ackf,chi_square,dual_threshold,anfis,anfis_aqpso,anfis_compensation,cusum_drift,anfis_hybrid,drift_reference
+	@echo "screenshots in $(SHOTS)/"
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache

@@ -21,15 +21,15 @@ from pathlib import Path
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import numpy as np  # noqa: E402
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from anfis_toolbox import ANFISRegressor  # noqa: E402
-from anfis_toolbox.membership import BellMF  # noqa: E402
-from bench_aqpso import LAKE_NOTE, jang_case, lake_case  # noqa: E402
-from common import median_time, print_table  # noqa: E402
+from anfis_toolbox import ANFISRegressor
+from anfis_toolbox.membership import BellMF
+from bench_aqpso import LAKE_NOTE, jang_case, lake_case
+from common import median_time, print_table
 
 from replay.stack.detectors import anfis as A
 

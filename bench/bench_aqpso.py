@@ -19,15 +19,15 @@ from pathlib import Path
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import numpy as np  # noqa: E402
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import median_time, print_table  # noqa: E402
+from common import median_time, print_table
 
 from replay.stack.detectors import anfis as A
-from replay.stack.detectors.aqpso import AqpsoSettings, train_aqpso_ga  # noqa: E402
+from replay.stack.detectors.aqpso import AqpsoSettings, train_aqpso_ga
 
 LAKE_NOTE = ("lake-like features: SYNTHETIC (seeded), not the simulator: e = Z - Z_gps ~ N(0, 3.5 m) with "
              "stale/drift/outlier segments of 10-60 m (~12 % of epochs); r = e + N(0, 2 m); "

@@ -33,10 +33,10 @@ for _key in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from bench.common import median_time, print_table  # noqa: E402
-from recorders.manifest import load_manifest  # noqa: E402
-from recorders.record import record  # noqa: E402
-from replay.run.batch import dask_client, plan_batch, replay_task, run_batch  # noqa: E402
+from bench.common import median_time, print_table
+from recorders.manifest import load_manifest
+from recorders.record import record
+from replay.run.batch import dask_client, plan_batch, replay_task, run_batch
 
 SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"
 FAST = ["methods=dead_reckoning,ckf,ackf,chi_square"]

@@ -36,13 +36,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from bench.common import print_table  # noqa: E402 - after the sys.path line, as the other bench scripts
-from formats.mcap_reader import ArchiveReader  # noqa: E402 - after the sys.path line, as the other bench scripts
-from recorders.capture.session import CaptureOptions, CaptureSession  # noqa: E402 - after the sys.path line, as the other bench scripts
-from recorders.feed import live_manifest, make_targets  # noqa: E402 - after the sys.path line, as the other bench scripts
-from recorders.manifest import load_manifest, parse_manifest  # noqa: E402 - after the sys.path line, as the other bench scripts
-from recorders.record import record  # noqa: E402 - after the sys.path line, as the other bench scripts
-from replay.views.live import LiveView, open_stream  # noqa: E402 - after the sys.path line, as the other bench scripts
+from bench.common import print_table
+from formats.mcap_reader import ArchiveReader
+from recorders.capture.session import CaptureOptions, CaptureSession
+from recorders.feed import live_manifest, make_targets
+from recorders.manifest import load_manifest, parse_manifest
+from recorders.record import record
+from replay.views.live import LiveView, open_stream
 
 SAMPLE = ROOT / "samples" / "lake_trial" / "trial.toml"
 

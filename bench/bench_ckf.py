@@ -24,6 +24,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from formats.geodesy import metric_scales_scalar
 from replay.stack import model
 from replay.stack.config import StackConfig
 from replay.stack.filters import ckf
@@ -42,7 +43,7 @@ def median_us(fn: Callable[[], object], number: int = 20000, repeat: int = 7) ->
 
 def micro() -> None:
     """One ACKF range update and one DR time update: scalar fast path vs general numpy CKF."""
-    b, a = model.metric_scales_scalar(LAT, 0.0)
+    b, a = metric_scales_scalar(LAT, 0.0)
     s = State2(LAT, LON, 2.0 / b ** 2, 0.3 / (a * b), 1.5 / a ** 2)
     leader = (LAT + 300.0 / b, LON + 400.0 / a, 1.5)
     z, r_var = 512.0, 9.0

@@ -17,11 +17,11 @@ from collections.abc import Callable
 for _key in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_key, "1")
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-from replay.reproduce.kmcdf import reproduce  # noqa: E402
-from replay.stack.positioning.kmcdf import kmcdf_batch, kmcdf_epoch  # noqa: E402
-from replay.stack.positioning.kmcdf_montecarlo import METHODS, node_layout, simulate, success_point  # noqa: E402
+from replay.reproduce.kmcdf import reproduce
+from replay.stack.positioning.kmcdf import kmcdf_batch, kmcdf_epoch
+from replay.stack.positioning.kmcdf_montecarlo import METHODS, node_layout, simulate, success_point
 
 
 def median_time(fn: Callable[[], object], repeats: int) -> float:

@@ -17,15 +17,15 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import median_time, print_table  # noqa: E402
-from mcap.reader import make_reader  # noqa: E402
-from mcap.well_known import MessageEncoding, SchemaEncoding  # noqa: E402
-from mcap.writer import CompressionType, Writer  # noqa: E402
-from mcap_protobuf.schema import build_file_descriptor_set  # noqa: E402
+from common import median_time, print_table
+from mcap.reader import make_reader
+from mcap.well_known import MessageEncoding, SchemaEncoding
+from mcap.writer import CompressionType, Writer
+from mcap_protobuf.schema import build_file_descriptor_set
 
-from formats import schemas as S  # noqa: E402
-from formats.mcap_reader import ArchiveReader  # noqa: E402
-from formats.mcap_writer import ArchiveWriter  # noqa: E402
+from formats import schemas as S
+from formats.mcap_reader import ArchiveReader
+from formats.mcap_writer import ArchiveWriter
 
 T0 = 1_476_259_200_000_000_000
 

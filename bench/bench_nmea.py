@@ -36,19 +36,20 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
-import pynmea2  # noqa: E402
-from common import interleaved  # noqa: E402
+import pynmea2
+from common import interleaved
 
-from formats import schemas as S  # noqa: E402
-from formats.mcap_writer import ArchiveWriter  # noqa: E402
-from formats.nmea import sentences as nmea  # noqa: E402
-from formats.nmea.framing import build  # noqa: E402
-from formats.records import Where  # noqa: E402
-from recorders.base import LogContext, Output  # noqa: E402
-from recorders.gps import convert_nmea, gnss_status  # noqa: E402
-from tests.reference_converters import convert_nmea_reference  # noqa: E402
+from formats import schemas as S
+from formats.mcap_writer import ArchiveWriter
+from formats.nmea import sentences as nmea
+from formats.nmea.framing import build
+from formats.records import Where
+from formats.units import NS
+from recorders.base import LogContext, Output
+from recorders.gps import convert_nmea, gnss_status
+from tests.reference_converters import convert_nmea_reference
 
-T0 = 1476259200 * 10**9  # 2016-10-12T08:00:00Z
+T0 = 1476259200 * NS  # 2016-10-12T08:00:00Z
 REPEATS = 7
 CTX = LogContext("boat", trial_date=date(2016, 10, 12))
 
@@ -57,7 +58,7 @@ def receiver_mix(epochs: int) -> bytes:
     """Ten sentences per 1 Hz epoch, the way receivers interleave them."""
     out = []
     for k in range(epochs):
-        t = T0 + k * 10**9
+        t = T0 + k * NS
         lat, lon = 45.7 + k * 1e-6, 126.6 + k * 1e-6
         out += [
             nmea.encode_rmc(t, lat, lon, speed_knots=3.1, course_deg=45.0),
@@ -76,7 +77,7 @@ def receiver_mix(epochs: int) -> bytes:
 
 def gga_only(epochs: int) -> bytes:
     """One GGA per epoch."""
-    return "".join(nmea.encode_gga(T0 + k * 10**9, 45.7 + k * 1e-6, 126.6, hdop=0.9) for k in range(epochs)).encode()
+    return "".join(nmea.encode_gga(T0 + k * NS, 45.7 + k * 1e-6, 126.6, hdop=0.9) for k in range(epochs)).encode()
 
 
 

@@ -27,13 +27,13 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE))
 
-from common import median_time, print_table  # noqa: E402
+from common import median_time, print_table
 
-from formats.pd0 import blocks as pd0_blocks  # noqa: E402
-from formats.pd0 import ensembles as pd0  # noqa: E402
-from recorders.base import LogContext  # noqa: E402
-from recorders.dvl import convert_pd0  # noqa: E402
-from tests.reference_converters import convert_pd0_reference  # noqa: E402
+from formats.pd0 import blocks as pd0_blocks
+from formats.pd0 import ensembles as pd0
+from recorders.base import LogContext
+from recorders.dvl import convert_pd0
+from tests.reference_converters import convert_pd0_reference
 
 T0 = 1_476_259_200_000_000_000
 DOLFYN_PY = HERE / ".venv-dolfyn" / "bin" / "python"

@@ -54,17 +54,17 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
-from common import print_table  # noqa: E402
-from mcap.reader import SeekingReader  # noqa: E402
-from mcap.writer import CompressionType, Writer  # noqa: E402
+from common import print_table
+from mcap.reader import SeekingReader
+from mcap.writer import CompressionType, Writer
 
-import recorders.record as recording  # noqa: E402
-import recorders.record_parallel as parallel_recording  # noqa: E402
-from formats.mcap_writer import ArchiveWriter  # noqa: E402
-from formats.schemas import MESSAGE_CLASSES  # noqa: E402
-from recorders.manifest import load_manifest  # noqa: E402
-from recorders.record import record, resolve_workers  # noqa: E402
-from recorders.record_parallel import available_cores  # noqa: E402
+import recorders.record as recording
+import recorders.record_parallel as parallel_recording
+from formats.mcap_writer import ArchiveWriter
+from formats.schemas import MESSAGE_CLASSES
+from recorders.manifest import load_manifest
+from recorders.record import record, resolve_workers
+from recorders.record_parallel import available_cores
 
 Recorded = tuple[list, list, list, list]  # messages, channels, attachments, metadata
 

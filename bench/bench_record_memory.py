@@ -22,10 +22,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from formats.mcap_reader import ArchiveReader  # noqa: E402
-from tests.hostile import run_child  # noqa: E402
-from tests.test_record_blocks import bad_checksums, random_bytes  # noqa: E402
-from tests.test_record_blocks_text import clean_nmea, clean_phins, log_trial  # noqa: E402
+from formats.mcap_reader import ArchiveReader
+from tests.hostile import run_child
+from tests.test_record_blocks import bad_checksums, random_bytes
+from tests.test_record_blocks_text import clean_nmea, clean_phins, log_trial
 
 KINDS = (("bad checksums", "gps", "nmea", bad_checksums), ("random bytes", "gps", "nmea", random_bytes),
          ("clean NMEA", "gps", "nmea", clean_nmea), ("clean PHINS", "ins", "phins", clean_phins))

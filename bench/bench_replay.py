@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import median_time, print_table  # noqa: E402
+from common import median_time, print_table
 
 # VmHWM, not ru_maxrss: the latter keeps the parent's high-water mark across fork and exec
 CHILD = """

@@ -13,10 +13,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from formats import schemas as S  # noqa: E402
-from formats.mcap_writer import ArchiveWriter  # noqa: E402
-from samples.scenario import Scenario  # noqa: E402
-from samples.simulator import simulate_trial  # noqa: E402
+from formats import schemas as S
+from formats.mcap_writer import ArchiveWriter
+from samples.scenario import Scenario
+from samples.simulator import simulate_trial
 
 
 def mission_scenario(duration_s: float, ins_hz: float = 50.0, dvl_hz: float = 5.0) -> Scenario:

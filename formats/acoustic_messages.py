@@ -13,13 +13,13 @@ from __future__ import annotations
 
 from functools import lru_cache
 
-from .schemas import AcousticRange, UsblObservation
+from .schemas import AcousticRange, UsblObservation, set_timestamp
 from .wire import ACOUSTIC_RANGE, USBL_OBSERVATION
 
-NS = 1_000_000_000
 # bound once: the builders below run per message
 _RANGE_KEYS, _RANGE_PACK = ACOUSTIC_RANGE.keys, ACOUSTIC_RANGE.struct.pack
 _USBL_KEYS, _USBL_PACK = USBL_OBSERVATION.keys, USBL_OBSERVATION.struct.pack
+
 
 @lru_cache(maxsize=1024)
 def _range_head(source: str, destination: str, source_address: int, destination_address: int,
@@ -44,8 +44,7 @@ def acoustic_range(
     head = _range_head(source, destination, source_address, destination_address, kind, source_format)
     k0, k1, k2 = _RANGE_KEYS
     msg = AcousticRange.FromString(head + _RANGE_PACK(k0, travel_time_s, k1, range_m, k2, sound_speed_mps))
-    ts = msg.timestamp
-    ts.seconds, ts.nanos = divmod(int(t_ns), NS)
+    set_timestamp(msg.timestamp, t_ns)
     return msg
 
 
@@ -59,6 +58,5 @@ def usbl_observation(
     msg = UsblObservation.FromString(_usbl_head(node, target, source_format) + _USBL_PACK(
         t[0], travel_time_s, t[1], range_m, t[2], bearing_deg, t[3], elevation_deg, t[4], phase_x_rad,
         t[5], phase_y_rad, t[6], east_m, t[7], north_m, t[8], up_m, t[9], integrity, t[10], rssi_db))
-    ts = msg.timestamp
-    ts.seconds, ts.nanos = divmod(int(t_ns), NS)
+    set_timestamp(msg.timestamp, t_ns)
     return msg

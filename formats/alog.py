@@ -21,8 +21,7 @@ from .lines import iter_lines
 from .log_blocks import LogText
 from .numbers import finite
 from .records import Reject, Where
-
-NS = 1_000_000_000
+from .units import NS
 
 
 @dataclass(frozen=True, slots=True)

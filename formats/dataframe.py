@@ -9,6 +9,8 @@ import numpy as np
 import pandas as pd
 from google.protobuf.descriptor import FieldDescriptor
 
+from .units import NS
+
 _TIMESTAMP = "google.protobuf.Timestamp"
 
 
@@ -31,7 +33,7 @@ def flatten(message: Any) -> dict[str, Any]:
             if _is_repeated(field):
                 continue
             if field.message_type.full_name == _TIMESTAMP:
-                row[field.name] = pd.Timestamp(value.seconds * 1_000_000_000 + value.nanos, tz="UTC")
+                row[field.name] = pd.Timestamp(value.seconds * NS + value.nanos, tz="UTC")
             else:
                 for k, v in flatten(value).items():
                     row[f"{field.name}.{k}"] = v

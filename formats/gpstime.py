@@ -5,8 +5,9 @@ from __future__ import annotations
 import bisect
 import calendar
 
+from .units import NS
+
 GPS_EPOCH_UNIX_S = 315964800  # 1980-01-06T00:00:00Z
-NS = 1_000_000_000
 
 # UTC instants (Unix seconds) from which GPS - UTC equals the given count.
 _LEAPS: tuple[tuple[int, int], ...] = tuple(

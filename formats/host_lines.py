@@ -16,8 +16,8 @@ from datetime import UTC, datetime
 
 from .lines import PREFIX_STYLES, strip_prefix
 from .log_blocks import Block
+from .units import NS
 
-NS = 1_000_000_000
 ScannedLine = tuple[str, int, int, "int | None", int]  # text, line offset, 1-based line number, host ns, text offset
 
 # the common shape only; `lines._ISO` accepts it with the same extent and groups

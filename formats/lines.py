@@ -15,6 +15,7 @@ from datetime import UTC, datetime
 
 from .log_blocks import LogText, blocks_in
 from .records import Where
+from .units import NS
 
 PREFIX_STYLES = ("auto", "none", "iso8601", "unix")
 
@@ -41,12 +42,12 @@ def _iso_to_ns(stamp: str, zone: str | None) -> int:
     else:
         dt = dt.replace(tzinfo=UTC)
     frac_ns = int((frac + "000000000")[:9]) if frac else 0
-    return int(dt.timestamp()) * 1_000_000_000 + frac_ns
+    return int(dt.timestamp()) * NS + frac_ns
 
 
 def _unix_to_ns(stamp: str) -> int:
     whole, _, frac = stamp.partition(".")
-    return int(whole) * 1_000_000_000 + (int((frac + "000000000")[:9]) if frac else 0)
+    return int(whole) * NS + (int((frac + "000000000")[:9]) if frac else 0)
 
 
 def strip_prefix(text: str, style: str = "auto") -> tuple[str, int | None]:

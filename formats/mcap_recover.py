@@ -30,6 +30,7 @@ from mcap.writer import CompressionType, Writer
 
 from formats.mcap_chunks import ChunkError
 from formats.mcap_chunks import decompress as chunk_decompress
+from formats.output_files import OutputClaim
 from formats.records import FormatError
 
 MAGIC = b"\x89MCAP0\r\n"
@@ -348,8 +349,10 @@ def _write(found: _Found, out: Path, report: RecoveryReport) -> None:
         os.fsync(f.fileno())
 
 
-def recover(source: str | os.PathLike[str], output: str | os.PathLike[str]) -> RecoveryReport:
-    """Write every intact record of `source` to `output` with fresh indexes and summary; say what was lost."""
+def recover(source: str | os.PathLike[str], output: str | os.PathLike[str], replace: bool = False) -> RecoveryReport:
+    """Write every intact record of `source` to `output` with fresh indexes and summary; say what was lost.
+
+    An existing `output` is replaced only with `replace` (formats.output_files)."""
     src, out = Path(source), Path(output)
     if src.resolve() == out.resolve():
         raise FormatError(f"{out}: recover writes a new file; give an output other than the input")
@@ -367,10 +370,11 @@ def recover(source: str | os.PathLike[str], output: str | os.PathLike[str]) -> R
     report.messages = len(found.messages)
     report.attachments, report.metadata = len(found.attachments), len(found.metadata)
     _fill_gap_times(report, found)
-    temp = out.with_name(f".{out.name}.part-{os.getpid()}")
+    claim = OutputClaim(out, replace)  # one writer at a time; an existing file kept unless `replace`
     try:
-        _write(found, temp, report)
-        os.replace(temp, out)
+        _write(found, claim.part, report)
+        claim.publish()
     finally:
-        temp.unlink(missing_ok=True)
+        claim.part.unlink(missing_ok=True)
+        claim.abandon()
     return report

@@ -43,6 +43,8 @@ import zstandard
 from google.protobuf.message import Message
 from mcap_protobuf.schema import build_file_descriptor_set
 
+from .output_files import OutputClaim
+
 PROFILE = ""  # protobuf-encoded MCAP has no well-known profile
 CHUNK_SIZE = 1024 * 1024
 ZSTD_LEVEL = 3  # zstandard's default, as the mcap library uses
@@ -113,11 +115,21 @@ class ArchiveWriter:
     Times are integer nanoseconds (UTC); there is no wall-clock default.
     """
 
-    def __init__(self, path: str | os.PathLike[str], chunk_size: int = CHUNK_SIZE, part_path: Path | None = None):
+    def __init__(self, path: str | os.PathLike[str], chunk_size: int = CHUNK_SIZE, part_path: Path | None = None,
+                 replace: bool = True):
         self.path = Path(path)
-        # a live capture grows under a name the user knows (TRIAL.mcap.part) to recover it after a crash
-        self.temp_path = part_path or self.path.with_name(f".{self.path.name}.part-{os.getpid()}")
-        self._stream = open(self.temp_path, "wb")
+        # the output is claimed (formats.output_files): a second writer of the same path is refused, and
+        # without `replace` an existing file is never replaced, not even one that appears while we write.
+        # A live capture grows under a name the user knows (TRIAL.mcap.part) to recover it after a crash.
+        self._claim = OutputClaim(self.path, replace, part_path)
+        self.temp_path = self._claim.part
+        self._named_part = part_path is not None
+        self.removed_parts: list[Path] = self._claim.removed  # part files of dead writers, removed
+        try:
+            self._stream = self._claim.open_part()
+        except BaseException:
+            self._claim.abandon(keep_part=True)
+            raise
         self._pos = 0
         self._crc = 0  # CRC32 of the data section so far (magic included)
         self._chunk_size = chunk_size
@@ -345,15 +357,20 @@ class ArchiveWriter:
                 self.abort()
                 raise
             self._stream.close()
-            os.replace(self.temp_path, self.path)
             self._mark_closed()
+            try:
+                self._claim.publish()
+            except BaseException:
+                if not self._named_part:  # a private part file is of no use; a capture's is kept for recover
+                    self.temp_path.unlink(missing_ok=True)
+                raise
         return self.path
 
     def abort(self) -> None:
         """Drop the partial file; the target name is never created."""
         if not self._closed:
             self._stream.close()
-            self.temp_path.unlink(missing_ok=True)
+            self._claim.abandon()
             self._mark_closed()
 
     def _mark_closed(self) -> None:

@@ -32,10 +32,10 @@ from .log_blocks import LogText
 from .nmea.framing import build, frame
 from .numbers import optional
 from .records import Reject, Where
+from .units import NS
 
 BAD_VELOCITY = -32.768
 BAD_FOM = 10.0
-_NS = 1_000_000_000
 _FIELDS = {"": 10, "0": 9, "1": 9, "3": 6, "4": 6, "6": 11, "7": 11, "8": 16, "9": 16}
 
 
@@ -115,7 +115,7 @@ def unix_to_ns(text: str) -> int | None:
     whole, _, frac = text.strip().partition(".")
     if not whole.isdigit() or (frac and not frac.isdigit()):
         return None
-    return int(whole) * _NS + int((frac + "000000000")[:9])
+    return int(whole) * NS + int((frac + "000000000")[:9])
 
 
 def _date_time_ns(date: str, tod: str) -> int | None:
@@ -130,7 +130,7 @@ def _date_time_ns(date: str, tod: str) -> int | None:
                       int(whole[2:4]), int(whole[4:6]), tzinfo=UTC)
     except ValueError:
         return None
-    return int(dt.timestamp()) * _NS + int((frac + "000000000")[:9])
+    return int(dt.timestamp()) * NS + int((frac + "000000000")[:9])
 
 
 def _untag(fields: Sequence[str]) -> list[str]:
@@ -185,7 +185,7 @@ def encode_pnorbt7(time_ns: int, velocity_mps: Sequence[float], distance_m: Sequ
                    figure_of_merit: float = 0.005, dt1_s: float = 0.0, dt2_s: float = 0.0,
                    tags: bool = False) -> str:
     """A $PNORBT7 sentence (or $PNORBT6 with tags); NaN velocity -> -32.768, NaN distance -> 0."""
-    sec, rem = divmod(int(time_ns), _NS)
+    sec, rem = divmod(int(time_ns), NS)
     vals = [f"{sec}.{rem // 100_000:04d}", f"{dt1_s:.4f}", f"{dt2_s:.4f}"]
     vals += [f"{v:.4f}" if math.isfinite(v) else "-32.768" for v in velocity_mps]
     vals.append(f"{figure_of_merit:.4f}" if math.isfinite(figure_of_merit) else "10.0000")

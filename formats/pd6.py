@@ -30,10 +30,10 @@ from .lines import iter_lines
 from .log_blocks import LogText
 from .numbers import optional
 from .records import Reject, Where
+from .units import NS
 
 BAD = -32768
 VELOCITY_TAGS = ("WI", "BI", "WS", "BS", "WE", "BE")
-_NS = 1_000_000_000
 
 
 @dataclass(frozen=True, slots=True)
@@ -131,7 +131,7 @@ def _ts_time(stamp: str) -> int | None:
                       int(s[10:12]), tzinfo=UTC)
     except ValueError:
         return None
-    return int(dt.timestamp()) * _NS + int(s[12:14]) * 10_000_000
+    return int(dt.timestamp()) * NS + int(s[12:14]) * 10_000_000
 
 
 def _mps(text: str) -> float:
@@ -267,7 +267,7 @@ def encode_sa(pitch_deg: float, roll_deg: float, heading_deg: float) -> str:
 def encode_ts(time_ns: int, *, salinity_ppt: float = 0.0, temperature_c: float = 10.0,
               depth_m: float = 0.0, sound_speed_mps: float = 1500.0, bit: int = 0) -> str:
     """:TS line with CRLF (time truncated to 0.01 s; years 2000-2099)."""
-    sec, rem = divmod(int(time_ns), _NS)
+    sec, rem = divmod(int(time_ns), NS)
     dt = datetime.fromtimestamp(sec, tz=UTC)
     stamp = dt.strftime("%y%m%d%H%M%S") + f"{rem // 10_000_000:02d}"
     return (f":TS,{stamp},{salinity_ppt:04.1f},{temperature_c:+05.1f},{depth_m:06.1f},"

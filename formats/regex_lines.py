@@ -51,8 +51,8 @@ from .lines import PREFIX_STYLES, iter_lines, strip_prefix
 from .log_blocks import LogText
 from .numbers import finite
 from .records import FormatError, Reject, Where
+from .units import NS, archivable_ns
 
-NS = 1_000_000_000
 TIME_FORMATS = ("tod", "iso8601", "unix")
 NUMERIC_GROUPS = (
     "travel_time_s", "range_m", "bearing_deg", "elevation_deg",
@@ -63,7 +63,6 @@ EXAMPLE_PATTERN = (
     r" : [\d.]+ m \(Round-trip (?P<travel_time_s>[\d.]+) ms\)"
 )
 EXAMPLE_SCALE = 0.0005
-_EPOCH_MIN_NS, _EPOCH_MAX_NS = 0, 7258118400 * NS  # 1970-01-01, 2200-01-01
 
 _TOD = re.compile(r"(\d{2}):?(\d{2}):?(\d{2}(?:\.\d+)?)")
 _ISO = re.compile(r"(\d{4}-\d{2}-\d{2})[T ](\d{2}:\d{2}:\d{2})(?:[.,](\d+))?\s*(Z|[+-]\d{2}:?\d{2})?")
@@ -159,7 +158,7 @@ def _times(g: Mapping[str, str], time_format: str) -> tuple[int | None, float | 
     if time_format == "tod":
         return None, parse_tod_s(stamp), day
     t = parse_iso8601_ns(stamp) if time_format == "iso8601" else _unix_ns(stamp)
-    if not _EPOCH_MIN_NS <= t < _EPOCH_MAX_NS:
+    if not archivable_ns(t):
         raise ValueError(f"time outside 1970-2200: {stamp!r}")
     return t, None, day
 

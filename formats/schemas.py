@@ -9,9 +9,8 @@ from foxglove_schemas_protobuf.Log_pb2 import Log
 from google.protobuf.timestamp_pb2 import Timestamp
 
 from . import auvreplay_pb2 as pb
+from .units import NS, TIME_MAX_NS, TIME_MIN_NS
 from .wire import GNSS_STATUS, INS_STATE, LOCATION_FIX
-
-NS = 1_000_000_000
 
 GnssStatus = pb.GnssStatus
 InsState = pb.InsState
@@ -39,10 +38,29 @@ COVARIANCE_DIAGONAL_KNOWN = LocationFix.DIAGONAL_KNOWN
 COVARIANCE_KNOWN = LocationFix.KNOWN
 
 
-def timestamp(ns: int) -> Timestamp:
-    """A protobuf Timestamp for integer nanoseconds since the Unix epoch."""
+def timestamp(ns: int) -> Timestamp | None:
+    """A protobuf Timestamp for integer nanoseconds since the Unix epoch, None for no archivable time.
+
+    None leaves a message constructor's Timestamp field unset, as `set_timestamp` does.
+    """
+    if not TIME_MIN_NS <= ns < TIME_MAX_NS:
+        return None
     sec, nsec = divmod(int(ns), NS)
     return Timestamp(seconds=sec, nanos=nsec)
+
+
+def set_timestamp(stamp: Timestamp, t_ns: int) -> None:
+    """Set a message's Timestamp to `t_ns`, or leave it unset when `t_ns` is no archivable time.
+
+    Every builder of an archive message sets its time here (or by `timestamp`),
+    the fast (block, columnar) paths and their per-message references alike,
+    so both agree on a time outside 1970-2200 (a corrupt RTC century, a
+    400-digit field that no Timestamp holds): the field stays absent, and the
+    record-time checks refuse the message by its log time. The test is
+    `formats.units.archivable_ns` written inline: it runs once per message.
+    """
+    if TIME_MIN_NS <= t_ns < TIME_MAX_NS:
+        stamp.seconds, stamp.nanos = divmod(int(t_ns), NS)
 
 
 def to_ns(ts: Timestamp) -> int:
@@ -82,8 +100,7 @@ def location_fix(
         fix = LocationFix(latitude=latitude, longitude=longitude, altitude=altitude,
                           position_covariance=covariance_enu_m2, position_covariance_type=kind)
     fix.frame_id = frame_id
-    ts = fix.timestamp
-    ts.seconds, ts.nanos = divmod(int(t_ns), NS)
+    set_timestamp(fix.timestamp, t_ns)
     return fix
 
 
@@ -105,8 +122,7 @@ def ins_state(
     msg.frame_id = frame_id
     msg.status = status
     msg.source_format = source_format
-    ts = msg.timestamp
-    ts.seconds, ts.nanos = divmod(int(t_ns), NS)
+    set_timestamp(msg.timestamp, t_ns)
     return msg
 
 
@@ -121,6 +137,5 @@ def gnss_status(
     msg.fix_quality = fix_quality
     msg.satellites = satellites
     msg.source_format = source_format
-    ts = msg.timestamp
-    ts.seconds, ts.nanos = divmod(int(t_ns), NS)
+    set_timestamp(msg.timestamp, t_ns)
     return msg

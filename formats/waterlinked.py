@@ -34,6 +34,7 @@ from .lines import iter_lines
 from .log_blocks import LogText
 from .numbers import integer, optional
 from .records import Reject, Where
+from .units import TIME_MAX_NS, TIME_MIN_NS
 
 
 def _crc8_table() -> tuple[int, ...]:
@@ -184,11 +185,12 @@ def _json_transducer(t: dict[str, Any], where: Where) -> TransducerReport:
                             bool(t.get("beam_valid", dist >= 0)))
 
 
-_US_MAX = 7_258_118_400_000_000  # 2200-01-01 in microseconds: later is not a time of a trial
+# the archivable times (`formats.units`) in microseconds: others are no time of a trial
+_US_MIN, _US_MAX = TIME_MIN_NS // 1000, TIME_MAX_NS // 1000
 
 
 def _us(value: Any) -> int | None:
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and 0 <= value < _US_MAX
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and _US_MIN <= value < _US_MAX
     return int(value) if ok else None
 
 

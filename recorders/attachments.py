@@ -10,6 +10,7 @@ from pathlib import Path, PurePosixPath
 from typing import BinaryIO
 
 from formats.mcap_reader import ArchiveReader
+from formats.output_files import OutputExists
 
 RAW_PREFIX = "/raw/"  # a capture's raw streams (recorders.capture.session)
 
@@ -46,16 +47,40 @@ def safe_target(root: Path, name: str) -> Path | None:
     return target
 
 
-def unpack(archive_path: str | os.PathLike[str], target_dir: str | os.PathLike[str]) -> UnpackResult:
+def _check_targets(reader: ArchiveReader, root: Path, replace: bool) -> None:
+    """Refuse before anything is written when a file to write exists (unless `replace`) or cannot be a file."""
+    summary = reader.summary()
+    names = [a.name for a in summary.attachments] + [t[len(RAW_PREFIX):] for t in summary.topics
+                                                     if t.startswith(RAW_PREFIX)]
+    for name in dict.fromkeys(names):
+        target = safe_target(root, name)
+        if target is None or target.is_symlink():
+            continue  # refused when its turn comes, and counted
+        for parent in target.relative_to(root).parents:
+            if (root / parent).exists() and not (root / parent).is_dir():
+                raise NotADirectoryError(f"{root / parent} is not a directory: nothing unpacked ({name} goes in it)")
+        if target.is_dir():
+            raise IsADirectoryError(f"{target} is a directory: nothing unpacked ({name} would replace it)")
+        if target.exists() and not replace:
+            raise OutputExists(f"{target} exists: nothing unpacked (give --force to replace the files there)")
+
+
+def unpack(archive_path: str | os.PathLike[str], target_dir: str | os.PathLike[str],
+           replace: bool = False) -> UnpackResult:
     """Write every attachment under target_dir; refuse unsafe names, verify recorded sha256.
 
-    A second attachment of a name already written is not written over the
-    first: it is listed in `repeated`.
+    Every name is checked before the first file is written: an existing file
+    there refuses the whole unpack (OutputExists) unless `replace`. A second
+    attachment of a name already written is not written over the first: it is
+    listed in `repeated`.
     """
     root = Path(target_dir)
-    root.mkdir(parents=True, exist_ok=True)
+    if root.exists() and not root.is_dir():
+        raise NotADirectoryError(f"{root} exists and is not a directory: nothing unpacked")
     result = UnpackResult()
     with ArchiveReader(archive_path) as reader:
+        _check_targets(reader, root, replace)
+        root.mkdir(parents=True, exist_ok=True)
         recording = reader.metadata_json("recording") or {}
         files = recording.get("files")
         files = [f for f in (files if isinstance(files, list) else [])
@@ -89,7 +114,7 @@ def unpack(archive_path: str | os.PathLike[str], target_dir: str | os.PathLike[s
     return result
 
 
-def _unpack_streams(reader, root: Path, expected: dict[str, str], result: UnpackResult) -> None:
+def _unpack_streams(reader: ArchiveReader, root: Path, expected: dict[str, str], result: UnpackResult) -> None:
     """A capture's streams (its RawBytes messages), each written back at its offsets: the bytes as received."""
     topics = [t for t in reader.summary().topics if t.startswith(RAW_PREFIX)]
     if not topics:
@@ -98,6 +123,8 @@ def _unpack_streams(reader, root: Path, expected: dict[str, str], result: Unpack
     with ExitStack() as stack:
         for m in reader.messages(topics):
             raw = m.message
+            # a stream is named by its topic, as _check_targets saw it (a crafted message's name is not trusted)
+            raw.stream = m.topic[len(RAW_PREFIX):]
             got = files.get(raw.stream)
             if got is None:
                 target = safe_target(root, raw.stream)

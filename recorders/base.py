@@ -25,8 +25,6 @@ from typing import Any
 from formats.log_blocks import Block, LogBlocks, LogText
 from formats.records import Reject, Where
 
-NS = 1_000_000_000
-
 
 @dataclass(frozen=True)
 class LogContext:

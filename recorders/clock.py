@@ -16,9 +16,7 @@ from datetime import UTC, date, datetime
 from functools import lru_cache
 
 from formats.gpstime import gps_to_unix_ns
-
-NS = 1_000_000_000
-DAY_NS = 86400 * NS
+from formats.units import DAY_NS, NS
 
 
 @lru_cache(maxsize=64)
@@ -58,14 +56,6 @@ class DayClock:
             self.day_ns -= DAY_NS  # a late record from before midnight
         self._last_tod_ns = tod_ns
         return self.day_ns + tod_ns + self.offset_ns
-
-
-TIME_MIN_NS, TIME_MAX_NS = 0, 7_258_118_400 * 10**9  # 1970-01-01 .. 2200-01-01: a trial's times
-
-
-def plausible_ns(t: int) -> bool:
-    """True for a time a trial can have (1970-2200); a 400-digit field parses to none of them."""
-    return TIME_MIN_NS <= t < TIME_MAX_NS
 
 
 def gps_time_ns(week: int, seconds_of_week: float, offset_ns: int = 0) -> int:

@@ -24,14 +24,15 @@ from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 
+from formats import geodesy
 from formats.records import FormatError, Reject, Where
+from formats.units import NS
 
-from .base import NS, Ignored, LogContext, Output
+from .base import Ignored, LogContext, Output
 from .clock import offset_problem, shift_text
 from .registry import family_converter
 
 NAN = math.nan
-EARTH_RADIUS_M = 6_378_137.0
 
 # first-match rules: a text stream's vendor format from what its lines start with or contain
 _EVOLOGICS_WORDS = ("USBLLONG", "USBLANGLES", "RECVIM", "RECVIMS", "RECVPBM", "SENDEND", "RECVEND", "DELIVERED",
@@ -254,12 +255,10 @@ def body_to_ned(v_frd: Sequence[float], roll_deg: float, pitch_deg: float,
 
 
 def local_to_geodetic(north_m: float, east_m: float, origin: tuple[float, float] | None) -> tuple[float, float]:
-    """Latitude and longitude of a local tangent-plane point (flat earth about `origin`); NaN without one."""
+    """Latitude and longitude of local east/north metres about `origin` (`formats.geodesy`), else NaN."""
     if origin is None or not (math.isfinite(north_m) and math.isfinite(east_m)):
         return NAN, NAN
-    lat0, lon0 = origin
-    lat = lat0 + math.degrees(north_m / EARTH_RADIUS_M)
-    lon = lon0 + math.degrees(east_m / (EARTH_RADIUS_M * math.cos(math.radians(lat0))))
+    lat, lon = geodesy.local_to_geodetic(east_m, north_m, *origin)
     return lat, (lon + 180.0) % 360.0 - 180.0
 
 

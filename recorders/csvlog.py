@@ -25,9 +25,10 @@ from formats import schemas as S
 from formats.log_blocks import LogText
 from formats.numbers import finite, integer, optional, optional_integer
 from formats.records import FormatError, Reject
+from formats.units import NS, archivable_ns
 
-from .base import NS, LogContext, Output, output
-from .clock import DayClock, plausible_ns
+from .base import LogContext, Output, output
+from .clock import DayClock
 
 # family -> (message class, topic suffix)
 FAMILY_MESSAGES: dict[str, tuple[Any, str]] = {
@@ -135,7 +136,7 @@ def converter_for(family: str) -> Callable[[LogText, LogContext], Iterator[Outpu
                 t = parse_time(row.values[columns["time"]])
                 if t is None:
                     raise ValueError("time of day without a date (set [trial] date)")
-                if not plausible_ns(t + ctx.clock_offset_ns):
+                if not archivable_ns(t + ctx.clock_offset_ns):
                     raise ValueError(f"time {row.values[columns['time']][:40]!r} is outside 1970-2200")
                 msg = _new_message(cls, ctx)
                 for field, set_value in setters.items():
@@ -145,7 +146,7 @@ def converter_for(family: str) -> Callable[[LogText, LogContext], Iterator[Outpu
                 continue
             _complete(msg, ctx)
             t += ctx.clock_offset_ns
-            (msg.timestamp if "timestamp" in cls.DESCRIPTOR.fields_by_name else msg.time).CopyFrom(S.timestamp(t))
+            S.set_timestamp(msg.timestamp if "timestamp" in cls.DESCRIPTOR.fields_by_name else msg.time, t)
             yield output(ctx, suffix, msg, t, row.where)
 
     return convert

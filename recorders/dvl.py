@@ -29,7 +29,6 @@ from collections.abc import Iterator, Sequence
 from typing import Any
 
 import numpy as np
-from google.protobuf.timestamp_pb2 import Timestamp
 
 from formats import nortek, pd4, pd6, waterlinked
 from formats.log_blocks import LogText
@@ -37,12 +36,11 @@ from formats.pd0 import blocks as pd0_blocks
 from formats.pd0 import ensembles as pd0
 from formats.pd0.frames import vehicle_velocity
 from formats.records import FormatError, Reject, Where
-from formats.schemas import DvlVelocity, timestamp
+from formats.schemas import DvlVelocity, set_timestamp, timestamp
 from formats.wire import DVL_VELOCITY
 
-from .base import NS, BlockConverter, Converter, LogContext, Output, blockwise, output
+from .base import BlockConverter, Converter, LogContext, Output, blockwise, output
 from .clock import DayClock
-from .value_checks import TIME_RANGE_NS
 
 NAN = math.nan
 FRAMES = {"BODY_FRD": DvlVelocity.BODY_FRD, "EARTH_NED": DvlVelocity.EARTH_NED,
@@ -90,10 +88,8 @@ def message(ctx: LogContext, t_ns: int, frame: str, velocity: Sequence[float], *
     vx, vy, vz = velocity
     if valid is None:
         valid = all(math.isfinite(v) for v in velocity)
-    # a time no Timestamp holds (a 400-digit field) is left unset: the record-time checks refuse it by t_ns
-    stamp = timestamp(t_ns) if TIME_RANGE_NS[0] <= t_ns < TIME_RANGE_NS[1] else Timestamp()
     return DvlVelocity(
-        timestamp=stamp, frame_id=ctx.vehicle, frame=FRAMES[frame],
+        timestamp=timestamp(t_ns), frame_id=ctx.vehicle, frame=FRAMES[frame],
         velocity_x_mps=vx, velocity_y_mps=vy, velocity_z_mps=vz, error_velocity_mps=error,
         beam_range_m=list(ranges), altitude_m=altitude, valid=bool(valid),
         figure_of_merit=fom, sound_speed_mps=sound_speed, source_format=source,
@@ -186,8 +182,7 @@ def _pd0_block_outputs(block: pd0_blocks.Block, fixed: pd0.FixedLeader | None, c
             continue
         t += offset_ns
         msg = parse(head + pack(k0, x, k1, y, k2, z, k3, err, k4, *r, k5, alt, k6, valid, k7, sound, k8, temp))
-        ts = msg.timestamp
-        ts.seconds, ts.nanos = divmod(t, NS)
+        set_timestamp(msg.timestamp, t)
         yield Output(topic, msg, t, t, Where(off))
 
 
@@ -374,6 +369,8 @@ CONVERTERS: dict[str, Converter] = {
     "nortek": convert_nortek,
     "waterlinked": convert_waterlinked,
 }
+# the formats whose logs are (or may be) binary: read as bytes, never cut into lines (`recorders.registry`)
+BINARY_FORMATS = frozenset({"pd0", "pd4", "pd5"})
 # the formats whose logs are converted block by block, in bounded memory (`recorders.base.blockwise`)
 BLOCK_CONVERTERS: dict[str, BlockConverter] = {
     "pd6": blockwise(convert_pd6), "nortek": blockwise(convert_nortek), "waterlinked": blockwise(convert_waterlinked),

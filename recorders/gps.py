@@ -358,5 +358,7 @@ def convert_novatel(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
 
 
 CONVERTERS: dict[str, Converter] = {"nmea": convert_nmea, "novatel": convert_novatel}
+# the formats whose logs are (or may be) binary: read as bytes, never cut into lines (`recorders.registry`)
+BINARY_FORMATS = frozenset({"novatel"})  # OEM binary logs, or their ASCII form
 # the formats whose logs are converted block by block, in bounded memory (`recorders.base.BlockConverter`)
 BLOCK_CONVERTERS: dict[str, BlockConverter] = {"nmea": convert_nmea_blocks}

@@ -20,9 +20,10 @@ from formats import schemas as S
 from formats.nmea.columns import KINDS, NmeaColumns
 from formats.nmea.sentences import KNOT_MPS
 from formats.records import Reject, Where
+from formats.units import DAY_NS, NS
 
 from .base import LogContext, Output
-from .clock import DAY_NS, NS, DayClock, date_to_ns
+from .clock import DayClock, date_to_ns
 from .gnss_covariance import fix_covariance
 
 NAN = float("nan")

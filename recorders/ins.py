@@ -269,6 +269,8 @@ def convert_nmea(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
 CONVERTERS: dict[str, Converter] = {
     "phins": convert_phins, "pashr": convert_pashr, "novatel": convert_span, "nmea": convert_nmea,
 }
+# the formats whose logs are (or may be) binary: read as bytes, never cut into lines (`recorders.registry`)
+BINARY_FORMATS = frozenset({"novatel"})  # SPAN binary logs, or their ASCII form
 # the formats whose logs are converted block by block, in bounded memory (`recorders.base.blockwise`)
 BLOCK_CONVERTERS: dict[str, BlockConverter] = {
     "phins": blockwise(convert_phins), "pashr": blockwise(convert_pashr), "nmea": blockwise(convert_nmea),

@@ -1,7 +1,7 @@
 """Checks on a manifest from someone else's machine: every value in range, every log inside its folder.
 
 A manifest travels with other people's logs, so it is untrusted input: a
-`clock_offset_s = nan` or a `prefix = "weird"` is one ManifestError line
+`clock_offset_s = nan`, a `prefix = "weird"` or a path holding a NUL is one ManifestError line
 naming the key and the value, and a log path that resolves (symlinks
 followed) outside the manifest's folder is refused unless the user allows it.
 """
@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from pathlib import Path
 from typing import Any
 
@@ -54,8 +55,32 @@ def check_number(key: str, value: Any, label: str) -> None:
         raise ValueProblem(f"{label}: {key} = {value!r} is out of range [{low:g}, {high:g}]{when}")
 
 
+# a control character in a manifest string: NUL breaks every path call, a line break or an escape sequence
+# breaks the one-line messages and the terminal; a tab stays allowed (a tab-separated log's `delimiter`)
+_CONTROL = re.compile(r"[\x00-\x08\x0a-\x1f\x7f-\x9f]")
+
+
+def check_strings(value: Any, key: str, where: str) -> None:
+    """Every string of a parsed manifest, keys included, free of control characters; ValueProblem naming the key."""
+    if isinstance(value, str):
+        bad = _CONTROL.search(value)
+        if bad is not None:
+            raise ValueProblem(f"{where}: {key} holds a control character (U+{ord(bad.group()):04X}): refused")
+    elif isinstance(value, dict):
+        for k, v in value.items():
+            name = f"{key}.{k}" if key else str(k)
+            if _CONTROL.search(str(k)):
+                raise ValueProblem(f"{where}: a key {name!r} holds a control character: refused")
+            check_strings(v, name, where)
+    elif isinstance(value, list):
+        for i, item in enumerate(value):
+            check_strings(item, f"{key}[{i + 1}]", where)
+
+
 def check_values(data: dict[str, Any], where: str) -> None:
-    """Every value of a parsed manifest (tomllib's dict) in range; raises ValueProblem naming key and value."""
+    """Every value of a parsed manifest (tomllib's dict) in range, every string without control characters;
+    raises ValueProblem naming key and value."""
+    check_strings(data, "", where)
     trial = data.get("trial", {})
     if isinstance(trial, dict):
         for key in ("sound_speed_mps",):

@@ -344,3 +344,5 @@ path = "bluerov/2016-10-12 02-00-00.tlog"
 """
 
 CONVERTERS: dict[str, Converter] = {"mavlink": convert_mavlink}
+# the formats whose logs are (or may be) binary: read as bytes, never cut into lines (`recorders.registry`)
+BINARY_FORMATS = frozenset({"mavlink"})  # tlog or dataflash

@@ -47,9 +47,10 @@ from formats.micromodem import sentences as mm
 from formats.records import FormatError, Reject, Where
 from formats.scanned import positions
 from formats.schemas import AcousticRange, Log, timestamp
+from formats.units import DAY_NS, NS
 
 from .base import BlockConverter, Converter, Ignored, LogContext, Output, blockwise, output
-from .clock import DAY_NS, NS, DayClock
+from .clock import DayClock
 
 SUFFIX = "modem/range"
 EVENTS = "modem/events"

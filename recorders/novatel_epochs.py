@@ -13,9 +13,9 @@ from collections.abc import Iterator
 from formats.gpstime import gps_to_unix_ns
 from formats.novatel import scan as novatel_scan
 from formats.records import Reject
+from formats.units import archivable_ns
 
 from .base import LogContext
-from .clock import plausible_ns
 
 
 def novatel_scan_epochs(data: bytes, ctx: LogContext, kinds: frozenset[str]
@@ -57,7 +57,7 @@ def novatel_scan_time(epoch: dict[str, novatel_scan.Scanned], ctx: LogContext) -
             t = gps_to_unix_ns(week, sow) + ctx.clock_offset_ns
         except OverflowError:
             t = -1
-        return t if plausible_ns(t) else Reject(novatel_scan.where_of(first), implausible_week(week))
+        return t if archivable_ns(t) else Reject(novatel_scan.where_of(first), implausible_week(week))
     for _, _, _, _, _, _, _, host in epoch.values():
         if host is not None:
             return host + ctx.clock_offset_ns

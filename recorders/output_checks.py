@@ -3,17 +3,19 @@
 The archive is written to a part file beside the output (`.NAME.part-PID`,
 see formats.mcap_writer) and moved over the output name when complete. A
 part file left by a process that is gone (kill -9, power loss) is removed by
-the next run on the same output.
+the next run of any command writing the same output (formats.output_files).
 """
 
 from __future__ import annotations
 
 import os
-import re
 from collections.abc import Iterable
 from pathlib import Path
 
 from formats.mcap_records import MAGIC
+from formats.output_files import remove_stale_parts
+
+__all__ = ["OutputProblem", "check_output", "remove_stale_parts"]
 
 
 class OutputProblem(ValueError):
@@ -42,37 +44,3 @@ def _is_archive(path: Path) -> bool:
             return f.read(len(MAGIC)) == MAGIC
     except OSError:
         return False
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True  # another user's process
-    return True
-
-
-def remove_stale_parts(output: Path) -> list[Path]:
-    """Remove the part files of `output` whose writing process is no longer alive; returns them."""
-    pattern = re.compile(rf"^\.{re.escape(output.name)}\.part-(\d+)$")
-    removed: list[Path] = []
-    try:
-        names = os.listdir(output.parent if str(output.parent) else ".")
-    except OSError:
-        return removed
-    for name in names:
-        m = pattern.match(name)
-        if m is None:
-            continue
-        pid = int(m.group(1))
-        if pid != os.getpid() and not _alive(pid):
-            part = output.with_name(name)
-            try:
-                if part.is_file() and not part.is_symlink():
-                    part.unlink()
-                    removed.append(part)
-            except OSError:
-                pass
-    return removed

@@ -19,11 +19,12 @@ from formats import schemas as S
 from formats.log_blocks import ChangedWhileRead, LogFiles, blocks_of
 from formats.mcap_writer import ArchiveWriter
 from formats.records import FormatError, Reject, Where
+from formats.units import NS, archivable_ns
 
-from .base import NS, BlockConverter, Converter, Ignored, LogContext, Output
+from .base import BlockConverter, Converter, Ignored, LogContext, Output
 from .clock import date_to_ns, iso_utc, log_offset_ns, offset_problem, shift_text
 from .manifest import LogSpec, Manifest, ManifestError
-from .output_checks import OutputProblem, check_output, remove_stale_parts
+from .output_checks import OutputProblem, check_output
 from .record_parallel import (
     Capture,
     Captured,
@@ -35,7 +36,10 @@ from .record_parallel import (
     write_captured,
 )
 from .registry import block_converters, converters
-from .value_checks import MAX_RANGE_M, TIME_RANGE_NS, ValueChecks
+from .value_checks import MAX_RANGE_M, ValueChecks
+
+# a log's converter as the recorder calls it: whole bytes, blocks or text in, outputs, rejects and skips out
+AnyConverter = Callable[..., Iterator[Output | Reject | Ignored]]
 
 Progress = Callable[[str, int, int], None]  # (file, bytes done, bytes total)
 # automatic mode decodes in-process below this much input: forking workers and
@@ -139,7 +143,7 @@ def read_parts(manifest: Manifest, log: LogSpec) -> list[tuple[str, bytes]]:
     return [(name, (manifest.root / name).read_bytes()) for name in log.files()]
 
 
-def _first_time(convert, data: bytes, ctx: LogContext) -> float:
+def _first_time(convert: AnyConverter, data: bytes, ctx: LogContext) -> float:
     """The earliest message time of one file decoded alone (inf without any), for `order = "time"`."""
     try:
         times = [item.log_time_ns for item in convert(data, ctx) if type(item) is Output]
@@ -149,7 +153,7 @@ def _first_time(convert, data: bytes, ctx: LogContext) -> float:
 
 
 def _order_parts(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]],
-                 convert) -> list[tuple[str, bytes]]:
+                 convert: AnyConverter) -> list[tuple[str, bytes]]:
     """The parts in log order: as given, or (order = "time") by the first message time of each decoded alone."""
     if log.order != "time" or len(parts) < 2:
         return parts
@@ -291,7 +295,7 @@ class LogRecorder:
         if problem is not None:
             # stamped at the message's own time when it has one: a log whose every message is refused must not
             # move its diagnostics to the fallback (the trial date's midnight) and with them the trial's start
-            t_hint = item.log_time_ns if TIME_RANGE_NS[0] <= item.log_time_ns < TIME_RANGE_NS[1] else None
+            t_hint = item.log_time_ns if archivable_ns(item.log_time_ns) else None
             self._reject(Reject(item.where if item.where is not None else Where(0), problem), t_hint)
             return
         t = item.log_time_ns
@@ -401,7 +405,8 @@ def trial_metadata(manifest: Manifest) -> dict:
     }
 
 
-def _iter_outputs(convert, data: Any, ctx: LogContext, log: LogSpec) -> Iterator[Output | Reject]:
+def _iter_outputs(convert: AnyConverter, data: Any, ctx: LogContext,
+                  log: LogSpec) -> Iterator[Output | Reject | Ignored]:
     try:
         yield from convert(data, ctx)
     except FormatError as exc:
@@ -446,7 +451,7 @@ def resolve_workers(manifest: Manifest, workers: int | None = None) -> int:
     return max(1, min(workers, logs)) if can_fork() else 1
 
 
-def _decode_log(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]], convert, fallback: int,
+def _decode_log(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]], convert: AnyConverter, fallback: int,
                 sink: MessageSink, progress: Progress | None) -> tuple[FileStats, bytes]:
     """Convert one log's files (already in log order, see `_order_parts`) into `sink`; its statistics and bytes."""
     data = parts[0][1] if len(parts) == 1 else b"".join(d for _, d in parts)
@@ -644,7 +649,7 @@ def _next_captured(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[C
     return pool.result(i)
 
 
-def record(manifest: Manifest, output_path, progress: Progress | None = None,
+def record(manifest: Manifest, output_path: str | Path, progress: Progress | None = None,
            workers: int | None = None, replace: bool = True) -> RecordingSummary:
     """Record every log of the manifest into `output_path`; returns the per-file summary.
 
@@ -652,8 +657,9 @@ def record(manifest: Manifest, output_path, progress: Progress | None = None,
     the archive is byte-for-byte the same whatever their number. The output is
     never one of the inputs nor an existing file other than an MCAP archive,
     and an existing archive only with `replace` (see recorders.output_checks);
-    the part file is removed on any failure, and stale ones of dead processes
-    before the start.
+    a second process writing the same output at the same time is refused
+    (formats.output_files); the part file is removed on any failure, and stale
+    ones of dead processes before the start.
     """
     output = Path(output_path)
     try:
@@ -667,7 +673,6 @@ def record(manifest: Manifest, output_path, progress: Progress | None = None,
         raise ManifestError(f"{manifest.path}: log {live.path} is a live source ({live.source}): "
                             "use `auvreplay capture`")
     summary = RecordingSummary(workers=resolve_workers(manifest, workers))
-    summary.removed_parts = [str(p) for p in remove_stale_parts(output)]
     fallback = date_to_ns(manifest.date) if manifest.date else 0
     writer: ArchiveWriter | None = None
     try:
@@ -678,7 +683,10 @@ def record(manifest: Manifest, output_path, progress: Progress | None = None,
                 # decoding processes and starts on the first log while the workers start
                 pool = stack.enter_context(WorkerPool(partial(_capture_log, manifest, tables, fallback),
                                                       len(manifest.logs()), summary.workers - 1, caller_first=True))
-            writer = stack.enter_context(ArchiveWriter(output))
+            # claimed here, atomically: a second run on the same output at once is refused, and without
+            # `replace` so is an archive that appeared since check_output
+            writer = stack.enter_context(ArchiveWriter(output, replace=replace))
+            summary.removed_parts = [str(p) for p in writer.removed_parts]
             # first, so that an archive cut off mid-write still says who is who
             writer.add_metadata("trial", trial_metadata(manifest))
             if pool is None:

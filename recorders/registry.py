@@ -52,6 +52,23 @@ def block_converters() -> dict[tuple[str, str], BlockConverter]:
     return table
 
 
+def binary_formats() -> frozenset[tuple[str, str]]:
+    """The (sensor, format)s whose logs are (or may be) binary: their modules' BINARY_FORMATS (csv never is)."""
+    found: set[tuple[str, str]] = set()
+    for family in SENSORS:
+        module = importlib.import_module(FAMILY_MODULES[family])
+        found.update((family, fmt) for fmt in getattr(module, "BINARY_FORMATS", ()))
+    for fmt, name in CONTAINER_MODULES.items():
+        if fmt in getattr(importlib.import_module(name), "BINARY_FORMATS", ()):
+            found.add(("", fmt))
+    return frozenset(found)
+
+
+def is_binary(sensor: str, fmt: str) -> bool:
+    """Whether a (sensor, format)'s log is (or may be) binary: read as bytes, never cut into lines or stamped."""
+    return (sensor, fmt) in binary_formats()
+
+
 def family_converter(sensor: str, fmt: str) -> Converter:
     """The converter of one sensor family's vendor format, for containers that carry such logs inside them."""
     return importlib.import_module(FAMILY_MODULES[sensor]).CONVERTERS[fmt]

@@ -38,6 +38,7 @@ from typing import Any
 from formats import rosbag as rb
 from formats import schemas as S
 from formats.records import FormatError, Reject, Where
+from formats.units import NS
 
 from . import dvl
 from .base import Converter, Ignored, LogContext, Output, output
@@ -110,7 +111,7 @@ def _stamp_ns(msg: Any, bag_ns: int) -> int:
     sec = getattr(stamp, "sec", getattr(stamp, "secs", 0))
     nsec = getattr(stamp, "nanosec", getattr(stamp, "nsecs", 0))
     try:
-        t = int(sec) * 1_000_000_000 + int(nsec)
+        t = int(sec) * NS + int(nsec)
     except (TypeError, ValueError):
         return bag_ns
     return t if t > 0 else bag_ns
@@ -367,3 +368,5 @@ origin = [45.70, 126.60]           # datum of the bag's local (odom/map) frame, 
 """
 
 CONVERTERS: dict[str, Converter] = {"rosbag": convert_rosbag}
+# the formats whose logs are (or may be) binary: read as bytes, never cut into lines (`recorders.registry`)
+BINARY_FORMATS = frozenset({"rosbag"})

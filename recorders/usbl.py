@@ -38,9 +38,9 @@ from formats.log_blocks import LogText
 from formats.records import FormatError, Reject, Where
 from formats.scanned import positions
 from formats.schemas import UsblObservation, timestamp
+from formats.units import NS, archivable_ns
 
 from .base import BlockConverter, Converter, LogContext, Output, blockwise, output
-from .clock import NS, plausible_ns
 from .modem import (
     NO_USBL_TIME,
     RegexOptions,
@@ -154,7 +154,7 @@ class _ScanEmitter:
             arrival = measurement_ns(publish, v[LONG.current_time_s], v[LONG.measurement_time_s])
         values = _scan_values(parts, self.opts)
         t = fix_time(arrival, values[0])
-        if not plausible_ns(t):
+        if not archivable_ns(t):
             return Reject(Where(offset, line, host), IMPLAUSIBLE_FIX)
         if host is None:
             publish = t  # as `output` publishes a record without host time

@@ -17,11 +17,9 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from .clock import TIME_MAX_NS, TIME_MIN_NS
+from formats.units import archivable_ns
 
 MAX_RANGE_M = 20_000.0
-# log times: 1970-01-01 .. 2200-01-01 (ns); anything else is a parse of garbage
-TIME_RANGE_NS = (TIME_MIN_NS, TIME_MAX_NS)
 RANGE_FIELDS = frozenset({"range_m"})
 _ABOVE_ZERO = 1e-9  # ranges must be above 0: the closed interval's low end
 
@@ -104,7 +102,7 @@ class ValueChecks:
 
     def problem(self, message: Any, log_time_ns: int) -> str | None:
         """Why a message cannot be archived (field, value, limits), or None when every value is in range."""
-        if not TIME_RANGE_NS[0] <= log_time_ns < TIME_RANGE_NS[1]:
+        if not archivable_ns(log_time_ns):  # anything else is a parse of garbage
             self.out_of_range += 1
             return f"time {log_time_ns} ns is outside 1970-2200"
         cls = type(message)

@@ -18,11 +18,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from formats.geodesy import LocalFrame
+
 from . import anomalies as an
 from . import conditions as cond
 from .scenario import AnomalyEvent, Scenario
 from .sensors import GpsSeries, InsSeries, grid
-from .trajectories import LocalFrame, Track, interp_track, stream
+from .trajectories import Track, interp_track, stream
 
 
 @dataclass(frozen=True)

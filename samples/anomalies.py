@@ -15,8 +15,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from formats.geodesy import metric_scales
+
 from .scenario import AnomalyEvent, NaturalAnomalies
-from .trajectories import radii, stream
+from .trajectories import stream
 
 KIND_CODES = {"": 0, "stale": 1, "drift": 2, "outlier": 3, "multipath": 4}
 T1_M = 9.0
@@ -116,9 +118,7 @@ def gps_range(lat_a: np.ndarray, lon_a: np.ndarray, lat_b: np.ndarray, lon_b: np
     la, lb = np.radians(lat_a), np.radians(lat_b)
     mid = 0.5 * (la + lb)
     h = 0.5 * (depth_a + depth_b)
-    rm, rn = radii(mid)
-    b = rm + h
-    a = (rn + h) * np.cos(mid)
+    b, a = metric_scales(mid, h)
     return np.hypot(b * (la - lb), a * np.radians(lon_a - lon_b))
 
 

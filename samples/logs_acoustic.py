@@ -13,11 +13,11 @@ import numpy as np
 
 from formats.evologics import notifications as evologics
 from formats.micromodem import sentences as micromodem
+from formats.units import NS
 
 from .simulator import SimulatedTrial
 from .trajectories import interp_track
 
-NS = 1_000_000_000
 # USBL modem clocks count seconds from power-up, switched on before the trial
 USBL_POWER_UP_BEFORE_S = 600.0
 # the modem answers a ping command in about this long (CAMPC echo)

@@ -12,9 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from formats.geodesy import LocalFrame
+
 from .conditions import bottom_lock, compass_deviation
 from .scenario import Conditions, DvlConfig, GpsConfig, InsConfig
-from .trajectories import LocalFrame, Track, gauss_markov, stream
+from .trajectories import Track, gauss_markov, stream
 
 # lake surface height above mean sea level and the local geoid separation
 # (Harbin area; only written into GGA, never used by the stack)

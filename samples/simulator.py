@@ -14,14 +14,15 @@ from datetime import date, time
 
 import numpy as np
 
+from formats.geodesy import LocalFrame
+from formats.units import NS
+
 from . import acoustics as ac
 from .anomalies import Interval
 from .conditions import realized
 from .scenario import Scenario, validate
 from .sensors import DvlSeries, GpsSeries, InsSeries, heading_error, simulate_dvl, simulate_gps, simulate_ins
-from .trajectories import LocalFrame, Track, default_plans, make_track
-
-NS = 1_000_000_000
+from .trajectories import Track, default_plans, make_track
 
 
 @dataclass(frozen=True)

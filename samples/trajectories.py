@@ -1,4 +1,4 @@
-"""Truth tracks of the lake trial's boats, and the local-frame geodesy they live in.
+"""Truth tracks of the lake trial's boats, in the local frame of `formats.geodesy.LocalFrame`.
 
 Tracks are closed racetracks (straight legs and constant-rate turns) repeated
 for as long as the trial lasts, with a slow heading and speed wander and a
@@ -15,41 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
-RE_M = 6378137.0
-FLATTENING = 1.0 / 298.257
-
-
-def radii(lat_rad: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
-    """Meridian and prime-vertical radii R_M, R_N (A.2, docs/design.md section 7)."""
-    s2 = np.sin(lat_rad) ** 2
-    return RE_M * (1 - 2 * FLATTENING + 3 * FLATTENING * s2), RE_M * (1 + FLATTENING * s2)
-
-
-@dataclass(frozen=True)
-class LocalFrame:
-    """East-north metres around an origin, scaled to degrees with the origin's radii.
-
-    One fixed scaling (not a projection) keeps the map exactly invertible;
-    over a 2 km lake it differs from the stack's mid-point radii by about
-    1e-5 (1 cm per km), far below any sensor's noise.
-    """
-
-    lat0_deg: float
-    lon0_deg: float
-
-    def _scale(self) -> tuple[float, float]:
-        rm, rn = radii(math.radians(self.lat0_deg))
-        return float(rm), float(rn) * math.cos(math.radians(self.lat0_deg))
-
-    def to_geodetic(self, east_m: np.ndarray, north_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Latitude and longitude in degrees for local east/north metres."""
-        b, a = self._scale()
-        return self.lat0_deg + np.degrees(north_m / b), self.lon0_deg + np.degrees(east_m / a)
-
-    def to_local(self, lat_deg: np.ndarray, lon_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Local east/north metres for latitude and longitude in degrees."""
-        b, a = self._scale()
-        return np.radians(lon_deg - self.lon0_deg) * a, np.radians(lat_deg - self.lat0_deg) * b
+from formats.geodesy import LocalFrame
 
 
 def stream(seed: int, *names: str) -> np.random.Generator:

@@ -22,8 +22,9 @@ from formats.nmea import sentences as nmea
 from formats.novatel import logs as novatel
 from formats.pd0 import ensembles as pd0
 from formats.records import Reject
+from formats.units import NS, archivable_ns
 from recorders.base import Ignored, LogContext, Output, output
-from recorders.clock import NS, DayClock, plausible_ns
+from recorders.clock import DayClock
 from recorders.dvl import pd0_items
 from recorders.epochs import group_epochs, host_time_ns
 from recorders.gnss_covariance import Covariance, fix_covariance, sigma_covariance
@@ -133,7 +134,7 @@ def novatel_time(epoch: list[novatel.NovatelRecord], ctx: LogContext) -> int | R
         t = -1
     if t is not None:
         t += ctx.clock_offset_ns
-        return t if plausible_ns(t) else Reject(epoch[0].where, implausible_week(epoch[0].header.week))
+        return t if archivable_ns(t) else Reject(epoch[0].where, implausible_week(epoch[0].header.week))
     host = host_time_ns(epoch, ctx)
     if host is None:
         return Reject(epoch[0].where, "no time: GPS week 0 or unknown time status, and no host timestamp")
@@ -451,7 +452,7 @@ def _emit(ctx: LogContext, group: _Group, opts: UsblOptions) -> Output | Reject:
         return Reject(first.where, NO_USBL_TIME)
     v = _values(group, opts)
     t = fix_time(arrival, v.get("travel_time_s", 0.0))
-    if not plausible_ns(t):
+    if not archivable_ns(t):
         return Reject(first.where, IMPLAUSIBLE_FIX)
     msg = observation(t, ctx.vehicle, ctx.vehicle_for_address(first.address), "evologics", v)
     return output(ctx, USBL_SUFFIX, msg, t, first.where)

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from formats.geodesy import local_to_geodetic
 from replay.cli import main
 from tests.test_views import Rrd
 from tests.trial_shapes import (
@@ -58,6 +59,13 @@ MAX_ERROR_M = 8.0
 def geodetic(north: float, east: float) -> tuple[float, float]:
     """Latitude and longitude (deg) of a point north/east (m) of (LAT0, LON0), on the sphere."""
     return (LAT0 + math.degrees(north / R), LON0 + math.degrees(east / (R * math.cos(math.radians(LAT0)))))
+
+
+def recorded(north: float, east: float) -> tuple[float, float]:
+    """Latitude and longitude (deg) a recorder gives a local north/east (m) about (LAT0, LON0): the WGS84 radii of
+    the origin (formats.geodesy), which differ from `geodetic`'s sphere by a few tenths of a percent."""
+    lat, lon = local_to_geodetic(east, north, LAT0, LON0)
+    return float(lat), float(lon)
 
 
 def local(lat: float, lon: float) -> tuple[float, float]:
@@ -257,7 +265,7 @@ def write_ugv_bag(path: Path) -> Written:
         n, e = drifted(t)
         t_ns = T0 * NS + k * 200_000_000 + 50_000_000
         items += [odometry(ts, t_ns, e, n, 0.0, q, math.hypot(V_NORTH, V_EAST)), imu(ts, t_ns + 10_000_000, q)]
-        w.ins.append((t, *geodetic(n, e), V_NORTH, V_EAST))
+        w.ins.append((t, *recorded(n, e), V_NORTH, V_EAST))    # Odometry: local metres on the origin
     write_ros1(path, ts, items)
     return w
 
@@ -386,7 +394,7 @@ def test_ardusub_bin_without_gps(tmp_path, capsys, monkeypatch):
     write_nogps_bin(tmp_path / "dive.BIN", seconds=10)
     assert NOGPS_ORIGIN == (round(LAT0 * 1e7), round(LON0 * 1e7))  # so `geodetic` is about the EKF origin
     # XKF1 core 0 at boot + k + 1.001 s: 100 k m north and 50 k m east of the origin; the trial starts at k = 0
-    w = Written(ins=[(float(k), *geodetic(100.0 * k, 50.0 * k), 0.5, 0.25) for k in range(10)])
+    w = Written(ins=[(float(k), *recorded(100.0 * k, 50.0 * k), 0.5, 0.25) for k in range(10)])   # XKF1: local
     toml = manifest(tmp_path, "rov", "mavlink", "dive.BIN", f'time_base = "boot"\nstart = "{START}"')
     r = review(tmp_path, toml, capsys, monkeypatch)
     check_skipped(r.metrics, NEEDS_RANGES, runs_dr=True,

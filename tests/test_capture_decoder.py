@@ -11,13 +11,13 @@ from hypothesis import strategies as st
 
 from formats.lines import strip_prefix
 from formats.records import Where
-from recorders.base import Ignored, Output
+from recorders.base import Ignored, LogContext, Output
 from recorders.capture.base import SourceError
 from recorders.capture.decoder import StreamDecoder, stamp_prefix
 from recorders.capture.sources import make_source
 from recorders.manifest import ManifestError, load_manifest, parse_manifest
 from recorders.record import log_context, record
-from recorders.registry import converters
+from recorders.registry import binary_formats, block_converters, converters, is_binary
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "samples" / "lake_trial" / "trial.toml"
@@ -129,3 +129,15 @@ def test_ignored_items_are_counted_over_the_whole_stream():
     out += d.decode(final=True)
     assert [(i.where.offset, i.where.line) for i in out] == [(11 * k, k + 1) for k in range(2000)]
     assert all(type(i) is Ignored and i.reason == "unmapped" for i in out)
+
+
+def test_the_decoder_reads_binariness_from_the_registry() -> None:
+    """Binary formats are the registry's: taken as bytes, never cut into lines nor stamped; text ones are."""
+    blocks = block_converters()
+    assert binary_formats() == {("dvl", "pd0"), ("dvl", "pd4"), ("dvl", "pd5"), ("gps", "novatel"),
+                                ("ins", "novatel"), ("", "rosbag"), ("", "mavlink")}
+    for (sensor, fmt), convert in TABLE.items():
+        d = StreamDecoder(convert, LogContext("v"), sensor, fmt)
+        assert d.text == (not is_binary(sensor, fmt)) and d.stamp == d.text, (sensor, fmt)
+        # a line-based format's converter also takes its log in blocks (recorders.base); a binary one never does
+        assert ((sensor, fmt) in blocks) == d.text, (sensor, fmt)

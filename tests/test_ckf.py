@@ -9,13 +9,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.stats import chi2
 
+from formats.geodesy import metric_scales_scalar
 from replay.stack import model
 from replay.stack.filters import ckf, cubature
 from replay.stack.filters.ckf import State2
 
 LAT = math.radians(45.7)
 LON = math.radians(126.6)
-B0, A0 = model.metric_scales_scalar(LAT, 0.0)
+B0, A0 = metric_scales_scalar(LAT, 0.0)
 
 
 def to_rad(north: float, east: float) -> tuple[float, float]:

@@ -10,10 +10,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from formats.geodesy import metric_scales_scalar
 from replay.stack.config import FeatureConfig
 from replay.stack.dr_error_model import DrErrorModel
 from replay.stack.features import EXTRA_FEATURES, FeatureTracker, range_to
-from replay.stack.model import metric_scales_scalar
 
 HEADING_WALK = math.radians(0.03)
 

@@ -28,6 +28,10 @@ NMEA_LINES = [
     "$GPGGA,020001.00,4542.135715,N,12635.846791,E,1,08,1.0,117.99,M,-8.00,M,,*71",
     "$GPGST,020001.00,1.800,,,,1.273,1.273,3.000*70",
 ]
+# Local north metres become degrees with the meridian radius at the origin, R_M = R_e (1 - 2f + 3f sin²L) (the
+# radii every layer shares, formats.geodesy): 6,368,228 m at 45.7°. Until 2026-12-02 the recorders used a sphere
+# of radius R_e here, 0.16 % longer, which put 200 m north 0.31 m short of where the simulator and the stack put it.
+MERIDIAN_RADIUS_45_7 = 6378137.0 * (1 - 2 / 298.257 + 3 / 298.257 * math.sin(math.radians(45.7)) ** 2)
 
 
 def manifest(tmp: Path, logs: str, date: bool = True) -> Path:
@@ -211,7 +215,7 @@ def test_bag_maps_every_type_like_the_vendor_logs(bags, tmp_path, kind):
     assert math.isnan(imu.latitude)
     # odom: x east 100 m, y north 200 m of the origin, z -5 (ENU) -> depth 5; 1.5 m/s forward heading north
     assert odom.depth_m == pytest.approx(5.0)
-    assert odom.latitude == pytest.approx(45.7 + math.degrees(200 / 6378137.0))
+    assert odom.latitude == pytest.approx(45.7 + math.degrees(200 / MERIDIAN_RADIUS_45_7), abs=1e-11)
     assert odom.velocity_north_mps == pytest.approx(1.5) and odom.velocity_east_mps == pytest.approx(0.0, abs=1e-9)
     dvl = {t: S.DvlVelocity.FromString(b) for t, b in by["/auv/dvl"]}
     twist, a50 = dvl[T0 + 4 * 10**9], dvl[T0 + 5 * 10**9]
@@ -465,7 +469,7 @@ def test_alog_maps_variables_and_raw_nmea(tmp_path):
     assert [f for f in by["/auv/gps"] if f[0] < T0 + 2 * 10**9] == vendor["/auv/gps"]
     nav = S.InsState.FromString(next(b for t, b in by["/auv/ins"] if t == T0 + 2 * 10**9))
     assert nav.depth_m == 5.5 and nav.heading_deg == 90.0 and nav.velocity_east_mps == pytest.approx(1.2)
-    assert nav.latitude == pytest.approx(45.7 + math.degrees(200 / 6378137.0))
+    assert nav.latitude == pytest.approx(45.7 + math.degrees(200 / MERIDIAN_RADIUS_45_7), abs=1e-11)
     gps = S.LocationFix.FromString(next(b for t, b in by["/auv/gps"] if t == T0 + 3 * 10**9))
     assert (gps.latitude, gps.longitude) == (45.71, 126.61)
     (vel_t, vel), = by["/auv/gps/velocity"]

@@ -195,3 +195,35 @@ def test_trial_and_vehicle_values_are_checked(tmp_path):
         manifest.write_text(text.replace(old, new))
         with pytest.raises(ManifestError, match=words):
             load_manifest(manifest)
+
+
+# -- strings ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("old, new, key, code", [
+    ('path = "gps.log"', 'path = "gps\\u0000.log"', "vehicles[1].logs[1].path", "U+0000"),
+    ('path = "gps.log"', 'path = "gps.log\\n"', "vehicles[1].logs[1].path", "U+000A"),
+    ('name = "t"', 'name = "t\\u001b[2J"', "trial.name", "U+001B"),
+    ('name = "a"', 'name = "a\\u0000"', "vehicles[1].name", "U+0000"),
+    ('sensor = "gps"', 'sensor = "gps\\r"', "vehicles[1].logs[1].sensor", "U+000D"),
+    ('format = "nmea"', 'format = "nmea"\nsplit = ["x", "y\\u0085"]', "vehicles[1].logs[1].split[2]", "U+0085"),
+    ('format = "nmea"', 'format = "nmea"\ncolumns = { time = "t\\u007f" }', "vehicles[1].logs[1].columns.time",
+     "U+007F"),
+])
+def test_a_control_character_in_any_manifest_string_is_one_line(tmp_path, capsys, old, new, key, code):
+    manifest = trial(tmp_path)
+    manifest.write_text(manifest.read_text().replace(old, new, 1))
+    rc, _, err = run_cli(capsys, "record", str(manifest), "-o", str(tmp_path / "o.mcap"), "--quiet")
+    line = error_line(err)
+    assert rc == 1 and f"{key} holds a control character ({code})" in line and str(manifest) in line
+    assert not (tmp_path / "o.mcap").exists()
+    with pytest.raises(ManifestError, match="control character"):
+        load_manifest(manifest)
+
+
+def test_a_control_character_in_a_key_is_refused_and_a_tab_is_not(tmp_path):
+    manifest = trial(tmp_path)
+    text = manifest.read_text()
+    manifest.write_text(text.replace('format = "nmea"', 'format = "nmea"\n"odd\\u0000key" = 1', 1))
+    with pytest.raises(ManifestError, match="a key 'vehicles\\[1\\].logs\\[1\\].odd\\\\x00key' holds a control"):
+        load_manifest(manifest)
+    manifest.write_text(text.replace('name = "t"', 'name = "t\\tu"', 1))
+    assert load_manifest(manifest).name == "t\tu"  # a tab (a tab-separated log's delimiter) is text

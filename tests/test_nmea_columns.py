@@ -10,13 +10,13 @@ from hypothesis import strategies as st
 from formats.nmea import columns as nmea_columns
 from formats.nmea import sentences as nmea
 from formats.nmea.framing import build
+from formats.units import NS as S1
 from recorders import gps, gps_columns
 from recorders.base import LogContext, Output
 from tests import reference_converters as reference
 
 DAY = date(2016, 10, 12)
 T0 = 1476230400 * 10**9 + 23 * 3600 * 10**9 + 3599 * 10**9  # 23:59:59: epochs roll over midnight
-S1 = 10**9
 
 _CLEAN = st.sampled_from([
     lambda t: nmea.encode_gga(t, 45.7, 126.6, hdop=0.9, geoid_separation_m=-8.0),

@@ -10,12 +10,12 @@ from hypothesis import strategies as st
 from formats.novatel import logs as nv
 from formats.novatel import scan as novatel_scan
 from formats.records import Reject
+from formats.units import NS as S1
 from recorders import gps, ins
 from recorders.base import LogContext, Output
 from tests import reference_converters as reference
 
 T0 = 1476259201_250_000_000  # 2016-10-12T08:00:01.25Z
-S1 = 1_000_000_000
 
 
 def _comparable(value: object) -> object:

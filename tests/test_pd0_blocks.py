@@ -6,18 +6,18 @@ import math
 import struct
 
 import numpy as np
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from formats.pd0 import blocks as pd0_blocks
 from formats.pd0 import ensembles as pd0
 from formats.records import Reject
+from formats.units import NS as S1
 from recorders import dvl
 from recorders.base import LogContext, Output
 from tests import reference_converters as reference
 
 T0 = 1476259201_250_000_000  # 2016-10-12T08:00:01.25Z
-S1 = 1_000_000_000
 
 
 def _rows(items: list) -> list:
@@ -114,9 +114,16 @@ def test_scan_gives_what_decode_gives(parts, damage, cut) -> None:
     assert _rows(list(pd0_blocks.scan(data))) == _reference_rows(data)
 
 
+# the Y2K RTC's year byte (body byte 129 of a kind-0 ensemble) set to 200 dates it 2200-10-12, no archivable
+# time: the block path set its Timestamp, the reference left it unset (found by a random hypothesis run)
+_DATED_2200 = [(0, "ship", False, (71 + 58, 200))]
+
+
 @settings(max_examples=200, deadline=None)
 @given(st.lists(_ENSEMBLE, max_size=12), _DAMAGE, st.integers(-2, 2),
        st.sampled_from([{}, {"beam_angle_deg": 25.0}]))
+@example(_DATED_2200, [], 0, {})
+@example(_DATED_2200 + [(1, "ship", False, None)], [], -2, {})
 def test_fast_pd0_path_equals_the_record_based_reference(parts, damage, offset_s, options) -> None:
     data = _build(parts, damage)
     ctx = LogContext("follower", clock_offset_ns=offset_s * S1, options=options)
@@ -131,6 +138,17 @@ def test_any_bytes_scan_as_decode_does(data: bytes) -> None:
         assert _rows(list(pd0_blocks.scan(blob))) == _reference_rows(blob)
         ctx = LogContext("follower")
         assert _outputs(dvl.convert_pd0(blob, ctx)) == _outputs(reference.convert_pd0_reference(blob, ctx))
+
+
+def test_an_ensemble_dated_2200_has_no_timestamp_on_either_path() -> None:
+    data = _build(_DATED_2200, [])
+    (ensemble,) = pd0.decode(data)
+    assert isinstance(ensemble, pd0.Ensemble) and ensemble.variable is not None
+    assert ensemble.variable.y2k_rtc is not None and ensemble.variable.y2k_rtc[:2] == (20, 200)
+    ctx = LogContext("follower")
+    for out in (next(dvl.convert_pd0(data, ctx)), next(reference.convert_pd0_reference(data, ctx))):
+        assert isinstance(out, Output) and out.log_time_ns == 7_282_684_801_250_000_000  # 2200-10-12T08:00:01.25Z
+        assert not out.message.HasField("timestamp")
 
 
 def test_a_clean_deployment_is_one_block() -> None:

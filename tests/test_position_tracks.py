@@ -22,7 +22,16 @@ from recorders.base import Ignored, LogContext, Output
 from recorders.manifest import load_manifest
 from recorders.record import record
 from replay.cli import main
-from tests.trial_shapes import enu_quaternion, imu, mavlink, odometry, ros1_typestore, tlog_bytes, write_ros1
+from tests.trial_shapes import (
+    enu_quaternion,
+    imu,
+    local_reference,
+    mavlink,
+    odometry,
+    ros1_typestore,
+    tlog_bytes,
+    write_ros1,
+)
 
 T0 = 1476237600  # 2016-10-12 02:00:00 UTC, s
 R = 6_378_137.0
@@ -61,8 +70,8 @@ def _near(got: list[tuple[float, float]], want: list[tuple[float, float]]) -> bo
 
 
 def _local(north: float, east: float, lat0: float = LAT0, lon0: float = LON0) -> tuple[float, float]:
-    """A local tangent-plane point on its origin, spherical earth (the recorders' documented approximation)."""
-    return lat0 + north / R * 180 / math.pi, lon0 + east / (R * math.cos(lat0 * math.pi / 180)) * 180 / math.pi
+    """A local tangent-plane point on its origin, on the earth radii at the origin (as every recorder places one)."""
+    return local_reference(north, east, lat0, lon0)
 
 
 def _topic(archive: Path, topic: str) -> list:

@@ -21,9 +21,9 @@ from formats import nortek, pashr
 from formats.nmea import sentences as nmea
 from formats.pd0 import ensembles as pd0
 from formats.records import Reject, Where
+from formats.units import NS
 
 REAL = Path(__file__).parent / "data" / "real"
-NS = 1_000_000_000
 
 
 def _read(name: str) -> bytes:

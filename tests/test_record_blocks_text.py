@@ -22,6 +22,7 @@ from formats.log_blocks import LogBlocks, blocks_of
 from formats.micromodem import scan as micromodem_scan
 from formats.micromodem import sentences as mm
 from formats.nmea import sentences as nmea
+from formats.units import NS as S
 from recorders import alog, csvlog, dvl, ins, modem, usbl
 from recorders.base import LogContext
 from recorders.manifest import SENSORS, load_manifest
@@ -37,7 +38,6 @@ GPS = (SAMPLE / "follower" / "gps.log").read_bytes()
 MICROMODEM = (SAMPLE / "follower" / "modem.log").read_bytes()
 USBL = (SAMPLE / "buoy1" / "usbl.log").read_bytes()
 BOOK = load_manifest(SAMPLE / "trial.toml").address_book()
-S = 10**9
 T_MIDNIGHT = 1476316790 * S  # 2016-10-12T23:59:50Z: the day clock must roll over across blocks
 CTX = LogContext(vehicle="v", trial_date=date(2016, 10, 12))
 

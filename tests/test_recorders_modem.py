@@ -13,11 +13,11 @@ from formats import regex_lines as rx
 from formats.evologics import notifications as ev
 from formats.micromodem import sentences as mm
 from formats.records import FormatError, Reject
+from formats.units import NS as S
 from recorders import modem, usbl
 from recorders.base import Ignored, LogContext, Output
 
 T0 = 1476259200_000_000_000  # 2016-10-12T08:00:00Z
-S = 1_000_000_000
 BOOK = {1: "leader1", 2: "leader2", 3: "follower", 9: "buoy1"}
 
 

@@ -15,6 +15,7 @@ from formats.nmea import sentences as nmea
 from formats.nmea.framing import build
 from formats.novatel import logs as novatel
 from formats.records import Reject, Where
+from formats.units import NS as S1
 from recorders import gnss_covariance, gps, ins
 from recorders.base import LogContext, Output
 from tests import reference_converters as reference
@@ -22,7 +23,6 @@ from tests import reference_converters as reference
 DAY = date(2016, 10, 12)
 MIDNIGHT = 1476230400 * 10**9  # 2016-10-12T00:00:00Z
 T0 = MIDNIGHT + (8 * 3600 + 1) * 10**9 + 250_000_000  # 08:00:01.25
-S1 = 10**9
 
 
 def run(conv, data: bytes, **kw) -> tuple[list[Output], list[Reject]]:

@@ -318,3 +318,13 @@ def test_report_has_every_track_and_each_vehicles_own_navigation(report):
     assert {(v, m) for _, v, m, _ in rows} == {(v, m) for v, n in stored.items() for m in n["methods"]}
     for _, vehicle, method, p50 in rows:
         assert p50 == format_value(stored[vehicle]["methods"][method]["error_p50_m"])
+
+
+def test_report_of_the_bundled_sample_finds_its_anomaly_kinds_itself(runs, tmp_path, capsys):
+    out = tmp_path / "found.html"
+    assert main(["report", str(runs[0].output), "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert f"anomaly kinds from {SAMPLE / 'anomalies.csv'}" in printed
+    kinds = {i.kind for i in load_intervals(SAMPLE / "anomalies.csv")}
+    section = out.read_text().split('id="kinds"', 1)[1]
+    assert all(kind in section for kind in kinds)

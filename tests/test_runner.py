@@ -7,9 +7,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from formats.geodesy import metric_scales_scalar
 from replay.stack.config import AnfisConfig, StackConfig
 from replay.stack.detectors.base import Decision
-from replay.stack.model import metric_scales_scalar
 from replay.stack.runner import CooperativeRunner, EpochResult, RunnerOptions, RunResults, Start
 from replay.stack.scoring import RESULT_KEYS, score_run
 from replay.stack.training import TrainingSet

@@ -64,7 +64,7 @@ def _seconds(df) -> np.ndarray:
 
 
 def test_recorded_gps_fixes_are_within_5_sigma_of_truth(archive):
-    from samples.trajectories import LocalFrame
+    from formats.geodesy import LocalFrame
 
     _, _, reader = archive
     frame = LocalFrame(45.70, 126.60)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from replay.review.naming import run_labels
-from replay.review.scoreboard import format_value, method_kind, scoreboard, window_text
+from replay.review.scoreboard import format_value, method_kind, scoreboard, verdict, window_text
 
 
 def _metrics() -> dict:
@@ -16,15 +16,26 @@ def _metrics() -> dict:
     }}
 
 
-def test_rows_are_ranked_by_p50_with_metrics_figures_unchanged() -> None:
+def test_rows_are_ranked_by_p50_in_their_group_with_metrics_figures_unchanged() -> None:
     metrics = _metrics()
     rows = scoreboard(metrics)
-    assert [r.method for r in rows] == ["kmcdf2", "chi_square", "ckf", "lms"]
-    assert [r.rank for r in rows] == [1, 2, 3, 4]
+    # cooperative estimates and USBL positioning are scored on different epochs: each group ranked on its own
+    assert [r.method for r in rows] == ["chi_square", "ckf", "kmcdf2", "lms"]
+    assert [r.rank for r in rows] == [1, 2, 1, 2]
+    assert [r.group for r in rows] == ["cooperative", "cooperative", "positioning", "positioning"]
     for row in rows:
         for key, value in row.figures.items():
             assert value == metrics["methods"][row.method].get(key)
-    assert [r.kind for r in rows] == ["positioning", "detector", "filter", "positioning"]
+    assert [r.kind for r in rows] == ["detector", "filter", "positioning", "positioning"]
+
+
+def test_the_verdict_names_the_best_of_each_group_and_the_best_detector() -> None:
+    lines = verdict({**_metrics(), "epochs": 462, "anomalous": 57})
+    assert lines == ["Best position estimate: **chi_square**, p50 5.400 m, p90 13.500 m",
+                     "Best USBL positioning: **kmcdf2**, p50 1.900 m, p90 4.000 m",
+                     "Best detector: **chi_square**, 17 false alarms, 34 misses, AUC 0.880 (462 scored epochs, "
+                     "57 anomalous)",
+                     "Scored after t_a: 600 s to 1700 s (mission seconds)"]
 
 
 def test_kinds_window_and_values_read_as_printed() -> None:

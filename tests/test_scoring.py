@@ -8,8 +8,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from formats.geodesy import metric_scales_scalar
 from replay.stack import scoring
-from replay.stack.model import metric_scales_scalar
 from replay.stack.runner import RunResults, Track
 
 LAT, LON = 0.8, 2.2

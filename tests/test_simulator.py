@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from formats.geodesy import LocalFrame, earth_radii
 from samples import anomalies as an
 from samples.scenario import (
     AnomalyEvent,
@@ -21,7 +22,7 @@ from samples.scenario import (
     scenario_to_toml,
 )
 from samples.simulator import simulate_trial
-from samples.trajectories import LocalFrame, gauss_markov, radii, stream
+from samples.trajectories import gauss_markov, stream
 from samples.writer import render
 
 
@@ -78,7 +79,7 @@ def test_local_frame_agrees_with_stack_range_formula():
     lat, lon = frame.to_geodetic(np.array([-400.0, 500.0]), np.array([-100.0, 300.0]))
     z = an.gps_range(lat[:1], lon[:1], lat[1:], lon[1:], np.zeros(1), np.zeros(1))
     assert z[0] == pytest.approx(math.hypot(900.0, 400.0), rel=3e-5)  # ~1 cm per km
-    rm, rn = radii(math.radians(45.7))
+    rm, rn = earth_radii(math.radians(45.7))
     assert 6.36e6 < rm < rn < 6.40e6
 
 

@@ -8,8 +8,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from formats.geodesy import FLATTENING, RE_M, earth_radii, metric_scales, metric_scales_scalar
 from replay.stack import model
-from replay.stack.model import FLATTENING, RE_M
 
 LAT = math.radians(45.7)
 LON = math.radians(126.6)
@@ -21,17 +21,17 @@ def offset(lat: float, lon: float, north_m: float, east_m: float) -> tuple[float
 
 
 def test_radii_at_equator_and_pole() -> None:
-    r_m, r_n = model.earth_radii(np.array([0.0, math.pi / 2]))
+    r_m, r_n = earth_radii(np.array([0.0, math.pi / 2]))
     assert r_m[0] == RE_M * (1 - 2 * FLATTENING)
     assert r_n[0] == RE_M
     assert math.isclose(r_m[1], RE_M * (1 + FLATTENING), rel_tol=1e-15)
     assert math.isclose(r_n[1], RE_M * (1 + FLATTENING), rel_tol=1e-15)
-    assert model.metric_scales_scalar(0.3, 12.0) == tuple(float(v) for v in model.metric_scales(0.3, 12.0))
+    assert metric_scales_scalar(0.3, 12.0) == tuple(float(v) for v in metric_scales(0.3, 12.0))
 
 
 def test_dead_reckoning_north_east_and_lateral() -> None:
     x = np.array([LAT, LON])
-    b, a = model.metric_scales(LAT, 10.0)
+    b, a = metric_scales(LAT, 10.0)
     north = model.dead_reckon_step(x, 10.0, 1.0, 0.0, 0.0, 10.0)      # 10 m north
     assert math.isclose(north[0] - LAT, 10.0 / b, rel_tol=1e-9) and north[1] == LON
     east = model.dead_reckon_step(x, 5.0, 2.0, 0.0, math.pi / 2, 10.0)   # 10 m east
@@ -58,8 +58,8 @@ def test_horizontal_range_metres_and_symmetry() -> None:
 def test_literal_a4_is_off_by_hundreds_of_metres() -> None:
     """Why model.horizontal_range deviates from A.4 as printed (each vehicle's radii times its own angles)."""
     llat, llon = offset(LAT, LON, 300.0, 400.0)
-    b, a = model.metric_scales(LAT, 5.0)
-    bm, am = model.metric_scales(llat, 0.0)
+    b, a = metric_scales(LAT, 5.0)
+    bm, am = metric_scales(llat, 0.0)
     literal = math.hypot(b * LAT - bm * llat, a * LON - am * llon)
     ours = float(model.horizontal_range(np.array([LAT, LON]), 5.0, llat, llon, 0.0))
     assert abs(literal - 500.0) > 100.0
@@ -95,7 +95,7 @@ def test_slant_to_horizontal_never_nan(r: float, h: float, hm: float) -> None:
 def test_covariance_unit_round_trip() -> None:
     cov_m = np.array([[4.0, 1.5], [1.5, 9.0]])
     rad = model.cov_metres_to_radians(cov_m, LAT, 20.0)
-    b, a = model.metric_scales(LAT, 20.0)
+    b, a = metric_scales(LAT, 20.0)
     assert math.isclose(rad[0, 0], 4.0 / b ** 2, rel_tol=1e-14)
     assert math.isclose(rad[0, 1], 1.5 / (a * b), rel_tol=1e-14)
     np.testing.assert_allclose(model.cov_radians_to_metres(rad, LAT, 20.0), cov_m, rtol=1e-14)

@@ -16,7 +16,15 @@ from recorders.record import record
 from replay.cli import main
 from replay.run.mission_time import mission_seconds, trial_start_ns
 from tests.test_ecosystem_inputs import T0, write_dataflash
-from tests.trial_shapes import enu_quaternion, imu, navsatfix, ros1_typestore, write_nogps_bin, write_ros1
+from tests.trial_shapes import (
+    enu_quaternion,
+    imu,
+    local_reference,
+    navsatfix,
+    ros1_typestore,
+    write_nogps_bin,
+    write_ros1,
+)
 
 START = "2024-05-01T10:00:00Z"
 START_NS = 1_714_557_600 * NS  # 2024-05-01 10:00:00 UTC
@@ -162,9 +170,8 @@ def test_bin_without_gps_is_timed_by_its_start(tmp_path):
         (pytest.approx(0.5), pytest.approx(0.25), pytest.approx(0.1))
     assert last.depth_m == pytest.approx(4.0) and last.source_format == "mavlink:XKF1"
     # PN/PE 200 m north, 100 m east of the ORGN origin (45.7, 126.6)
-    assert last.latitude == pytest.approx(45.7 + math.degrees(200.0 / 6_378_137.0), abs=1e-9)
-    assert last.longitude == pytest.approx(126.6 + math.degrees(100.0 / (6_378_137.0 * math.cos(math.radians(45.7)))),
-                                           abs=1e-9)
+    lat, lon = local_reference(200.0, 100.0, 45.7, 126.6)
+    assert last.latitude == pytest.approx(lat, abs=1e-9) and last.longitude == pytest.approx(lon, abs=1e-9)
     (dvl_t, dvl), = by["/auv/dvl"]
     assert dvl_t == START_NS + 3_500_000_000 and S.DvlVelocity.FromString(dvl).altitude_m == 8.5
     assert start == START_NS + 1_001_000_000  # the first INS state (ATT is merged, ORGN unmapped)

@@ -18,7 +18,7 @@ from rerun.chunk import RrdReader
 from replay.commands import view as view_cmd
 from replay.errors import UserError
 from replay.review.data import ReviewData
-from replay.review.scoreboard import format_value, navigation_rows, scoreboard
+from replay.review.scoreboard import format_value, method_kind, navigation_rows, scoreboard
 from replay.stack.detectors.anfis import AnfisModel, predict
 from replay.views import recording as views
 from replay.views.anfis import SURFACE_GRID, grid_triangles, history_of, surface
@@ -238,12 +238,16 @@ def test_kmcdf_epochs_and_events(rrd: Rrd, review: ReviewData) -> None:
 
 def test_blueprint_saved_with_every_view(rrd: Rrd) -> None:
     names = rrd.view_names
-    for expected in ("Map: GPS truth and every track", "Local east/north (m), range circles", "Events",
+    for expected in ("Local east/north (m), range circles", "Events",
                      "leader1: range measured / true (m)", "leader1: ANFIS vs T2 (m)", "Colours",
                      "Rule firing strengths", "Why (not) flagged", "Output surface (f3 at median)", "Scoreboard",
                      "Colour key", "Training RMSE (m) per epoch"):
         assert expected in names
     assert any(n.startswith("Error CDF of follower") for n in names)
+    # the default focus: the best of each group, chi_square and anfis; the others hidden, and said so
+    assert any(n.startswith("Map: GPS truth and the focus tracks; ") and n.endswith("more methods hidden "
+                                                                                     "(view --focus all)")
+               for n in names)
     assert any(n.startswith("Error vs GPS (m), whole mission") for n in names)
     assert any(n.startswith("Detection lanes") for n in names)
     assert sum(n.startswith("KMCDF follower:") and "prelim. fixes of kmcdf1, kmcdf2" in n for n in names) == 1
@@ -437,8 +441,12 @@ def test_sample_scoreboard_shows_metrics_json_exactly(sample: tuple[ReviewData, 
     columns = ("error_p50_m", "error_p90_m", "error_rms_m", "tp", "fp", "fn", "fpr", "fnr", "auc")
     for row in rows:
         assert row[3:] == [format_value(metrics["methods"][row[1]][c]) for c in columns], row[1]
-    best = min(metrics["methods"], key=lambda m: metrics["methods"][m]["error_p50_m"])
-    assert f"Lowest error: **{best}**" in doc
+    # the verdict first: the best of each group by p50, in words, before any table
+    verdict_part = methods_part.split("| #")[0]
+    for group, words in (("cooperative", "Best position estimate"), ("positioning", "Best USBL positioning")):
+        best = min((m for m in metrics["methods"] if (method_kind(m) == "positioning") == (group == "positioning")),
+                   key=lambda m: metrics["methods"][m]["error_p50_m"])
+        assert f"{words}: **{best}**, p50 {format_value(metrics['methods'][best]['error_p50_m'])} m" in verdict_part
 
 
 def test_sample_every_method_has_a_track_an_error_series_and_a_cdf(sample: tuple[ReviewData, dict, Rrd]) -> None:

@@ -12,8 +12,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-NS = 1_000_000_000
-
+from formats.units import NS
 
 # ---------------------------------------------------------------- ROS 1 bags
 
@@ -143,3 +142,12 @@ def write_nogps_bin(path: Path, ekf: bool = True, origin: bool = True, seconds: 
         out += dataflash_record(141, "QBffcfIffB", us + 2000, 1, -(2.1 + k), 121000.0, 1500, 0.0, 0, 0.0, 15.0, 1)
     out += dataflash_record(135, "QBfBB", 1_000_000 * seconds + 500_000, 0, 8.5, 4, 25)
     path.write_bytes(out)
+
+
+def local_reference(north: float, east: float, lat0: float, lon0: float) -> tuple[float, float]:
+    """Latitude and longitude (deg) of a local north/east (m) point about an origin, as a recorder places it: the
+    project's earth radii at the origin (docs/design.md section 7, A.2), written out plainly as the judge."""
+    a, f = 6_378_137.0, 1.0 / 298.257
+    s2 = math.sin(math.radians(lat0)) ** 2
+    r_m, r_n = a * (1 - 2 * f + 3 * f * s2), a * (1 + f * s2)
+    return lat0 + math.degrees(north / r_m), lon0 + math.degrees(east / (r_n * math.cos(math.radians(lat0))))

@@ -41,8 +41,7 @@ from ..nmea.framing import build, frame
 from ..numbers import finite, integer
 from ..records import Reject, Where
 from ..regex_lines import parse_iso8601_ns, parse_tod_s
-
-NS = 1_000_000_000
+from ..units import DAY_NS, NS
 
 
 @dataclass(frozen=True, slots=True)
@@ -367,7 +366,7 @@ def _fmt_iso(t_ns: int) -> str:
 
 
 def _fmt_tod(t_ns: int) -> str:
-    ns_of_day = int(t_ns) % (86400 * NS)
+    ns_of_day = int(t_ns) % DAY_NS
     h, rem = divmod(ns_of_day, 3600 * NS)
     m, rem = divmod(rem, 60 * NS)
     return f"{h:02d}{m:02d}{rem // NS:02d}.{(rem % NS) // 100_000:04d}"

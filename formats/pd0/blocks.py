@@ -21,9 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..records import Reject, Where
+from ..units import NS
 from . import ensembles as pd0
 
-_NS = 1_000_000_000
 _DAYS_IN_MONTH = np.array([0, 31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31], np.int64)
 
 
@@ -115,7 +115,7 @@ def _variable(buf: bytes, i: int, stride: int, rows: int, off: int, length: int)
         y2k_ok &= (century >= 19) & (century <= 21)
         secs, ok, cs = np.where(y2k_ok, y2k_secs, secs), y2k_ok | ok, np.where(y2k_ok, v["y2k_cs"], cs)
     # in Python ints: a Y2K century of 21 reaches years past int64 nanoseconds (2262)
-    times = [s * _NS + c * 10_000_000 if good else None for s, c, good in zip(secs.tolist(), cs.tolist(), ok.tolist())]
+    times = [s * NS + c * 10_000_000 if good else None for s, c, good in zip(secs.tolist(), cs.tolist(), ok.tolist())]
     numbers = (v["lo"] + 65536 * v["hi"]).tolist()
     return numbers, times, v["c"].astype(float).tolist(), (v["t"] / 100).tolist()
 

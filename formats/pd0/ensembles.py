@@ -35,6 +35,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..records import Reject, Where
+from ..units import NS
 
 HEADER = b"\x7f\x7f"
 BAD_VELOCITY = -32768
@@ -42,7 +43,6 @@ FIXED_ID, VARIABLE_ID, VELOCITY_ID, BOTTOM_ID = 0x0000, 0x0080, 0x0100, 0x0600
 COORDINATES = ("beam", "instrument", "ship", "earth")
 _FREQ_KHZ = (75, 150, 300, 600, 1200, 2400, 38, 0)
 _ANGLES = (15.0, 20.0, 30.0, math.nan)
-_NS = 1_000_000_000
 MAX_DATA_TYPES = 64
 
 _HDR = struct.Struct("<HHBB")
@@ -146,7 +146,7 @@ def rtc_to_ns(year: int, month: int, day: int, hour: int, minute: int, second: i
         return None
     if not 0 <= hundredths <= 99:
         return None
-    return int(dt.timestamp()) * _NS + hundredths * 10_000_000
+    return int(dt.timestamp()) * NS + hundredths * 10_000_000
 
 
 def _two_digit_year(yy: int) -> int:
@@ -357,7 +357,7 @@ def encode_variable(time_ns: int, ensemble_number: int, *, sound_speed_mps: floa
                     roll_deg: float = 0.0, salinity_ppt: float = 0.0, temperature_c: float = 10.0,
                     pressure_dbar: float = 0.0, y2k: bool = True) -> bytes:
     """A variable leader with both RTCs (65 bytes), or the 58-byte pre-Y2K form; time to 0.01 s."""
-    sec, rem = divmod(int(time_ns), _NS)
+    sec, rem = divmod(int(time_ns), NS)
     dt = datetime.fromtimestamp(sec, tz=UTC)
     hund = rem // 10_000_000
     n = int(ensemble_number)

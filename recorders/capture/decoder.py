@@ -31,11 +31,11 @@ from collections.abc import Iterable
 
 from formats.lines import strip_prefix
 from formats.records import Reject, Where
+from formats.units import NS
 
-from ..base import NS, Converter, Ignored, LogContext, Output
+from ..base import Converter, Ignored, LogContext, Output
+from ..registry import is_binary
 
-# formats that are (or may be) binary: no line cutting and no stamping
-BINARY_FORMATS = frozenset({("dvl", "pd0"), ("dvl", "pd4"), ("dvl", "pd5"), ("gps", "novatel"), ("ins", "novatel")})
 MIN_WARMUP = 256
 HOLD_BYTES = 4096  # kept back while a window gives no output at all (noise, or a record still arriving)
 
@@ -55,7 +55,7 @@ class StreamDecoder:
 
     def __init__(self, convert: Converter, ctx: LogContext, sensor: str, fmt: str):
         self.convert, self.ctx = convert, ctx
-        self.text = (sensor, fmt) not in BINARY_FORMATS
+        self.text = not is_binary(sensor, fmt)  # binary formats: no line cutting and no stamping
         self.stamp = self.text and ctx.prefix != "none"
         self._buf = bytearray()     # the decoded stream from offset `_base` on: the next window
         self._base = 0

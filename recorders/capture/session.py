@@ -119,7 +119,7 @@ class CaptureSession:
     """Captures every live log of a manifest into one archive; `run` loops until told to stop."""
 
     def __init__(self, manifest: Manifest, output: str | Path, options: CaptureOptions = CaptureOptions(),
-                 listener: Listener | None = None, report: Reporter | None = None):
+                 listener: Listener | None = None, report: Reporter | None = None, replace: bool = False):
         self.manifest, self.options = manifest, options
         self.output = Path(output)
         self.listener = listener
@@ -129,7 +129,9 @@ class CaptureSession:
         if self.part.exists():
             raise ManifestError(f"{self.part} exists (a capture that did not stop cleanly): "
                                 "`auvreplay recover` it or move it away first")
-        self.writer = ArchiveWriter(self.output, part_path=self.part)
+        # the output is claimed for the whole capture (formats.output_files): a second capture or record
+        # into it is refused, and at the clean stop an existing file is replaced only with `replace`
+        self.writer = ArchiveWriter(self.output, part_path=self.part, replace=replace)
         fallback = date_to_ns(manifest.date) if manifest.date else 0
         self.writer.add_metadata("trial", trial_metadata(manifest))
         for live in self.logs:

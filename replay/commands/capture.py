@@ -8,6 +8,7 @@ import signal
 import sys
 import threading
 import time
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from recorders.base import Output
@@ -18,6 +19,8 @@ from recorders.record import trial_metadata
 from replay.errors import UserError
 from replay.run.config import load_config
 from replay.run.online import OnlineRun
+from replay.run.outputs import claim_outputs
+from replay.run.pipeline import results_paths
 
 if TYPE_CHECKING:
     from replay.views.live import LiveView
@@ -27,6 +30,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `auvreplay capture`."""
     parser.add_argument("manifest", help="a trial manifest whose logs name a live `source`")
     parser.add_argument("-o", "--output", required=True, help="the archive (grows as OUTPUT.part until a clean stop)")
+    parser.add_argument("--force", action="store_true",
+                        help="replace the output (and --results, --rrd files) if they exist")
     parser.add_argument("--flush-s", type=_positive, default=1.0,
                         help="close, write and fsync a chunk at least this often (default 1 s)")
     parser.add_argument("--duration", type=_positive, default=None, metavar="S", help="stop after S seconds")
@@ -147,10 +152,13 @@ def run(args: argparse.Namespace) -> int:
     """Capture until Ctrl-C, SIGTERM or --duration; then write the summary and rename the part file."""
     status = _StatusLines(args.status_s)
     options = CaptureOptions(flush_s=args.flush_s, duration_s=args.duration, quiet_s=args.quiet_s)
+    # every output claimed before the first byte is read: an existing file is refused with one line
+    claim_outputs([args.output, args.rrd, *(results_paths(Path(args.results)) if args.results else ())], args.force)
     try:
         manifest = load_manifest(args.manifest)
         online = _Online(args, manifest) if args.view or args.connect or args.rrd or args.results else None
-        session = CaptureSession(manifest, args.output, options, listener=online, report=status.note)
+        session = CaptureSession(manifest, args.output, options, listener=online, report=status.note,
+                                 replace=args.force)
     except ManifestError as exc:
         raise UserError(str(exc)) from None
     if online is not None:

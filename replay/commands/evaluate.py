@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import statistics
 import sys
@@ -36,6 +37,7 @@ from typing import TYPE_CHECKING, Any
 from replay.errors import UserError
 from replay.run.batch import dask_client, parse_seeds
 from replay.run.config import load_config
+from replay.run.config_ranges import EVALUATE_MAX_DURATION_S, SEED_MAX, evaluate_max_workers
 from replay.run.evaluate import DEFAULT_DRIFT_RATES, evaluate
 from replay.run.matrix import evaluate_matrix
 from replay.stack.methods import runnable_names
@@ -213,12 +215,23 @@ def _run_matrix(args: argparse.Namespace, seeds: list[int]) -> int:
     return 0
 
 
+def _check_numbers(args: argparse.Namespace) -> None:
+    """--train-seed, --duration and --workers within their ranges (replay.run.config_ranges), one line each."""
+    if args.train_seed is not None and not 0 <= args.train_seed <= SEED_MAX:
+        raise UserError(f"--train-seed {args.train_seed}: expected a seed in [0, {SEED_MAX}]")
+    d = args.duration
+    if d is not None and not (math.isfinite(d) and 0 < d <= EVALUATE_MAX_DURATION_S):
+        raise UserError(f"--duration {d:g}: expected a trial length in (0, {EVALUATE_MAX_DURATION_S:.0f}] s "
+                        "(at most a day)")
+    most = evaluate_max_workers()
+    if args.scheduler is None and not 1 <= args.workers <= most:
+        raise UserError(f"--workers {args.workers}: expected 1 to {most} (four processes per core)")
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the evaluation and print its tables (or the JSON object); 0 on success."""
-    try:
-        seeds = parse_seeds(args.seeds)
-    except UserError:
-        raise UserError(f"--seeds {args.seeds!r}: expected seeds like 100-109 or 1,4,7") from None
+    seeds = parse_seeds(args.seeds, "--seeds")
+    _check_numbers(args)
     if args.conditions is not None:
         return _run_matrix(args, seeds)
     config = load_config(args.config, args.set, default_methods=runnable_names())   # every detector is judged

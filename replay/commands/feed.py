@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import time
 from pathlib import Path
 
+from formats.output_files import write_new_file
 from recorders.feed import FeedError, live_manifest, make_targets, play
 from recorders.manifest import ManifestError, load_manifest
 from replay.errors import UserError
+from replay.run.outputs import claim_output
 
 START_WAIT_S = 600.0
 
@@ -24,6 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seconds", type=float, default=None, help="only the first S seconds of the trial")
     parser.add_argument("--manifest-out", default=None, metavar="FILE",
                         help="write the manifest `capture` reads these streams with")
+    parser.add_argument("--force", action="store_true", help="replace the --manifest-out file if it exists")
     parser.add_argument("--hold-s", type=float, default=1.0,
                         help="keep the targets open this long after the last byte (default 1 s)")
     parser.add_argument("--start-after", default=None, metavar="FILE",
@@ -40,6 +44,10 @@ def _wait_for(path: Path, stop: list[bool]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print each log's target, then play; exit 0 when every log was sent."""
+    if args.manifest_out:
+        if os.path.realpath(args.manifest_out) == os.path.realpath(args.manifest):
+            raise UserError(f"--manifest-out {args.manifest_out} is the manifest being played: not overwritten")
+        claim_output(args.manifest_out, args.force)
     try:
         manifest = load_manifest(args.manifest)
     except ManifestError as exc:
@@ -58,9 +66,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"{log.path} -> {target.source}", flush=True)
         if args.manifest_out:
             text = live_manifest(manifest, targets)
-            out = Path(args.manifest_out)
-            out.with_name(out.name + ".tmp").write_text(text)
-            out.with_name(out.name + ".tmp").replace(out)  # whole or absent for whoever polls for it
+            write_new_file(args.manifest_out, text.encode(), replace=args.force)  # whole or absent for a poller
         if args.start_after:
             _wait_for(Path(args.start_after), stop)
         try:

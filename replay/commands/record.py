@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from typing import TextIO
 
 from recorders.clock import iso_utc
 from recorders.manifest import ManifestError, load_manifest
-from recorders.record import record
+from recorders.record import RecordingSummary, record
 from replay.errors import UserError
 
 
@@ -54,7 +55,7 @@ class _ProgressBar:
         sys.stderr.flush()
 
 
-def print_summary(summary, out=None) -> None:
+def print_summary(summary: RecordingSummary, out: TextIO | None = None) -> None:
     """The per-file table: parsed, skipped, bad checksum, time span."""
     out = out or sys.stdout
     rows = [("file", "vehicle", "sensor/format", "parsed", "skipped", "bad crc", "ignored", "start", "end")]

@@ -8,6 +8,7 @@ import sys
 
 from formats.mcap_recover import RecoveryReport, recover
 from recorders.clock import iso_utc
+from replay.run.outputs import claim_output
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -15,6 +16,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("file", help="a damaged MCAP file (any archive, a capture's .part file too)")
     parser.add_argument("-o", "--output", required=True, help="the repaired archive to write")
     parser.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    parser.add_argument("--force", action="store_true", help="replace the output if it exists")
 
 
 def report_json(report: RecoveryReport) -> dict:
@@ -32,7 +34,8 @@ def report_json(report: RecoveryReport) -> dict:
 
 def run(args: argparse.Namespace) -> int:
     """Recover; exit 0 when the output was written (what was lost is reported, not an error)."""
-    report = recover(args.file, args.output)
+    claim_output(args.output, args.force)  # refused before the (long) scan; the writer claims it again
+    report = recover(args.file, args.output, replace=args.force)
     info = report_json(report)
     if args.json:
         print(json.dumps(info, indent=2))

@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 
+from replay.commands.view import focus_list
 from replay.errors import UserError, warn_damage
 from replay.run.config import load_config
 from replay.run.metrics import format_table
@@ -28,6 +29,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--compare", metavar="RESULTS.mcap",
                         help="with --rrd: put this earlier run into the same recording, side by side")
     parser.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+    parser.add_argument("--focus", type=focus_list, default=None, metavar="M1,M2|all",
+                        help="with --rrd: the methods shown at first (default: the best of each scoreboard "
+                             "group, chi_square and anfis; 'all': every method)")
     parser.add_argument("--force", action="store_true",
                         help="replace existing output files (default: refuse to overwrite them)")
 
@@ -47,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
         if args.compare:
 
             reviews.append(review_from_results(args.compare))
-        save_rrd(reviews, args.rrd)
+        save_rrd(reviews, args.rrd, focus=args.focus)
     if args.json:
         print(json.dumps(outcome.metrics, indent=2, sort_keys=True))
     else:

@@ -13,11 +13,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of `auvreplay unpack`."""
     parser.add_argument("file", help="an MCAP archive")
     parser.add_argument("directory", help="where to write the logs (created if missing)")
+    parser.add_argument("--force", action="store_true", help="replace files of the same names in DIRECTORY")
 
 
 def run(args: argparse.Namespace) -> int:
     """Unpack; exit 1 if any attachment was refused, repeated a name or failed its recorded checksum."""
-    result = unpack(args.file, args.directory)
+    result = unpack(args.file, args.directory, replace=args.force)
     for path in result.written:
         print(path)
     for name in result.refused:

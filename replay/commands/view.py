@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import os
 import shlex
+import sys
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -40,6 +41,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--save", help="with archives: where to save the recording (.rrd); an existing "
                                        "file is refused unless --force")
     parser.add_argument("--force", action="store_true", help="replace an existing recording")
+    parser.add_argument("--focus", type=focus_list, default=None, metavar="M1,M2|all",
+                        help="the methods shown at first (default: the best of each scoreboard group, chi_square "
+                             "and anfis; 'all': every method); the others are hidden, one click away")
+
+
+def focus_list(text: str) -> tuple[str, ...]:
+    """`--focus a,b,c` as a tuple of method names ('all' for every method); unknown names refused."""
+    from replay.stack.methods import METHOD_TABLE
+
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    unknown = [n for n in names if n != "all" and n not in METHOD_TABLE]
+    if not names or unknown:
+        raise argparse.ArgumentTypeError(f"unknown method(s) {', '.join(unknown) or text!r}; known: all, "
+                                         + ", ".join(METHOD_TABLE))
+    return names
 
 
 def has_display(env: Mapping[str, str]) -> bool:
@@ -72,12 +88,14 @@ def _recording_of_results(args: argparse.Namespace) -> tuple[Path | None, list[s
     from replay.views.recording import save_rrd
 
     out = recording_path(paths, args.save, args.force)
+    print(f"auvreplay view: replaying {', '.join(map(str, paths))} into the recording {out}"
+          + ("" if args.save else " (--save chooses another file)"), file=sys.stderr, flush=True)
     if trial:     # a trial archive: replayed in memory with what its inputs allow, drawn by our views
         outcome = replay_archive(paths[0], load_config(), write_output=False, review=True, require_work=True)
         reviews = [outcome.review]
     else:
         reviews = [review_from_results(p, args.archive) for p in paths]
-    save_rrd(reviews, out)
+    save_rrd(reviews, out, focus=args.focus)
     default = default_recording(paths)
     print(f"saved {out}" + (f" ({default} exists and was kept; --force replaces it)" if out != default and
                             not args.save else ""))

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from formats.units import NS
 from replay.engine.config import RunConfig
 from replay.engine.follower import FollowerPipeline, VehicleTracks
 from replay.engine.layout import TrialLayout
@@ -30,7 +31,6 @@ from replay.stack.positioning.kmcdf import KmcdfParams
 from replay.stack.training import TrainingSet
 
 DEG = math.pi / 180.0
-NS = 1_000_000_000
 
 
 class Engine:

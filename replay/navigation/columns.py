@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from formats.mcap_reader import ArchiveReader
+from formats.units import NS
 
-NS = 1_000_000_000
 BODY_FRD, EARTH_NED = 1, 2  # auvreplay.DvlVelocity.Frame; INSTRUMENT (3) and UNKNOWN (0) cannot be rotated to earth
 
 __all__ = ["BODY_FRD", "EARTH_NED", "DvlColumns", "FixColumns", "InsColumns", "SeriesColumns", "VehicleColumns",

@@ -2,7 +2,11 @@
 
 Every colour is of middle lightness so it reads on the viewer's dark theme,
 the web viewer's light one and a white page alike; the truth is a middle
-grey (drawn wider), never white.
+grey (drawn wider), never white. The seven methods most often in view
+(dead_reckoning, ckf, ackf, chi_square, anfis, drift_reference, kmcdf2) take
+the Okabe-Ito colours, told apart with the common colour-vision deficiencies
+(deuteranopia, protanopia, tritanopia); every other pair differs by at least
+25 CIELAB units for normal vision (tests/test_palette.py measures both).
 """
 
 from __future__ import annotations
@@ -14,9 +18,10 @@ from replay.stack.methods import METHOD_TABLE, methods
 # what is drawn beside the methods: sources of a trial and the truth (the methods' colours are the method table's)
 SOURCE_RGB: dict[str, tuple[int, int, int]] = {
     "gps": (128, 128, 128),
-    "ins": (176, 150, 110),
+    "ins": (210, 90, 90),
     "truth": (128, 128, 128),
-    "measured": (255, 170, 40),
+    "measured": (195, 180, 255),
+    "dead_reckoning (DVL)": (255, 0, 0),
 }
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import html
 import json
 import math
+import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -42,6 +43,7 @@ from replay.review.scoreboard import (
     navigation_rows,
     scoreboard,
     skipped_lines,
+    verdict,
     window_text,
 )
 from replay.stack.methods import detecting_names
@@ -121,12 +123,18 @@ def _scoreboard_html(metrics: dict[str, Any]) -> str:
     for r in scoreboard(metrics):
         cells = "".join(f'<td class="num" data-key="{c}" data-value="{_esc(json.dumps(r.figures[c]))}">'
                         f"{_esc(format_value(r.figures[c]))}</td>" for c in cols)
-        swatch = f'<span class="swatch" style="background:{method_hex(r.method)}"></span>'
+        swatch = f'<span class="swatch" style="background:{_esc(method_hex(r.method))}"></span>'
         best = ' class="best"' if r.rank == 1 else ""
         rows.append(f'<tr{best} data-method="{_esc(r.method)}">'
-                    f'<td class="num">{r.rank}</td><td>{swatch}{_esc(r.method)}</td><td>{r.kind}</td>{cells}</tr>')
+                    f'<td class="num">{_esc(r.rank)}</td><td>{swatch}{_esc(r.method)}</td><td>{_esc(r.kind)}</td>'
+                    f"{cells}</tr>")
     return (f'<table id="scoreboard-table"><tr><th>rank</th><th>method</th><th>kind</th>{head}</tr>'
             + "".join(rows) + "</table>")
+
+
+def _bold(escaped: str) -> str:
+    """Markdown's **bold** of an escaped verdict line as HTML <b>."""
+    return re.sub(r"\*\*(.+?)\*\*", r"<b>\1</b>", escaped)
 
 
 def _navigation_html(metrics: dict[str, Any]) -> str:
@@ -136,7 +144,7 @@ def _navigation_html(metrics: dict[str, Any]) -> str:
     if rows:
         head = "".join(f"<th>{_esc(NAV_HEADINGS[c])}</th>" for c in NAVIGATION_COLUMNS)
         body = "".join(
-            f'<tr><td class="num">{r.rank}</td><td>{_esc(r.vehicle)}</td><td>{_esc(r.method)}</td>'
+            f'<tr><td class="num">{_esc(r.rank)}</td><td>{_esc(r.vehicle)}</td><td>{_esc(r.method)}</td>'
             + "".join(f'<td class="num">{_esc(format_value(r.figures.get(c)))}</td>' for c in NAVIGATION_COLUMNS)
             + "</tr>" for r in rows)
         out.append('<h3>Own navigation against GPS at the fixes</h3><p class="sub">Dead reckoning from the DVL '
@@ -268,7 +276,8 @@ def _kinds_section(review: ReviewData, t_a: float, intervals: list[KindInterval]
 
 
 def _config_section(meta: dict[str, Any]) -> str:
-    start_ns = int(meta.get("trial_start_ns") or 0)
+    start = meta.get("trial_start_ns")
+    start_ns = start if isinstance(start, int) and 0 <= start < 2**63 else 0
     facts = [("run id", meta.get("run_id")), ("package version", f"auvreplay {meta.get('package_version')}"),
              ("input file", meta.get("input_file")), ("input sha256", meta.get("input_sha256")),
              ("trial start (mission 0 s)", pd.Timestamp(start_ns, tz="UTC").isoformat() if start_ns else "-"),
@@ -284,7 +293,7 @@ def _config_section(meta: dict[str, Any]) -> str:
 def _notes_section(metrics: dict[str, Any]) -> str:
     items = [f"<li>{_esc(n)}</li>" for n in metrics.get("notes", [])]
     for follower, rejected in (metrics.get("rejected") or {}).items():
-        items += [f"<li>{_esc(follower)}: {int(v)} ranges rejected ({_esc(k)})</li>" for k, v in rejected.items() if v]
+        items += [f"<li>{_esc(follower)}: {_esc(v)} ranges rejected ({_esc(k)})</li>" for k, v in rejected.items() if v]
     return "<ul>" + "".join(items) + "</ul>" if items else '<p class="note">None.</p>'
 
 
@@ -301,11 +310,11 @@ def build_report(meta: dict[str, Any], review: ReviewData, intervals: list[KindI
     title = f"auvreplay report: {review.trial or meta.get('input_file', '')} run {meta.get('run_id')}"
     body = [
         f"<h1>{_esc(title)}</h1>",
-        (f'<p class="sub">{_esc(window_text(metrics))}; {metrics.get("epochs")} scored ranging epochs '
-         f'({metrics.get("anomalous")} labelled anomalous), {metrics.get("usbl_epochs")} USBL epochs; '
-         f"followers {_esc(', '.join(metrics.get('followers', [])))}. "
-         + (f"Best by p50 error: <b>{_esc(best[0].method)}</b>.</p>" if best_p50 is not None else
-           " No epoch was scored: the run ended before t_a.</p>")),
+        (f'<p class="sub">{_esc(window_text(metrics))}; {_esc(metrics.get("epochs"))} scored ranging epochs '
+         f'({_esc(metrics.get("anomalous"))} labelled anomalous), {_esc(metrics.get("usbl_epochs"))} USBL epochs; '
+         f"followers {_esc(', '.join(metrics.get('followers', [])))}."
+         + ("</p>" if best_p50 is not None else " No epoch was scored: the run ended before t_a.</p>")),
+        '<ul id="verdict">' + "".join(f"<li>{_bold(_esc(line))}</li>" for line in verdict(metrics)) + "</ul>",
         ('<nav><a href="#scoreboard">Scoreboard</a><a href="#tracks">Tracks</a>'
          '<a href="#cdf">Error CDF</a><a href="#series">Error over time</a>'
          '<a href="#timeline">Detections</a><a href="#kinds">By anomaly kind</a><a href="#run">Run</a></nav>'),

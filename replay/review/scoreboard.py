@@ -2,9 +2,13 @@
 
 One rule for the Rerun views, the HTML report and the command line: rows come
 straight from `metrics["methods"]`, nothing is recomputed, so what a reviewer
-reads on screen is what `replay --json` printed. Methods are ranked by
-horizontal error p50 after t_a (ties and missing errors by p90, then name);
-detection columns sit beside the errors for the methods that detect.
+reads on screen is what `replay --json` printed. Methods are ranked in their
+group by horizontal error p50 after t_a (ties and missing errors by p90,
+then name): the cooperative methods (filters and detectors, scored at the
+follower's estimate) apart from the USBL positioning methods (scored at USBL
+epochs), so a rank never compares errors of different epochs. Detection
+columns sit beside the errors for the methods that detect; `verdict` says
+the best of each group and the best detector in words.
 """
 
 from __future__ import annotations
@@ -16,7 +20,8 @@ from typing import Any
 from replay.stack.methods import METHOD_TABLE
 
 __all__ = ["DETECTION_COLUMNS", "ERROR_COLUMNS", "NAV_HEADINGS", "NAVIGATION_COLUMNS", "NavigationRow", "ScoreRow",
-           "format_value", "method_kind", "navigation_rows", "scoreboard", "skipped_lines", "window_text"]
+           "best_detector", "detectors_by_merit", "format_value", "method_kind", "navigation_rows", "scoreboard",
+           "skipped_lines", "verdict", "window_text"]
 
 ERROR_COLUMNS: tuple[str, ...] = ("error_p50_m", "error_p90_m", "error_rms_m")
 DETECTION_COLUMNS: tuple[str, ...] = ("tp", "fp", "fn", "fpr", "fnr", "auc")
@@ -37,14 +42,26 @@ def format_value(value: Any) -> str:
     return str(value)
 
 
+GROUPS: dict[str, str] = {
+    "cooperative": "cooperative estimates of the follower (filters and detectors), after t_a",
+    "positioning": "USBL positioning, at the USBL epochs after t_a",
+}
+"""Group -> what its errors are measured on; each group is ranked on its own."""
+
+
 @dataclass(frozen=True)
 class ScoreRow:
-    """One method's line: its rank, its kind (filter, detector or positioning) and its metrics figures."""
+    """One method's line: its rank in its group, its kind (filter, detector or positioning) and its figures."""
 
     rank: int
     method: str
     kind: str
     figures: dict[str, Any]
+
+    @property
+    def group(self) -> str:
+        """'positioning' for USBL positioning methods, else 'cooperative'."""
+        return "positioning" if self.kind == "positioning" else "cooperative"
 
 
 def method_kind(method: str) -> str:
@@ -61,11 +78,55 @@ def _rank_key(item: tuple[str, dict[str, Any]]) -> tuple[float, float, str]:
 
 
 def scoreboard(metrics: dict[str, Any]) -> list[ScoreRow]:
-    """Every method of `metrics["methods"]`, best first, with its error and detection figures unchanged."""
-    ranked = sorted(metrics.get("methods", {}).items(), key=_rank_key)
-    return [ScoreRow(i + 1, method, method_kind(method),
-                     {k: row.get(k) for k in ERROR_COLUMNS + DETECTION_COLUMNS})
-            for i, (method, row) in enumerate(ranked)]
+    """Every method of `metrics["methods"]`: the cooperative group then positioning, best first in each,
+    ranked within its group, with its error and detection figures unchanged."""
+    out: list[ScoreRow] = []
+    for group in GROUPS:
+        items = [(m, r) for m, r in metrics.get("methods", {}).items()
+                 if ("positioning" if method_kind(m) == "positioning" else "cooperative") == group]
+        out += [ScoreRow(i + 1, method, method_kind(method), {k: row.get(k) for k in ERROR_COLUMNS + DETECTION_COLUMNS})
+                for i, (method, row) in enumerate(sorted(items, key=_rank_key))]
+    return out
+
+
+def _number(value: Any) -> float:
+    return float(value) if isinstance(value, (int, float)) and math.isfinite(value) else math.nan
+
+
+def detectors_by_merit(rows: list[ScoreRow]) -> list[ScoreRow]:
+    """The scored detectors, fewest wrong decisions (FP + FN) after t_a first; ties by AUC, then name."""
+    det = [r for r in rows if r.kind == "detector" and r.figures.get("fp") is not None]
+    return sorted(det, key=lambda r: (_number(r.figures["fp"]) + _number(r.figures["fn"]),
+                                      -_number(r.figures.get("auc")), r.method))
+
+
+def best_detector(rows: list[ScoreRow]) -> ScoreRow | None:
+    """The detector with the fewest wrong decisions (FP + FN) after t_a; ties by AUC, then name."""
+    ranked = detectors_by_merit(rows)
+    return ranked[0] if ranked else None
+
+
+def verdict(metrics: dict[str, Any]) -> list[str]:
+    """The answer in a few lines (markdown bold on names): the best of each group, the best detector, the window."""
+    rows = scoreboard(metrics)
+    lines = []
+    for group, label in (("cooperative", "Best position estimate"), ("positioning", "Best USBL positioning")):
+        best = next((r for r in rows if r.group == group and math.isfinite(_number(r.figures.get("error_p50_m")))),
+                    None)
+        if best is not None:
+            f = best.figures
+            lines.append(f"{label}: **{best.method}**, p50 {format_value(f.get('error_p50_m'))} m, "
+                         f"p90 {format_value(f.get('error_p90_m'))} m")
+    det = best_detector(rows)
+    if det is not None:
+        f = det.figures
+        lines.append(f"Best detector: **{det.method}**, {format_value(f.get('fp'))} false alarms, "
+                     f"{format_value(f.get('fn'))} misses, AUC {format_value(f.get('auc'))} "
+                     f"({metrics.get('epochs', 0)} scored epochs, {metrics.get('anomalous', 0)} anomalous)")
+    if not lines:
+        lines.append("No cooperative or positioning method was scored in this run")
+    lines.append(f"Scored {window_text(metrics)}")
+    return lines
 
 
 def window_text(metrics: dict[str, Any]) -> str:

@@ -37,6 +37,7 @@ from recorders.manifest import load_manifest
 from recorders.record import record
 from replay.errors import UserError
 from replay.run.config import canonical_json, load_config, run_id
+from replay.run.config_ranges import EVALUATE_MAX_SEEDS, SEED_MAX
 from replay.run.pipeline import file_sha256, package_version, replay_archive
 from replay.stack.scoring import RESULT_KEYS
 from samples.scenario import Scenario
@@ -133,8 +134,9 @@ def sweep_configurations(sweeps: Sequence[tuple[str, Sequence[str]]]) -> list[Co
     return [Configuration(tuple(zip(keys, combo))) for combo in itertools.product(*(v for _, v in sweeps))]
 
 
-def parse_seeds(text: str) -> list[int]:
-    """Seeds as `0-19`, `3,5,8` or a mix (`0-3,10`); UserError when malformed or empty."""
+def parse_seeds(text: str, option: str = "--simulate-seeds", max_count: int = EVALUATE_MAX_SEEDS) -> list[int]:
+    """Seeds as `0-19`, `3,5,8` or a mix (`0-3,10`); UserError when malformed, empty, a seed beyond
+    [0, SEED_MAX], or more than `max_count` of them (counted before any list is built)."""
     seeds: list[int] = []
     try:
         for part in (p.strip() for p in text.split(",")):
@@ -142,11 +144,15 @@ def parse_seeds(text: str) -> list[int]:
             first, last = (int(lo), int(hi)) if dash else (int(part), int(part))
             if first < 0 or last < first:
                 raise ValueError(part)
+            if last > SEED_MAX:
+                raise UserError(f"{option} {text!r}: seed {last} is beyond {SEED_MAX} (seeds are in [0, 2^32))")
+            if len(seeds) + last - first + 1 > max_count:
+                raise UserError(f"{option} {text!r}: more than {max_count} seeds (a simulated trial each)")
             seeds.extend(range(first, last + 1))
     except ValueError:
-        raise UserError(f"--simulate-seeds {text!r}: expected seeds like 0-19 or 1,4,7") from None
+        raise UserError(f"{option} {text!r}: expected seeds like 0-19 or 1,4,7") from None
     if len(set(seeds)) != len(seeds):
-        raise UserError(f"--simulate-seeds {text!r}: a seed is repeated")
+        raise UserError(f"{option} {text!r}: a seed is repeated")
     return seeds
 
 
@@ -215,7 +221,7 @@ def replay_task(archive: str, overrides: Sequence[str], out_dir: str, trial: str
         # the command claimed DIR's tables, so an earlier batch's runs here are replaced only under --force
         outcome = replay_archive(archive, config, output, force=True)
         record.update(output=str(output), metrics=outcome.metrics, notes=list(outcome.notes), warning=outcome.warning)
-    except Exception as exc:        # a failed run is data for the table; the batch goes on
+    except Exception as exc:  # noqa: BLE001 - a failed run is data for the table; the batch goes on
         record["error"] = describe_error(exc)
     return record
 
@@ -284,7 +290,7 @@ def run_batch(client: Client, tasks: Sequence[BatchTask], simulate: Mapping[str,
         i = index[fut.key]
         try:
             rec = fut.result()
-        except Exception as exc:    # the simulation failed, or the worker died: that run's error, not the batch's
+        except Exception as exc:  # noqa: BLE001 - a failed simulation or a dead worker is that run's error
             sim = sim_futures.get(tasks[i].archive)
             rec = _failed_record(tasks[i], exc, "simulating the trial: " if sim is not None and sim.status == "error"
                                  else "")

@@ -13,10 +13,11 @@ from pathlib import Path
 from typing import Any
 
 from formats.mcap_reader import ArchiveReader
+from formats.units import NS
 from replay.errors import UserError
 from replay.review.naming import flatten, run_labels
 from replay.review.scoreboard import format_value
-from replay.run.mission_time import NS, trial_start_ns
+from replay.run.mission_time import trial_start_ns
 from replay.stack.scoring import RESULT_KEYS
 
 DetectionKey = tuple[int, str, str, str]

@@ -25,6 +25,7 @@ from typing import Any
 
 from replay.engine.config import USBL_UPDATE_METHODS, EngineConfig, RunConfig
 from replay.errors import UserError
+from replay.run.config_ranges import check_ranges
 from replay.stack.config import CHOICES
 from replay.stack.methods import runnable_names
 
@@ -77,8 +78,11 @@ def _coerce(value: Any, hint: Any, key: str) -> Any:
 
 
 def config_from_parameters(params: dict[str, Any]) -> RunConfig:
-    """The RunConfig a run's stored `parameters` (its `to_dict`) describe, over today's defaults."""
-    return _apply(RunConfig(), params, "")
+    """The RunConfig a run's stored `parameters` (its `to_dict`) describe, over today's defaults; every
+    value range-checked (replay.run.config_ranges), as a results archive may come from anyone."""
+    if not isinstance(params, dict):
+        raise UserError(f"configuration: expected a table of parameters, not {type(params).__name__}")
+    return check_ranges(_apply(RunConfig(), params, ""))
 
 
 def _apply(obj: Any, updates: dict[str, Any], prefix: str) -> Any:
@@ -174,7 +178,7 @@ def load_config(path: str | Path | None = None, overrides: Sequence[str] = (),
         raise UserError("configuration engine.usbl_update needs engine.kmcdf = true (USBL epochs positioned)")
     if cfg.engine.usbl_update and not cfg.engine.usbl_update_sigma_m > 0:
         raise UserError("configuration engine.usbl_update_sigma_m: must be > 0")
-    return cfg
+    return check_ranges(cfg)
 
 
 def _merge(into: dict[str, Any], new: dict[str, Any]) -> None:

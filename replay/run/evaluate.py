@@ -58,6 +58,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from formats.mcap_reader import ArchiveReader
+from formats.units import NS
 from recorders.manifest import load_manifest
 from recorders.record import record
 from replay.engine.config import RunConfig
@@ -74,7 +75,6 @@ from samples.writer import write_trial
 if TYPE_CHECKING:
     from distributed import Client, Future
 
-NS = 1_000_000_000
 FPR_TARGETS: tuple[int, ...] = (1, 2, 5)
 """FNR is reported at these open-loop false-positive rates (%)."""
 DEFAULT_DRIFT_RATES: tuple[float, ...] = (0.1, 0.2, 0.3, 0.5, 1.0)

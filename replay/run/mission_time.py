@@ -12,9 +12,8 @@ from typing import Any
 import numpy as np
 
 from formats.mcap_reader import ArchiveReader
+from formats.units import NS
 from replay.errors import UserError
-
-NS = 1_000_000_000
 
 
 def trial_start_ns(reader: ArchiveReader, run: dict[str, Any] | None = None) -> int:

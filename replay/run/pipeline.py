@@ -16,6 +16,7 @@ from typing import Any
 from formats import schemas as S
 from formats.mcap_reader import ArchiveReader
 from formats.mcap_writer import ArchiveWriter
+from formats.units import NS
 from replay.engine.config import RunConfig
 from replay.engine.core import Engine, pace
 from replay.engine.layout import TrialLayout, plan_trial
@@ -37,7 +38,6 @@ DIAGNOSTICS_SCHEMA = "foxglove.Log"
 # the schemas of a position: every topic of one is a track (GPS fixes, INS and autopilot solutions, node reports)
 POSITION_SCHEMAS = ("foxglove.LocationFix", "auvreplay.InsState")
 ROLES = ("leader", "follower", "buoy")
-NS = 1_000_000_000
 
 
 @dataclass
@@ -151,7 +151,7 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
             collector = ReviewCollector(rid, trial or {}, t0_ns, layout,
                                         to_dict(config))
             heard.append(collector)
-        writer = ArchiveWriter(out_path) if out_path is not None else None
+        writer = ArchiveWriter(out_path, replace=force) if out_path is not None else None
         try:
             if writer is not None:
                 heard.append(ResultsWriter(writer, rid, t0_ns))

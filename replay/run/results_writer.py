@@ -8,6 +8,7 @@ from typing import Any
 
 from formats import schemas as S
 from formats.mcap_writer import ArchiveWriter
+from formats.units import NS
 from replay.events import (
     EpochResult,
     ErrorSample,
@@ -22,7 +23,6 @@ from replay.stack.methods import detecting_names
 from replay.stack.model import offset_to_latlon
 
 RAD = 180.0 / math.pi
-NS = 1_000_000_000
 
 
 def _cov_enu(nn: float, ne: float, ee: float) -> tuple[float, ...]:

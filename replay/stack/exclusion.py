@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 
+from formats.geodesy import metric_scales_scalar
 from replay.stack.filters.ckf import (
     State2,
     dr_predict,
@@ -28,7 +29,6 @@ from replay.stack.filters.ckf import (
     range_innovation,
     range_update,
 )
-from replay.stack.model import metric_scales_scalar
 
 NAN = float("nan")
 

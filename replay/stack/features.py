@@ -90,11 +90,11 @@ import math
 import statistics
 from collections import deque
 
+from formats.geodesy import metric_scales_scalar
 from replay.stack.config import DRIFT_SOURCES, ConfigError, FeatureConfig
 from replay.stack.cusum import Cusum
 from replay.stack.dr_error_model import DrErrorModel
 from replay.stack.exclusion import LeaderExclusion
-from replay.stack.model import metric_scales_scalar
 
 PAPER_FEATURES: tuple[str, ...] = ("f1", "f2", "f3")
 EXTRA_FEATURES: tuple[str, ...] = (

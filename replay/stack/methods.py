@@ -64,7 +64,7 @@ class Method:
     needs: tuple[str, ...]
     label: str
     short: str
-    colour: RGB
+    colour: RGB                      # replay.review.palette: distinct for every pair, and for colour-blind eyes
     factory: DetectorFactory | None = None
     features: tuple[str, ...] = ()
     why: WhyLine = generic_why
@@ -107,43 +107,43 @@ def _positioning(name: str, label: str, colour: RGB) -> Method:
 
 
 METHOD_TABLE: dict[str, Method] = {m.name: m for m in (
-    Method("dead_reckoning", "filter", "dr", _DR, "dead reckoning (DVL + heading)", "dr", (166, 118, 29),
+    Method("dead_reckoning", "filter", "dr", _DR, "dead reckoning (DVL + heading)", "dr", (230, 159, 0),
            default=True),
-    Method("ckf", "filter", "ckf", _RANGES, "CKF, every range used", "ckf", (31, 119, 230), default=True),
-    Method("ackf", "filter", "ackf", _RANGES, "adaptive CKF, every range used", "ackf", (23, 180, 200),
+    Method("ckf", "filter", "ckf", _RANGES, "CKF, every range used", "ckf", (0, 114, 178), default=True),
+    Method("ackf", "filter", "ackf", _RANGES, "adaptive CKF, every range used", "ackf", (86, 180, 233),
            default=True),
-    Method("chi_square", "detector", "detect", _TRAINED, "ACKF + chi-square test", "chi2", (255, 127, 14),
+    Method("chi_square", "detector", "detect", _TRAINED, "ACKF + chi-square test", "chi2", (213, 94, 0),
            chi_square.ChiSquareDetector, _PAPER, chi_square.why_line, default=True,
            score_plot=("chi_square: f2 vs gate", "f2 against its chi-square gate")),
     Method("dual_threshold", "detector", "detect", _TRAINED, "ACKF + dual threshold (BP net, CUSUM)", "dual",
-           (148, 103, 189), dual_threshold.DualThresholdDetector, _PAPER, dual_threshold.why_line, default=True,
+           (75, 105, 255), dual_threshold.DualThresholdDetector, _PAPER, dual_threshold.why_line, default=True,
            score_plot=("dual_threshold vs 1", "max(f2/gate, CUSUM S/h) against 1")),
-    Method("anfis", "detector", "detect", _TRAINED, "ACKF + ANFIS (hybrid learning)", "anfis", (44, 170, 44),
+    Method("anfis", "detector", "detect", _TRAINED, "ACKF + ANFIS (hybrid learning)", "anfis", (0, 158, 115),
            _anfis("hybrid", False), _PAPER, anfis_detector.why_line, anfis_plot=True, default=True),
-    Method("anfis_aqpso", "detector", "detect", _TRAINED, "ACKF + ANFIS (AQPSO-GA)", "aqpso", (150, 190, 20),
+    Method("anfis_aqpso", "detector", "detect", _TRAINED, "ACKF + ANFIS (AQPSO-GA)", "aqpso", (0, 210, 0),
            _anfis("aqpso_ga", False), _PAPER, anfis_detector.why_line, anfis_plot=True, default=True,
            threaded_training=True),
     Method("anfis_compensation", "detector", "detect", _TRAINED, "ACKF + ANFIS range compensation", "comp",
-           (0, 140, 110), _anfis("hybrid", True), _PAPER, anfis_detector.why_line, anfis_plot=True, default=True),
+           (105, 135, 15), _anfis("hybrid", True), _PAPER, anfis_detector.why_line, anfis_plot=True, default=True),
     # detectors on filter-independent features: their hybrid database and extra ANFIS training cost about
     # half again a replay's time, so they run when named (`--set methods=...`), in `evaluate` and in `demo`
     Method("cusum_drift", "detector", "detect", _TRAINED, "ACKF + CUSUM of the drift residual", "cusum",
-           (160, 80, 50), cusum.CusumDriftDetector, _WIDE, cusum.why_line,
+           (255, 0, 90), cusum.CusumDriftDetector, _WIDE, cusum.why_line,
            score_plot=("cusum_drift S vs h (sd)", "max(S+, S-) of drift_z against h, in sd")),
     Method("anfis_hybrid", "detector", "detect", _TRAINED, "ACKF + ANFIS on the hybrid database", "hybrid",
-           (90, 60, 200), anfis_hybrid.HybridAnfisDetector, _WIDE, anfis_hybrid.why_line,
+           (195, 0, 255), anfis_hybrid.HybridAnfisDetector, _WIDE, anfis_hybrid.why_line,
            score_plot=("anfis_hybrid vs thr (m)", "output against the threshold of its 2 % training FPR, in m")),
     Method("drift_reference", "detector", "detect", _TRAINED, "ACKF + DR error reference", "dref",
-           (212, 136, 115), drift_reference.DriftReferenceDetector, _WIDE, drift_reference.why_line,
+           (204, 121, 167), drift_reference.DriftReferenceDetector, _WIDE, drift_reference.why_line,
            score_plot=("drift_reference vs h (sd)",
                        "min(|drift_z|, h*|residual|/T1) against h, in sd (m before drift_z exists)"),
            pooled_training=True),
-    _positioning("kmcdf1", "KMCDF, delays only", (214, 39, 40)),
-    _positioning("kmcdf2", "KMCDF, delays and phases", (227, 80, 170)),
-    _positioning("gar", "GAR (geometric average)", (200, 170, 0)),
-    _positioning("ear", "EAR (error-weighted average)", (240, 120, 110)),
-    _positioning("lms", "least squares", (128, 128, 0)),
-    _positioning("lhc", "linear hyperbolic", (100, 140, 255)),
+    _positioning("kmcdf1", "KMCDF, delays only", (255, 0, 180)),
+    _positioning("kmcdf2", "KMCDF, delays and phases", (240, 228, 66)),
+    _positioning("gar", "GAR (geometric average)", (240, 180, 135)),
+    _positioning("ear", "EAR (error-weighted average)", (225, 135, 255)),
+    _positioning("lms", "least squares", (165, 195, 135)),
+    _positioning("lhc", "linear hyperbolic", (105, 210, 105)),
 )}
 """Method name -> its entry, in the order the views and tables list methods."""
 

@@ -1,4 +1,6 @@
-"""Cooperative-localization model (seed A, eqs. A.1-A.5): earth radii, dead reckoning, ranges.
+"""Cooperative-localization model (seed A, eqs. A.1-A.5): dead reckoning, ranges, unit conversions.
+
+The earth radii and metres-per-radian scales (A.2, A.3) are `formats.geodesy`'s.
 
 State order everywhere in the stack: ``X = [L, λ]`` = [latitude, longitude] in
 radians (docs/design.md section 7). Covariances are given by users in metres
@@ -15,31 +17,7 @@ import math
 
 import numpy as np
 
-RE_M: float = 6378137.0
-"""Earth equatorial radius R_e (A.2)."""
-FLATTENING: float = 1.0 / 298.257
-"""Earth flattening e as A.2 writes it."""
-
-
-def earth_radii(lat_rad: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
-    """Meridian and prime-vertical radii R_M, R_N at latitude L (A.2), in metres."""
-    s2 = np.sin(lat_rad) ** 2
-    r_m = RE_M * (1.0 - 2.0 * FLATTENING + 3.0 * FLATTENING * s2)
-    r_n = RE_M * (1.0 + FLATTENING * s2)
-    return r_m, r_n
-
-
-def metric_scales(lat_rad: np.ndarray | float, depth_m: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
-    """Metres per radian (b, a) = (R_M + h, (R_N + h) cos L) along [L, λ] (A.3 notation)."""
-    r_m, r_n = earth_radii(lat_rad)
-    return r_m + depth_m, (r_n + depth_m) * np.cos(lat_rad)
-
-
-def metric_scales_scalar(lat_rad: float, depth_m: float) -> tuple[float, float]:
-    """Scalar ``metric_scales`` with the math module (the per-epoch hot path): (R_M + h, (R_N + h) cos L)."""
-    s2 = math.sin(lat_rad) ** 2
-    return (RE_M * (1.0 - 2.0 * FLATTENING + 3.0 * FLATTENING * s2) + depth_m,
-            (RE_M * (1.0 + FLATTENING * s2) + depth_m) * math.cos(lat_rad))
+from formats.geodesy import metric_scales, metric_scales_scalar
 
 
 def dead_reckon_step(

@@ -23,6 +23,8 @@ lane on the whole mission.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
@@ -41,6 +43,7 @@ from replay.views.features import (
     score_top,
     scored,
 )
+from replay.views.focus import focus_note, hide
 from replay.views.lanes import LANES_ROOT, training_end_s
 from replay.views.positioning import fix_methods, kmcdf_half_width
 from replay.views.tracks import KEY, KEY_STEP, geo_bounds, key_rows, track_bounds
@@ -60,12 +63,13 @@ def _whole_mission() -> rrb.archetypes.TimeAxis:
 
 
 def _series(name: str, contents: list[str], y_max: float | None = None, legend: bool = True,
-            y_range: tuple[float, float] | None = None) -> rrb.TimeSeriesView:
+            y_range: tuple[float, float] | None = None,
+            overrides: dict[EntityPathLike, VisualizerLike] | None = None) -> rrb.TimeSeriesView:
     """A time series over the whole mission; y from 0 to `y_max`, or over `y_range`, else fitted to the data."""
     y = y_range if y_range is not None else (0.0, y_max) if y_max else None
     return rrb.TimeSeriesView(name=name, contents=contents, axis_x=_whole_mission(),
                               axis_y=rrb.ScalarAxis(range=y, zoom_lock=False) if y else None,
-                              plot_legend=rrb.PlotLegend(corner="RightTop", visible=legend))
+                              plot_legend=rrb.PlotLegend(corner="RightTop", visible=legend), overrides=overrides)
 
 
 def robust_range(values: np.ndarray, pad: float = 0.1) -> tuple[float, float] | None:
@@ -114,15 +118,18 @@ def map_zoom(reviews: list[ReviewData], width_px: float = 450.0) -> float | None
     return float(np.clip(np.log2(360.0 * width_px / (256.0 * 1.3 * span_deg)), 1.0, 19.0))
 
 
-def _navigation(runs: list[Run]) -> rrb.Container:
+def _navigation(runs: list[Run], focus: Sequence[str] | None) -> rrb.Container:
     reviews = [r.review for r in runs]
+    note = focus_note(runs, focus)
     return rrb.Horizontal(
-        rrb.MapView(name="Map: GPS truth and every track", contents=_contents(runs, "map"),
-                    overrides=_trail_overrides(runs, "map"), zoom=map_zoom(reviews)),
+        rrb.MapView(name="Map: GPS truth and the focus tracks" + (f"; {note}" if note else ""),
+                    contents=_contents(runs, "map"), zoom=map_zoom(reviews),
+                    overrides={**_trail_overrides(runs, "map"), **hide(runs, focus, "map")}),
         rrb.Spatial2DView(name="Local east/north (m), range circles", contents=_contents(runs, "local"),
-                          overrides=_trail_overrides(runs, "local"), visual_bounds=_local_bounds(reviews)),
+                          overrides={**_trail_overrides(runs, "local"), **hide(runs, focus, "local")},
+                          visual_bounds=_local_bounds(reviews)),
         rrb.Spatial2DView(name="Colour key", contents=[f"+ {KEY}/**"], visual_bounds=rrb.VisualBounds2D(
-            x_range=[-0.5, 9.0], y_range=[-1.0, 1.0 + KEY_STEP * key_rows(runs)])),
+            x_range=[-0.5, 9.0], y_range=[-1.0, 1.0 + KEY_STEP * key_rows(runs, focus)])),
         column_shares=[5, 5, 1.6], name="Navigation",
     )
 
@@ -144,7 +151,7 @@ def _vehicles(runs: list[Run]) -> rrb.Container | None:
     return rrb.Tabs(*tabs, name="Vehicles") if tabs else None
 
 
-def _scoreboard(runs: list[Run], error_top: float) -> rrb.Container:
+def _scoreboard(runs: list[Run], error_top: float, focus: Sequence[str] | None) -> rrb.Container:
     followers = sorted({str(k[0]) for r in runs for k, _ in r.groups(r.review.errors, ["follower"])})
     docs = [rrb.TextDocumentView(name=f"Scoreboard{' [' + r.label + ']' if r.label else ''}",
                                  contents=[f"+ {r.path('scoreboard')}"]) for r in runs]
@@ -156,12 +163,15 @@ def _scoreboard(runs: list[Run], error_top: float) -> rrb.Container:
         bounds = rrb.VisualBounds2D(x_range=[-13.0, WIDTH + 8.0], y_range=[-HEIGHT - 8.0, 11.0])
         cdfs.append(rrb.Spatial2DView(name=f"Error CDF of {f} after t_a, so far",
                                       contents=[f"+ {r.path('cdf', f)}/**" for r in runs]
-                                      + [f"- {r.path('cdf', f, 'table')}" for r in runs], visual_bounds=bounds))
+                                      + [f"- {r.path('cdf', f, 'table')}" for r in runs], visual_bounds=bounds,
+                                      overrides=hide(runs, focus, "cdf")))
         cdfs.append(rrb.Horizontal(*(rrb.TextDocumentView(
             name=f"Percentiles from t_a to the cursor{' [' + r.label + ']' if r.label else ''}",
             contents=[f"+ {r.path('cdf', f, 'table')}"]) for r in runs)))
-    errors = _series("Error vs GPS (m), whole mission; colours as in the CDF; grey line: t_a",
-                     _contents(runs, "series", "error") + _contents(runs, "series", "marks"), error_top, legend=False)
+    note = focus_note(runs, focus)
+    errors = _series("Error vs GPS (m), whole mission; grey line: t_a" + (f"; {note}" if note else ""),
+                     _contents(runs, "series", "error") + _contents(runs, "series", "marks"), error_top,
+                     overrides=hide(runs, focus, "error"))
     # two runs: what changed first, the two scoreboards as tabs beneath (side by side they would not fit)
     left = (rrb.Vertical(docs[0], errors, row_shares=[1, 1]) if len(docs) == 1 else
             rrb.Vertical(docs[2], rrb.Tabs(*docs[:2]), errors, row_shares=[1.1, 1.1, 1]))
@@ -293,7 +303,8 @@ def _kmcdf(runs: list[Run]) -> rrb.Container | None:
             methods = sorted(rows["method"].astype(str).unique())
             prelim = ", ".join(with_fixes) if with_fixes else "none"
             views.append(rrb.Spatial2DView(
-                name=f"KMCDF {t}{tag}: fix - GPS (m); prelim. fixes of {prelim}: green kept, red C2",
+                name=f"KMCDF {t}{tag}: fix - GPS (m); prelim. fixes of {prelim}: green kept, red C2 "
+                     "(large on the rim: farther out)",
                 contents=[f"+ {run.path('kmcdf', t, m)}/final" for m in methods]
                 + [f"+ {run.path('kmcdf', t, m)}/fixes" for m in with_fixes]
                 + [f"+ {run.path('kmcdf', t, 'truth')}/**"],
@@ -306,9 +317,14 @@ def _kmcdf(runs: list[Run]) -> rrb.Container | None:
     return rrb.Grid(*views, name="KMCDF", grid_columns=2) if views else None
 
 
-def build_blueprint(runs: list[Run], error_top: float, active_tab: int | str = 0) -> rrb.Blueprint:
-    """The workstation layout for one run or two compared; `error_top` the error plots' y extent."""
-    tabs = [_scoreboard(runs, error_top), _detection(runs), _scores(runs), _features(runs), _navigation(runs),
+def build_blueprint(runs: list[Run], error_top: float, active_tab: int | str = 0,
+                    focus: Sequence[str] | None = None) -> rrb.Blueprint:
+    """The workstation layout for one run or two compared; `error_top` the error plots' y extent.
+
+    `focus` names the methods shown at first (None: each run's default focus; "all": every method).
+    """
+    tabs = [_scoreboard(runs, error_top, focus), _detection(runs), _scores(runs), _features(runs),
+            _navigation(runs, focus),
             _vehicles(runs), _anfis(runs), _kmcdf(runs)]
     main = rrb.Tabs(*(t for t in tabs if t is not None), active_tab=active_tab)
     log = rrb.TextLogView(name="Events", contents=_contents(runs, "events"),

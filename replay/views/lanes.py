@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 import rerun as rr
 
+from replay.review.scoreboard import detectors_by_merit, scoreboard
 from replay.views.common import Run, part
 
 # state -> colour; the same in every lane and every run (errors loud, correct silence quiet)
@@ -88,7 +89,9 @@ def log_lanes(rec: rr.RecordingStream, run: Run) -> None:
     det = run.review.detections
     t_a = training_end_s(run)
     present = {str(m) for m in det["method"].unique()} if "method" in det else set()
-    order = [m for m in run.review.methods if m in present]
+    # detectors best first (fewest false alarms and misses, as the scoreboard's verdict), then any other
+    ranked = [r.method for r in detectors_by_merit(scoreboard(run.review.metrics))]
+    order = [m for m in ranked if m in present] + [m for m in run.review.methods if m in present and m not in ranked]
     by_follower = run.groups(det, ["follower"])
     # a follower's leaders as the other views group them: the same rows, in time order, grouped once
     pairs = run.groups(det, ["follower", "leader"])

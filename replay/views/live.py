@@ -21,13 +21,13 @@ from typing import Any
 import numpy as np
 import rerun as rr
 
+from formats.units import NS
 from replay.events import Listener
 from replay.review.data import ReviewData
 from replay.views.common import class_id, part
 from replay.views.recording import log_runs, prepare
 
 RAD = 180.0 / math.pi
-NS = 1_000_000_000
 
 
 def open_stream(run_id: str, spawn: bool = False, connect: str | None = None,

@@ -54,6 +54,19 @@ def truth_at(run: Run, target: str, t_s: np.ndarray) -> np.ndarray:
     return out
 
 
+RIM = 0.95     # where a fix beyond the view is drawn, as a share of the view's half width
+
+
+def on_rim(offset: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray]:
+    """(n, 2) offsets with those beyond `limit` (Chebyshev, the square view) pulled in to it along their
+    direction, and which were pulled."""
+    reach = np.max(np.abs(offset), axis=1)
+    beyond = np.isfinite(reach) & (reach > limit)
+    out = offset.copy()
+    out[beyond] *= (limit / reach[beyond])[:, None]
+    return out, beyond
+
+
 def fix_methods(review_kmcdf: pd.DataFrame) -> list[str]:
     """The positioning methods whose rows carry preliminary fixes."""
     if review_kmcdf.empty or "fixes_east_m" not in review_kmcdf:
@@ -72,8 +85,13 @@ def _log_epochs(rec: rr.RecordingStream, run: Run, target: str, method: str, row
         cl = cl if np.array_equal(c_lengths, lengths) else np.zeros(fe.size)
         colors = CLUSTER_COLORS[np.nan_to_num(cl).astype(np.int64) % len(CLUSTER_COLORS)]
         origin = np.repeat(np.nan_to_num(truth), lengths, axis=0)
-        cols = rr.Points2D.columns(positions=np.column_stack([fe - origin[:, 0], -(fn - origin[:, 1])]),
-                                   colors=colors, radii=np.full(fe.size, rr.Radius.ui_points(3.0), dtype=np.float32))
+        # a rejected fix lies tens to thousands of metres out: drawn on the view's rim in its direction (hollow
+        # and larger), so every preliminary fix of the epoch is on screen and the kept ones stay readable
+        offset, beyond = on_rim(np.column_stack([fe - origin[:, 0], fn - origin[:, 1]]),
+                                RIM * kmcdf_half_width(run, target))
+        radii = np.where(beyond, rr.Radius.ui_points(5.0), rr.Radius.ui_points(3.0)).astype(np.float32)
+        cols = rr.Points2D.columns(positions=np.column_stack([offset[:, 0], -offset[:, 1]]), colors=colors,
+                                   radii=radii)
         rec.send_columns(run.path("kmcdf", target, method, "fixes"), indexes=times, columns=cols.partition(lengths))
     n = len(rows)
     off = np.column_stack([floats(rows, "east_m"), floats(rows, "north_m")]) - np.nan_to_num(truth)

@@ -21,6 +21,7 @@ import os
 import shutil
 import subprocess
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 import rerun as rr
@@ -77,47 +78,50 @@ def log_review(rec: rr.RecordingStream, run: Run, axes: dict, error_top: float) 
     log_events(rec, run)
 
 
-def prepare(reviews: list[ReviewData], active_tab: int | str = 0) -> tuple[list[Run], dict, float, rrb.Blueprint]:
-    """The runs of one or two reviews, their error axes and ceiling, and the workstation blueprint."""
+def prepare(reviews: list[ReviewData], active_tab: int | str = 0,
+            focus: Sequence[str] | None = None) -> tuple[list[Run], dict, float, rrb.Blueprint]:
+    """The runs of one or two reviews, their error axes and ceiling, and the workstation blueprint (`focus`:
+    the methods shown at first, replay.views.focus)."""
     if not 1 <= len(reviews) <= 2:
         raise ValueError(f"a recording takes one run or two to compare, got {len(reviews)}")
     runs = make_runs(reviews)
     error_top = error_ceiling([r.errors for r in reviews])
-    return runs, error_axis(runs), error_top, build_blueprint(runs, error_top, active_tab)
+    return runs, error_axis(runs), error_top, build_blueprint(runs, error_top, active_tab, focus)
 
 
 def log_runs(rec: rr.RecordingStream, reviews: list[ReviewData], runs: list[Run], axes: dict,
-             error_top: float) -> None:
+             error_top: float, focus: Sequence[str] | None = None) -> None:
     """Everything of the runs into a recording: its name and start, scores, colour key, CDF frame, every view."""
     rec.send_recording_name(" vs ".join(f"{r.trial} {run.label or r.run_id}" for r, run in zip(reviews, runs,
                                                                                              strict=True)))
     rec.send_recording_start_time_nanos(int(reviews[0].trial_start_ns))
     log_scores(rec, runs)
-    log_colour_key(rec, runs)
+    log_colour_key(rec, runs, focus)
     log_cdf_frame(rec, runs, axes)
     for run in runs:
         log_review(rec, run, axes, error_top)
 
 
 def build_recording(reviews: list[ReviewData], application_id: str = "auvreplay",
-                    path: str | os.PathLike[str] | None = None, active_tab: int | str = 0) -> rr.RecordingStream:
+                    path: str | os.PathLike[str] | None = None, active_tab: int | str = 0,
+                    focus: Sequence[str] | None = None) -> rr.RecordingStream:
     """A recording of one or two runs with the blueprint; streamed to `path` (.rrd) when given, else buffered."""
-    runs, axes, error_top, blueprint = prepare(reviews, active_tab)
+    runs, axes, error_top, blueprint = prepare(reviews, active_tab, focus)
     rec = rr.RecordingStream(application_id, recording_id=recording_id(reviews), send_properties=False)
     if path is not None:
         rec.save(str(path), default_blueprint=blueprint)
     else:
         rec.send_blueprint(blueprint)
-    log_runs(rec, reviews, runs, axes, error_top)
+    log_runs(rec, reviews, runs, axes, error_top, focus)
     return rec
 
 
 def save_rrd(reviews: list[ReviewData], path: str | os.PathLike[str], application_id: str = "auvreplay",
-             active_tab: int | str = 0) -> Path:
+             active_tab: int | str = 0, focus: Sequence[str] | None = None) -> Path:
     """Write the recording with its blueprint to `path`: a temporary name first, renamed when complete."""
     out = Path(path)
     tmp = out.with_name(out.name + ".partial")
-    rec = build_recording(reviews, application_id, tmp, active_tab)
+    rec = build_recording(reviews, application_id, tmp, active_tab, focus)
     rec.flush()
     rec.disconnect()
     os.replace(tmp, out)

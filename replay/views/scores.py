@@ -19,14 +19,14 @@ from replay.review.naming import run_labels
 from replay.review.scoreboard import (
     DETECTION_COLUMNS,
     ERROR_COLUMNS,
+    GROUPS,
     NAV_HEADINGS,
     NAVIGATION_COLUMNS,
-    ScoreRow,
     format_value,
     navigation_rows,
     scoreboard,
     skipped_lines,
-    window_text,
+    verdict,
 )
 from replay.views.common import Run
 
@@ -42,37 +42,24 @@ def _count(value: float) -> str:
     return str(int(value)) if math.isfinite(value) else "-"
 
 
-def best_detector(rows: list[ScoreRow]) -> ScoreRow | None:
-    """The detector with the fewest wrong decisions (FP + FN) after t_a; ties by AUC, then name."""
-    det = [r for r in rows if r.kind == "detector" and r.figures.get("fp") is not None]
-    if not det:
-        return None
-    return min(det, key=lambda r: (_number(r.figures["fp"]) + _number(r.figures["fn"]),
-                                   -_number(r.figures.get("auc")), r.method))
-
-
 def scoreboard_markdown(run: Run) -> str:
-    """The scoreboard of one run as a markdown document."""
+    """The scoreboard of one run as a markdown document: the verdict first, then each group's table."""
     metrics = run.review.metrics
     rows = scoreboard(metrics)
-    title = f"Scoreboard{' [' + run.label + ']' if run.label else ''}: {window_text(metrics)}"
-    tail = _navigation_markdown(metrics) + _skipped_markdown(metrics)
-    if not rows:
-        return f"**{title}**\n\nno cooperative method ran in this run" + tail
+    title = f"Scoreboard{' [' + run.label + ']' if run.label else ''}"
+    lines = [f"**{title}**", ""] + [f"- {line}" for line in verdict(metrics)]
     cols = ERROR_COLUMNS + DETECTION_COLUMNS
-    lines = [f"**{title}**", "", "| # | method | kind | " + " | ".join(HEADINGS[c] for c in cols) + " |",
-             "|---:|---|---|" + "---:|" * len(cols)]
-    lines += [f"| {r.rank} | {r.method} | {r.kind} | " + " | ".join(format_value(r.figures.get(c)) for c in cols)
-              + " |" for r in rows]
-    best = rows[0]
-    said = [f"Lowest error: **{best.method}** (p50 {format_value(best.figures.get('error_p50_m'))} m)."]
-    det = best_detector(rows)
-    if det is not None:
-        f = det.figures
-        said.append(f"Best detector: **{det.method}** ({format_value(f.get('fp'))} false alarms, "
-                    f"{format_value(f.get('fn'))} misses, AUC {format_value(f.get('auc'))}).")
-    return "\n".join(lines + ["", " ".join(said),
-                              "", "Ranked by error p50, then p90. Detection columns only for detectors."]) + tail
+    for group, what in GROUPS.items():
+        in_group = [r for r in rows if r.group == group]
+        if not in_group:
+            continue
+        lines += ["", f"**{what.capitalize()}**", "", "| # | method | kind | " + " | ".join(HEADINGS[c] for c in cols)
+                  + " |", "|---:|---|---|" + "---:|" * len(cols)]
+        lines += [f"| {r.rank} | {r.method} | {r.kind} | " + " | ".join(format_value(r.figures.get(c)) for c in cols)
+                  + " |" for r in in_group]
+    if rows:
+        lines += ["", "Ranked in each group by error p50, then p90. Detection columns only for detectors."]
+    return "\n".join(lines) + _navigation_markdown(metrics) + _skipped_markdown(metrics)
 
 
 def _navigation_markdown(metrics: dict[str, Any]) -> str:

@@ -15,6 +15,8 @@ Entities under a run prefix P:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import pandas as pd
 import rerun as rr
@@ -22,6 +24,7 @@ import rerun as rr
 from replay.review.data import ReviewData
 from replay.review.scoreboard import method_kind
 from replay.views.common import Run, class_id, floats, method_rgb
+from replay.views.focus import hidden_methods
 
 MAX_STATIC_VERTICES = 4000
 GAP_S = 30.0     # a track silent for longer (a dive, a lost link) is drawn as separate strips
@@ -183,15 +186,20 @@ def colour_key_names(run: Run) -> list[str]:
         sources - set(run.review.methods) - {"gps", "ins"})
 
 
-def key_rows(runs: list[Run]) -> int:
-    """Rows of the colour key: one per run and name."""
-    return sum(len(colour_key_names(r)) for r in runs)
+def _key_names(run: Run, focus: Sequence[str] | None) -> list[str]:
+    hidden = set(hidden_methods(run, focus))
+    return [n for n in colour_key_names(run) if n not in hidden]
 
 
-def log_colour_key(rec: rr.RecordingStream, runs: list[Run]) -> None:
-    """A legend for the map and the local plot: a swatch in each name's colour, top to bottom."""
+def key_rows(runs: list[Run], focus: Sequence[str] | None = None) -> int:
+    """Rows of the colour key: one per run and name shown."""
+    return sum(len(_key_names(r, focus)) for r in runs)
+
+
+def log_colour_key(rec: rr.RecordingStream, runs: list[Run], focus: Sequence[str] | None = None) -> None:
+    """A legend for the map and the local plot: a swatch in each shown name's colour, top to bottom."""
     entries = [(r.name("GPS truth" if n == "gps" else n), method_rgb(n, r.index)) for r in runs
-               for n in colour_key_names(r)]
+               for n in _key_names(r, focus)]
     if not entries:
         return
     y = KEY_STEP * np.arange(len(entries), dtype=float)

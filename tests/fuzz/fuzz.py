@@ -41,18 +41,18 @@ ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-import zstandard  # noqa: E402
+import zstandard
 
-from formats import schemas as S  # noqa: E402
-from formats.mcap_reader import ArchiveReader  # noqa: E402
-from formats.mcap_writer import ArchiveWriter  # noqa: E402
-from formats.records import FormatError, Reject  # noqa: E402
-from formats.regex_lines import EXAMPLE_PATTERN, EXAMPLE_SCALE  # noqa: E402
-from formats.waterlinked import crc8  # noqa: E402
-from recorders.base import LogContext  # noqa: E402
-from recorders.manifest import load_manifest  # noqa: E402
-from recorders.registry import converters  # noqa: E402
-from tests.test_ecosystem_inputs import (  # noqa: E402
+from formats import schemas as S
+from formats.mcap_reader import ArchiveReader
+from formats.mcap_writer import ArchiveWriter
+from formats.records import FormatError, Reject
+from formats.regex_lines import EXAMPLE_PATTERN, EXAMPLE_SCALE
+from formats.waterlinked import crc8
+from recorders.base import LogContext
+from recorders.manifest import load_manifest
+from recorders.registry import converters
+from tests.test_ecosystem_inputs import (
     ALOG,
     NMEA_SENTENCE_MSG,
     _bag_messages,

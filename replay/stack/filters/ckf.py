@@ -23,8 +23,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from formats.geodesy import FLATTENING, RE_M, metric_scales_scalar
 from replay.stack.filters.cubature import cubature_transform, symmetrize
-from replay.stack.model import FLATTENING, RE_M, metric_scales_scalar, radian_scaling
+from replay.stack.model import radian_scaling
 
 MIN_PREDICTED_RANGE_M: float = 1.0
 """Below this predicted horizontal range the leader is 'on top of' the follower: the range
