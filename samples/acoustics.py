@@ -21,6 +21,7 @@ import numpy as np
 from formats.geodesy import LocalFrame
 
 from . import anomalies as an
+from . import conditions as cond
 from .scenario import AnomalyEvent, Scenario
 from .sensors import GpsSeries, InsSeries, grid
 from .trajectories import Track, interp_track, stream
@@ -88,7 +89,9 @@ def _link(scenario: Scenario, follower: Track, leader: Track, t: np.ndarray, see
     true = np.sqrt((f["east_m"] - ld["east_m"]) ** 2 + (f["north_m"] - ld["north_m"]) ** 2
                    + (f["depth_m"] - ld["depth_m"]) ** 2)
     rng = stream(seed, "range", follower.name, leader.name)
-    noisy = true + rng.standard_normal(len(t)) * scenario.ranging.range_sigma_m
+    noisy = cond.range_errors(scenario.conditions, scenario.ranging.range_sigma_m, true, t,
+                              scenario.ranging.sound_speed_mps, rng.standard_normal(len(t)), seed,
+                              follower.name, leader.name)
     measured, replied, kinds = an.apply_events(t, noisy, events)
     return {"true": true, "measured": measured, "replied": replied, "kinds": kinds,
             "f_depth": f["depth_m"], "l_depth": ld["depth_m"]}
@@ -110,8 +113,10 @@ def simulate_ranging(scenario: Scenario, tracks: dict[str, Track], ins: dict[str
             fixed = [e for e in scenario.anomalies if e.leader == lname and e.follower == fname]
             drawn = (an.natural_events(nat[lname], fname, t, scenario.trial.duration_s, seed, fixed)
                      if lname in nat else [])
-            intervals += an.intervals_for(fixed, "scenario") + an.intervals_for(drawn, "natural")
-            link = _link(scenario, tracks[fname], tracks[lname], t, seed, fixed + drawn)
+            bounced = cond.multipath_events(scenario.conditions, fname, lname, scenario.trial.duration_s, seed)
+            intervals += (an.intervals_for(fixed, "scenario") + an.intervals_for(drawn, "natural")
+                          + an.intervals_for(bounced, "condition"))
+            link = _link(scenario, tracks[fname], tracks[lname], t, seed, fixed + drawn + bounced)
             pings["t"].append(t)
             pings["f"].append(np.full(len(t), fname))
             pings["l"].append(np.full(len(t), lname))

@@ -2,7 +2,8 @@
 
 Kinds (seed A section 1 and 4.1, seed P background): `stale` — the modem
 keeps reporting its last range; `drift` — a slowly growing error; `outlier` —
-one wild range; `dropout` — no reply. Labels follow docs/design.md section 9
+one wild range; `dropout` — no reply; `multipath` — a persistent positive bias on a link for a
+time (a condition, samples/conditions.py). Labels follow docs/design.md section 9
 (seed A eqs. 26-27): an epoch is anomalous when |Z_gps - Z| > T1, Z_gps from
 the vehicles' GPS fixes, Z the measured range made horizontal.
 """
@@ -19,7 +20,7 @@ from formats.geodesy import metric_scales
 from .scenario import AnomalyEvent, NaturalAnomalies
 from .trajectories import stream
 
-KIND_CODES = {"": 0, "stale": 1, "drift": 2, "outlier": 3}
+KIND_CODES = {"": 0, "stale": 1, "drift": 2, "outlier": 3, "multipath": 4}
 T1_M = 9.0
 
 
@@ -80,7 +81,7 @@ def apply_events(t: np.ndarray, noisy_m: np.ndarray,
                  events: list[AnomalyEvent]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Measured ranges of ONE link after its events: (measured, replied mask, kind codes).
 
-    Order: dropouts remove epochs; drift and outliers add to the noisy range;
+    Order: dropouts remove epochs; drift, outliers and multipath add to the noisy range;
     stale segments then freeze the last reported value (the modem repeats
     what it last had, whatever that was).
     """
@@ -89,7 +90,7 @@ def apply_events(t: np.ndarray, noisy_m: np.ndarray,
     replied = np.ones(len(t), dtype=bool)
     for ev in (e for e in events if e.kind == "dropout"):
         replied &= ~_inside(t, ev)
-    for ev in (e for e in events if e.kind in ("drift", "outlier")):
+    for ev in (e for e in events if e.kind in ("drift", "outlier", "multipath")):
         m = _inside(t, ev) & replied
         span = max(ev.end_s - ev.start_s, 1e-9)
         ramp = (t[m] - ev.start_s) / span if ev.kind == "drift" else 1.0

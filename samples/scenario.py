@@ -11,12 +11,20 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field, fields, is_dataclass, replace
+from dataclasses import MISSING, Field, dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 from typing import Any
 
-ANOMALY_KINDS = ("stale", "drift", "outlier", "dropout")
+ANOMALY_KINDS = ("stale", "drift", "outlier", "dropout", "multipath")
 NODE_FAULT_KINDS = ("delay", "phase", "both")
+OPTIONAL = {"optional": True}
+"""Field metadata of a key added after the sample trial: written to TOML only when it differs from its default,
+so the sample's scenario.toml stays as it was."""
+
+
+def optional(default: Any) -> Any:
+    """A scenario field with this default, written to TOML only when set to something else."""
+    return field(default=default, metadata=OPTIONAL)
 
 
 @dataclass(frozen=True)
@@ -47,9 +55,9 @@ class GpsConfig:
     # an AUV's receiver has no sky while it is submerged: followers dive for follower_dive_s (0: never), from
     # follower_first_dive_s on, surfacing for follower_surface_s between dives (typical survey AUVs: dives of
     # 5-30 min, a minute or two at the surface for a fix); their GPS logs hold no fix while submerged
-    follower_dive_s: float = 0.0
-    follower_surface_s: float = 60.0
-    follower_first_dive_s: float = 60.0
+    follower_dive_s: float = optional(0.0)
+    follower_surface_s: float = optional(60.0)
+    follower_first_dive_s: float = optional(60.0)
 
 
 @dataclass(frozen=True)
@@ -162,6 +170,59 @@ class NaturalAnomalies:
     dropout_prob: float = 0.0
 
 
+@dataclass(frozen=True)
+class Conditions:
+    """What real trials add to the default scenario (issue 26): every one off at its default.
+
+    Each key has its physical meaning and a realistic range next to it. The
+    draws (which ones, when, how strong) come from the trial's seed, so a
+    condition set gives different trials per seed; `realized` applies the
+    per-trial draws and writes them back as plain values.
+    """
+
+    # sound-speed scale bias (fraction): the modems convert travel time with an assumed sound speed that is
+    # off the water's by 0.1-1 % (temperature, salinity, a default of 1500 m/s in a 1450 m/s lake), so every
+    # range is (1 + bias) times the true one: 1-10 m at 1 km, a slow drift on every link as ranges change.
+    # Negative: the water is faster than assumed; 0: none
+    sound_speed_bias: float = optional(0.0)
+    # one-way travel-time clocks: each follower-leader pair's clocks differ by an offset drawn uniform in
+    # +-owtt_clock_offset_s (0.1-2 ms after a GPS sync, i.e. 0.15-3 m) that grows at a rate drawn uniform in
+    # +-owtt_clock_drift_ppm (a TCXO 0.1-1 ppm, 0.15-1.5 mm/s of range; a chip-scale atomic clock 1e-4)
+    owtt_clock_offset_s: float = optional(0.0)
+    owtt_clock_drift_ppm: float = optional(0.0)
+    # multipath: a surface or bottom bounce heard instead of the direct path adds a persistent positive bias
+    # of multipath_min_m-multipath_max_m (5-30 m at a few hundred metres in shallow water) for
+    # multipath_min_s-multipath_max_s (30-300 s, while the geometry lasts), multipath_per_hour times per link
+    multipath_per_hour: float = optional(0.0)
+    multipath_min_m: float = optional(8.0)
+    multipath_max_m: float = optional(25.0)
+    multipath_min_s: float = optional(30.0)
+    multipath_max_s: float = optional(180.0)
+    # heavy-tailed, range-dependent ranging noise: sigma = range_sigma_m + range_noise_per_km_m per km of
+    # range (1-5 m/km: weaker, later detections at long range), Student-t with range_noise_dof degrees of
+    # freedom scaled to that sigma (2.5-5 for real modems' arrival-picking errors; 0: Gaussian)
+    range_noise_per_km_m: float = optional(0.0)
+    range_noise_dof: float = optional(0.0)
+    # DVL bottom-lock loss: stretches of dvl_lock_loss_min_s-dvl_lock_loss_max_s (10-60 s over soft mud,
+    # weed, steep slopes or beyond the altitude limit), dvl_lock_loss_per_hour per vehicle (1-20), where the
+    # DVL's pings have no bottom track (archived as invalid)
+    dvl_lock_loss_per_hour: float = optional(0.0)
+    dvl_lock_loss_min_s: float = optional(10.0)
+    dvl_lock_loss_max_s: float = optional(60.0)
+    # compass deviation with heading on the followers' low-grade heading: a one-cycle term of amplitude
+    # compass_deviation_deg (hard iron) and a two-cycle one of half of it (soft iron), phases drawn per
+    # seed; 0.5-2 deg after a swing calibration, up to 5 deg without
+    compass_deviation_deg: float = optional(0.0)
+    # the scripted anomalies move: each keeps its kind, length and size but gets a start drawn per seed
+    # (inside the training window if it was there, after it otherwise) and a leader drawn among the leaders
+    anomalies_drawn: bool = optional(False)
+    # the vehicles' sensor parameters drawn per trial around their specification: the followers' heading
+    # bias (its sign too), heading walk and velocity error, the DVL's noise and the ranging sigma, each times
+    # exp(N(0, sensor_spread)) (0.3-0.5: units of one model differ by tens of percent), so no model that
+    # uses the specification is told the truth; 0: the specification itself
+    sensor_spread: float = optional(0.0)
+
+
 def _default_events() -> tuple[AnomalyEvent, ...]:
     return (
         AnomalyEvent("leader1", "stale", 100.0, 150.0),
@@ -204,6 +265,7 @@ class Scenario:
     anomalies: tuple[AnomalyEvent, ...] = field(default_factory=_default_events)
     natural: tuple[NaturalAnomalies, ...] = field(default_factory=_default_natural)
     node_faults: tuple[NodeFault, ...] = field(default_factory=_default_faults)
+    conditions: Conditions = field(default_factory=Conditions)
 
     def with_options(self, duration_s: float | None = None, followers: int | None = None) -> Scenario:
         """A copy with the command-line overrides applied."""
@@ -235,7 +297,7 @@ class Scenario:
 _LISTS: dict[str, type] = {"anomalies": AnomalyEvent, "natural": NaturalAnomalies, "node_faults": NodeFault}
 _TABLES: dict[str, type] = {
     "trial": TrialConfig, "gps": GpsConfig, "ins": InsConfig, "dvl": DvlConfig,
-    "ranging": RangingConfig, "usbl": UsblConfig,
+    "ranging": RangingConfig, "usbl": UsblConfig, "conditions": Conditions,
 }
 
 
@@ -300,6 +362,18 @@ def validate(scenario: Scenario) -> None:
     for nf in scenario.node_faults:
         if nf.kind not in NODE_FAULT_KINDS or nf.end_s < nf.start_s:
             raise ScenarioError(f"[[node_faults]]: bad fault {nf}")
+    c = scenario.conditions
+    rates = (c.owtt_clock_offset_s, c.owtt_clock_drift_ppm, c.multipath_per_hour, c.range_noise_per_km_m,
+             c.dvl_lock_loss_per_hour, c.compass_deviation_deg, c.sensor_spread)
+    if not all(math.isfinite(v) and v >= 0 for v in rates):
+        raise ScenarioError("[conditions]: clock, multipath, noise, lock-loss, deviation and spread keys must be >= 0")
+    if not (math.isfinite(c.sound_speed_bias) and abs(c.sound_speed_bias) < 0.1):
+        raise ScenarioError("[conditions]: sound_speed_bias is a fraction (0.001-0.01), |bias| < 0.1")
+    if c.range_noise_dof != 0 and not c.range_noise_dof > 2:
+        raise ScenarioError("[conditions]: range_noise_dof must be 0 (Gaussian) or > 2 (finite variance)")
+    if not (0 <= c.multipath_min_m <= c.multipath_max_m and 0 < c.multipath_min_s <= c.multipath_max_s
+            and 0 < c.dvl_lock_loss_min_s <= c.dvl_lock_loss_max_s):
+        raise ScenarioError("[conditions]: each min must be > 0 (metres >= 0) and at most its max")
 
 
 def _fmt(value: Any) -> str:
@@ -312,15 +386,22 @@ def _fmt(value: Any) -> str:
     raise TypeError(f"cannot write {value!r} to TOML")
 
 
+def _written(f: Field[Any], value: Any) -> bool:
+    """Every key but an optional one at its default (which would change the sample trial's file)."""
+    return not f.metadata.get("optional") or f.default is MISSING or value != f.default
+
+
 def _table_lines(obj: Any) -> list[str]:
-    return [f"{f.name} = {_fmt(getattr(obj, f.name))}" for f in fields(obj)]
+    return [f"{f.name} = {_fmt(getattr(obj, f.name))}" for f in fields(obj) if _written(f, getattr(obj, f.name))]
 
 
 def scenario_to_toml(scenario: Scenario) -> str:
     """The scenario as TOML text; deterministic (field order, repr of floats)."""
     out = ["# auvreplay lake-trial scenario (samples/scenario.py documents every key)"]
     for key in _TABLES:
-        out += ["", f"[{key}]", *_table_lines(getattr(scenario, key))]
+        lines = _table_lines(getattr(scenario, key))
+        if lines or key != "conditions":
+            out += ["", f"[{key}]", *lines]
     for key in _LISTS:
         for item in getattr(scenario, key):
             assert is_dataclass(item)

@@ -14,7 +14,8 @@ import numpy as np
 
 from formats.geodesy import LocalFrame
 
-from .scenario import DvlConfig, GpsConfig, InsConfig
+from .conditions import bottom_lock, compass_deviation
+from .scenario import Conditions, DvlConfig, GpsConfig, InsConfig
 from .trajectories import Track, gauss_markov, stream
 
 # lake surface height above mean sea level and the local geoid separation
@@ -90,19 +91,23 @@ class InsSeries:
     north_m: np.ndarray
 
 
-def heading_error(track: Track, cfg: InsConfig, leader: bool, seed: int) -> np.ndarray:
-    """Heading error on the truth axis: white for a high-grade unit, bias + random walk otherwise."""
+def heading_error(track: Track, cfg: InsConfig, leader: bool, seed: int,
+                  conditions: Conditions | None = None) -> np.ndarray:
+    """Heading error on the truth axis: white for a high-grade unit, bias + random walk (+ deviation) otherwise."""
     rng = stream(seed, "ins-heading", track.name)
     n = len(track.t_s)
     if leader:
         return rng.standard_normal(n) * cfg.leader_heading_sigma_deg
     dt = float(track.t_s[1] - track.t_s[0]) if n > 1 else 1.0
     walk = np.cumsum(rng.standard_normal(n)) * cfg.follower_heading_walk_deg_per_sqrt_s * math.sqrt(dt)
-    return cfg.follower_heading_bias_deg + walk - walk[0]
+    err = cfg.follower_heading_bias_deg + walk - walk[0]
+    if conditions is not None and conditions.compass_deviation_deg > 0:
+        err = err + compass_deviation(conditions, track.heading_deg, track.name, seed)
+    return err
 
 
 def simulate_ins(track: Track, cfg: InsConfig, frame: LocalFrame, duration_s: float,
-                 leader: bool, seed: int) -> InsSeries:
+                 leader: bool, seed: int, conditions: Conditions | None = None) -> InsSeries:
     """INS output: GPS-aided high-grade on leaders, a drifting low-grade solution on followers."""
     t = grid(duration_s, cfg.rate_hz)
     rng = stream(seed, "ins", track.name)
@@ -123,7 +128,7 @@ def simulate_ins(track: Track, cfg: InsConfig, frame: LocalFrame, duration_s: fl
     east, north = _at(track, t, track.east_m) + de, _at(track, t, track.north_m) + dn
     lat, lon = frame.to_geodetic(east, north)
     unwrapped = np.degrees(np.unwrap(np.radians(track.heading_deg)))
-    head_err = heading_error(track, cfg, leader, seed)
+    head_err = heading_error(track, cfg, leader, seed, conditions)
     heading = np.mod(np.interp(t, track.t_s, unwrapped + head_err), 360.0)
     att = cfg.attitude_sigma_deg
     roll = _at(track, t, track.roll_deg) + rng.standard_normal(n) * att
@@ -135,7 +140,7 @@ def simulate_ins(track: Track, cfg: InsConfig, frame: LocalFrame, duration_s: fl
 
 @dataclass(frozen=True)
 class DvlSeries:
-    """Bottom-track velocities in the body frame (x forward, y starboard, z down)."""
+    """Bottom-track velocities in the body frame (x forward, y starboard, z down); NaN without bottom lock."""
 
     t_s: np.ndarray
     forward_mps: np.ndarray
@@ -147,6 +152,7 @@ class DvlSeries:
     heading_deg: np.ndarray
     roll_deg: np.ndarray
     pitch_deg: np.ndarray
+    valid: np.ndarray                   # bottom lock: False where a condition took it (velocities, beams NaN)
 
 
 def lake_depth(cfg: DvlConfig, east_m: np.ndarray, north_m: np.ndarray) -> np.ndarray:
@@ -155,11 +161,12 @@ def lake_depth(cfg: DvlConfig, east_m: np.ndarray, north_m: np.ndarray) -> np.nd
 
 
 def simulate_dvl(track: Track, cfg: DvlConfig, duration_s: float, rate_hz: float,
-                 seed: int, heading_deg: np.ndarray | None = None) -> DvlSeries:
+                 seed: int, heading_deg: np.ndarray | None = None, conditions: Conditions | None = None) -> DvlSeries:
     """DVL bottom track: truth body velocities plus `sigma_mps` noise, four beam ranges.
 
     `heading_deg` (the vehicle's INS heading on the truth axis) is what a PD0
-    ensemble carries in its variable leader; truth when not given.
+    ensemble carries in its variable leader; truth when not given. Pings
+    without bottom lock (`conditions`' lock loss) have NaN velocities and beams.
     """
     t = grid(duration_s, rate_hz)
     rng = stream(seed, "dvl", track.name)
@@ -173,8 +180,11 @@ def simulate_dvl(track: Track, cfg: DvlConfig, duration_s: float, rate_hz: float
     beams = altitude / np.cos(beam_angle + tilt) + rng.standard_normal((4, n)) * 0.05
     head = heading_deg if heading_deg is not None else track.heading_deg
     unwrapped = np.degrees(np.unwrap(np.radians(head)))
+    lock = bottom_lock(conditions, t, track.name, duration_s, seed) if conditions is not None \
+        else np.ones(n, dtype=bool)
+    lost = np.where(lock, 0.0, np.nan)                  # NaN where lock is lost, 0 (adds nothing) elsewhere
     return DvlSeries(
-        t, _at(track, t, track.surge_mps) + noise[0], _at(track, t, track.sway_mps) + noise[1],
-        noise[2], noise[3] * 0.5, beams.T, altitude, np.mod(np.interp(t, track.t_s, unwrapped), 360.0),
-        roll, pitch,
+        t, _at(track, t, track.surge_mps) + noise[0] + lost, _at(track, t, track.sway_mps) + noise[1] + lost,
+        noise[2] + lost, noise[3] * 0.5 + lost, beams.T + lost[:, None], altitude,
+        np.mod(np.interp(t, track.t_s, unwrapped), 360.0), roll, pitch, lock,
     )

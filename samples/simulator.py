@@ -19,6 +19,7 @@ from formats.units import NS
 
 from . import acoustics as ac
 from .anomalies import Interval
+from .conditions import realized
 from .scenario import Scenario, validate
 from .sensors import DvlSeries, GpsSeries, InsSeries, heading_error, simulate_dvl, simulate_gps, simulate_ins
 from .trajectories import Track, default_plans, make_track
@@ -95,20 +96,26 @@ def _vehicle(name: str, track: Track, scenario: Scenario, frame: LocalFrame, see
     leader = name.startswith("leader")
     dur = scenario.trial.duration_s
     gps = simulate_gps(track, scenario.gps, frame, dur, seed)
-    ins = simulate_ins(track, scenario.ins, frame, dur, leader, seed)
+    cond = scenario.conditions
+    ins = simulate_ins(track, scenario.ins, frame, dur, leader, seed, cond)
     # a PD0 ensemble carries the heading of the vehicle's own compass/INS
-    head = np.mod(track.heading_deg + heading_error(track, scenario.ins, leader, seed), 360.0)
+    head = np.mod(track.heading_deg + heading_error(track, scenario.ins, leader, seed, cond), 360.0)
     rate = scenario.dvl.leader_rate_hz if leader else scenario.dvl.rate_hz
-    dvl = simulate_dvl(track, scenario.dvl, dur, rate, seed, head)
+    dvl = simulate_dvl(track, scenario.dvl, dur, rate, seed, head, cond)
     return VehicleSim(name, "leader" if leader else "follower", address, track, gps, ins, dvl)
 
 
 def simulate_trial(scenario: Scenario, seed: int) -> SimulatedTrial:
-    """Simulate the whole trial: tracks, sensors, ranging with anomalies and labels, USBL."""
+    """Simulate the whole trial: tracks, sensors, ranging with anomalies and labels, USBL.
+
+    The trial's scenario is the one given with its conditions' per-seed draws
+    applied (`conditions.realized`), which is what the trial records.
+    """
     validate(scenario)
+    plans = default_plans(scenario.trial.followers)
+    scenario = realized(scenario, seed, sorted(n for n in plans if n.startswith("leader")))
     frame = LocalFrame(scenario.trial.origin_lat_deg, scenario.trial.origin_lon_deg)
     t = _track_times(scenario)
-    plans = default_plans(scenario.trial.followers)
     tracks = {name: make_track(name, plan, t, frame, seed) for name, plan in plans.items()}
     vehicles = tuple(_vehicle(n, tr, scenario, frame, seed, i + 1) for i, (n, tr) in enumerate(tracks.items()))
     gps = {v.name: v.gps for v in vehicles}

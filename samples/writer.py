@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from . import logs_acoustic, logs_nav
+from .anomalies import KIND_CODES
 from .scenario import scenario_to_toml
 from .simulator import SimulatedTrial
 
@@ -109,7 +110,7 @@ def truth_csv(trial: SimulatedTrial) -> str:
 def ranges_csv(trial: SimulatedTrial) -> str:
     """Every ranging epoch: measured vs true slant range, the GPS range and the label."""
     r = trial.ranges
-    kinds = {0: "", 1: "stale", 2: "drift", 3: "outlier"}
+    kinds = {code: kind for kind, code in KIND_CODES.items()}
     rows = ["t_s,follower,leader,range_true_m,range_m,travel_time_s,z_m,z_gps_m,label,injected"]
     for i in range(len(r.t_s)):
         rows.append(f"{r.t_s[i]:.1f},{r.follower[i]},{r.leader[i]},{r.range_true_m[i]:.3f},{r.range_m[i]:.3f},"

@@ -27,18 +27,18 @@ def transition(sum_perp: tuple[float, float], sum_disp: tuple[float, float]) -> 
 
 
 def model(q: float = 1e-2, walk: float = HEADING_WALK, scale_walk: float = 1e-4, lag_s: float = 60.0,
-          gate: float = 4.0, cap: int = 10) -> DrErrorModel:
-    return DrErrorModel(q, walk, scale_walk, 3.0, (1.0, 2.0), math.radians(3.0), 0.01, lag_s, gate, cap)
+          gate: float = 4.0, gate_cap: int = 10) -> DrErrorModel:
+    return DrErrorModel(q, walk, scale_walk, 3.0, (1.0, 2.0), math.radians(3.0), 0.01, lag_s, gate, gate_cap)
 
 
 class StepwiseModel:
     """The slow obvious filter: F·P·Fᵀ + Q at every DR step, every state kept for the lagged prediction."""
 
-    def __init__(self, q: float, walk: float, scale_walk: float, lag_s: float, gate: float, cap: int) -> None:
+    def __init__(self, q: float, walk: float, scale_walk: float, lag_s: float, gate: float, gate_cap: int) -> None:
         self.q = np.array([q, q, walk ** 2, scale_walk ** 2])
         self.x = np.zeros(4)
         self.p = np.diag([1.0, 4.0, math.radians(3.0) ** 2, 1e-4])
-        self.lag_s, self.gate, self.cap = lag_s, gate, cap
+        self.lag_s, self.gate, self.gate_cap = lag_s, gate, gate_cap
         self.history: list[tuple[float, np.ndarray, np.ndarray, int]] = []     # t, x, P, steps taken by then
         self.steps: list[tuple[float, float, float]] = []
         self.left_out = 0
@@ -65,9 +65,9 @@ class StepwiseModel:
             sl = h @ p @ h + 9.0
         gated = math.isfinite(vl) and abs(vl) > self.gate * math.sqrt(sl)
         s = h @ self.p @ h + 9.0
-        if (repeated or gated) and self.left_out < self.cap:
+        if not repeated and gated and self.left_out < self.gate_cap:
             self.left_out += 1
-        else:
+        elif not repeated:
             self.left_out = 0
             k = self.p @ h / s
             self.x = self.x + k * v
@@ -90,7 +90,7 @@ def test_the_lazy_model_is_the_per_step_filter(events: list[tuple[float, float, 
     a difference of q_psi·dt·displacement² that stays within 2 %.
     """
     walk, scale_walk = (HEADING_WALK, 1e-4) if walks else (0.0, 0.0)
-    fast, slow = model(q, walk, scale_walk, lag_s=10.0, cap=2), StepwiseModel(q, walk, scale_walk, 10.0, 4.0, 2)
+    fast, slow = model(q, walk, scale_walk, lag_s=10.0, gate_cap=2), StepwiseModel(q, walk, scale_walk, 10.0, 4.0, 2)
     t = 0.0
     for dt, vn, ve, nsteps, north, east, err, repeated in events:
         for _ in range(nsteps):
@@ -255,3 +255,55 @@ def test_with_a_fresh_usbl_fix_the_drift_residual_is_the_current_innovation(monk
             assert drift == res.innovation_m
         elif t > 60.0:                       # no fresh fix, a lagged state: the lagged residual
             assert drift == res.lagged_m and drift != res.innovation_m
+
+
+def _settled(gate_cap: int = 10) -> tuple[DrErrorModel, DrErrorModel]:
+    """Two identical models (no heading or scale walk, so lazy propagation is exact) after 200 s of ranges."""
+    pair = (model(walk=0.0, scale_walk=0.0, lag_s=10.0, gate_cap=gate_cap),
+            model(walk=0.0, scale_walk=0.0, lag_s=10.0, gate_cap=gate_cap))
+    for i in range(1, 201):
+        for m in pair:
+            m.step(1.0, 1.0, 0.5)
+            if i % 3 == 0:
+                m.range(float(i), "leader1", math.hypot(300.0, 200.0) + 0.5 * math.sin(i), 300.0, 200.0, False)
+    return pair
+
+
+def test_a_stale_run_of_any_length_never_enters_the_model() -> None:
+    """40 repeats of a range 30 m off (past the gate cap of 10): the state is that of a model given no range at all.
+
+    Under the shared cap before issue 26 the 11th repeat entered the update.
+    """
+    stale, twin = _settled(gate_cap=10)
+    for i in range(201, 321):
+        stale.step(1.0, 1.0, 0.5)
+        twin.step(1.0, 1.0, 0.5)
+        if i % 3 == 0:
+            stale.range(float(i), "leader1", math.hypot(300.0, 200.0) + 30.0, 300.0, 200.0, True)
+    twin.range(321.0, "leader2", math.nan, 300.0, 200.0, False)     # propagates, no update (z not finite)
+    stale.range(321.0, "leader2", math.nan, 300.0, 200.0, False)
+    np.testing.assert_allclose(stale.x, twin.x, atol=1e-9)
+    np.testing.assert_allclose(stale.p, twin.p, rtol=1e-9, atol=1e-12)
+    # the same run, fresh: it is gated for gate_cap ranges and then taken
+    fresh, _ = _settled(gate_cap=10)
+    for i in range(201, 321):
+        fresh.step(1.0, 1.0, 0.5)
+        if i % 3 == 0:
+            fresh.range(float(i), "leader1", math.hypot(300.0, 200.0) + 30.0, 300.0, 200.0, False)
+    assert abs(fresh.x[0] - twin.x[0]) + abs(fresh.x[1] - twin.x[1]) > 5.0
+
+
+def test_the_gate_cap_still_caps_gated_ranges() -> None:
+    """Fresh ranges 30 m off: the first gate_cap leave the state alone, the next enters; repeats do not count."""
+    m, _ = _settled(gate_cap=4)
+    states = []
+    for k, i in enumerate(range(201, 231, 3)):
+        m.step(3.0, 3.0, 1.5)
+        repeated = k == 2                         # a repeat inside the run neither counts nor updates
+        m.range(float(i), "leader1", math.hypot(300.0, 200.0) + 30.0 + 0.1 * k, 300.0, 200.0, repeated)
+        states.append(list(m.x))
+    # x moves only with the propagation (the heading and scale states turn the steps: ~5e-5 m) until the
+    # 5th fresh gated range (the 6th call)
+    moved = [abs(states[j][0] - states[j - 1][0]) + abs(states[j][1] - states[j - 1][1]) for j in range(1, 5)]
+    assert max(moved) < 1e-3
+    assert abs(states[5][0] - states[4][0]) + abs(states[5][1] - states[4][1]) > 1.0

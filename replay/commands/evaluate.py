@@ -12,6 +12,13 @@ scripted drift at each `--drift-rate` (m/s): drift recall per rate and method.
 the train seed's run trained on (its window, and the new methods' hybrid
 database), never on the test trial's own window; `both` on the two; `own` on
 each test trial's own window (the train seed is then not run).
+`--conditions all|FILE` runs the condition matrix instead (replay.run.matrix):
+every condition of issue 26 (or of FILE) with and without USBL fixes, the
+train seed simulated under each, the test seeds' drifts taking the
+`--drift-rate` rates in turn; per condition the label-noise floor and per
+method the open-loop AUC and FNR at FPR 1/2/5 % (operating point on the test
+ROC, the same for every method), closed-loop FPR and FNR, recall per kind
+and drift recall per rate, error p50/p90.
 Trials run on a LocalCluster of `--workers` processes (127.0.0.1), on the
 scheduler at `--scheduler`, or here one after another with `--workers 1`.
 """
@@ -22,6 +29,7 @@ import argparse
 import json
 import math
 import os
+import statistics
 import sys
 import time
 from typing import TYPE_CHECKING, Any
@@ -31,11 +39,13 @@ from replay.run.batch import dask_client, parse_seeds
 from replay.run.config import load_config
 from replay.run.config_ranges import EVALUATE_MAX_DURATION_S, SEED_MAX, evaluate_max_workers
 from replay.run.evaluate import DEFAULT_DRIFT_RATES, evaluate
+from replay.run.matrix import evaluate_matrix
 from replay.stack.methods import runnable_names
 from samples.scenario import ScenarioError, load_scenario
 
 if TYPE_CHECKING:
     from replay.run.evaluate import Evaluation
+    from replay.run.matrix import Matrix
     from samples.scenario import Scenario
 
 
@@ -59,6 +69,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="a running Dask scheduler (tcp://host:8786); default: a LocalCluster")
     parser.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),
                         help="LocalCluster worker processes (one thread each); 1: no Dask, one trial at a time")
+    parser.add_argument("--conditions", metavar="all|FILE",
+                        help="the condition matrix: issue 26's conditions (all) or FILE's, each with and without USBL")
     parser.add_argument("--json", action="store_true", help="print one JSON object with the figures")
 
 
@@ -148,6 +160,61 @@ class _Progress:
             sys.stderr.flush()
 
 
+MATRIX_DRIFT_RATES = (0.2, 0.3, 0.5)
+"""The matrix's drift rates (m/s) unless --drift-rate names others: the slow drifts that are hard."""
+
+
+def matrix_report(mx: Matrix) -> str:
+    """The matrix as one terminal table per condition and a summary line with the wall time."""
+    head = ["method", "auc", "fnr@1%", "fnr@2%", "fnr@5%", "fpr_closed", "fnr_closed", "trial_fpr_median",
+            "err_p90_m"]
+    lines: list[str] = []
+    for name, cond in mx.conditions.items():
+        rows = []
+        for m, f in cond["methods"].items():
+            med = _median(mx.trial_fpr.get(name, {}).get(m, []))
+            rows.append([m, _cell(f["auc"]), _cell(f["fnr_at_fpr_1"]), _cell(f["fnr_at_fpr_2"]),
+                         _cell(f["fnr_at_fpr_5"]), _cell(f["fpr_closed"]), _cell(f["fnr_closed"]), _cell(med),
+                         _cell(f["error_p90_m"])])
+        lines += [f"{name} (label-noise floor {_cell(cond['label_noise_floor'])}):", *_table(head, rows), ""]
+    lines.append(_matrix_time(mx))
+    return "\n".join(lines)
+
+
+def _median(values: list[float | None]) -> float | None:
+    known = [v for v in values if v is not None]
+    return float(statistics.median(known)) if known else None
+
+
+def _matrix_time(mx: Matrix) -> str:
+    return (f"evaluate: {len(mx.conditions)} conditions, train seed {mx.train_seed}, test seeds {_seeds(mx.seeds)}: "
+            f"{mx.trials} trials in {mx.wall_s:.1f} s wall ({mx.workers}; {mx.cpu_s:.0f} CPU-s in the scored trials)")
+
+
+def _run_matrix(args: argparse.Namespace, seeds: list[int]) -> int:
+    config = load_config(args.config, args.set, default_methods=runnable_names())
+    rates = MATRIX_DRIFT_RATES if args.drift_rate is None else _rates(args.drift_rate)
+    progress = _Progress(not args.json)
+    scenario = _scenario(args.scenario)
+    if args.scheduler is None and args.workers == 1:
+        mx = evaluate_matrix(seeds, config, args.conditions, args.train_seed, rates, args.duration,
+                             progress=progress, scenario=scenario)
+    else:
+        with dask_client(args.scheduler, args.workers) as client:
+            mx = evaluate_matrix(seeds, config, args.conditions, args.train_seed, rates, args.duration,
+                                 client=client, progress=progress, scenario=scenario)
+    if args.json:
+        print(json.dumps(mx.to_json(), indent=2))
+        # each trial's closed-loop FPR is not in the JSON's fixed shape: its median per condition goes here
+        for name, per_method in mx.trial_fpr.items():
+            medians = ", ".join(f"{m} {_cell(_median(v))}" for m, v in per_method.items())
+            print(f"{name}: median over trials of fpr_closed: {medians}", file=sys.stderr)
+        print(_matrix_time(mx), file=sys.stderr)
+    else:
+        print(matrix_report(mx))
+    return 0
+
+
 def _check_numbers(args: argparse.Namespace) -> None:
     """--train-seed, --duration and --workers within their ranges (replay.run.config_ranges), one line each."""
     if args.train_seed is not None and not 0 <= args.train_seed <= SEED_MAX:
@@ -165,6 +232,8 @@ def run(args: argparse.Namespace) -> int:
     """Run the evaluation and print its tables (or the JSON object); 0 on success."""
     seeds = parse_seeds(args.seeds, "--seeds")
     _check_numbers(args)
+    if args.conditions is not None:
+        return _run_matrix(args, seeds)
     config = load_config(args.config, args.set, default_methods=runnable_names())   # every detector is judged
     rates = _rates(args.drift_rate)
     scenario = _scenario(args.scenario)

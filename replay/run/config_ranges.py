@@ -108,7 +108,7 @@ RANGES: dict[str, Range] = {
     "stack.features.model_heading_sigma_deg": Range(0, 180, "[]", "a heading sigma (deg): at most 180"),
     "stack.features.model_scale_sigma": Range(0, 1, "[]", "a DVL scale-factor sigma: a fraction"),
     "stack.features.model_gate_sigma": Range(0, math.inf, "(]", "a gate (sigmas): positive (inf: none)"),
-    "stack.features.model_cap": Range(0, 1e6, "[]", "a count of consecutive ranges"),
+    "stack.features.model_gate_cap": Range(0, 1e6, "[]", "a count of consecutive gated ranges"),
     "stack.features.stiff_q_m2_per_s": Range(0, 1e6, "(]", "a random-walk intensity (m^2/s): positive"),
     "stack.features.stiff_cap": Range(0, 1e6, "[]", "a count of consecutive ranges"),
     "stack.features.exclusion_gate_m": Range(0, math.inf, "(]", "a gate on a residual (m): positive (inf: none)"),

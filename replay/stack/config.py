@@ -90,7 +90,7 @@ class FeatureConfig:
     model_heading_sigma_deg: float = 3.0    # initial heading error sigma
     model_scale_sigma: float = 0.01         # initial DVL scale-factor error sigma
     model_gate_sigma: float = 4.0           # its update leaves out ranges whose lagged residual is beyond this
-    model_cap: int = 10                     # ... and repeated ranges, at most this many in a row per leader
+    model_gate_cap: int = 10                # ... at most this many in a row per leader (repeated ranges: always)
     # the stiff reference (features.StiffReference): DR error as a 2-D random walk of this intensity (m²/s),
     # about the follower's DR error growth over minutes (0.05 m/s Gauss-Markov, tau 300 s, plus heading bias)
     stiff_q_m2_per_s: float = 3e-4

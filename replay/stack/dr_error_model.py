@@ -21,11 +21,14 @@ an error ramp on one line of sight, which the heading state can take for a
 turn). So the residual a detector tests is the range against the filter's
 state of ``lag_s`` ago, carried forward by the model over the DR
 displacement since (`DrErrorModel.range`'s ``lagged_m``): a drift younger than the lag is
-in none of it. The filter leaves out of its update a repeated range (a stale
-modem) and a range whose lagged residual is beyond ``gate_sigma`` of its
-predicted spread, together at most ``cap`` in a row per leader, so a longer
+in none of it. The filter never takes a repeated range (a stale
+modem repeats its last value, which says nothing of the DR error now,
+however long the run: issue 26 found a 13-epoch stale run that, under a
+shared cap of 10, entered the model and raised 43 false alarms). It also
+leaves out a range whose lagged residual is beyond ``gate_sigma`` of its
+predicted spread, at most ``gate_cap`` in a row per leader, so a longer
 drift does not pull the state either, while a real change of the DR error
-(which every leader sees) is taken after ``cap`` ranges.
+(which every leader sees) is taken after ``gate_cap`` ranges.
 
 Propagation is lazy: the DR displacement and time are summed between
 events, and the state moves by F = I + G(sums) at the next range or fix,
@@ -66,14 +69,14 @@ class DrErrorModel:
 
     def __init__(self, q_m2_per_s: float, heading_walk_rad_per_sqrt_s: float, scale_walk_per_sqrt_s: float,
                  range_sigma_m: float, p0_m: tuple[float, float], heading_sigma_rad: float, scale_sigma: float,
-                 lag_s: float, gate_sigma: float, cap: int) -> None:
+                 lag_s: float, gate_sigma: float, gate_cap: int) -> None:
         """Start at x = 0 with P = diag(p0_m², heading_sigma², scale_sigma²); no lagged state yet."""
         self.q = (float(q_m2_per_s), float(q_m2_per_s), float(heading_walk_rad_per_sqrt_s) ** 2,
                   float(scale_walk_per_sqrt_s) ** 2)
         self.r_var = float(range_sigma_m) ** 2
         self.lag_s = float(lag_s)
         self.gate_sigma = float(gate_sigma)
-        self.cap = int(cap)
+        self.gate_cap = int(gate_cap)
         self.x = [0.0, 0.0, 0.0, 0.0]
         diag = (float(p0_m[0]) ** 2, float(p0_m[1]) ** 2, float(heading_sigma_rad) ** 2, float(scale_sigma) ** 2)
         self.p = [[diag[i] if i == j else 0.0 for j in range(4)] for i in range(4)]
@@ -81,7 +84,7 @@ class DrErrorModel:
         self._cum = (0.0, 0.0, 0.0, 0.0, 0.0)           # sums of (-e, n), (n, e) and dt since the start
         # t, x, P, cum: the states of the last lag_s and the newest older one
         self._snaps: deque[tuple[float, list[float], list[list[float]], tuple[float, ...]]] = deque()
-        self._left_out: dict[str, int] = {}
+        self._gated_out: dict[str, int] = {}          # gated ranges left out in a row, per leader
         self.last_fix_s = -math.inf                     # time of the last position fix taken
 
     def step(self, dt_s: float, north_m: float, east_m: float) -> None:
@@ -155,11 +158,12 @@ class DrErrorModel:
             sl = lagged[1] + self.r_var
         out = LaggedResidual(v, s, vl, sl)
         gated = math.isfinite(vl) and abs(vl) > self.gate_sigma * math.sqrt(sl)
-        left_out = self._left_out.get(leader, 0)
-        if (repeated or gated) and left_out < self.cap:
-            self._left_out[leader] = left_out + 1
-        else:
-            self._left_out[leader] = 0
+        gated_out = self._gated_out.get(leader, 0)
+        # a repeated range leaves the gate's count (of fresh ranges) as it was
+        if not repeated and gated and gated_out < self.gate_cap:
+            self._gated_out[leader] = gated_out + 1
+        elif not repeated:
+            self._gated_out[leader] = 0
             k = [ph[i] / s for i in range(4)]
             self.x = [x[i] + k[i] * v for i in range(4)]
             self.p = [[p[i][j] - k[i] * ph[j] for j in range(4)] for i in range(4)]

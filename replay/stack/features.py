@@ -200,7 +200,7 @@ class FeatureTracker:
         self.model = DrErrorModel(
             config.model_q_m2_per_s, math.radians(config.model_heading_walk_deg_per_sqrt_s),
             config.model_scale_walk_per_sqrt_s, range_sigma_m, p0_m, math.radians(config.model_heading_sigma_deg),
-            config.model_scale_sigma, config.lag_s, config.model_gate_sigma, config.model_cap,
+            config.model_scale_sigma, config.lag_s, config.model_gate_sigma, config.model_gate_cap,
         ) if config.drift_source == "model" else None
         self.dr = [float(position[0]), float(position[1])]
         self.anchor: list[float] | None = None
