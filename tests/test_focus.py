@@ -34,8 +34,10 @@ def test_out_of_focus_methods_are_hidden_by_visibility_and_all_shows_them() -> N
     assert "gps" not in hidden                               # the truth is always drawn
     overrides = hide([run], None, "map")
     assert overrides and all(isinstance(v, rrb.EntityBehavior) for v in overrides.values())
-    assert {str(k).split("/")[-1] for k in overrides} == set(hidden) & set(review.tracks["source"].astype(str))
-    assert hidden_methods(run, ("all",)) == [] and hide([run], ("all",), "error") == {} and focus_note([run], ("all",)) == ""
+    assert {str(k).split("/")[-2] for k in overrides} == set(hidden) & set(review.tracks["source"].astype(str))
+    assert {str(k).split("/")[-1] for k in overrides} == {"track", "position", "trail"}
+    assert hidden_methods(run, ("all",)) == [] and hide([run], ("all",), "error") == {}
+    assert focus_note([run], ("all",)) == ""
     assert focus_note([run], None) == f"{len(hidden)} more methods hidden (view --focus all)"
     named = hidden_methods(run, ("ckf",))
     assert "ckf" not in named and "ins" not in named          # a named focus hides only methods, never sources

@@ -24,6 +24,7 @@ lane on the whole mission.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import rerun as rr
@@ -98,6 +99,16 @@ def _trail_overrides(runs: list[Run], view: str) -> dict[EntityPathLike, Visuali
             for r, p in pairs for v, s in zip(p["vehicle"], p["source"], strict=True)}
 
 
+def _merge(*parts: dict[EntityPathLike, VisualizerLike]) -> dict[EntityPathLike, Any]:
+    """Override maps joined; an entity named in several keeps every override (a trail's time range and its
+    hidden state alike)."""
+    out: dict[EntityPathLike, list[VisualizerLike]] = {}
+    for part_ in parts:
+        for key, value in part_.items():
+            out.setdefault(key, []).append(value)
+    return {k: v[0] if len(v) == 1 else v for k, v in out.items()}
+
+
 def _local_bounds(reviews: list[ReviewData]) -> rrb.VisualBounds2D | None:
     found = track_bounds(reviews)
     if found is None:
@@ -124,9 +135,9 @@ def _navigation(runs: list[Run], focus: Sequence[str] | None) -> rrb.Container:
     return rrb.Horizontal(
         rrb.MapView(name="Map: GPS truth and the focus tracks" + (f"; {note}" if note else ""),
                     contents=_contents(runs, "map"), zoom=map_zoom(reviews),
-                    overrides={**_trail_overrides(runs, "map"), **hide(runs, focus, "map")}),
+                    overrides=_merge(_trail_overrides(runs, "map"), hide(runs, focus, "map"))),
         rrb.Spatial2DView(name="Local east/north (m), range circles", contents=_contents(runs, "local"),
-                          overrides={**_trail_overrides(runs, "local"), **hide(runs, focus, "local")},
+                          overrides=_merge(_trail_overrides(runs, "local"), hide(runs, focus, "local")),
                           visual_bounds=_local_bounds(reviews)),
         rrb.Spatial2DView(name="Colour key", contents=[f"+ {KEY}/**"], visual_bounds=rrb.VisualBounds2D(
             x_range=[-0.5, 9.0], y_range=[-1.0, 1.0 + KEY_STEP * key_rows(runs, focus)])),

@@ -133,12 +133,14 @@ def log_cdfs(rec: rr.RecordingStream, run: Run, axes: dict[str, LogAxis]) -> Non
         _log_table(rec, run, f, at, table)
 
 
-def log_cdf_frame(rec: rr.RecordingStream, runs: list[Run], axes: dict[str, LogAxis]) -> None:
-    """Axes, ticks, gridlines and the legend of each follower's CDF plot (static, under the first run)."""
+def log_cdf_frame(rec: rr.RecordingStream, runs: list[Run], axes: dict[str, LogAxis],
+                  hidden: frozenset[str] = frozenset()) -> None:
+    """Axes, ticks, gridlines and the legend of each follower's CDF plot (static, under the first run); the
+    legend leaves out the `hidden` methods (out of focus, replay.views.focus)."""
     first = runs[0]
     for follower, axis in axes.items():
         _log_axes(rec, first.path("cdf", follower, "axes"), axis)
-        _log_legend(rec, runs, follower, first.path("cdf", follower, "legend"))
+        _log_legend(rec, runs, follower, first.path("cdf", follower, "legend"), hidden)
 
 
 def _log_curve(rec: rr.RecordingStream, run: Run, follower: str, method: str, at: np.ndarray,
@@ -187,7 +189,8 @@ def _log_axes(rec: rr.RecordingStream, path: str, axis: LogAxis) -> None:
                                           colors=[TEXT_RGB], radii=rr.Radius.ui_points(0.1)), static=True)
 
 
-def _log_legend(rec: rr.RecordingStream, runs: list[Run], follower: str, path: str) -> None:
+def _log_legend(rec: rr.RecordingStream, runs: list[Run], follower: str, path: str,
+                hidden: frozenset[str] = frozenset()) -> None:
     """One entry per method, its name and p50 in its colour, best first (the first run's scoreboard order)."""
     entries: list[tuple[str, tuple[int, int, int]]] = []
     present = [{str(k[1]) for k, _ in r.groups(r.review.errors, ["follower", "method"]) if str(k[0]) == follower}
@@ -195,6 +198,8 @@ def _log_legend(rec: rr.RecordingStream, runs: list[Run], follower: str, path: s
     first = runs[0]
     ranked = [r.method for r in scoreboard(first.review.metrics) if r.method in present[0]]
     for m in ranked + sorted(set().union(*present) - set(ranked)):
+        if m in hidden:
+            continue
         p50 = [r.review.metrics.get("methods", {}).get(m, {}).get("error_p50_m") for r in runs]
         figures = " / ".join(f"{v:.2f}" if isinstance(v, float) else "-" for v in p50)
         entries.append((f"{m}  p50 {figures} m", method_rgb(m, 0)))

@@ -81,12 +81,18 @@ def hide(runs: list[Run], focus: Sequence[str] | None, view: str) -> dict[Entity
                 else None
             keys = [] if pairs is None else [(str(v), str(s)) for v, s in zip(pairs["vehicle"], pairs["source"],
                                                                                strict=True) if str(s) in hidden]
-            out.update({run.path(view, v, s): rrb.EntityBehavior(visible=False) for v, s in keys})
+            # every leaf entity: a Spatial view does not carry a parent's visibility to its children
+            out.update({run.path(view, v, s, leaf): rrb.EntityBehavior(visible=False) for v, s in keys
+                        for leaf in ("track", "position", "trail")})
         else:
             followers = sorted({str(f) for f in run.review.errors["follower"].unique()}) \
                 if "follower" in run.review.errors else []
-            base = ("series", "error") if view == "error" else ("cdf",)
-            out.update({run.path(*base, f, m): rrb.EntityBehavior(visible=False) for f in followers for m in hidden})
+            if view == "error":
+                out.update({run.path("series", "error", f, m): rrb.EntityBehavior(visible=False)
+                            for f in followers for m in hidden})
+            else:
+                out.update({run.path("cdf", f, m, leaf): rrb.EntityBehavior(visible=False) for f in followers
+                            for m in hidden for leaf in ("curve", "final", "percentiles")})
     return out
 
 

@@ -33,6 +33,7 @@ from replay.views.blueprint import build_blueprint
 from replay.views.cdf import error_axis, log_cdf_frame, log_cdfs
 from replay.views.common import Run, annotation_context, make_runs, run_names
 from replay.views.features import log_detector_scores, log_features, log_why
+from replay.views.focus import hidden_methods
 from replay.views.lanes import log_lanes
 from replay.views.positioning import log_events, log_kmcdf
 from replay.views.scores import log_scores
@@ -97,7 +98,7 @@ def log_runs(rec: rr.RecordingStream, reviews: list[ReviewData], runs: list[Run]
     rec.send_recording_start_time_nanos(int(reviews[0].trial_start_ns))
     log_scores(rec, runs)
     log_colour_key(rec, runs, focus)
-    log_cdf_frame(rec, runs, axes)
+    log_cdf_frame(rec, runs, axes, frozenset(m for r in runs for m in hidden_methods(r, focus)))
     for run in runs:
         log_review(rec, run, axes, error_top)
 
