@@ -20,7 +20,11 @@ def _metrics() -> dict:
 
 
 def test_the_default_focus_is_the_best_of_each_group_and_the_two_references() -> None:
+    # anfis_hybrid is the best cooperative estimate and the best detector (10 + 13 wrong against 9 + 19)
     assert default_focus(_metrics()) == ("anfis_hybrid", "kmcdf2", "chi_square", "anfis")
+    metrics = _metrics()
+    metrics["methods"]["drift_reference"] = {"error_p50_m": 5.2, "error_p90_m": 11.8, "fp": 10, "fn": 8}
+    assert default_focus(metrics) == ("anfis_hybrid", "kmcdf2", "drift_reference", "chi_square", "anfis")
     assert default_focus({"methods": {}}) == ("chi_square", "anfis")
 
 

@@ -247,7 +247,7 @@ def test_blueprint_saved_with_every_view(rrd: Rrd) -> None:
                      "Colour key", "Training RMSE (m) per epoch"):
         assert expected in names
     assert any(n.startswith("Error CDF of follower") for n in names)
-    # the default focus: the best of each group, chi_square and anfis; the others hidden, and said so
+    # the default focus: the best of each group, the best detector, chi_square and anfis; the others hidden, and said so
     assert any(n.startswith("Map: GPS truth and the focus tracks; ") and n.endswith("more methods hidden "
                                                                                      "(view --focus all)")
                for n in names)

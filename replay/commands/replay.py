@@ -31,7 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
     parser.add_argument("--focus", type=focus_list, default=None, metavar="M1,M2|all",
                         help="with --rrd: the methods shown at first (default: the best of each scoreboard "
-                             "group, chi_square and anfis; 'all': every method)")
+                             "group, the best detector, chi_square and anfis; 'all': every method)")
     parser.add_argument("--force", action="store_true",
                         help="replace existing output files (default: refuse to overwrite them)")
 

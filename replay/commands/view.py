@@ -42,8 +42,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                        "file is refused unless --force")
     parser.add_argument("--force", action="store_true", help="replace an existing recording")
     parser.add_argument("--focus", type=focus_list, default=None, metavar="M1,M2|all",
-                        help="the methods shown at first (default: the best of each scoreboard group, chi_square "
-                             "and anfis; 'all': every method); the others are hidden, one click away")
+                        help="the methods shown at first (default: the best of each scoreboard group, the best "
+                             "detector, chi_square and anfis; 'all': every method); the others are hidden, one "
+                             "click away")
 
 
 def focus_list(text: str) -> tuple[str, ...]:

@@ -1,7 +1,8 @@
 """Which methods a recording shows at first: the focus set; the others are hidden, one click away.
 
 By default the focus is the truth, the best method of each scoreboard group
-(cooperative, USBL positioning), chi-square and paper A's ANFIS: a review
+(cooperative, USBL positioning), the best detector (the verdict's),
+chi-square and paper A's ANFIS: a review
 starts from the verdict and its two references instead of sixteen tracks
 in one bundle. `--focus a,b,c` names the set, `--focus all` shows every
 method. GPS and the other position sources are always shown; the INS and
@@ -21,7 +22,7 @@ from rerun.blueprint.api import VisualizerLike
 from rerun.encodings import EntityPathLike
 
 from replay.navigation.review import DR_METHOD
-from replay.review.scoreboard import GROUPS, scoreboard
+from replay.review.scoreboard import GROUPS, best_detector, scoreboard
 from replay.stack.methods import METHOD_TABLE
 from replay.views.common import Run
 
@@ -31,7 +32,7 @@ BESIDE_GPS: tuple[str, ...] = ("ins", DR_METHOD)          # sources that sit on 
 
 
 def default_focus(metrics: dict) -> tuple[str, ...]:
-    """The best method of each group (by p50), then chi-square and ANFIS, in that order."""
+    """The best method of each group (by p50), the best detector, then chi-square and ANFIS, in that order."""
     rows = scoreboard(metrics)
     best = []
     for group in GROUPS:
@@ -40,7 +41,8 @@ def default_focus(metrics: dict) -> tuple[str, ...]:
                       and math.isfinite(r.figures["error_p50_m"])), None)
         if first is not None:
             best.append(first)
-    return tuple(dict.fromkeys([*best, *REFERENCES]))
+    detector = best_detector(rows)
+    return tuple(dict.fromkeys([*best, *([detector.method] if detector else []), *REFERENCES]))
 
 
 def focus_of(run: Run, focus: Sequence[str] | None) -> tuple[str, ...] | None:
