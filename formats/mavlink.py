@@ -17,6 +17,7 @@ counted and reported here instead.
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import os
 from collections.abc import Iterator
@@ -60,6 +61,8 @@ def read_mavlink(path: Path) -> Iterator[MavMessage]:
 
         with _quiet():
             conn = _connect(path, head, mavutil)
+    except FormatError:
+        raise
     except Exception as exc:  # noqa: BLE001 - pymavlink's many ways of refusing a file: one line
         raise FormatError(f"pymavlink cannot open {path.name}: {type(exc).__name__}: {exc}") from None
     yield from _read(conn)
@@ -92,7 +95,7 @@ def _connect(path: Path, head: bytes, mavutil: Any) -> Any:
         before = os.environ.get("PYMAVLINK_FAST_INDEX")
         os.environ["PYMAVLINK_FAST_INDEX"] = "0"
         try:
-            return DFReader.DFReader_binary(str(path), zero_time_base=False)
+            return _checked_dataflash(DFReader.DFReader_binary)(str(path), zero_time_base=False)
         finally:
             if before is None:
                 del os.environ["PYMAVLINK_FAST_INDEX"]
@@ -101,6 +104,34 @@ def _connect(path: Path, head: bytes, mavutil: Any) -> Any:
     # the log reader itself, not mavlink_connection: that one picks a reader by the name ("tcp:...", "*.bin")
     mavutil.set_dialect("ardupilotmega")
     return mavutil.mavlogfile(str(path), notimestamps=False)
+
+
+class _Formats(dict):
+    """A dataflash reader's table of formats (type -> DFFormat) that refuses a FMT record declaring a record
+    shorter than its own 3-byte header: pymavlink's indexer steps on by that length, and never ends on 0."""
+
+    def __setitem__(self, key: Any, value: Any) -> None:
+        length = getattr(value, "len", 3)
+        if not isinstance(length, int) or length < 3:
+            raise FormatError(f"a FMT record declares {getattr(value, 'name', '?')!r} (type {key}) "
+                              f"{length!r} bytes long, less than a record's 3-byte header")
+        super().__setitem__(key, value)
+
+
+@functools.cache
+def _checked_dataflash(reader: type) -> type:
+    """pymavlink's DFReader_binary whose table of formats is a `_Formats`."""
+
+    class Checked(reader):  # type: ignore[misc, valid-type]
+        @property
+        def formats(self) -> _Formats:
+            return self._checked_formats
+
+        @formats.setter
+        def formats(self, table: dict) -> None:
+            self._checked_formats = table if isinstance(table, _Formats) else _Formats(table)
+
+    return Checked
 
 
 def _position(conn: Any) -> int:

@@ -1,0 +1,40 @@
+"""Cases the importer fuzz (tests/fuzz/importers.py) found, pinned: each is one line or a counted skip.
+
+Every file is built here: the dataflash log with tests.trial_shapes' record layout, the ROS 2 database with
+rosbags' writer (tests.fuzz.importers.db3_seeds) and then spoiled with sqlite3.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from recorders.manifest import ManifestError, load_manifest
+from recorders.record import record
+from tests.fuzz.importers import HANG_S, TARGETS, bounded, manifest_text
+from tests.trial_shapes import NOGPS_TYPES, dataflash_formats, dataflash_record
+
+
+def _record(folder: Path, name: str, data: bytes | None = None) -> Path:
+    target = TARGETS[name]
+    if data is not None:
+        (folder / target.filename).write_bytes(data)
+    (folder / "trial.toml").write_text(manifest_text(target))
+    with bounded(HANG_S * 6):   # a regression fails here instead of hanging the run
+        record(load_manifest(folder / "trial.toml"), folder / "out.mcap", workers=1)
+    return folder / "out.mcap"
+
+
+def test_a_dataflash_fmt_declaring_a_zero_length_is_refused_in_one_line(tmp_path):
+    # pymavlink's indexer steps on by a type's declared length: 0 kept it on the same record forever, its list
+    # of offsets growing without bound (past 600 MB in 10 s)
+    data = dataflash_formats({k: v for k, v in NOGPS_TYPES.items() if k != "ATT"})
+    data += dataflash_record(128, "BBnNZ", 131, 0, b"ATT", b"Qccf", b"TimeUS,Roll,Pitch,Yaw")
+    data += b"".join(dataflash_record(131, "Qccf", 1_000_000 * k, 150, -250, 30.0) for k in range(1, 4))
+    with pytest.raises(ManifestError) as caught:
+        _record(tmp_path, "record/bin", data)
+    text = str(caught.value)
+    assert "\n" not in text
+    assert text == "a.BIN: a FMT record declares 'ATT' (type 131) 0 bytes long, less than a record's 3-byte header"
+    assert not (tmp_path / "out.mcap").exists()
