@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .records import FormatError
+from .records import FormatError, library_error
 
 DATAFLASH_MAGIC = b"\xa3\x95"
 
@@ -64,7 +64,7 @@ def read_mavlink(path: Path) -> Iterator[MavMessage]:
     except FormatError:
         raise
     except Exception as exc:  # noqa: BLE001 - pymavlink's many ways of refusing a file: one line
-        raise FormatError(f"pymavlink cannot open {path.name}: {type(exc).__name__}: {exc}") from None
+        raise FormatError(f"pymavlink cannot open {path.name}: {library_error(exc)}") from None
     yield from _read(conn)
 
 
@@ -152,7 +152,7 @@ def _read(conn: Any) -> Iterator[MavMessage]:
             with _quiet():
                 msg = conn.recv_match()
         except Exception as exc:  # noqa: BLE001 - a damaged record stops what can be read of the file
-            yield MavMessage("", 0, index, {}, f"the rest of the log cannot be read ({type(exc).__name__}: {exc})",
+            yield MavMessage("", 0, index, {}, f"the rest of the log cannot be read ({library_error(exc)})",
                              at)
             return
         if msg is None:

@@ -9,6 +9,12 @@ class FormatError(ValueError):
     """A file or record that cannot be decoded at all."""
 
 
+def library_error(exc: BaseException) -> str:
+    """A third-party reader's exception as one line, "Type: message" (a YAML error spans several lines)."""
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
 @dataclass(frozen=True, slots=True)
 class Where:
     """Where a record came from: byte offset, 1-based line (text formats), host time, 1-based message number.

@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from .mcap_chunks import MAX_CHUNK_BYTES, mib
-from .records import FormatError
+from .records import FormatError, library_error
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -108,7 +108,7 @@ def _typestore(connections: list[Any], ros1: bool) -> tuple[Any, dict[str, str]]
                     types.update(get_types_from_idl(chunk.split("\n", 1)[1] if chunk.startswith("IDL: ") else chunk))
             store.register(types)
         except Exception as exc:  # noqa: BLE001 - any parse or conflict error only spoils this connection's type
-            broken[conn.msgtype] = f"its message definition cannot be used ({type(exc).__name__}: {exc})"
+            broken[conn.msgtype] = f"its message definition cannot be used ({library_error(exc)})"
     if all(c.msgtype in store.fielddefs or c.msgtype in broken for c in connections):
         return store, broken  # the bag defines every type it uses: no need to build the common ones (~0.2 s)
     default = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
@@ -158,7 +158,7 @@ def read_bag(path: Path) -> Iterator[BagMessage]:
     except FormatError:
         raise
     except Exception as exc:  # noqa: BLE001 - rosbags' many ways of refusing a damaged file: one line each
-        raise FormatError(f"rosbags cannot open {path.name}: {type(exc).__name__}: {exc}") from None
+        raise FormatError(f"rosbags cannot open {path.name}: {library_error(exc)}") from None
     try:
         yield from _messages(reader, kind == "ros1")
     finally:
@@ -177,8 +177,7 @@ def _messages(reader: Any, ros1: bool) -> Iterator[BagMessage]:
         except StopIteration:
             return
         except Exception as exc:  # noqa: BLE001 - a damaged chunk ends what can be read of the file
-            yield BagMessage("", "", 0, index, None, f"the rest of the bag cannot be read ({type(exc).__name__}: "
-                                                     f"{exc})")
+            yield BagMessage("", "", 0, index, None, f"the rest of the bag cannot be read ({library_error(exc)})")
             return
         if conn is None:
             yield BagMessage("", "", t_ns, index, None, problem or "a message of no connection the bag defines")
@@ -197,7 +196,7 @@ def _messages(reader: Any, ros1: bool) -> Iterator[BagMessage]:
                 else:
                     problem = f"serialization {fmt!r} is not CDR"
             except Exception as exc:  # noqa: BLE001 - unknown type, short or garbled payload: this message only
-                problem = f"does not decode as {msgtype} ({type(exc).__name__}: {exc})"
+                problem = f"does not decode as {msgtype} ({library_error(exc)})"
         yield BagMessage(conn.topic, msgtype, t_ns, index, message, problem)
         index += 1
 
@@ -273,7 +272,7 @@ def _ros1_chunk(bio: Any, pos: int) -> tuple[bytes | None, str]:
         size = header.get_uint32("size")
         datasize = read_uint32(bio)
     except Exception as exc:  # noqa: BLE001 - rosbags' ways of refusing a damaged header: this chunk only
-        return None, f"{where}: unreadable header ({type(exc).__name__}: {exc})"
+        return None, f"{where}: unreadable header ({library_error(exc)})"
     if size > MAX_CHUNK_BYTES or datasize > MAX_COMPRESSED:
         return None, f"{where} declares {mib(max(size, datasize))}, over the {mib(MAX_CHUNK_BYTES)} limit: skipped"
     body = bio.read(datasize)

@@ -6,13 +6,15 @@ rosbags' writer (tests.fuzz.importers.db3_seeds) and then spoiled with sqlite3.
 
 from __future__ import annotations
 
+import contextlib
+import sqlite3
 from pathlib import Path
 
 import pytest
 
 from recorders.manifest import ManifestError, load_manifest
 from recorders.record import record
-from tests.fuzz.importers import HANG_S, TARGETS, bounded, manifest_text
+from tests.fuzz.importers import HANG_S, TARGETS, bounded, db3_seeds, manifest_text
 from tests.trial_shapes import NOGPS_TYPES, dataflash_formats, dataflash_record
 
 
@@ -38,3 +40,21 @@ def test_a_dataflash_fmt_declaring_a_zero_length_is_refused_in_one_line(tmp_path
     assert "\n" not in text
     assert text == "a.BIN: a FMT record declares 'ATT' (type 131) 0 bytes long, less than a record's 3-byte header"
     assert not (tmp_path / "out.mcap").exists()
+
+
+def _db3(folder: Path, *statements: str) -> None:
+    _, relaxed = db3_seeds()
+    path = folder / TARGETS["record/ros2-db3"].filename
+    path.write_bytes(relaxed)
+    with contextlib.closing(sqlite3.connect(path)) as con, con:
+        for sql in statements:
+            con.execute(sql)
+
+
+def test_a_ros2_topic_whose_qos_is_not_yaml_is_refused_in_one_line(tmp_path):
+    # rosbags' YAML error spans five lines; the user's error is one
+    _db3(tmp_path, "UPDATE topics SET offered_qos_profiles = '{a: [1, 2' WHERE id = 1")
+    with pytest.raises(ManifestError) as caught:
+        _record(tmp_path, "record/ros2-db3")
+    text = str(caught.value)
+    assert "\n" not in text and text.startswith("a.db3: rosbags cannot open a.db3: ReaderError: Could not load YAML")
