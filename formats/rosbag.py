@@ -204,6 +204,9 @@ def _messages(reader: Any, ros1: bool) -> Iterator[BagMessage]:
 def _ros2_rows(reader: Any) -> Iterator[RawRow]:
     """A ROS 2 bag's rows, each value checked: a database row may hold anything (a NULL, text, a float)."""
     for conn, t_ns, raw in reader.messages():
+        if not (isinstance(conn.topic, str) and isinstance(conn.msgtype, str)):   # the topics table's row
+            yield None, 0, None, f"topic {conn.topic!r} of type {conn.msgtype!r}: not text"
+            continue
         problem = ""
         if type(t_ns) is not int or not 0 <= t_ns < 1 << 63:
             problem, t_ns = f"timestamp {t_ns!r} is not a time in ns", 0

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from formats.mcap_reader import ArchiveReader
 from recorders.manifest import ManifestError, load_manifest
 from recorders.record import record
 from tests.fuzz.importers import HANG_S, TARGETS, bounded, db3_seeds, manifest_text
@@ -58,3 +59,14 @@ def test_a_ros2_topic_whose_qos_is_not_yaml_is_refused_in_one_line(tmp_path):
         _record(tmp_path, "record/ros2-db3")
     text = str(caught.value)
     assert "\n" not in text and text.startswith("a.db3: rosbags cannot open a.db3: ReaderError: Could not load YAML")
+
+
+@pytest.mark.parametrize("value", ["42", "NULL", "x'00'"])
+def test_a_ros2_topic_whose_type_is_not_text_is_a_counted_skip(tmp_path, value):
+    # the type came back as an int and `ros_type` raised AttributeError
+    _db3(tmp_path, f"UPDATE topics SET type = {value} WHERE name = '/nmea'")
+    with ArchiveReader(_record(tmp_path, "record/ros2-db3")) as r:
+        files = r.metadata_json("recording")["files"]
+        fixes = sum(1 for _ in r.messages(["/a/gps"]))
+    assert files[0]["skipped"] == 6   # the six /nmea rows, each a counted skip
+    assert fixes == 6                 # the /gps/fix NavSatFixes archived as before
