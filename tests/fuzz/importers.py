@@ -176,7 +176,7 @@ def ros1_case(rng: random.Random) -> bytes:
         op = rng.random()
         if op < 0.3 and lengths:
             at = rng.choice(lengths)
-            data[at:at + 4] = _U32.pack(rng.choice(_ABSURD_U32 + (len(data), _U32.unpack_from(data, at)[0] + 1)))
+            data[at:at + 4] = _U32.pack(rng.choice(_ABSURD_U32 + (len(data), (_U32.unpack_from(data, at)[0] + 1) % 2**32)))
         elif op < 0.6 and values:
             at, size = rng.choice(values)
             fill = rng.choice([b"\xff" * size, bytes(size), rng.randbytes(size), b"\x7f" + b"\xff" * (size - 1)])
@@ -371,7 +371,7 @@ def tlog_case(rng: random.Random) -> bytes:
         if op < 0.2 and len(pkt) > 2:
             pkt[-1 - rng.randrange(2)] ^= 1 << rng.randrange(8)   # bad CRC
         elif op < 0.35 and len(pkt) > 2:
-            pkt[1] = rng.choice([0, 1, 255, pkt[1] + 1, max(pkt[1] - 1, 0)])   # absurd payload length
+            pkt[1] = rng.choice([0, 1, 255, (pkt[1] + 1) % 256, max(pkt[1] - 1, 0)])   # absurd payload length
         elif op < 0.5:
             packets[k][0] = rng.choice([0, 2**64 - 1, 2**63, us - 10**12, us * 1000 % 2**64])
         elif op < 0.6 and pkt:
