@@ -122,7 +122,7 @@ class _Formats(dict):
 def _checked_dataflash(reader: type) -> type:
     """pymavlink's DFReader_binary whose table of formats is a `_Formats`."""
 
-    class Checked(reader):  # type: ignore[misc, valid-type]
+    class Checked(reader):
         @property
         def formats(self) -> _Formats:
             return self._checked_formats

@@ -15,7 +15,12 @@ may yield Rejects or refuse the whole file with a FormatError; anything
 else it raises is a failure. Archive cases damage a small archive (several
 chunks, metadata, attachments): cuts, byte flips, and crafted records
 (absurd lengths, chunk sizes, compressions, frames); the reader must never
-raise. Cases are reproducible from (entry, seed, case number).
+raise. The importer entries (record/..., tests/fuzz/importers.py) record whole
+damaged files through `record`; the live entries (capture/..., tests/fuzz/live.py)
+send hostile streams through the capture decoder and the real sources. Every
+entry counts its cases, exceptions, hangs (cases over 5 s) and its peak RSS
+(each entry runs in a fresh process). Cases are reproducible from (entry,
+seed, case number).
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import multiprocessing
 import os
 import random
 import re
@@ -52,6 +58,9 @@ from formats.waterlinked import crc8
 from recorders.base import LogContext
 from recorders.manifest import load_manifest
 from recorders.registry import converters
+from tests.fuzz.importers import IMPORTERS, importer_cases, peak_rss_mb
+from tests.fuzz.importers import tlog_packets as tlog_packets
+from tests.fuzz.live import COST, LIVE, live_cases
 from tests.test_ecosystem_inputs import (
     ALOG,
     NMEA_SENTENCE_MSG,
@@ -296,19 +305,6 @@ def ros1_payload_case(ts: object, items: list[tuple[str, str, int, bytes]], fold
     return path.read_bytes()
 
 
-def tlog_packets() -> list[tuple[int, bytes]]:
-    """(time in us, MAVLink 2 packet) of the ecosystem tests' tlog."""
-    with tempfile.TemporaryDirectory(prefix="fuzz-tlog-") as tmp:
-        write_tlog(Path(tmp) / "t.tlog")
-        data = (Path(tmp) / "t.tlog").read_bytes()
-    out, pos = [], 0
-    while pos < len(data):
-        n = 12 + data[pos + 9] + (13 if data[pos + 10] & 1 else 0)  # after the time: magic 0xFD, length, ...
-        out.append((struct.unpack_from(">Q", data, pos)[0], data[pos + 8:pos + 8 + n]))
-        pos += 8 + n
-    return out
-
-
 def mavlink_payload_case(packets: list[tuple[int, bytes]], rng: random.Random, damaged: int) -> bytes:
     """The tlog's packets over and over (100 s apart) with a third of the payloads damaged, `damaged` in all,
     each damaged packet's CRC made right (its signature dropped)."""
@@ -467,6 +463,10 @@ def archive_cases(kind: str, n: int, base_seed: int = 0, folder: Path | None = N
 def run_job(name: str, cases: int, seed: int) -> tuple[str, dict, float]:
     """One entry point (sensor/format) or damage kind (archive/KIND): (name, counts, seconds)."""
     t = time.monotonic()
+    if name in IMPORTERS:
+        return name, importer_cases(name, cases, seed), time.monotonic() - t
+    if name in LIVE:
+        return name, live_cases(name, max(1, cases // COST[name]), seed), time.monotonic() - t
     if name.startswith("archive/"):
         counts = archive_cases(name.split("/", 1)[1], cases, seed)
     elif name in PAYLOAD_TARGETS:
@@ -474,6 +474,7 @@ def run_job(name: str, cases: int, seed: int) -> tuple[str, dict, float]:
     else:
         data, options = seeds()[name]
         counts = decoder_cases(name, data, options, cases, seed)
+    counts["peak_mb"] = round(peak_rss_mb())
     return name, counts, time.monotonic() - t
 
 
@@ -488,20 +489,28 @@ def main(argv: list[str] | None = None) -> int:
     names = [k for k in sorted(seeds()) if not args.only or k in args.only]
     names += [k for k in PAYLOAD_TARGETS if not args.only or k in args.only]
     names += [f"archive/{k}" for k in DAMAGE_KINDS if not args.only or k in args.only]
-    print(f"{'entry':<22} " + "  ".join(f"{c:>11}" for c in ("cases", "outputs/clean", "rejects/damaged",
-                                                            "refused", "exceptions", "seconds")), flush=True)
-    failures = 0
-    with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+    names += [k for k in (*IMPORTERS, *LIVE) if not args.only or k in args.only]
+    print(f"{'entry':<22} " + "  ".join(f"{c:>11}" for c in ("cases", "outputs/ok", "rejects/skip", "refused",
+                                                            "exceptions", "hangs", "peak MB", "seconds")), flush=True)
+    failures = hangs = total = 0
+    # one fresh process per entry: its peak RSS is its own
+    pool = ProcessPoolExecutor(max_workers=max(1, args.jobs), mp_context=multiprocessing.get_context("spawn"),
+                               max_tasks_per_child=1)
+    with pool:
         for name, c, seconds in pool.map(run_job, names, [args.cases] * len(names), [args.seed] * len(names)):
             examples = c.pop("examples")
-            cols = [c["cases"], c.get("outputs", c.get("clean", 0)), c.get("rejects", c.get("damaged", 0)),
-                    c["refused"], c["exceptions"]]
+            cols = [c["cases"], c.get("outputs", c.get("clean", c.get("ok", 0))),
+                    c.get("rejects", c.get("damaged", c.get("skips", 0))), c.get("refused", 0), c["exceptions"],
+                    c.get("hangs", 0), c.get("peak_mb", 0)]
             print(f"{name:<22} " + "  ".join(f"{v:>11}" for v in cols) + f"  {seconds:>11.1f}", flush=True)
             for e in examples:
                 print("    " + e.replace("\n", "\n    "))
             failures += c["exceptions"]
-    print(f"{failures} exceptions over {len(names)} entry points and damage kinds, {args.cases} cases each")
-    return 1 if failures else 0
+            hangs += c.get("hangs", 0)
+            total += c["cases"]
+    print(f"{failures} exceptions and {hangs} hangs over {total} cases of {len(names)} entry points, damage kinds, "
+          f"importers and live sources")
+    return 1 if failures or hangs else 0
 
 
 def iter_keys() -> Iterator[str]:

@@ -200,10 +200,9 @@ _RELAX = {  # every table of rosbags' sqlite3 storage without its NOT NULL and t
 @functools.lru_cache(maxsize=1)
 def db3_seeds() -> tuple[bytes, bytes]:
     """(as rosbags writes it, the same with every table relaxed): /nmea Strings and /gps/fix NavSatFixes."""
+    import numpy as np
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
-
-    import numpy as np
     store = get_typestore(Stores.ROS2_HUMBLE)
     T = store.types
     String, Fix = T["std_msgs/msg/String"], T["sensor_msgs/msg/NavSatFix"]
@@ -255,7 +254,7 @@ def db3_statements(rng: random.Random) -> list[str]:
     out = []
     for _ in range(rng.randrange(1, 5)):
         op = rng.random()
-        row = rng.choice(["id = %d" % rng.randrange(1, 14), "id % 2 = 0", "1"])
+        row = rng.choice([f"id = {rng.randrange(1, 14)}", "id % 2 = 0", "1"])
         if op < 0.25:
             out.append(f"UPDATE messages SET timestamp = {rng.choice(_TIMES)} WHERE {row}")
         elif op < 0.45:
