@@ -1,4 +1,5 @@
-"""A share of `make fuzz` (tests/fuzz/fuzz.py): every decoder entry point and archive-damage kind, no exception."""
+"""A share of `make fuzz` (tests/fuzz/fuzz.py): every decoder entry point, archive-damage kind, importer and live
+source, no exception and no hang."""
 
 from __future__ import annotations
 
@@ -6,6 +7,8 @@ import pytest
 
 from recorders.registry import converters
 from tests.fuzz.fuzz import DAMAGE_KINDS, PAYLOAD_TARGETS, archive_cases, decoder_cases, payload_cases, seeds
+from tests.fuzz.importers import IMPORTERS, importer_cases
+from tests.fuzz.live import live_cases
 
 SEEDS = seeds()
 
@@ -35,3 +38,18 @@ def test_archive_damage_never_raises(kind, tmp_path):
     counts = archive_cases(kind, 80, base_seed=7, folder=tmp_path)
     assert counts["exceptions"] == 0, "\n".join(counts["examples"])
     assert counts["damaged"] > 0  # the damage was seen and said, not silently read
+
+
+@pytest.mark.parametrize("name", IMPORTERS)
+def test_damaged_files_through_record_give_an_archive_or_one_line(name, tmp_path):
+    counts = importer_cases(name, 40, base_seed=7, folder=tmp_path)
+    assert counts["exceptions"] == 0 and counts["hangs"] == 0, "\n".join(counts["examples"])
+    assert counts["cases"] == 40 and counts["clean"] + counts["skips"] > 0   # not all refused at the open
+
+
+@pytest.mark.parametrize("name", ["capture/stream", "capture/udp", "capture/tail", "capture/tcp-listen",
+                                  "capture/stalled"])
+def test_hostile_streams_into_capture_never_raise_nor_hang(name, tmp_path):
+    counts = live_cases(name, 4 if name == "capture/tcp-listen" else 8, base_seed=7, folder=tmp_path)
+    assert counts["exceptions"] == 0 and counts["hangs"] == 0, "\n".join(counts["examples"])
+    assert counts["ok"] == counts["cases"]

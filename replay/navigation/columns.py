@@ -10,6 +10,7 @@ counted in `VehicleColumns.dropped`; each column set is sorted by time.
 
 from __future__ import annotations
 
+import math
 from array import array
 from collections import Counter
 from dataclasses import dataclass, field
@@ -173,11 +174,17 @@ def _depth_value(msg: Any) -> float:
     return float("nan")
 
 
-def read_columns(reader: ArchiveReader, vehicle: str, start_ns: int) -> VehicleColumns:
+INS_MIN_DT_S = 0.2   # INS solutions kept at most five a second: the DVL's rate, all the review interpolates at
+
+
+def read_columns(reader: ArchiveReader, vehicle: str, start_ns: int, ins_min_dt_s: float = INS_MIN_DT_S
+                 ) -> VehicleColumns:
     """The columns of `vehicle` from `/<v>/gps`, `/<v>/dvl`, `/<v>/ins` and `/<v>/depth` (where present).
 
     One pass over those topics; times are log times in seconds from `start_ns`.
-    A depth topic is read from a ``depth_m`` (or ``depth``) field of its messages.
+    A depth topic is read from a ``depth_m`` (or ``depth``) field of its messages. INS solutions
+    closer than `ins_min_dt_s` to the last one kept are passed over: a 50 Hz INS over a day would
+    otherwise hold gigabytes, where the heading between DVL samples and the INS at a fix need no more.
     """
     topics = {f"/{vehicle}/{name}": name for name in ("gps", "dvl", "ins", "depth")}
     present = set(reader.summary().topics)
@@ -189,8 +196,13 @@ def read_columns(reader: ArchiveReader, vehicle: str, start_ns: int) -> VehicleC
         "depth": [array("d") for _ in range(2)],
     }
     dropped: Counter[str] = Counter()
+    last_ins = -math.inf
     for m in reader.messages(wanted):
         kind, msg, t = topics[m.topic], m.message, (m.log_time_ns - start_ns) / NS
+        if kind == "ins":
+            if t - last_ins < ins_min_dt_s:
+                continue
+            last_ins = t
         c = cols[kind]
         try:
             if kind == "gps":
