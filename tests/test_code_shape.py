@@ -13,14 +13,9 @@ STACK = Path(__file__).resolve().parents[1] / "replay" / "stack"
 MAX_LINES = 60
 MAX_INIT_PARAMETERS = 6      # self excluded: group the rest into a frozen dataclass (see replay.stack.runner_options)
 
-# Known exceptions, by "module path:Class.__init__": filters whose constructors take their tuning scalars one
-# by one. Each is built in one place (replay.stack.tracking, replay.stack.features) from the configuration.
-INIT_EXCEPTIONS: dict[str, str] = {
-    # leaders, start position (3), p0, q, r, chi-square gate, cap, metre gate: the leader-exclusion ACKFs
-    "exclusion.py:LeaderExclusion.__init__": "10 tuning parameters of the leader-exclusion filters",
-    # q, heading and scale walks, R, P0, heading and scale sigmas, lag, gate, cap: the DR error model's filter
-    "dr_error_model.py:DrErrorModel.__init__": "10 tuning parameters of the DR error model",
-}
+# Known exceptions, by "module path:Class.__init__": none left (the DR error model and the leader-exclusion
+# filters take their tuning as one frozen dataclass each)
+INIT_EXCEPTIONS: dict[str, str] = {}
 
 
 def _functions() -> list[tuple[str, ast.FunctionDef | ast.AsyncFunctionDef]]:

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from formats.geodesy import metric_scales_scalar
 from replay.stack.config import FeatureConfig
-from replay.stack.dr_error_model import DrErrorModel
+from replay.stack.dr_error_model import DrErrorModel, DrErrorParams
 from replay.stack.features import EXTRA_FEATURES, FeatureTracker, range_to
 
 HEADING_WALK = math.radians(0.03)
@@ -28,7 +28,8 @@ def transition(sum_perp: tuple[float, float], sum_disp: tuple[float, float]) -> 
 
 def model(q: float = 1e-2, walk: float = HEADING_WALK, scale_walk: float = 1e-4, lag_s: float = 60.0,
           gate: float = 4.0, gate_cap: int = 10) -> DrErrorModel:
-    return DrErrorModel(q, walk, scale_walk, 3.0, (1.0, 2.0), math.radians(3.0), 0.01, lag_s, gate, gate_cap)
+    return DrErrorModel(DrErrorParams(q, walk, scale_walk, 3.0, (1.0, 2.0), math.radians(3.0), 0.01, lag_s, gate,
+                                      gate_cap))
 
 
 class StepwiseModel:

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from replay.stack.config import StackConfig
-from replay.stack.exclusion import LeaderExclusion
+from replay.stack.exclusion import ExclusionParams, LeaderExclusion
 from replay.stack.features import EXTRA_FEATURES
 from replay.stack.hybrid_database import HybridDatabase
 from replay.stack.runner import CooperativeRunner, RunnerOptions, RunnerParts, Start
@@ -23,7 +23,7 @@ EXCLUSION = replace(StackConfig().features, drift_source="exclusion")   # the fi
 
 
 def _exclusion() -> LeaderExclusion:
-    return LeaderExclusion(LEADERS, LAT, LON, 4.0, (5.0, 5.0), (0.2, 0.2), 3.0, 1e9, 20)
+    return LeaderExclusion(LEADERS, (LAT, LON, 4.0), ExclusionParams((5.0, 5.0), (0.2, 0.2), 3.0, 1e9, 20))
 
 
 def _push(exc: LeaderExclusion, ranges: list[tuple[str, float, tuple[float, float, float]]]) -> list[float]:
@@ -81,7 +81,7 @@ def test_exclusion_residual_follows_a_drift_the_other_link_corrects_dead_reckoni
 
 
 def test_one_leader_has_no_exclusion_residual() -> None:
-    exc = LeaderExclusion(("leader1",), LAT, LON, 4.0, (5.0, 5.0), (0.2, 0.2), 3.0, 10.0, 20)
+    exc = LeaderExclusion(("leader1",), (LAT, LON, 4.0), ExclusionParams((5.0, 5.0), (0.2, 0.2), 3.0, 10.0, 20))
     assert math.isnan(exc.epoch("leader1", 300.0, (LAT + 300 / B0, LON, 0.0), 4.0, False))
 
 

@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import os
 import shlex
-import sys
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -89,8 +88,8 @@ def _recording_of_results(args: argparse.Namespace) -> tuple[Path | None, list[s
     from replay.views.recording import save_rrd
 
     out = recording_path(paths, args.save, args.force)
-    print(f"auvreplay view: replaying {', '.join(map(str, paths))} into the recording {out}"
-          + ("" if args.save else " (--save chooses another file)"), file=sys.stderr, flush=True)
+    print(f"replaying {', '.join(map(str, paths))} into the recording {out}"
+          + ("" if args.save else " (--save chooses another file)"), flush=True)
     if trial:     # a trial archive: replayed in memory with what its inputs allow, drawn by our views
         outcome = replay_archive(paths[0], load_config(), write_output=False, review=True, require_work=True)
         reviews = [outcome.review]

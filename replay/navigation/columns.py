@@ -10,6 +10,7 @@ counted in `VehicleColumns.dropped`; each column set is sorted by time.
 
 from __future__ import annotations
 
+import math
 from array import array
 from collections import Counter
 from dataclasses import dataclass, field
@@ -173,25 +174,44 @@ def _depth_value(msg: Any) -> float:
     return float("nan")
 
 
-def read_columns(reader: ArchiveReader, vehicle: str, start_ns: int) -> VehicleColumns:
-    """The columns of `vehicle` from `/<v>/gps`, `/<v>/dvl`, `/<v>/ins` and `/<v>/depth` (where present).
+INS_MIN_DT_S = 0.2   # INS solutions kept at most five a second: the DVL's rate, all the review interpolates at
 
-    One pass over those topics; times are log times in seconds from `start_ns`.
-    A depth topic is read from a ``depth_m`` (or ``depth``) field of its messages.
+
+class ColumnCollector:
+    """The navigation columns of some vehicles, gathered from messages as they pass (`add`), in one pass.
+
+    The replay hands it each message it reads, so the review needs no second pass over the archive.
+    INS solutions closer than `ins_min_dt_s` to the last one kept are passed over: a 50 Hz INS over a
+    day would otherwise hold gigabytes, where the heading between DVL samples and the INS at a fix need
+    no more. A depth topic is read from a ``depth_m`` (or ``depth``) field of its messages.
     """
-    topics = {f"/{vehicle}/{name}": name for name in ("gps", "dvl", "ins", "depth")}
-    present = set(reader.summary().topics)
-    wanted = [t for t in topics if t in present]
-    cols: dict[str, list[array[Any]]] = {
-        "gps": [array("d") for _ in range(3)],
-        "dvl": [array("d") for _ in range(4)] + [array("b"), array("b")],
-        "ins": [array("d") for _ in range(7)],
-        "depth": [array("d") for _ in range(2)],
-    }
-    dropped: Counter[str] = Counter()
-    for m in reader.messages(wanted):
-        kind, msg, t = topics[m.topic], m.message, (m.log_time_ns - start_ns) / NS
-        c = cols[kind]
+
+    def __init__(self, vehicles: list[str], start_ns: int, ins_min_dt_s: float = INS_MIN_DT_S) -> None:
+        """Columns for `vehicles`, in seconds from `start_ns`."""
+        self.start_ns, self.ins_min_dt_s = start_ns, ins_min_dt_s
+        self.vehicles = list(vehicles)
+        self.topics = {f"/{v}/{name}": (v, name) for v in vehicles for name in ("gps", "dvl", "ins", "depth")}
+        self._cols: dict[str, dict[str, list[array[Any]]]] = {v: {
+            "gps": [array("d") for _ in range(3)],
+            "dvl": [array("d") for _ in range(4)] + [array("b"), array("b")],
+            "ins": [array("d") for _ in range(7)],
+            "depth": [array("d") for _ in range(2)],
+        } for v in vehicles}
+        self._last_ins = dict.fromkeys(vehicles, -math.inf)
+        self.dropped: dict[str, Counter[str]] = {v: Counter() for v in vehicles}
+
+    def add(self, topic: str, log_time_ns: int, msg: Any) -> None:
+        """One message; one of another topic is passed over."""
+        where = self.topics.get(topic)
+        if where is None:
+            return
+        vehicle, kind = where
+        t = (log_time_ns - self.start_ns) / NS
+        if kind == "ins":
+            if t - self._last_ins[vehicle] < self.ins_min_dt_s:
+                return
+            self._last_ins[vehicle] = t
+        c = self._cols[vehicle][kind]
         try:
             if kind == "gps":
                 row: tuple[float, ...] = (t, msg.latitude, msg.longitude)
@@ -205,21 +225,34 @@ def read_columns(reader: ArchiveReader, vehicle: str, start_ns: int) -> VehicleC
             else:
                 row = (t, _depth_value(msg))
         except AttributeError:  # a topic of that name holding another schema
-            dropped[f"{m.topic}: not a {kind} message"] += 1
-            continue
+            self.dropped[vehicle][f"{topic}: not a {kind} message"] += 1
+            return
         for col, value in zip(c, row):
             col.append(value)
-    g, d, i, z = cols["gps"], cols["dvl"], cols["ins"], cols["depth"]
-    fixes = FixColumns.build(*g)
-    dropped_fixes = len(g[0]) - fixes.t_s.size
-    if dropped_fixes:
-        dropped[f"/{vehicle}/gps: fixes without a finite position"] += dropped_fixes
-    depth = SeriesColumns.build(*z) if len(z[0]) else None
-    return VehicleColumns(
-        fixes=fixes,
-        dvl=DvlColumns.build(d[0], d[1], d[2], np.asarray(d[4], dtype=bool), np.asarray(d[5]), d[3]),
-        ins=InsColumns.build(*i),
-        depth=depth,
-        start_ns=start_ns,
-        dropped=dict(dropped),
-    )
+
+    def columns(self, vehicle: str) -> VehicleColumns:
+        """The columns gathered for one vehicle."""
+        g, d, i, z = (self._cols[vehicle][k] for k in ("gps", "dvl", "ins", "depth"))
+        dropped = Counter(self.dropped[vehicle])
+        fixes = FixColumns.build(*g)
+        if len(g[0]) - fixes.t_s.size:
+            dropped[f"/{vehicle}/gps: fixes without a finite position"] += len(g[0]) - fixes.t_s.size
+        return VehicleColumns(
+            fixes=fixes,
+            dvl=DvlColumns.build(d[0], d[1], d[2], np.asarray(d[4], dtype=bool), np.asarray(d[5]), d[3]),
+            ins=InsColumns.build(*i),
+            depth=SeriesColumns.build(*z) if len(z[0]) else None,
+            start_ns=self.start_ns,
+            dropped=dict(dropped),
+        )
+
+
+def read_columns(reader: ArchiveReader, vehicle: str, start_ns: int, ins_min_dt_s: float = INS_MIN_DT_S
+                 ) -> VehicleColumns:
+    """The columns of `vehicle` from `/<v>/gps`, `/<v>/dvl`, `/<v>/ins` and `/<v>/depth` (where present), in one
+    pass over those topics (`ColumnCollector`); times are log times in seconds from `start_ns`."""
+    collector = ColumnCollector([vehicle], start_ns, ins_min_dt_s)
+    present = set(reader.summary().topics)
+    for m in reader.messages([t for t in collector.topics if t in present]):
+        collector.add(m.topic, m.log_time_ns, m.message)
+    return collector.columns(vehicle)

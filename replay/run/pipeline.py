@@ -22,6 +22,7 @@ from replay.engine.core import Engine, pace
 from replay.engine.layout import TrialLayout, plan_trial
 from replay.errors import UserError
 from replay.events import Listener, RunResults
+from replay.navigation.columns import ColumnCollector
 from replay.navigation.review import review_metrics, review_vehicle
 from replay.review.collector import ReviewCollector
 from replay.run.config import canonical_json, run_id, to_dict
@@ -156,15 +157,19 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
             if writer is not None:
                 heard.append(ResultsWriter(writer, rid, t0_ns))
             engine = Engine(layout, config, t0_ns, [*heard, *listeners], training_set)
+            # each vehicle's own navigation review gathers its columns in the same pass (no second read)
+            nav_columns = ColumnCollector([v for v in layout.roles if layout.has(v, "dvl") or layout.has(v, "ins")],
+                                          t0_ns)
+            topics += [t for t in nav_columns.topics if t in readable and t not in topics]
             for m in reader.messages(topics, start_ns, end_ns):
                 engine.push(m.topic, m.log_time_ns, m.message)
+                nav_columns.add(m.topic, m.log_time_ns, m.message)
                 if config.engine.rate > 0:
                     pace(config.engine.rate, wall0, engine.last_s)
             results = engine.finish()
             end_s = max(engine.last_s, 0.0)
             metrics = run_metrics(engine.scores(), results, rid, end_s)
-            navigation = {v: review_vehicle(reader, v, start_ns=t0_ns) for v in layout.roles
-                          if layout.has(v, "dvl") or layout.has(v, "ins")}
+            navigation = {v: review_vehicle(nav_columns.columns(v), v) for v in nav_columns.vehicles}
             metrics["navigation"] = {v: review_metrics(r) for v, r in navigation.items()}
             wall = time.monotonic() - wall0
             metrics["wall_s"] = wall

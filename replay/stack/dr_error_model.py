@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import dataclass
 from typing import NamedTuple
 
 NAN = float("nan")
@@ -59,6 +60,28 @@ def _moved(x: list[float], a0: float, a1: float, b0: float, b1: float) -> list[f
     return [x[0] + a0 * x[2] + b0 * x[3], x[1] + a1 * x[2] + b1 * x[3], x[2], x[3]]
 
 
+@dataclass(frozen=True)
+class DrErrorParams:
+    """The DR error model's tuning: process noise, range noise, initial sigmas, the lag and the gate.
+
+    q_m2_per_s: the DR position random walk (m²/s); heading_walk_rad_per_sqrt_s and scale_walk_per_sqrt_s:
+    the heading and DVL scale error walks; range_sigma_m: ranging sigma; p0_m: initial position sigmas north,
+    east; heading_sigma_rad, scale_sigma: initial sigmas; lag_s: age of the lagged state; gate_sigma and
+    gate_cap: ranges beyond this many sigmas are left out, at most gate_cap in a row per leader.
+    """
+
+    q_m2_per_s: float
+    heading_walk_rad_per_sqrt_s: float
+    scale_walk_per_sqrt_s: float
+    range_sigma_m: float
+    p0_m: tuple[float, float]
+    heading_sigma_rad: float
+    scale_sigma: float
+    lag_s: float
+    gate_sigma: float
+    gate_cap: int
+
+
 class DrErrorModel:
     """The DR error (d_n, d_e, heading error, scale error) of one follower, updated by ranges and fixes.
 
@@ -67,18 +90,18 @@ class DrErrorModel:
     (tests/test_dr_error_model.py checks it against the matrix filter).
     """
 
-    def __init__(self, q_m2_per_s: float, heading_walk_rad_per_sqrt_s: float, scale_walk_per_sqrt_s: float,
-                 range_sigma_m: float, p0_m: tuple[float, float], heading_sigma_rad: float, scale_sigma: float,
-                 lag_s: float, gate_sigma: float, gate_cap: int) -> None:
+    def __init__(self, params: DrErrorParams) -> None:
         """Start at x = 0 with P = diag(p0_m², heading_sigma², scale_sigma²); no lagged state yet."""
-        self.q = (float(q_m2_per_s), float(q_m2_per_s), float(heading_walk_rad_per_sqrt_s) ** 2,
-                  float(scale_walk_per_sqrt_s) ** 2)
-        self.r_var = float(range_sigma_m) ** 2
-        self.lag_s = float(lag_s)
-        self.gate_sigma = float(gate_sigma)
-        self.gate_cap = int(gate_cap)
+        c = params
+        self.q = (float(c.q_m2_per_s), float(c.q_m2_per_s), float(c.heading_walk_rad_per_sqrt_s) ** 2,
+                  float(c.scale_walk_per_sqrt_s) ** 2)
+        self.r_var = float(c.range_sigma_m) ** 2
+        self.lag_s = float(c.lag_s)
+        self.gate_sigma = float(c.gate_sigma)
+        self.gate_cap = int(c.gate_cap)
         self.x = [0.0, 0.0, 0.0, 0.0]
-        diag = (float(p0_m[0]) ** 2, float(p0_m[1]) ** 2, float(heading_sigma_rad) ** 2, float(scale_sigma) ** 2)
+        diag = (float(c.p0_m[0]) ** 2, float(c.p0_m[1]) ** 2, float(c.heading_sigma_rad) ** 2,
+                float(c.scale_sigma) ** 2)
         self.p = [[diag[i] if i == j else 0.0 for j in range(4)] for i in range(4)]
         self._pending = [0.0, 0.0, 0.0]                 # n, e, dt since the last propagation
         self._cum = (0.0, 0.0, 0.0, 0.0, 0.0)           # sums of (-e, n), (n, e) and dt since the start

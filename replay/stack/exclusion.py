@@ -19,6 +19,7 @@ With one leader there is no other link: the residual is NaN.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 from formats.geodesy import metric_scales_scalar
 from replay.stack.filters.ckf import (
@@ -33,22 +34,34 @@ from replay.stack.filters.ckf import (
 NAN = float("nan")
 
 
+@dataclass(frozen=True)
+class ExclusionParams:
+    """The exclusion filters' tuning: the runner's P0, Q and R, and their gate (f2 and metres) with its cap."""
+
+    p0_m: tuple[float, float]
+    q_m_per_s: tuple[float, float]
+    r_m: float
+    gate_f2: float
+    gate_cap: int
+    gate_m: float = math.inf
+
+
 class LeaderExclusion:
     """One ACKF per leader, each fed every leader's ranges but its own; `epoch` gives the excluded leader's residual."""
 
-    def __init__(self, leaders: tuple[str, ...], lat_rad: float, lon_rad: float, depth_m: float,
-                 p0_m: tuple[float, float], q_m_per_s: tuple[float, float], r_m: float, gate_f2: float,
-                 gate_cap: int, gate_m: float = math.inf) -> None:
-        """Every filter starts at the initial position with P0 = diag(p0_m)² (as the runner's methods)."""
+    def __init__(self, leaders: tuple[str, ...], start: tuple[float, float, float], params: ExclusionParams) -> None:
+        """Every filter starts at `start` (lat rad, lon rad, depth m) with P0 = diag(p0_m)², as the runner's methods."""
+        lat_rad, lon_rad, depth_m = start
+        c = params
         b, a = metric_scales_scalar(lat_rad, depth_m)
-        s0 = State2(float(lat_rad), float(lon_rad), (p0_m[0] / b) ** 2, 0.0, (p0_m[1] / a) ** 2)
+        s0 = State2(float(lat_rad), float(lon_rad), (c.p0_m[0] / b) ** 2, 0.0, (c.p0_m[1] / a) ** 2)
         self.leaders = tuple(leaders)
         self.states: dict[str, State2] = dict.fromkeys(self.leaders, s0)
-        self.q = q_m_per_s
-        self.r_var = float(r_m) ** 2
-        self.gate_f2 = float(gate_f2)
-        self.gate_cap = int(gate_cap)
-        self.gate_m = float(gate_m)
+        self.q = c.q_m_per_s
+        self.r_var = float(c.r_m) ** 2
+        self.gate_f2 = float(c.gate_f2)
+        self.gate_cap = int(c.gate_cap)
+        self.gate_m = float(c.gate_m)
         self._streak: dict[tuple[str, str], int] = {}
 
     def propagate(self, dt_s: float, forward_mps: float, lateral_mps: float, heading_rad: float,

@@ -93,7 +93,7 @@ from collections import deque
 from formats.geodesy import metric_scales_scalar
 from replay.stack.config import DRIFT_SOURCES, ConfigError, FeatureConfig
 from replay.stack.cusum import Cusum
-from replay.stack.dr_error_model import DrErrorModel
+from replay.stack.dr_error_model import DrErrorModel, DrErrorParams
 from replay.stack.exclusion import LeaderExclusion
 
 PAPER_FEATURES: tuple[str, ...] = ("f1", "f2", "f3")
@@ -197,11 +197,11 @@ class FeatureTracker:
         self.exclusion = exclusion
         self.stiff = StiffReference(config.stiff_q_m2_per_s, range_sigma_m, p0_m, config.stiff_cap) \
             if config.drift_source == "stiff" else None
-        self.model = DrErrorModel(
+        self.model = DrErrorModel(DrErrorParams(
             config.model_q_m2_per_s, math.radians(config.model_heading_walk_deg_per_sqrt_s),
             config.model_scale_walk_per_sqrt_s, range_sigma_m, p0_m, math.radians(config.model_heading_sigma_deg),
             config.model_scale_sigma, config.lag_s, config.model_gate_sigma, config.model_gate_cap,
-        ) if config.drift_source == "model" else None
+        )) if config.drift_source == "model" else None
         self.dr = [float(position[0]), float(position[1])]
         self.anchor: list[float] | None = None
         self.anchor_t = -math.inf

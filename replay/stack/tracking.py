@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 from replay.stack.config import StackConfig
 from replay.stack.detectors.chi_square import chi_square_threshold
-from replay.stack.exclusion import LeaderExclusion
+from replay.stack.exclusion import ExclusionParams, LeaderExclusion
 from replay.stack.features import FeatureTracker
 from replay.stack.methods import method
 from replay.stack.runner_options import Start
@@ -35,9 +35,9 @@ def leader_exclusion(config: StackConfig, leaders: Sequence[str], start: Start) 
         {"exclusion_residual_m", "exclusion_z"} & set(c.hybrid_inputs))
     if not (needs_features(c) and wanted):
         return None
-    return LeaderExclusion(tuple(leaders), float(start.lat_rad), float(start.lon_rad), float(start.depth_m),
-                           c.p0_m, c.q_m_per_s, c.r_m, chi_square_threshold(c.chi_square_alpha),
-                           c.features.exclusion_cap, c.features.exclusion_gate_m)
+    return LeaderExclusion(tuple(leaders), (float(start.lat_rad), float(start.lon_rad), float(start.depth_m)),
+                           ExclusionParams(c.p0_m, c.q_m_per_s, c.r_m, chi_square_threshold(c.chi_square_alpha),
+                                           c.features.exclusion_cap, c.features.exclusion_gate_m))
 
 
 def feature_tracker(config: StackConfig, leaders: Sequence[str], start: Start) -> FeatureTracker:
