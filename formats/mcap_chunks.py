@@ -43,6 +43,15 @@ class ChunkError(FormatError):
     """A chunk that cannot be used (bad header, over the size cap, does not decompress, CRC mismatch)."""
 
 
+def lz4_bounded(body: bytes, size: int) -> bytes:
+    """An lz4 frame inflated to at most `size` bytes; ValueError ('inflates past ...') when it holds more."""
+    d = lz4.frame.LZ4FrameDecompressor()
+    out = d.decompress(body, max_length=size)
+    if not d.eof and d.decompress(b"", max_length=1):
+        raise ValueError(f"inflates past the {mib(size)} declared")
+    return out
+
+
 def mib(n: int) -> str:
     """A byte count for a message: '64 MiB', '4.0 GiB', '1234 bytes'."""
     if n >= 1 << 30:
@@ -105,11 +114,10 @@ def decompress(compression: str, body: bytes, size: int, offset: int) -> bytes:
         if compression == "":
             return body
         if compression == "lz4":
-            d = lz4.frame.LZ4FrameDecompressor()
-            out = d.decompress(body, max_length=size)
-            if not d.eof and d.decompress(b"", max_length=1):
-                raise ChunkError(f"byte {offset}: lz4 data inflates past the {mib(size)} declared")
-            return out
+            try:
+                return lz4_bounded(body, size)
+            except ValueError as exc:
+                raise ChunkError(f"byte {offset}: lz4 data {exc}") from None
     except (zstandard.ZstdError, RuntimeError, ValueError) as exc:
         if isinstance(exc, ChunkError):
             raise

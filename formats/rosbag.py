@@ -37,7 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .mcap_chunks import MAX_CHUNK_BYTES, mib
+from .mcap_chunks import MAX_CHUNK_BYTES, lz4_bounded, mib
 from .records import FormatError, library_error
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
@@ -307,13 +307,7 @@ def _inflate(compression: str, body: bytes, size: int) -> bytes:
             rest = bz.unused_data
         return b"".join(parts)
     if compression == "lz4":
-        import lz4.frame
-
-        lz = lz4.frame.LZ4FrameDecompressor()
-        out = lz.decompress(body, max_length=size)
-        if not lz.eof and lz.decompress(b"", max_length=1):
-            raise ValueError(f"inflates past the {mib(size)} declared")
-        return out
+        return lz4_bounded(body, size)
     raise ValueError(f"compression {compression!r} is not supported")
 
 
