@@ -231,8 +231,9 @@ class ColumnCollector:
             col.append(value)
 
     def columns(self, vehicle: str) -> VehicleColumns:
-        """The columns gathered for one vehicle."""
-        g, d, i, z = (self._cols[vehicle][k] for k in ("gps", "dvl", "ins", "depth"))
+        """The columns gathered for one vehicle, once: the collector lets go of them (a day's worth is large)."""
+        gathered = self._cols.pop(vehicle)
+        g, d, i, z = (gathered[k] for k in ("gps", "dvl", "ins", "depth"))
         dropped = Counter(self.dropped[vehicle])
         fixes = FixColumns.build(*g)
         if len(g[0]) - fixes.t_s.size:

@@ -23,7 +23,7 @@ from replay.engine.layout import TrialLayout, plan_trial
 from replay.errors import UserError
 from replay.events import Listener, RunResults
 from replay.navigation.columns import ColumnCollector
-from replay.navigation.review import review_metrics, review_vehicle
+from replay.navigation.review import NavigationReview, review_metrics, review_vehicle
 from replay.review.collector import ReviewCollector
 from replay.run.config import canonical_json, run_id, to_dict
 from replay.run.metrics import format_table, metrics_table, run_metrics
@@ -169,8 +169,15 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
             results = engine.finish()
             end_s = max(engine.last_s, 0.0)
             metrics = run_metrics(engine.scores(), results, rid, end_s)
-            navigation = {v: review_vehicle(nav_columns.columns(v), v) for v in nav_columns.vehicles}
-            metrics["navigation"] = {v: review_metrics(r) for v, r in navigation.items()}
+            # one vehicle at a time; the reviews are kept only for the views (a day's review is large)
+            navigation: dict[str, NavigationReview] = {}
+            metrics["navigation"] = {}
+            for v in nav_columns.vehicles:
+                nav = review_vehicle(nav_columns.columns(v), v)
+                metrics["navigation"][v] = review_metrics(nav)
+                if collector is not None:
+                    navigation[v] = nav
+                del nav
             wall = time.monotonic() - wall0
             metrics["wall_s"] = wall
             if writer is not None:
