@@ -174,16 +174,17 @@ def _depth_value(msg: Any) -> float:
     return float("nan")
 
 
-INS_MIN_DT_S = 0.2   # INS solutions kept at most five a second: the DVL's rate, all the review interpolates at
+INS_MIN_DT_S = 1.0   # INS solutions kept one a second (and the last before each fix): heading gaps up to 5 s are fine
 
 
 class ColumnCollector:
     """The navigation columns of some vehicles, gathered from messages as they pass (`add`), in one pass.
 
     The replay hands it each message it reads, so the review needs no second pass over the archive.
-    INS solutions closer than `ins_min_dt_s` to the last one kept are passed over: a 50 Hz INS over a
-    day would otherwise hold gigabytes, where the heading between DVL samples and the INS at a fix need
-    no more. A depth topic is read from a ``depth_m`` (or ``depth``) field of its messages.
+    INS solutions closer than `ins_min_dt_s` to the last one kept are passed over, but for the last two
+    before each GPS fix (the INS error at a fix is measured from them): a 50 Hz INS over a day would
+    otherwise hold gigabytes, where the heading between DVL samples needs no more. A depth topic is
+    read from a ``depth_m`` (or ``depth``) field of its messages.
     """
 
     def __init__(self, vehicles: list[str], start_ns: int, ins_min_dt_s: float = INS_MIN_DT_S) -> None:
@@ -198,6 +199,8 @@ class ColumnCollector:
             "depth": [array("d") for _ in range(2)],
         } for v in vehicles}
         self._last_ins = dict.fromkeys(vehicles, -math.inf)
+        # the last two INS passed over: an INS without velocity is carried to a fix by its last two positions
+        self._held: dict[str, list[tuple[int, Any]]] = {v: [] for v in vehicles}
         self.dropped: dict[str, Counter[str]] = {v: Counter() for v in vehicles}
 
     def add(self, topic: str, log_time_ns: int, msg: Any) -> None:
@@ -208,9 +211,21 @@ class ColumnCollector:
         vehicle, kind = where
         t = (log_time_ns - self.start_ns) / NS
         if kind == "ins":
-            if t - self._last_ins[vehicle] < self.ins_min_dt_s:
+            held = self._held[vehicle]
+            if t - self._last_ins[vehicle] < self.ins_min_dt_s - 1e-6:     # a 1 Hz INS with ns jitter kept whole
+                held.append((log_time_ns, msg))    # decoded only if a fix comes before the next one kept
+                if len(held) > 2:
+                    del held[0]
                 return
             self._last_ins[vehicle] = t
+            held.clear()
+        elif kind == "gps" and self._held[vehicle]:
+            for held_ns, held_msg in self._held[vehicle]:
+                self._append(vehicle, "ins", (held_ns - self.start_ns) / NS, held_msg, f"/{vehicle}/ins")
+            self._held[vehicle].clear()
+        self._append(vehicle, kind, t, msg, topic)
+
+    def _append(self, vehicle: str, kind: str, t: float, msg: Any, topic: str) -> None:
         c = self._cols[vehicle][kind]
         try:
             if kind == "gps":
