@@ -51,11 +51,14 @@ class TrialLayout:
         """Vehicle names with a role, in archive order."""
         return [v for v, r in self.roles.items() if r == role]
 
+    def positioned_leaders(self) -> list[str]:
+        """The leaders with a position a range can be taken against (an INS or GPS)."""
+        return [ld for ld in self.by_role("leader") if self.has(ld, "ins") or self.has(ld, "gps")]
+
     def inputs(self, vehicle: str) -> frozenset[str]:
         """The method-table inputs a vehicle holds (USBL fixes are the trial's: a buoy's observations)."""
-        leaders = [ld for ld in self.by_role("leader") if self.has(ld, "ins") or self.has(ld, "gps")]
         held = {"dvl": self.has(vehicle, "dvl"), "gps": self.has(vehicle, "gps"),
-                "ranges": self.has(vehicle, "modem/range") and bool(leaders),
+                "ranges": self.has(vehicle, "modem/range") and bool(self.positioned_leaders()),
                 "usbl": any(self.has(b, "usbl") for b in self.by_role("buoy"))}
         return frozenset(k for k, v in held.items() if v)
 
@@ -106,7 +109,7 @@ def plan_trial(trial_meta: dict | None, topics: dict[str, int], methods: Sequenc
                             + ", ".join(f"{v}={r}" for v, r in layout.roles.items()))
     leaders = layout.by_role("leader")
     for f in layout.by_role("follower"):
-        layout.followers.append(_plan_follower(layout, f, leaders, methods))
+        layout.followers.append(_plan_follower(layout, f, methods))
     layout.skipped = _skipped(layout, methods)
     for topic in positions:
         parts = topic.strip("/").split("/", 1)
@@ -127,13 +130,14 @@ def _skipped(layout: TrialLayout, methods: Sequence[str]) -> dict[str, str]:
     running = {m for p in layout.followers if p.runnable for m in p.methods}
     followers = [p.name for p in layout.followers]
     vehicles = followers or [v for v, r in layout.roles.items() if r != "buoy"] or list(layout.roles)
+    held = {v: layout.inputs(v) for v in vehicles}
     out = {}
     for name in methods:
         if name in running:
             continue
         entry = method(name)
-        closest = min(vehicles, key=lambda v: len(entry.missing(layout.inputs(v))), default=None)
-        lacking = entry.missing(layout.inputs(closest)) if closest is not None else list(entry.needs)
+        closest = min(vehicles, key=lambda v: len(entry.missing(held[v])), default=None)
+        lacking = entry.missing(held[closest]) if closest is not None else list(entry.needs)
         if lacking:
             out[name] = "needs " + " and ".join(INPUTS.get(n, n) for n in lacking)
         elif closest in followers:      # its inputs are there, on a follower with no position to start from
@@ -143,9 +147,9 @@ def _skipped(layout: TrialLayout, methods: Sequence[str]) -> dict[str, str]:
     return out
 
 
-def _plan_follower(layout: TrialLayout, name: str, leaders: list[str], methods: Sequence[str]) -> FollowerPlan:
+def _plan_follower(layout: TrialLayout, name: str, methods: Sequence[str]) -> FollowerPlan:
     notes: list[str] = []
-    usable = tuple(ld for ld in leaders if layout.has(ld, "ins") or layout.has(ld, "gps"))
+    usable = tuple(layout.positioned_leaders())
     runnable = True
     if not layout.has(name, "dvl"):
         notes.append(f"follower {name}: no /{name}/dvl: nothing can run for this follower")

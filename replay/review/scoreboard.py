@@ -20,8 +20,8 @@ from typing import Any
 from replay.stack.methods import METHOD_TABLE
 
 __all__ = ["DETECTION_COLUMNS", "ERROR_COLUMNS", "NAV_HEADINGS", "NAVIGATION_COLUMNS", "NavigationRow", "ScoreRow",
-           "best_detector", "detectors_by_merit", "format_value", "method_kind", "navigation_rows", "scoreboard",
-           "skipped_lines", "verdict", "window_text"]
+           "best_detector", "best_of_groups", "detectors_by_merit", "format_value", "method_kind", "navigation_rows",
+           "scoreboard", "skipped_lines", "verdict", "window_text"]
 
 ERROR_COLUMNS: tuple[str, ...] = ("error_p50_m", "error_p90_m", "error_rms_m")
 DETECTION_COLUMNS: tuple[str, ...] = ("tp", "fp", "fn", "fpr", "fnr", "auc")
@@ -106,13 +106,22 @@ def best_detector(rows: list[ScoreRow]) -> ScoreRow | None:
     return ranked[0] if ranked else None
 
 
+def best_of_groups(rows: list[ScoreRow]) -> dict[str, ScoreRow]:
+    """Per group (GROUPS' order), its best method: the first of the group with a finite error p50."""
+    out: dict[str, ScoreRow] = {}
+    for r in rows:
+        if r.group not in out and math.isfinite(_number(r.figures.get("error_p50_m"))):
+            out[r.group] = r
+    return {g: out[g] for g in GROUPS if g in out}
+
+
 def verdict(metrics: dict[str, Any]) -> list[str]:
     """The answer in a few lines (markdown bold on names): the best of each group, the best detector, the window."""
     rows = scoreboard(metrics)
     lines = []
+    best_rows = best_of_groups(rows)
     for group, label in (("cooperative", "Best position estimate"), ("positioning", "Best USBL positioning")):
-        best = next((r for r in rows if r.group == group and math.isfinite(_number(r.figures.get("error_p50_m")))),
-                    None)
+        best = best_rows.get(group)
         if best is not None:
             f = best.figures
             lines.append(f"{label}: **{best.method}**, p50 {format_value(f.get('error_p50_m'))} m, "

@@ -14,7 +14,6 @@ override, so the blueprint panel's eye brings it back.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import rerun.blueprint as rrb
@@ -22,7 +21,7 @@ from rerun.blueprint.api import VisualizerLike
 from rerun.encodings import EntityPathLike
 
 from replay.navigation.review import DR_METHOD
-from replay.review.scoreboard import GROUPS, best_detector, scoreboard
+from replay.review.scoreboard import best_detector, best_of_groups, scoreboard
 from replay.stack.methods import METHOD_TABLE
 from replay.views.common import Run
 
@@ -34,13 +33,7 @@ BESIDE_GPS: tuple[str, ...] = ("ins", DR_METHOD)          # sources that sit on 
 def default_focus(metrics: dict) -> tuple[str, ...]:
     """The best method of each group (by p50), the best detector, then chi-square and ANFIS, in that order."""
     rows = scoreboard(metrics)
-    best = []
-    for group in GROUPS:
-        first = next((r.method for r in rows if r.group == group
-                      and isinstance(r.figures.get("error_p50_m"), (int, float))
-                      and math.isfinite(r.figures["error_p50_m"])), None)
-        if first is not None:
-            best.append(first)
+    best = [r.method for r in best_of_groups(rows).values()]
     detector = best_detector(rows)
     return tuple(dict.fromkeys([*best, *([detector.method] if detector else []), *REFERENCES]))
 

@@ -46,9 +46,12 @@ def _series(rec: rr.RecordingStream, run: Run, path: str, t_s: np.ndarray, v: np
     rec.send_columns(path, indexes=run.times(t_s[ok]), columns=rr.Scalars.columns(scalars=v[ok]))
 
 
-def summary_markdown(nav: NavigationReview) -> str:
-    """The vehicle's ranked sources, its dives, its bottom-lock gaps and the notes, in mission seconds."""
-    m = review_metrics(nav)
+def summary_markdown(nav: NavigationReview, figures: dict[str, Any] | None = None) -> str:
+    """The vehicle's ranked sources, its dives, its bottom-lock gaps and the notes, in mission seconds.
+
+    `figures` is the review as the run's metrics hold it (metrics.json's `navigation`); computed when not given.
+    """
+    m = figures if figures is not None else review_metrics(nav)
     rows = m["methods"]
     first: dict[str, Any] = next(iter(rows.values()), {})
     lines = [f"**{nav.vehicle}: own navigation against GPS**, at {first.get('fixes', 0)} fixes "
@@ -102,4 +105,6 @@ def log_vehicles(rec: rr.RecordingStream, run: Run) -> None:
                 SOURCE_RGB["dr_error"], markers=True)
         _series(rec, run, path("error", "ins"), fe.t_s, fe.ins_error_m, run.name(INS_METHOD),
                 SOURCE_RGB["ins_error"], markers=True)
-        rec.log(path("summary"), rr.TextDocument(summary_markdown(nav), media_type="text/markdown"), static=True)
+        figures = run.review.metrics.get("navigation", {}).get(vehicle)
+        rec.log(path("summary"), rr.TextDocument(summary_markdown(nav, figures), media_type="text/markdown"),
+                static=True)
