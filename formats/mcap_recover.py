@@ -195,6 +195,17 @@ def _chunk_records(r: _Reader, offset: int) -> tuple[int, int, bytes]:
     return start, end, records
 
 
+def _data_record(op: int, body: _Reader, length: int, found: _Found) -> None:
+    """A schema, channel or message record (at the top level or in a chunk) read into `found`; others ignored."""
+    if op == OP_SCHEMA:
+        _schema(body, found)
+    elif op == OP_CHANNEL:
+        _channel(body, found)
+    elif op == OP_MESSAGE:
+        _message_head(body, length)
+        found.messages += 1
+
+
 def _chunk(r: _Reader, found: _Found, offset: int) -> None:
     """A chunk whose records all parse and whose CRC holds; its schemas and channels go into `found` only then."""
     start, end, records = _chunk_records(r, offset)
@@ -202,14 +213,7 @@ def _chunk(r: _Reader, found: _Found, offset: int) -> None:
     sub = _Reader(records)
     while sub.pos < sub.end:
         op, length = sub.unpack(_RECORD)
-        body = _Reader(sub.view(length))
-        if op == OP_SCHEMA:
-            _schema(body, inner)
-        elif op == OP_CHANNEL:
-            _channel(body, inner)
-        elif op == OP_MESSAGE:
-            _message_head(body, length)
-            inner.messages += 1
+        _data_record(op, _Reader(sub.view(length)), length, inner)
     found.schemas, found.channels = inner.schemas, inner.channels
     found.messages += inner.messages
     found.chunk_spans.append((offset, start, end))
@@ -259,13 +263,8 @@ def _parse(buf: mmap.mmap, pos: int, found: _Found) -> tuple[int, int]:
             r = _Reader(raw)
             if op == OP_HEADER:
                 found.profile = r.string()
-            elif op == OP_SCHEMA:
-                _schema(r, found)
-            elif op == OP_CHANNEL:
-                _channel(r, found)
-            elif op == OP_MESSAGE:
-                _message_head(r, length)
-                found.messages += 1
+            elif op in (OP_SCHEMA, OP_CHANNEL, OP_MESSAGE):
+                _data_record(op, r, length, found)
             elif op == OP_CHUNK:
                 _chunk(r, found, pos)
             elif op == OP_ATTACHMENT:
