@@ -44,7 +44,7 @@ class ReviewCollector(Listener):
         self._origin: tuple[float, float] | None = None
         self.rows: dict[str, list[dict[str, Any]]] = {k: [] for k in (
             "tracks", "ranges", "detections", "errors", "anfis_epochs", "anfis_explain", "kmcdf", "events")}
-        self._last_ins: dict[str, float] = {}
+        self._last_drawn: dict[tuple[str, str], float] = {}    # (vehicle, source) -> its last track point
         self._models: dict[str, TrainedDetectors] = {}
         self._detecting = detecting_names()     # the method table's detectors, in its order
         self._detectors: dict[str, dict[str, dict[str, Any]]] = {}     # follower -> method -> leader -> detector
@@ -67,11 +67,11 @@ class ReviewCollector(Listener):
 
     def position(self, vehicle: str, source: str, fix: Fix) -> None:
         if source != "gps":       # INS and other solutions come at tens of Hz: one point a second is a track
-            key = f"{vehicle}/{source}"
-            last = self._last_ins.get(key, -math.inf)
+            key = (vehicle, source)
+            last = self._last_drawn.get(key, -math.inf)
             if fix.t_s - last < INS_DECIMATE_S - DECIMATE_SLACK_S:
                 return
-            self._last_ins[key] = fix.t_s
+            self._last_drawn[key] = fix.t_s
         self._track_row(fix.t_s, vehicle, source, fix.lat_rad, fix.lon_rad)
 
     def estimates(self, follower: str, t_s: float, est: Mapping[str, tuple[float, ...]]) -> None:
