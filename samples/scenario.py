@@ -223,6 +223,32 @@ class Conditions:
     sensor_spread: float = optional(0.0)
 
 
+@dataclass(frozen=True)
+class TracksConfig:
+    """Motion from a recorded trial's GPS tracks (`simulate --tracks`, samples/recorded.py); off while `archive` is "".
+
+    The vehicles move as the archive's GPS fixes say (linear between fixes at
+    `truth_rate_hz`); only the acoustics and the DR sensors are simulated.
+    """
+
+    # the archive whose foxglove.LocationFix tracks give the motion ("": the scripted racetracks)
+    archive: str = optional("")
+    # the vehicle whose track is the follower's; "": the one named `follower`, else the archive's first vehicle
+    # of role follower, else the first vehicle with a track
+    follower: str = optional("")
+    # one vehicle with a track: its track replayed for `leaders` leaders, leader k the same track
+    # k * leader_offset_s seconds ahead (300 s: 300-600 m along a survey at 1-2 m/s, usually another leg,
+    # so the ranges come from other directions than straight ahead)
+    leaders: int = optional(2)
+    leader_offset_s: float = optional(300.0)
+    # a gap between fixes up to max_gap_s (a dropped fix, a short dive) is bridged by linear interpolation;
+    # a longer one (a dive without GPS) cuts the trial to the longest span every track covers
+    max_gap_s: float = optional(30.0)
+    # heading and speed come from the positions smoothed by a Gaussian of this sigma (s) and differenced:
+    # 1 Hz single-point fixes have metre noise, whose raw differences would give tens of degrees of heading noise
+    smoothing_s: float = optional(5.0)
+
+
 def _default_events() -> tuple[AnomalyEvent, ...]:
     return (
         AnomalyEvent("leader1", "stale", 100.0, 150.0),
@@ -266,6 +292,7 @@ class Scenario:
     natural: tuple[NaturalAnomalies, ...] = field(default_factory=_default_natural)
     node_faults: tuple[NodeFault, ...] = field(default_factory=_default_faults)
     conditions: Conditions = field(default_factory=Conditions)
+    tracks: TracksConfig = field(default_factory=TracksConfig)
 
     def with_options(self, duration_s: float | None = None, followers: int | None = None) -> Scenario:
         """A copy with the command-line overrides applied."""
@@ -297,8 +324,10 @@ class Scenario:
 _LISTS: dict[str, type] = {"anomalies": AnomalyEvent, "natural": NaturalAnomalies, "node_faults": NodeFault}
 _TABLES: dict[str, type] = {
     "trial": TrialConfig, "gps": GpsConfig, "ins": InsConfig, "dvl": DvlConfig,
-    "ranging": RangingConfig, "usbl": UsblConfig, "conditions": Conditions,
+    "ranging": RangingConfig, "usbl": UsblConfig, "conditions": Conditions, "tracks": TracksConfig,
 }
+# tables written only when one of their keys is set (every key optional): the sample's scenario.toml stays as it was
+_OPTIONAL_TABLES = ("conditions", "tracks")
 
 
 class ScenarioError(ValueError):
@@ -374,6 +403,11 @@ def validate(scenario: Scenario) -> None:
     if not (0 <= c.multipath_min_m <= c.multipath_max_m and 0 < c.multipath_min_s <= c.multipath_max_s
             and 0 < c.dvl_lock_loss_min_s <= c.dvl_lock_loss_max_s):
         raise ScenarioError("[conditions]: each min must be > 0 (metres >= 0) and at most its max")
+    tr = scenario.tracks
+    if not (tr.leaders >= 1 and math.isfinite(tr.leader_offset_s) and tr.leader_offset_s > 0
+            and math.isfinite(tr.max_gap_s) and tr.max_gap_s >= 0
+            and math.isfinite(tr.smoothing_s) and tr.smoothing_s >= 0):
+        raise ScenarioError("[tracks]: leaders >= 1, leader_offset_s > 0, max_gap_s >= 0 and smoothing_s >= 0")
 
 
 def _fmt(value: Any) -> str:
@@ -400,7 +434,7 @@ def scenario_to_toml(scenario: Scenario) -> str:
     out = ["# auvreplay lake-trial scenario (samples/scenario.py documents every key)"]
     for key in _TABLES:
         lines = _table_lines(getattr(scenario, key))
-        if lines or key != "conditions":
+        if lines or key not in _OPTIONAL_TABLES:
             out += ["", f"[{key}]", *lines]
     for key in _LISTS:
         for item in getattr(scenario, key):

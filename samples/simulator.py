@@ -3,7 +3,9 @@
 Vehicles: leader1 and leader2 (high-grade INS + GPS), one or more followers
 (low-grade INS, DVL, GPS as reference), and a ring of USBL buoys (docs/design.md
 sections 7, 13 and 15). Times are seconds from the trial start; `start_ns` is
-the UTC start in ns. Deterministic per (scenario, seed).
+the UTC start in ns. Deterministic per (scenario, seed). With `[tracks] archive`
+set the vehicles move along a recorded trial's GPS tracks instead of the
+scripted racetracks (samples/recorded.py); everything else is simulated alike.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from formats.units import NS
 from . import acoustics as ac
 from .anomalies import Interval
 from .conditions import realized
+from .recorded import recorded_motion
 from .scenario import Scenario, validate
 from .sensors import DvlSeries, GpsSeries, InsSeries, heading_error, simulate_dvl, simulate_gps, simulate_ins
 from .trajectories import Track, default_plans, make_track
@@ -66,6 +69,7 @@ class SimulatedTrial:
     pings: ac.Pings
     usbl: ac.UsblEpochs
     intervals: tuple[Interval, ...]
+    notes: tuple[str, ...] = ()         # what the simulation of recorded tracks chose (who is who, a cut span)
 
     def vehicle(self, name: str) -> VehicleSim:
         """The vehicle called `name`."""
@@ -105,6 +109,18 @@ def _vehicle(name: str, track: Track, scenario: Scenario, frame: LocalFrame, see
     return VehicleSim(name, "leader" if leader else "follower", address, track, gps, ins, dvl)
 
 
+def _motion(scenario: Scenario, seed: int) -> tuple[Scenario, dict[str, Track], tuple[str, ...]]:
+    """The truth tracks: the recorded ones when the scenario names an archive (its trial dated and placed on
+    them), else the scripted racetracks."""
+    if scenario.tracks.archive:
+        m = recorded_motion(scenario, seed)
+        return m.scenario, m.tracks, m.notes
+    frame = LocalFrame(scenario.trial.origin_lat_deg, scenario.trial.origin_lon_deg)
+    t = _track_times(scenario)
+    plans = default_plans(scenario.trial.followers)
+    return scenario, {name: make_track(name, plan, t, frame, seed) for name, plan in plans.items()}, ()
+
+
 def simulate_trial(scenario: Scenario, seed: int) -> SimulatedTrial:
     """Simulate the whole trial: tracks, sensors, ranging with anomalies and labels, USBL.
 
@@ -112,11 +128,9 @@ def simulate_trial(scenario: Scenario, seed: int) -> SimulatedTrial:
     applied (`conditions.realized`), which is what the trial records.
     """
     validate(scenario)
-    plans = default_plans(scenario.trial.followers)
-    scenario = realized(scenario, seed, sorted(n for n in plans if n.startswith("leader")))
+    scenario, tracks, notes = _motion(scenario, seed)
+    scenario = realized(scenario, seed, sorted(n for n in tracks if n.startswith("leader")))
     frame = LocalFrame(scenario.trial.origin_lat_deg, scenario.trial.origin_lon_deg)
-    t = _track_times(scenario)
-    tracks = {name: make_track(name, plan, t, frame, seed) for name, plan in plans.items()}
     vehicles = tuple(_vehicle(n, tr, scenario, frame, seed, i + 1) for i, (n, tr) in enumerate(tracks.items()))
     gps = {v.name: v.gps for v in vehicles}
     ins = {v.name: v.ins for v in vehicles}
@@ -127,7 +141,7 @@ def simulate_trial(scenario: Scenario, seed: int) -> SimulatedTrial:
     intervals += ac.usbl_intervals(scenario, target)
     intervals.sort(key=lambda iv: (iv.start_s, iv.vehicle, iv.leader, iv.kind, iv.end_s))
     return SimulatedTrial(scenario, seed, start_ns(scenario), frame, vehicles, buoys, ranges, pings, usbl,
-                          tuple(intervals))
+                          tuple(intervals), notes)
 
 
 def _buoys(scenario: Scenario, usbl: ac.UsblEpochs, frame: LocalFrame, seed: int) -> tuple[BuoySim, ...]:

@@ -167,6 +167,9 @@ def readme(trial: SimulatedTrial) -> str:
         "and phases, abnormal flags), `anomalies.csv` (injected intervals; times in seconds from the",
         "start and UTC). Seconds in the CSVs count from the trial start.",
     ]
+    if trial.notes:
+        lines += ["", f"Motion: the GPS tracks of `{trial.scenario.tracks.archive}` (`simulate --tracks`); only the",
+                  "acoustics and the DR sensors are simulated along them.", "", *(f"- {n}" for n in trial.notes)]
     return "\n".join(lines) + "\n"
 
 
