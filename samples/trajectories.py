@@ -148,7 +148,7 @@ def _smoothed(x: np.ndarray, sigma: float) -> np.ndarray:
     A vehicle under way keeps its velocity at the ends of a track, where a
     constant extension would slow it down and put a DR off by metres.
     """
-    if sigma <= 0 or len(x) < 2:
+    if sigma < 0.1 or len(x) < 2:          # under a tenth of a sample the kernel is one sample wide
         return x
     pad = min(int(4 * sigma) + 1, len(x) - 1)
     ext = np.concatenate((2 * x[0] - x[pad:0:-1], x, 2 * x[-1] - x[-2:-pad - 2:-1]))

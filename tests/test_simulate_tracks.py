@@ -18,13 +18,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 from foxglove_schemas_protobuf.LocationFix_pb2 import LocationFix
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from mcap.reader import make_reader
 
 from formats.geodesy import LocalFrame
 from formats.units import NS
 from replay.cli import main
+from samples.recorded import covered, intersect
 from samples.scenario import load_scenario, scenario_to_toml
-from samples.trajectories import FOLLOWER_DEPTH_M, LEADER_DEPTH_M
+from samples.trajectories import FOLLOWER_DEPTH_M, LEADER_DEPTH_M, track_from_fixes
 from tests.trial_shapes import enu_quaternion, imu, navsatfix, ros1_typestore, write_ros1
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -75,7 +78,7 @@ def replay_json(trial: Path, tmp: Path, capsys: pytest.CaptureFixture) -> dict:
     archive = tmp / f"{trial.name}.mcap"
     assert main(["record", str(trial / "trial.toml"), "-o", str(archive), "--quiet"]) == 0
     capsys.readouterr()
-    assert main(["replay", str(archive), "--json"]) == 0
+    assert main(["replay", str(archive), "--json", "-o", str(tmp / f"{trial.name}-results.mcap")]) == 0
     return json.loads(capsys.readouterr().out)
 
 
@@ -279,3 +282,48 @@ def test_bad_input_is_one_line_and_exit_1(tmp_path, capsys, sample):
     code, printed = simulate(capsys, "--follower", "x", "-o", str(tmp_path / "out"))
     assert code == 1 and "go with --tracks" in printed
     assert not (tmp_path / "out").exists()
+
+
+# ---------------------------------------------------------------- the numerics, against slow references
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(0.1, 60.0), min_size=0, max_size=40), st.floats(0.0, 40.0))
+def test_covered_spans_split_at_gaps_over_the_limit(steps, max_gap):
+    t = np.cumsum([0.0, *steps])
+    want, first = [], 0
+    for i in range(1, len(t) + 1):
+        if i == len(t) or t[i] - t[i - 1] > max_gap:
+            if t[i - 1] > t[first]:
+                want.append((t[first], t[i - 1]))
+            first = i
+    assert covered(t, max_gap) == want
+
+
+spans = st.lists(st.floats(0.0, 100.0), max_size=12).map(
+    lambda xs: [(a, b) for a, b in zip(sorted(xs)[::2], sorted(xs)[1::2]) if b > a])
+
+
+@settings(max_examples=100, deadline=None)
+@given(spans, spans)
+def test_intersect_is_every_pairwise_overlap(a, b):
+    a = [s for i, s in enumerate(a) if i == 0 or s[0] > a[i - 1][1]]      # disjoint, as covered() gives
+    b = [s for i, s in enumerate(b) if i == 0 or s[0] > b[i - 1][1]]
+    want = sorted((max(p[0], q[0]), min(p[1], q[1])) for p in a for q in b if min(p[1], q[1]) > max(p[0], q[0]))
+    assert intersect(a, b) == want
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(0.3, 4.0), st.floats(0.0, 359.0), st.floats(0.0, 10.0))
+def test_a_straight_track_passes_through_its_fixes_with_its_course_and_speed(speed, course, smoothing):
+    """Fixes of a vehicle on a straight line at constant speed: the track is the line, its heading the course and
+    its surge the speed everywhere, ends included."""
+    fix_t = np.arange(0.0, 121.0)
+    h = math.radians(course)
+    e, n = 10 + speed * np.sin(h) * fix_t, -5 + speed * np.cos(h) * fix_t
+    t = np.arange(1201) * 0.1
+    k = track_from_fixes("boat", fix_t, e, n, t, LocalFrame(LAT0, LON0), 2.5, 0, smoothing)
+    np.testing.assert_allclose(k.east_m[::10], e, atol=1e-9)
+    np.testing.assert_allclose(k.north_m[::10], n, atol=1e-9)
+    assert np.max(np.abs((k.heading_deg - course + 180) % 360 - 180)) < 1e-6
+    np.testing.assert_allclose(k.surge_mps, speed, atol=1e-6)
+    np.testing.assert_allclose(k.sway_mps, 0.0, atol=1e-6)
