@@ -192,6 +192,24 @@ def test_dr_sensors_follow_the_tracks_motion(sample):
     assert np.median(dvl.forward_mps) == pytest.approx(np.median(speed), abs=0.05)
 
 
+def test_the_conditions_table_still_applies(sample):
+    """A sound-speed bias of 1 % scales every range along the recorded tracks; USBL epochs are simulated too."""
+    from dataclasses import replace
+
+    from samples.simulator import simulate_trial
+
+    _, trial, _ = sample
+    base = load_scenario(trial / "scenario.toml")
+    biased = replace(base, conditions=replace(base.conditions, sound_speed_bias=0.01))
+    sim = simulate_trial(biased, 3)
+    r = sim.ranges
+    clean = r.injected == 0
+    ratio = (r.range_m[clean] - r.range_true_m[clean]) / r.range_true_m[clean]
+    assert np.median(ratio) == pytest.approx(0.01, abs=0.002)
+    assert len(sim.usbl.t_s) == 340 and sim.notes == ("tracks: leader1 = leader1, leader2 = leader2, "
+                                                       "follower = follower",)
+
+
 # ---------------------------------------------------------------- one boat's track
 
 def write_boat_bag(path: Path) -> None:
