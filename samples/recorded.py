@@ -171,6 +171,27 @@ def _roles(sources: list[SourceTrack], follower: SourceTrack, scenario: Scenario
         f"ahead in time ({ahead})")
 
 
+def _common_span(cast: list[tuple[str, SourceTrack, float]], max_gap_s: float, archive: str
+                 ) -> tuple[int, float, bool]:
+    """(UTC ns of its first whole second, seconds to its end to 0.1 s, whether a gap cut it) of the longest span
+    every track of the cast covers, each shifted by the seconds it runs ahead."""
+    t0 = min(int(s.t_ns[0]) for _, s, _ in cast)
+    spans: Spans = [(-math.inf, math.inf)]
+    hull: Spans = [(-math.inf, math.inf)]
+    for _, s, ahead in cast:
+        t_s = (s.t_ns - t0) / NS - ahead
+        spans = intersect(spans, covered(t_s, max_gap_s))
+        hull = intersect(hull, [(float(t_s[0]), float(t_s[-1]))])
+    if not spans:
+        raise TrackError(f"{archive}: no span that every track covers with gaps of at most {max_gap_s:g} s")
+    lo, hi = max(spans, key=lambda ab: (ab[1] - ab[0], -ab[0]))
+    start_ns = -(-(t0 + math.ceil(lo * NS)) // NS) * NS
+    span_s = math.floor((t0 + hi * NS - start_ns) / NS * 10) / 10
+    if span_s <= 0:
+        raise TrackError(f"{archive}: the tracks' longest common span ({hi - lo:.1f} s) holds no whole second")
+    return start_ns, span_s, bool(hull) and hi - lo < hull[0][1] - hull[0][0] - 1e-6
+
+
 def _utc(t_ns: int) -> datetime:
     return datetime.fromtimestamp(t_ns // NS, UTC)
 
@@ -186,23 +207,10 @@ def recorded_motion(scenario: Scenario, seed: int) -> RecordedMotion:
         raise TrackError(f"{tr.archive}: every GPS track has one point ({', '.join(s.vehicle for s in sources)}): "
                          "no motion to follow")
     cast, who = _roles(moving, pick_follower(moving, roles, tr.follower), scenario)
-    t0 = min(int(s.t_ns[0]) for _, s, _ in cast)
-    spans: Spans = [(-math.inf, math.inf)]
-    hull: Spans = [(-math.inf, math.inf)]
-    for _, s, ahead in cast:
-        t_s = (s.t_ns - t0) / NS - ahead
-        spans = intersect(spans, covered(t_s, tr.max_gap_s))
-        hull = intersect(hull, [(float(t_s[0]), float(t_s[-1]))])
-    if not spans:
-        raise TrackError(f"{tr.archive}: no span that every track covers with gaps of at most {tr.max_gap_s:g} s")
-    lo, hi = max(spans, key=lambda ab: (ab[1] - ab[0], -ab[0]))
-    start_ns = -(-(t0 + math.ceil(lo * NS)) // NS) * NS     # the span's first whole UTC second
-    span_s = math.floor((t0 + hi * NS - start_ns) / NS * 10) / 10
+    start_ns, span_s, gapped = _common_span(cast, tr.max_gap_s, tr.archive)
     duration = min(span_s, scenario.trial.duration_s)
-    if duration <= 0:
-        raise TrackError(f"{tr.archive}: the tracks' longest common span ({hi - lo:.1f} s) holds no whole second")
     notes = [who]
-    if hull and hi - lo < hull[0][1] - hull[0][0] - 1e-6:
+    if gapped:
         notes.append(f"GPS gaps over {tr.max_gap_s:g} s: the trial is cut to the longest span every track covers, "
                      f"{span_s:g} s from {_utc(start_ns).isoformat()}")
     if duration < span_s:
