@@ -33,6 +33,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 from formats import rosbag as rb
@@ -232,8 +233,22 @@ def _imu(ctx: LogContext, msg: Any, t: int, publish: int, where: Where) -> Itera
         return
     state = ins_state(t, ctx, "rosbag:sensor_msgs/Imu", roll_deg=roll, pitch_deg=pitch, heading_deg=heading,
                       roll_std_deg=_sigma_deg(cov[0]), pitch_std_deg=_sigma_deg(cov[4]),
-                      heading_std_deg=_sigma_deg(cov[8]))
+                      heading_std_deg=_sigma_deg(cov[8]), **_imu_rates(msg))
     yield _out(ctx, "ins", state, t, publish, where)
+
+
+def _imu_rates(msg: Any) -> dict[str, float]:
+    """An Imu's angular velocity and linear acceleration in FRD body axes (REP-103: FLU unless the frame is
+    _frd/_ned), each left out when its covariance[0] is -1 (REP-145: not given)."""
+    frd = is_ned(_frame(msg))
+    out: dict[str, float] = {}
+    for name, unit in (("angular_velocity", "radps"), ("linear_acceleration", "mps2")):
+        if _cov(getattr(msg, name + "_covariance", ()), 1)[0] == -1:
+            continue
+        v = _vec(getattr(msg, name, None))
+        for axis, value in zip("xyz", v if frd else flu_to_frd(v)):
+            out[f"{name}_{axis}_{unit}"] = value
+    return out
 
 
 def _odometry(ctx: LogContext, msg: Any, t: int, publish: int, where: Where,
@@ -329,6 +344,8 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
     if not ctx.files:
         raise FormatError("a bag is read from its file: no file given")
     bag = _Bag(ctx)
+    msg_paths = ctx.options.get("msg_paths")
+    types = rb.definitions([Path(p) for p in msg_paths]) if isinstance(msg_paths, list) else {}
     start, number = 0, 0
     folders = {p.parent for p in ctx.files if p.name == "metadata.yaml"}
     # a ROS 2 bag folder given whole (path = "dive3/*"): its metadata.yaml reads every storage file of it
@@ -340,7 +357,7 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
             raise FormatError(f"cannot read {path.name} ({exc.strerror or exc})") from exc
         # offset: the file's first byte in the log plus the message's index in it, so that the recorder maps
         # each message to its file (a message takes more than one byte) for a split bag's gap report
-        for m in rb.read_bag(path):
+        for m in rb.read_bag(path, types):
             number += 1
             where = Where(start + min(m.index, max(size - 1, 0)), None, m.bag_time_ns, number)
             if not m.topic:

@@ -235,7 +235,8 @@ def test_bag_maps_every_type_like_the_vendor_logs(bags, tmp_path, kind):
     reasons = stats["ignored_reasons"]
     assert reasons["topic /diag_count (std_msgs/Int32) is not mapped"] == 1
     assert any("/camera/info" in r for r in reasons)
-    assert info["attachments"] == [str(rel)]
+    # a ROS 2 storage file stands for its bag folder: every file of it is kept
+    assert info["attachments"] == ([str(rel)] if kind == "ros1" else [f"{rel.parent}/metadata.yaml", str(rel)])
     # header stamps are log time, bag time publish time
     with ArchiveReader(tmp_path / "a.mcap") as r:
         fix = next(x for x in r.messages(["/auv/gps"]) if x.log_time_ns == T0)
