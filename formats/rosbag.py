@@ -211,6 +211,28 @@ def read_bag(path: Path, types: dict[str, Any] | None = None) -> Iterator[BagMes
     split or compressed, as the metadata lists them). `types` (from `definitions`) define custom types the
     bag does not.
     """
+    reader, kind = _opened(path)
+    try:
+        yield from _messages(reader, kind == "ros1", types or {})
+    finally:
+        with contextlib.suppress(Exception):  # closing a damaged bag may fail again; nothing is left to lose
+            reader.close()
+
+
+def bag_topics(path: Path) -> list[tuple[str, str]]:
+    """(topic, type as `ros_type` gives it) of every connection of a bag, from its index or metadata alone;
+    FormatError when rosbags cannot open it."""
+    reader, _ = _opened(path)
+    try:
+        return [(c.topic, ros_type(c.msgtype)) for c in reader.connections
+                if isinstance(c.topic, str) and isinstance(c.msgtype, str)]
+    finally:
+        with contextlib.suppress(Exception):
+            reader.close()
+
+
+def _opened(path: Path) -> tuple[Any, str]:
+    """An open rosbags reader of a bag file (or of the folder of a ``metadata.yaml``), and its storage kind."""
     if path.name == "metadata.yaml":
         kind = "folder"
     else:
@@ -228,11 +250,7 @@ def read_bag(path: Path, types: dict[str, Any] | None = None) -> Iterator[BagMes
         raise
     except Exception as exc:  # noqa: BLE001 - rosbags' many ways of refusing a damaged file: one line each
         raise FormatError(f"rosbags cannot open {path.name}: {library_error(exc)}") from None
-    try:
-        yield from _messages(reader, kind == "ros1", types or {})
-    finally:
-        with contextlib.suppress(Exception):  # closing a damaged bag may fail again; nothing is left to lose
-            reader.close()
+    return reader, kind
 
 
 def _messages(reader: Any, ros1: bool, types: dict[str, Any]) -> Iterator[BagMessage]:

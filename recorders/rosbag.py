@@ -31,6 +31,7 @@ or ignored with a reason (an unmapped topic is listed once, with its type and co
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
@@ -71,6 +72,9 @@ DEFAULT_FAMILY = {"sensor_msgs/NavSatFix": "gps", **{t: "" for t in RAW_TYPES},
                   **{t: "ins" for t in INS_TYPES}, **{t: "dvl" for t in TWIST_TYPES}}
 # NavSatStatus.status -> GGA-style quality: -1 no fix, 0 fix, 1 SBAS, 2 GBAS (ground-based: DGPS/RTK)
 NAVSAT_QUALITY = {-1: 0, 0: 1, 1: 2, 2: 2}
+# names our topics use below a family's (gps/status, gps/velocity, gps/input, ins/local...): a ROS topic's own
+# source never takes one
+RESERVED_NAMES = frozenset({"status", "velocity", "input", "local", "sbg", "range", "node_report"})
 GNSS_WORDS = ("gps", "gnss", "fix_velocity", "navsat")
 # ds_sensor_msgs/Dvl (and marine_acoustic_msgs/Dvl) coordinate_mode: 0 beam, 1 instrument, 2 ship, 3 earth
 DVL_COORDINATE_MODES = {1: "INSTRUMENT", 2: "BODY_FRD", 3: "EARTH_NED"}
@@ -139,15 +143,76 @@ def _sigma_deg(variance_rad2: float) -> float:
     return math.degrees(math.sqrt(variance_rad2)) if variance_rad2 >= 0 else NAN
 
 
+def _main_key(msgtype: str, family: str) -> str | None:
+    """The archive topic (below the vehicle) a typed ROS topic writes first; None for raw text, whose vendor
+    converter decides."""
+    if msgtype == "sensor_msgs/NavSatFix":
+        return "gps"
+    if msgtype in INS_TYPES:
+        return "ins"
+    if msgtype in TWIST_TYPES:
+        return VELOCITY if family == "gps" else "dvl"
+    return "dvl" if _is_dvl_type(msgtype) else None
+
+
+def source_name(topic: str) -> str:
+    """The name of a ROS topic as a source of its own below its family's topic: "/odometry/gps" -> "odometry_gps"
+    (a name our topics already use below a family, "status" say, gets a "ros_" prefix)."""
+    name = re.sub(r"[^A-Za-z0-9_]+", "_", topic.strip("/")).strip("_") or "topic"
+    return "ros_" + name if name in RESERVED_NAMES else name
+
+
+class _Sources:
+    """Each ROS topic its own source: the first ROS topic of a vehicle's archive topic keeps it; every other one
+    mapped there (a second Odometry, an Imu beside an Odometry) writes below it, `/<v>/ins/<name>`, as MAVLink's
+    GPS_INPUT writes `/<v>/gps/input`: two clocks never share a topic, and the replay draws each as a track."""
+
+    def __init__(self) -> None:
+        self.owner: dict[tuple[str, str], str] = {}   # (vehicle, archive topic below it) -> the ROS topic there
+        self.name: dict[str, str] = {}                # ROS topic -> "" (owns its topic) or its name below it
+
+    def claim(self, vehicle: str, key: str, topic: str) -> None:
+        """The ROS topic's place, once: its archive topic, or its own name below the one another topic holds."""
+        if topic not in self.name:
+            owner = self.owner.setdefault((vehicle, key), topic)
+            self.name[topic] = "" if owner == topic else source_name(topic)
+
+    def place(self, item: Output, topic: str) -> None:
+        """Move an output of a ROS topic to that topic's own source (claimed by its first output if not yet)."""
+        parts = item.topic.split("/", 3)   # "", vehicle, family, rest
+        if topic not in self.name and len(parts) >= 3:
+            self.claim(parts[1], parts[2], topic)
+        name = self.name.get(topic)
+        if name:
+            item.topic = "/".join([*parts[:3], name, *parts[3:]])
+
+
 class _Bag:
     """One recording of a bag's messages: converts each, keeps raw text streams to convert at the end."""
 
-    def __init__(self, ctx: LogContext):
+    def __init__(self, ctx: LogContext, topics: list[tuple[str, str]]):
         self.ctx = ctx
         self.origin = origin_option(ctx)
         self.streams: dict[str, TextStream] = {}
+        self.sources = _Sources()
+        # typed topics claim their archive topics first, a position (Odometry) before an attitude alone (Imu)
+        ranked = []
+        for topic, msgtype in dict.fromkeys(topics):
+            target = _target(topic, msgtype, ctx)
+            key = _main_key(msgtype, target[0]) if target is not None else None
+            if target is not None and key is not None:
+                ranked.append((target[1], key, msgtype == "sensor_msgs/Imu", topic))
+        for vehicle, key, _, topic in sorted(ranked):
+            self.sources.claim(vehicle, key, topic)
 
     def item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored]:
+        """The archive messages of one bag message (raw text kept for `finish`), each on its topic's source."""
+        for item in self._item(m, where):
+            if type(item) is Output:
+                self.sources.place(item, m.topic)
+            yield item
+
+    def _item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored]:
         label = f"{m.topic} ({m.msgtype})"
         target = _target(m.topic, m.msgtype, self.ctx)
         if target is None:
@@ -188,8 +253,12 @@ class _Bag:
             yield Reject(where, f"{label}: mapped to {family}, but we convert no {m.msgtype} message")
 
     def finish(self) -> Iterator[Output | Reject | Ignored]:
+        """The raw text streams through their vendor converters, each on its topic's source."""
         for topic, stream in self.streams.items():
-            yield from convert_stream(stream, self.ctx, topic)
+            for item in convert_stream(stream, self.ctx, topic):
+                if type(item) is Output:
+                    self.sources.place(item, topic)
+                yield item
 
 
 def _with_vehicle(ctx: LogContext, vehicle: str) -> LogContext:
@@ -343,13 +412,13 @@ def convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | I
 def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     if not ctx.files:
         raise FormatError("a bag is read from its file: no file given")
-    bag = _Bag(ctx)
+    folders = {p.parent for p in ctx.files if p.name == "metadata.yaml"}
+    # a ROS 2 bag folder given whole (path = "dive3/"): its metadata.yaml reads every storage file of it
+    files = [p for p in ctx.files if p.name == "metadata.yaml" or p.parent not in folders]
+    bag = _Bag(ctx, [t for path in files for t in _topics(path)])
     msg_paths = ctx.options.get("msg_paths")
     types = rb.definitions([Path(p) for p in msg_paths]) if isinstance(msg_paths, list) else {}
     start, number = 0, 0
-    folders = {p.parent for p in ctx.files if p.name == "metadata.yaml"}
-    # a ROS 2 bag folder given whole (path = "dive3/*"): its metadata.yaml reads every storage file of it
-    files = [p for p in ctx.files if p.name == "metadata.yaml" or p.parent not in folders]
     for path in files:
         try:
             size = path.stat().st_size
@@ -366,6 +435,14 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
             yield from bag.item(m, where)
         start += size
     yield from bag.finish()
+
+
+def _topics(path: Path) -> list[tuple[str, str]]:
+    """A bag file's topics and types, or none when it does not open (reading it then says why)."""
+    try:
+        return rb.bag_topics(path)
+    except FormatError:
+        return []
 
 
 MANIFEST_EXAMPLE = """[[vehicles.logs]]
