@@ -256,8 +256,8 @@ def _opened(path: Path) -> tuple[Any, str]:
 def _messages(reader: Any, ros1: bool, types: dict[str, Any]) -> Iterator[BagMessage]:
     connections = list(reader.connections)
     store, broken = _typestore(connections, ros1, types)
-    for conn in connections:
-        if conn.msgtype not in store.fielddefs and conn.msgtype not in broken:
+    for conn in connections:   # (a type that is not text is its rows' problem: _ros2_rows says so)
+        if isinstance(conn.msgtype, str) and conn.msgtype not in store.fielddefs and conn.msgtype not in broken:
             broken[conn.msgtype] = (f"no definition of {ros_type(conn.msgtype)}: the bag carries none and rosbags "
                                     "knows none (give its .msg or .idl in the log's msg_paths)")
     index = 0

@@ -16,7 +16,7 @@ so the single-file and bag-folder readers (`bounded_reader`) use it for
 
 from __future__ import annotations
 
-from collections.abc import Collection, Iterator
+from collections.abc import Collection, Generator
 from pathlib import Path
 from typing import Any
 
@@ -85,7 +85,7 @@ class BoundedMcapStorage:
             self._file = None
 
     def messages(self, connections: Collection[Any], start: int | None = None,
-                 stop: int | None = None) -> Iterator[tuple[Any, int, bytes]]:
+                 stop: int | None = None) -> Generator[tuple[Any, int, bytes], None, None]:
         """(connection, log time ns, serialized message) in log-time order, one chunk (or the few that overlap
         in time) in memory at a time; a chunk that cannot be read goes to `problems` and is skipped."""
         wanted = {c.id: c for c in connections}

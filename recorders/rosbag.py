@@ -7,8 +7,10 @@ a topic it does not list is not mapped), else by message type:
 - ``sensor_msgs/NavSatFix`` -> ``/<v>/gps`` (LocationFix; its covariance and covariance type are the same ENU m²
   convention) and ``/<v>/gps/status``. Status -1 (no fix) or a NaN position gives the status only.
 - ``nmea_msgs/Sentence`` and ``std_msgs/String`` whose text is a vendor sentence -> through our NMEA, PHINS,
-  Micro-Modem, EvoLogics or NovAtel converters (`recorders.containers`), one text stream per topic.
-- ``sensor_msgs/Imu`` -> ``/<v>/ins`` attitude (heading, roll, pitch and their sigmas); ``nav_msgs/Odometry``
+  Micro-Modem, EvoLogics, NovAtel or Water Linked converters (`recorders.containers`), one text stream per topic,
+  timed by the bag (a Water Linked report's own clock kept as ``device_time``).
+- ``sensor_msgs/Imu`` -> ``/<v>/ins`` attitude (heading, roll, pitch and their sigmas), body rates and specific
+  force (FRD); ``nav_msgs/Odometry``
   -> ``/<v>/ins`` with position (latitude/longitude from the manifest's ``origin = [lat, lon]``, depth = -z in
   an ENU frame), attitude and velocity rotated into NED.
 - ``geometry_msgs/TwistWithCovarianceStamped`` / ``TwistStamped`` on a GNSS topic (named gps, gnss, navsat,
@@ -19,9 +21,14 @@ a topic it does not list is not mapped), else by message type:
   simulator) -> ``/<v>/dvl`` in the instrument frame (``dvl_frame`` overrides), with altitude, validity and
   figure of merit where they have them.
 
-The bag: a ROS 1 ``.bag`` (a list or glob of them for a split recording), a ROS 2 storage file (``.mcap``,
-``.db3``), or a whole ROS 2 bag folder (``path = "dive3/*"``: its ``metadata.yaml`` with the split or
-compressed storage files it lists). Every file given is attached.
+Each ROS topic is its own source (`_Sources`): the first of a vehicle's topic keeps it, any other goes below it
+(``/<v>/ins/odometry_gps``).
+
+The bag: a ROS 1 ``.bag`` (a list or glob of them for a split recording), or a ROS 2 bag folder (``path =
+"dive3/"``, its ``metadata.yaml`` or a storage file in it: `recorders.manifest` makes every file of the folder a
+part, all attached; the ``metadata.yaml`` reads the split or compressed storage files it lists); a ``.mcap`` or
+``.db3`` alone is read alone. ``msg_paths = [...]`` (``.msg``/``.idl`` files or folders, relative to the manifest)
+define custom types the bag does not.
 
 Times: the header stamp is the measurement time (log time), the bag time the publish time; a message without a
 header or with a zero stamp takes its bag time. Every bag message is counted: archived, rejected with a reason,
@@ -446,8 +453,9 @@ def _topics(path: Path) -> list[tuple[str, str]]:
 
 
 MANIFEST_EXAMPLE = """[[vehicles.logs]]
-format = "rosbag"                  # ROS 1 .bag, ROS 2 .mcap or .db3 (the storage file inside the bag folder)
-path = "auv1/dive3/dive3_0.mcap"
+format = "rosbag"                  # ROS 1 .bag, or a ROS 2 bag folder (.mcap or .db3 storage)
+path = "auv1/dive3/"
+# msg_paths = ["auv1/msgs"]        # .msg/.idl files (or folders) for custom types the bag does not define
 origin = [45.70, 126.60]           # datum of the bag's local (odom/map) frame, for Odometry positions
 # time_base = "sim"                # a bag in simulated time: start is the UTC instant of its time 0
 # start = "2024-05-01T10:00:00Z"   # (docs/time-bases.md)
