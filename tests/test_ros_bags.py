@@ -304,7 +304,7 @@ def test_water_linked_json_in_a_string_topic_is_the_dvl_on_the_bags_clock(tmp_pa
         ("/dvl/json_data", "std_msgs/msg/String", T0 + NS, String(data=wl_velocity(dvl_clock + 1_000_000, 0.4, 3.2,
                                                                                       True))),
         ("/dvl/json_data", "std_msgs/msg/String", T0 + 2 * NS, String(data=wl_velocity(dvl_clock + 2_000_000, 0.0,
-                                                                                          -1.0, False))),
+                                                                                          -1.0, True))),
         ("/dvl/json_data", "std_msgs/msg/String", T0 + 3 * NS, String(data=json.dumps(
             {"ts": 49056.5, "x": 12.9, "y": 0.3, "z": 1.2, "std": 0.4, "roll": 0.1, "pitch": 0.2, "yaw": 3.1,
              "type": "position_local", "status": 0, "format": "json_v3.1"}))),
@@ -316,7 +316,7 @@ def test_water_linked_json_in_a_string_topic_is_the_dvl_on_the_bags_clock(tmp_pa
     assert S.to_ns(good.device_time) == (dvl_clock + 1_000_000) * 1000   # the DVL's own clock, kept
     assert (good.velocity_x_mps, good.altitude_m, good.valid, good.figure_of_merit) == (0.4, 3.2, True, 0.002)
     assert good.source_format == "waterlinked:json" and good.frame == S.DvlVelocity.BODY_FRD
-    # altitude -1: the DVL's "no altitude": the ping kept, not valid, its altitude NaN
+    # altitude -1: the DVL's "no altitude": the ping kept, not valid (whatever its velocity flag), altitude NaN
     assert math.isnan(no_bottom.altitude_m) and not no_bottom.valid
     assert S.to_ns(no_bottom.device_time) == (dvl_clock + 2_000_000) * 1000
     # the dead-reckoning report is counted (nothing of it archived), not "no vendor format"
