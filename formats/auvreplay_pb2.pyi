@@ -33,7 +33,7 @@ class GnssStatus(_message.Message):
     def __init__(self, timestamp: _Optional[_Union[datetime.datetime, _timestamp_pb2.Timestamp, _Mapping]] = ..., frame_id: _Optional[str] = ..., fix_quality: _Optional[int] = ..., satellites: _Optional[int] = ..., hdop: _Optional[float] = ..., source_format: _Optional[str] = ..., speed_over_ground_mps: _Optional[float] = ..., course_over_ground_deg: _Optional[float] = ..., heading_deg: _Optional[float] = ...) -> None: ...
 
 class InsState(_message.Message):
-    __slots__ = ("timestamp", "frame_id", "latitude", "longitude", "depth_m", "roll_deg", "pitch_deg", "heading_deg", "velocity_north_mps", "velocity_east_mps", "velocity_down_mps", "heading_std_deg", "position_std_north_m", "position_std_east_m", "status", "source_format", "roll_std_deg", "pitch_std_deg", "altitude_m")
+    __slots__ = ("timestamp", "frame_id", "latitude", "longitude", "depth_m", "roll_deg", "pitch_deg", "heading_deg", "velocity_north_mps", "velocity_east_mps", "velocity_down_mps", "heading_std_deg", "position_std_north_m", "position_std_east_m", "status", "source_format", "roll_std_deg", "pitch_std_deg", "altitude_m", "angular_velocity_x_radps", "angular_velocity_y_radps", "angular_velocity_z_radps", "linear_acceleration_x_mps2", "linear_acceleration_y_mps2", "linear_acceleration_z_mps2")
     TIMESTAMP_FIELD_NUMBER: _ClassVar[int]
     FRAME_ID_FIELD_NUMBER: _ClassVar[int]
     LATITUDE_FIELD_NUMBER: _ClassVar[int]
@@ -53,6 +53,12 @@ class InsState(_message.Message):
     ROLL_STD_DEG_FIELD_NUMBER: _ClassVar[int]
     PITCH_STD_DEG_FIELD_NUMBER: _ClassVar[int]
     ALTITUDE_M_FIELD_NUMBER: _ClassVar[int]
+    ANGULAR_VELOCITY_X_RADPS_FIELD_NUMBER: _ClassVar[int]
+    ANGULAR_VELOCITY_Y_RADPS_FIELD_NUMBER: _ClassVar[int]
+    ANGULAR_VELOCITY_Z_RADPS_FIELD_NUMBER: _ClassVar[int]
+    LINEAR_ACCELERATION_X_MPS2_FIELD_NUMBER: _ClassVar[int]
+    LINEAR_ACCELERATION_Y_MPS2_FIELD_NUMBER: _ClassVar[int]
+    LINEAR_ACCELERATION_Z_MPS2_FIELD_NUMBER: _ClassVar[int]
     timestamp: _timestamp_pb2.Timestamp
     frame_id: str
     latitude: float
@@ -72,10 +78,16 @@ class InsState(_message.Message):
     roll_std_deg: float
     pitch_std_deg: float
     altitude_m: float
-    def __init__(self, timestamp: _Optional[_Union[datetime.datetime, _timestamp_pb2.Timestamp, _Mapping]] = ..., frame_id: _Optional[str] = ..., latitude: _Optional[float] = ..., longitude: _Optional[float] = ..., depth_m: _Optional[float] = ..., roll_deg: _Optional[float] = ..., pitch_deg: _Optional[float] = ..., heading_deg: _Optional[float] = ..., velocity_north_mps: _Optional[float] = ..., velocity_east_mps: _Optional[float] = ..., velocity_down_mps: _Optional[float] = ..., heading_std_deg: _Optional[float] = ..., position_std_north_m: _Optional[float] = ..., position_std_east_m: _Optional[float] = ..., status: _Optional[str] = ..., source_format: _Optional[str] = ..., roll_std_deg: _Optional[float] = ..., pitch_std_deg: _Optional[float] = ..., altitude_m: _Optional[float] = ...) -> None: ...
+    angular_velocity_x_radps: float
+    angular_velocity_y_radps: float
+    angular_velocity_z_radps: float
+    linear_acceleration_x_mps2: float
+    linear_acceleration_y_mps2: float
+    linear_acceleration_z_mps2: float
+    def __init__(self, timestamp: _Optional[_Union[datetime.datetime, _timestamp_pb2.Timestamp, _Mapping]] = ..., frame_id: _Optional[str] = ..., latitude: _Optional[float] = ..., longitude: _Optional[float] = ..., depth_m: _Optional[float] = ..., roll_deg: _Optional[float] = ..., pitch_deg: _Optional[float] = ..., heading_deg: _Optional[float] = ..., velocity_north_mps: _Optional[float] = ..., velocity_east_mps: _Optional[float] = ..., velocity_down_mps: _Optional[float] = ..., heading_std_deg: _Optional[float] = ..., position_std_north_m: _Optional[float] = ..., position_std_east_m: _Optional[float] = ..., status: _Optional[str] = ..., source_format: _Optional[str] = ..., roll_std_deg: _Optional[float] = ..., pitch_std_deg: _Optional[float] = ..., altitude_m: _Optional[float] = ..., angular_velocity_x_radps: _Optional[float] = ..., angular_velocity_y_radps: _Optional[float] = ..., angular_velocity_z_radps: _Optional[float] = ..., linear_acceleration_x_mps2: _Optional[float] = ..., linear_acceleration_y_mps2: _Optional[float] = ..., linear_acceleration_z_mps2: _Optional[float] = ...) -> None: ...
 
 class DvlVelocity(_message.Message):
-    __slots__ = ("timestamp", "frame_id", "frame", "velocity_x_mps", "velocity_y_mps", "velocity_z_mps", "error_velocity_mps", "beam_range_m", "altitude_m", "valid", "figure_of_merit", "sound_speed_mps", "source_format", "temperature_c")
+    __slots__ = ("timestamp", "frame_id", "frame", "velocity_x_mps", "velocity_y_mps", "velocity_z_mps", "error_velocity_mps", "beam_range_m", "altitude_m", "valid", "figure_of_merit", "sound_speed_mps", "source_format", "temperature_c", "device_time")
     class Frame(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
         __slots__ = ()
         FRAME_UNKNOWN: _ClassVar[DvlVelocity.Frame]
@@ -100,6 +112,7 @@ class DvlVelocity(_message.Message):
     SOUND_SPEED_MPS_FIELD_NUMBER: _ClassVar[int]
     SOURCE_FORMAT_FIELD_NUMBER: _ClassVar[int]
     TEMPERATURE_C_FIELD_NUMBER: _ClassVar[int]
+    DEVICE_TIME_FIELD_NUMBER: _ClassVar[int]
     timestamp: _timestamp_pb2.Timestamp
     frame_id: str
     frame: DvlVelocity.Frame
@@ -114,7 +127,8 @@ class DvlVelocity(_message.Message):
     sound_speed_mps: float
     source_format: str
     temperature_c: float
-    def __init__(self, timestamp: _Optional[_Union[datetime.datetime, _timestamp_pb2.Timestamp, _Mapping]] = ..., frame_id: _Optional[str] = ..., frame: _Optional[_Union[DvlVelocity.Frame, str]] = ..., velocity_x_mps: _Optional[float] = ..., velocity_y_mps: _Optional[float] = ..., velocity_z_mps: _Optional[float] = ..., error_velocity_mps: _Optional[float] = ..., beam_range_m: _Optional[_Iterable[float]] = ..., altitude_m: _Optional[float] = ..., valid: _Optional[bool] = ..., figure_of_merit: _Optional[float] = ..., sound_speed_mps: _Optional[float] = ..., source_format: _Optional[str] = ..., temperature_c: _Optional[float] = ...) -> None: ...
+    device_time: _timestamp_pb2.Timestamp
+    def __init__(self, timestamp: _Optional[_Union[datetime.datetime, _timestamp_pb2.Timestamp, _Mapping]] = ..., frame_id: _Optional[str] = ..., frame: _Optional[_Union[DvlVelocity.Frame, str]] = ..., velocity_x_mps: _Optional[float] = ..., velocity_y_mps: _Optional[float] = ..., velocity_z_mps: _Optional[float] = ..., error_velocity_mps: _Optional[float] = ..., beam_range_m: _Optional[_Iterable[float]] = ..., altitude_m: _Optional[float] = ..., valid: _Optional[bool] = ..., figure_of_merit: _Optional[float] = ..., sound_speed_mps: _Optional[float] = ..., source_format: _Optional[str] = ..., temperature_c: _Optional[float] = ..., device_time: _Optional[_Union[datetime.datetime, _timestamp_pb2.Timestamp, _Mapping]] = ...) -> None: ...
 
 class AcousticRange(_message.Message):
     __slots__ = ("timestamp", "source", "destination", "source_address", "destination_address", "travel_time_s", "range_m", "sound_speed_mps", "kind", "source_format")

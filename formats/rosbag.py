@@ -23,6 +23,13 @@ while they fit in MERGE_BYTES together; a chunk refused, or whose data is
 damaged, gives each of its indexed messages as a problem (a counted skip).
 Every value of a ROS 2 database row is checked the same way: a NULL or
 non-integer timestamp, or data that is not bytes, is that message's problem.
+A ROS 2 bag in MCAP storage is read through our bounded MCAP reader
+(`formats.rosbag_mcap`): a refused or damaged chunk is one problem row.
+
+A ROS 2 bag folder (``metadata.yaml`` beside its storage files) is one bag
+(`bag_folder`); custom types a bag does not define come from ``.msg`` /
+``.idl`` files (`definitions`), and a type defined nowhere makes each of its
+messages a problem that says so.
 """
 
 from __future__ import annotations
@@ -39,6 +46,7 @@ from typing import Any
 
 from .mcap_chunks import MAX_CHUNK_BYTES, lz4_bounded, mib
 from .records import FormatError, library_error
+from .rosbag_mcap import bounded_reader, storage_problems
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -47,6 +55,9 @@ SQLITE_MAGIC = b"SQLite format 3\x00"
 MERGE_BYTES = 2 * MAX_CHUNK_BYTES
 # compressed bytes of a chunk that may inflate to MAX_CHUNK_BYTES or less (bz2 and lz4 add little to random data)
 MAX_COMPRESSED = MAX_CHUNK_BYTES + (MAX_CHUNK_BYTES >> 4) + 4096
+# msg_paths: definition files are small text; more or larger is a path that went wrong
+MAX_DEFINITION_FILES = 10_000
+MAX_DEFINITION_BYTES = 1 << 20
 _U32 = struct.Struct("<I")
 _TIME = struct.Struct("<II")
 OP_MSGDATA, OP_CHUNK, OP_CONNECTION = 2, 5, 7
@@ -71,6 +82,17 @@ def ros_type(msgtype: str) -> str:
     return msgtype.replace("/msg/", "/")
 
 
+def bag_folder(path: Path) -> Path | None:
+    """The ROS 2 bag folder `path` names, or None: the folder itself, its ``metadata.yaml``, or a storage file
+    (``.db3``, ``.mcap``) beside a ``metadata.yaml``. A bag folder is one bag: its storage files are read as the
+    metadata lists them, and a storage file alone leaves out what only the metadata says (split files, types)."""
+    if path.is_dir():
+        return path if (path / "metadata.yaml").is_file() else None
+    if path.name == "metadata.yaml" or (path.suffix in (".db3", ".mcap") and (path.parent / "metadata.yaml").is_file()):
+        return path.parent
+    return None
+
+
 def storage_kind(head: bytes) -> str:
     """"ros1", "mcap" or "sqlite3" from a file's first bytes; "" for none of them."""
     if head.startswith(ROS1_MAGIC):
@@ -82,8 +104,60 @@ def storage_kind(head: bytes) -> str:
     return ""
 
 
-def _typestore(connections: list[Any], ros1: bool) -> tuple[Any, dict[str, str]]:
-    """A type store with the bag's own definitions, then rosbags' common types; unusable definitions by type."""
+def definitions(paths: list[Path]) -> dict[str, Any]:
+    """Message definitions from ``.msg`` and ``.idl`` files (a folder: every one under it), for custom types a
+    bag does not define; FormatError naming the file that cannot be used.
+
+    A ``.msg`` file's type is named by where it lies, as in a ROS package: ``<package>/msg/<Type>.msg``.
+    """
+    from rosbags.typesys import get_types_from_idl, get_types_from_msg
+
+    files: list[Path] = []
+    for path in paths:
+        if path.is_dir():
+            files += sorted(p for p in path.rglob("*") if p.suffix in (".msg", ".idl") and p.is_file())
+        elif path.suffix in (".msg", ".idl"):
+            files.append(path)
+        else:
+            raise FormatError(f"msg_paths: {path.name} is neither a .msg nor an .idl file, nor a folder of them")
+    if len(files) > MAX_DEFINITION_FILES:
+        raise FormatError(f"msg_paths: more than {MAX_DEFINITION_FILES} definition files")
+    types: dict[str, Any] = {}
+    for path in files:
+        try:
+            with path.open("rb") as fh:
+                text = fh.read(MAX_DEFINITION_BYTES + 1).decode("utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise FormatError(f"msg_paths: cannot read {path} ({getattr(exc, 'strerror', None) or exc})") from None
+        if len(text) > MAX_DEFINITION_BYTES:
+            raise FormatError(f"msg_paths: {path} is larger than {MAX_DEFINITION_BYTES >> 10} KiB, not a definition")
+        if path.suffix == ".msg" and path.parent.name != "msg":
+            raise FormatError(f"msg_paths: {path} must lie in its package's msg folder (<package>/msg/<Type>.msg) "
+                              "to name its type")
+        try:
+            if path.suffix == ".msg":
+                types.update(get_types_from_msg(text, f"{path.parent.parent.name}/msg/{path.stem}"))
+            else:
+                types.update(get_types_from_idl(text))
+        except Exception as exc:  # noqa: BLE001 - rosbags' parser errors are of many kinds: one line naming the file
+            raise FormatError(f"msg_paths: {path} cannot be used ({library_error(exc)})") from None
+    return types
+
+
+def _register(store: Any, types: dict[str, Any]) -> None:
+    """Add types to a store; when some clash with ones it holds, the others one by one (a clash stays out)."""
+    try:
+        store.register(types)
+    except Exception:  # noqa: BLE001 - a type clashing with one held: keep the held one, add the rest one by one
+        for name, definition in types.items():
+            # a type that fails stays unknown; its messages say so
+            with contextlib.suppress(Exception):
+                store.register({name: definition})
+
+
+def _typestore(connections: list[Any], ros1: bool, extra: dict[str, Any]) -> tuple[Any, dict[str, str]]:
+    """A type store with the bag's own definitions, then `extra` (msg_paths), then rosbags' common types;
+    unusable definitions by type."""
     from rosbags.typesys import (
         Stores,
         get_types_from_idl,
@@ -109,39 +183,56 @@ def _typestore(connections: list[Any], ros1: bool) -> tuple[Any, dict[str, str]]
             store.register(types)
         except Exception as exc:  # noqa: BLE001 - any parse or conflict error only spoils this connection's type
             broken[conn.msgtype] = f"its message definition cannot be used ({library_error(exc)})"
+    if extra:
+        _register(store, {k: v for k, v in extra.items() if k not in store.fielddefs})
     if all(c.msgtype in store.fielddefs or c.msgtype in broken for c in connections):
         return store, broken  # the bag defines every type it uses: no need to build the common ones (~0.2 s)
     default = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
-    missing = {k: v for k, v in default.fielddefs.items() if k not in store.fielddefs}
-    try:
-        store.register(missing)
-    except Exception:  # noqa: BLE001 - a bag type clashing with a common one: keep the bag's, add them one by one
-        for name, definition in missing.items():
-            # a common type that fails stays unknown; its messages say so
-            with contextlib.suppress(Exception):
-                store.register({name: definition})
+    _register(store, {k: v for k, v in default.fielddefs.items() if k not in store.fielddefs})
     return store, broken
 
 
 def _open(path: Path, kind: str) -> Any:
     from rosbags.rosbag1 import Reader as Reader1
-    from rosbags.rosbag2 import Reader as Reader2
 
     if kind == "ros1":
         return Reader1(path)
     if kind == "folder":
-        return Reader2(path.parent)
+        return bounded_reader(path.parent)
     if path.suffix != {"mcap": ".mcap", "sqlite3": ".db3"}[kind]:
         raise FormatError(f"a ROS 2 {kind} bag must be named *.{'mcap' if kind == 'mcap' else 'db3'} to be read")
-    return Reader2(path)
+    return bounded_reader(path)
 
 
-def read_bag(path: Path) -> Iterator[BagMessage]:
+def read_bag(path: Path, types: dict[str, Any] | None = None) -> Iterator[BagMessage]:
     """Every message of one bag file, in bag time order; FormatError when rosbags cannot open it.
 
     `path` may be a ROS 2 bag's ``metadata.yaml``: the whole bag folder is read then (its storage files,
-    split or compressed, as the metadata lists them).
+    split or compressed, as the metadata lists them). `types` (from `definitions`) define custom types the
+    bag does not.
     """
+    reader, kind = _opened(path)
+    try:
+        yield from _messages(reader, kind == "ros1", types or {})
+    finally:
+        with contextlib.suppress(Exception):  # closing a damaged bag may fail again; nothing is left to lose
+            reader.close()
+
+
+def bag_topics(path: Path) -> list[tuple[str, str]]:
+    """(topic, type as `ros_type` gives it) of every connection of a bag, from its index or metadata alone;
+    FormatError when rosbags cannot open it."""
+    reader, _ = _opened(path)
+    try:
+        return [(c.topic, ros_type(c.msgtype)) for c in reader.connections
+                if isinstance(c.topic, str) and isinstance(c.msgtype, str)]
+    finally:
+        with contextlib.suppress(Exception):
+            reader.close()
+
+
+def _opened(path: Path) -> tuple[Any, str]:
+    """An open rosbags reader of a bag file (or of the folder of a ``metadata.yaml``), and its storage kind."""
     if path.name == "metadata.yaml":
         kind = "folder"
     else:
@@ -159,16 +250,16 @@ def read_bag(path: Path) -> Iterator[BagMessage]:
         raise
     except Exception as exc:  # noqa: BLE001 - rosbags' many ways of refusing a damaged file: one line each
         raise FormatError(f"rosbags cannot open {path.name}: {library_error(exc)}") from None
-    try:
-        yield from _messages(reader, kind == "ros1")
-    finally:
-        with contextlib.suppress(Exception):  # closing a damaged bag may fail again; nothing is left to lose
-            reader.close()
+    return reader, kind
 
 
-def _messages(reader: Any, ros1: bool) -> Iterator[BagMessage]:
+def _messages(reader: Any, ros1: bool, types: dict[str, Any]) -> Iterator[BagMessage]:
     connections = list(reader.connections)
-    store, broken = _typestore(connections, ros1)
+    store, broken = _typestore(connections, ros1, types)
+    for conn in connections:   # (a type that is not text is its rows' problem: _ros2_rows says so)
+        if isinstance(conn.msgtype, str) and conn.msgtype not in store.fielddefs and conn.msgtype not in broken:
+            broken[conn.msgtype] = (f"no definition of {ros_type(conn.msgtype)}: the bag carries none and rosbags "
+                                    "knows none (give its .msg or .idl in the log's msg_paths)")
     index = 0
     stream = _ros1_rows(reader) if ros1 else _ros2_rows(reader)
     while True:
@@ -202,7 +293,22 @@ def _messages(reader: Any, ros1: bool) -> Iterator[BagMessage]:
 
 
 def _ros2_rows(reader: Any) -> Iterator[RawRow]:
-    """A ROS 2 bag's rows, each value checked: a database row may hold anything (a NULL, text, a float)."""
+    """A ROS 2 bag's rows, each value checked (a database row may hold anything: a NULL, text, a float); each MCAP
+    chunk the bounded storage refused or found damaged as one row of its own (its messages are not read)."""
+    problems = storage_problems(reader)
+    for row in _ros2_checked(reader):
+        yield from _storage_rows(problems)
+        yield row
+    yield from _storage_rows(problems)
+
+
+def _storage_rows(problems: list[list[str]]) -> Iterator[RawRow]:
+    for found in problems:
+        while found:
+            yield None, 0, None, f"MCAP storage, {found.pop(0)}"
+
+
+def _ros2_checked(reader: Any) -> Iterator[RawRow]:
     for conn, t_ns, raw in reader.messages():
         if not (isinstance(conn.topic, str) and isinstance(conn.msgtype, str)):   # the topics table's row
             yield None, 0, None, f"topic {conn.topic!r} of type {conn.msgtype!r}: not text"

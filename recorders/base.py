@@ -74,6 +74,11 @@ class Ignored:
     reason: str
 
 
+# a LogContext option set for text carried in a container (a ROS string topic): each line's host prefix is the
+# container's stamp of its message, and is its time even where the vendor's record has a clock of its own (a
+# Water Linked DVL's time_of_validity, then kept beside it)
+CONTAINER_TIME = "container_time"
+
 Converter = Callable[[bytes, LogContext], Iterator["Output | Reject | Ignored"]]
 # the same conversion over the log read in blocks (`formats.log_blocks`), for formats whose family module lists
 # it in BLOCK_CONVERTERS: the recording then holds one block of the log, not all of it

@@ -28,7 +28,7 @@ from formats import geodesy
 from formats.records import FormatError, Reject, Where
 from formats.units import NS
 
-from .base import Ignored, LogContext, Output
+from .base import CONTAINER_TIME, Ignored, LogContext, Output
 from .clock import offset_problem, shift_text
 from .registry import family_converter
 
@@ -37,6 +37,8 @@ NAN = math.nan
 # first-match rules: a text stream's vendor format from what its lines start with or contain
 _EVOLOGICS_WORDS = ("USBLLONG", "USBLANGLES", "RECVIM", "RECVIMS", "RECVPBM", "SENDEND", "RECVEND", "DELIVERED",
                     "FAILEDIM", "AT?T")
+
+_WATERLINKED_SERIAL = ("wrz,", "wru,", "wrx,", "wrt,", "wrp,")
 
 
 def sentence_format(text: str) -> tuple[str, str]:
@@ -54,6 +56,9 @@ def sentence_format(text: str) -> tuple[str, str]:
         return "ins", "novatel"  # SPAN INSPVA(S/X)
     if s.startswith(("#", "%")) and ";" in s:
         return "gps", "novatel"
+    if s.startswith(_WATERLINKED_SERIAL) or (s.startswith("{") and '"type"' in s
+                                              and ('"velocity"' in s or '"position_local"' in s)):
+        return "dvl", "waterlinked"   # a DVL's serial report, or its TCP JSON (the A50 ROS driver's json_data)
     if s.startswith(("$HEHDT", "$HETHS", "$IN")):
         return "ins", "nmea"
     if s.startswith(("$", "!")):
@@ -120,7 +125,7 @@ def convert_stream(stream: TextStream, ctx: LogContext, label: str) -> Iterator[
     # time-of-day sentences need a date: the manifest's, else the day of the stream's first message
     day = ctx.trial_date or datetime.fromtimestamp(stream.times[0] // NS, UTC).date()
     sub = replace(ctx, vehicle=stream.vehicle, prefix="unix", path=f"{ctx.path} {label}", trial_date=day,
-                  options={**ctx.options, **_stream_options(ctx, family)})
+                  options={**ctx.options, **_stream_options(ctx, family), CONTAINER_TIME: True})
     used: set[Where] = set()
     for item in convert(blob.encode("utf-8", "replace"), sub):
         line = item.where.line if item.where is not None and item.where.line is not None else 0

@@ -16,7 +16,8 @@ the beam angle: manifest ``beam_angle_deg``, else the PD0 fixed leader, else
 good (and the vendor's own flag, where there is one, says so).
 
 Times: PD0 RTC (Y2K clock when present); PD4/PD5 time of day dated by
-`DayClock`; PD6 :TS; Nortek ping time (Unix); Water Linked time of validity.
+`DayClock`; PD6 :TS; Nortek ping time (Unix); Water Linked time of validity (inside a container, a ROS
+string topic, the container's stamp, the time of validity kept as ``device_time``).
 Formats or records without a time use the host-timestamp prefix, else the
 record is rejected. The manifest clock offset is added to every time; out of
 order or repeated times are kept as they come.
@@ -39,7 +40,7 @@ from formats.records import FormatError, Reject, Where
 from formats.schemas import DvlVelocity, set_timestamp, timestamp
 from formats.wire import DVL_VELOCITY
 
-from .base import BlockConverter, Converter, LogContext, Output, blockwise, output
+from .base import CONTAINER_TIME, BlockConverter, Converter, LogContext, Output, blockwise, output
 from .clock import DayClock
 
 NAN = math.nan
@@ -351,19 +352,23 @@ def convert_waterlinked(data: LogText, ctx: LogContext) -> Iterator[Output | Rej
 def _wl_output(ctx: LogContext, rec: waterlinked.VelocityReport, beams: dict[int, float],
                frame: str, angle: float) -> Output | Reject:
     tov = rec.time_of_validity_us
-    if tov is not None and tov >= _EARLIEST_US:
-        t: int | None = tov * 1000 + ctx.clock_offset_ns
-    else:
-        t = _host_time(ctx, rec.where)
+    device = tov * 1000 if tov is not None and tov >= _EARLIEST_US else None
+    in_container = bool(ctx.options.get(CONTAINER_TIME))
+    t = _host_time(ctx, rec.where)
+    if device is not None and not (in_container and t is not None):
+        t = device + ctx.clock_offset_ns
     if t is None:
         return Reject(rec.where, f"{rec.source}: no time of validity (clock unset?) and no host timestamp")
     slant = [beams.get(i, NAN) for i in range(max(4, len(beams)))] if beams else []
     slant, alt = ranges_from_slant(slant, angle)
     if math.isfinite(rec.altitude_m):
         alt = rec.altitude_m
-    good = rec.valid and all(math.isfinite(v) for v in rec.velocity_mps)
+    # an altitude of -1 and no beam giving one: no bottom in range (message()'s rule for a negative altitude)
+    good = rec.valid and all(math.isfinite(v) for v in rec.velocity_mps) and math.isfinite(alt)
     msg = message(ctx, t, frame, rec.velocity_mps, ranges=slant, altitude=alt, valid=good,
                   fom=rec.figure_of_merit, source=f"waterlinked:{rec.source}")
+    if in_container and device is not None:   # the message is on the container's clock: the DVL's kept beside
+        set_timestamp(msg.device_time, device + ctx.clock_offset_ns)
     return output(ctx, "dvl", msg, t, rec.where)
 
 

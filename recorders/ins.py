@@ -54,22 +54,29 @@ NAN = float("nan")
 
 def ins_state(t_ns: int, ctx: LogContext, source: str, status: str = "", /, **values: float) -> S.InsState:
     """An InsState with its status words and every float NaN unless given (proto3 would default them to 0)."""
-    if not values.keys() <= _INS_VALUES:
-        raise ValueError(f"InsState has no field {sorted(values.keys() - _INS_VALUES)[0]!r}")
+    if not values.keys() <= _INS_VALUES | _INS_OPTIONAL:
+        raise ValueError(f"InsState has no field {sorted(values.keys() - _INS_VALUES - _INS_OPTIONAL)[0]!r}")
     g = values.get
-    return S.ins_state(
+    state = S.ins_state(
         t_ns, ctx.vehicle, source, status, g("latitude", NAN), g("longitude", NAN), g("depth_m", NAN),
         g("roll_deg", NAN), g("pitch_deg", NAN), g("heading_deg", NAN), g("velocity_north_mps", NAN),
         g("velocity_east_mps", NAN), g("velocity_down_mps", NAN), g("heading_std_deg", NAN),
         g("position_std_north_m", NAN), g("position_std_east_m", NAN), g("roll_std_deg", NAN),
         g("pitch_std_deg", NAN), g("altitude_m", NAN),
     )
+    for key in _INS_OPTIONAL & values.keys():   # present only where the source gives them (body rates, force)
+        setattr(state, key, values[key])
+    return state
 
 
 _INS_VALUES = frozenset((
     "latitude", "longitude", "depth_m", "roll_deg", "pitch_deg", "heading_deg", "velocity_north_mps",
     "velocity_east_mps", "velocity_down_mps", "heading_std_deg", "position_std_north_m", "position_std_east_m",
     "roll_std_deg", "pitch_std_deg", "altitude_m",
+))
+_INS_OPTIONAL = frozenset((
+    "angular_velocity_x_radps", "angular_velocity_y_radps", "angular_velocity_z_radps",
+    "linear_acceleration_x_mps2", "linear_acceleration_y_mps2", "linear_acceleration_z_mps2",
 ))
 
 

@@ -20,8 +20,10 @@ from datetime import date
 from pathlib import Path, PurePosixPath
 from typing import Any
 
+from formats.rosbag import bag_folder
+
 from .clock import RELATIVE_BASES, TIME_BASES, in_offset_window, parse_utc
-from .manifest_checks import ValueProblem, check_log_paths, check_values
+from .manifest_checks import ValueProblem, check_log_paths, check_values, outside
 
 ROLES = ("leader", "follower", "buoy")
 SENSORS = ("gps", "dvl", "ins", "modem", "usbl")
@@ -256,9 +258,12 @@ def load_manifest(path: str | Path, allow_outside: bool = False) -> Manifest:
         raise ManifestError(f"{path}: manifest is not UTF-8 text") from exc
     manifest = parse_manifest(text, path)
     manifest = _expand_globs(manifest, allow_outside)
+    manifest = _expand_bag_folders(manifest, allow_outside)
     try:   # every file a log names, a glob's matches included, must be inside the manifest's folder
         check_log_paths(manifest.root, [name for log in manifest.logs() for name in log.files()], str(path),
                         allow_outside)
+        check_log_paths(manifest.root, [p for log in manifest.logs() for p in log.options.get("msg_paths", [])],
+                        str(path), allow_outside)
     except ValueProblem as exc:
         raise ManifestError(str(exc)) from None
     for log in manifest.logs():
@@ -266,6 +271,10 @@ def load_manifest(path: str | Path, allow_outside: bool = False) -> Manifest:
             full = manifest.root / name
             if not log.source and not full.is_file():
                 raise ManifestError(f"{path}: vehicle {log.vehicle!r}: log file {name} not found (looked in {full})")
+        for name in log.options.get("msg_paths", []):
+            if not (manifest.root / name).exists():
+                raise ManifestError(f"{path}: vehicle {log.vehicle!r}: msg_paths: {name} not found "
+                                    f"(looked in {manifest.root / name})")
     return manifest
 
 
@@ -301,3 +310,37 @@ def _expand_globs(manifest: Manifest, allow_outside: bool = False) -> Manifest:
             logs.append(log)
         vehicles.append(replace(v, logs=tuple(logs)))
     return replace(manifest, vehicles=tuple(vehicles))
+
+
+def _expand_bag_folders(manifest: Manifest, allow_outside: bool) -> Manifest:
+    """Every rosbag log naming a ROS 2 bag folder (the folder, its metadata.yaml or a storage file in it) gets
+    all the folder's files as parts: the bag is the folder (`ros2 bag` reads and writes it so), and the
+    archive keeps every file of it, so that an unpacked archive gives a folder rosbags reopens."""
+    vehicles = []
+    for v in manifest.vehicles:
+        logs = []
+        for log in v.logs:
+            if log.format == "rosbag" and not log.source and not log.parts:
+                log = _bag_folder_log(manifest, v.name, log, allow_outside)
+            logs.append(log)
+        vehicles.append(replace(v, logs=tuple(logs)))
+    return replace(manifest, vehicles=tuple(vehicles))
+
+
+def _bag_folder_log(manifest: Manifest, vehicle: str, log: LogSpec, allow_outside: bool) -> LogSpec:
+    full = manifest.root / log.path
+    if not allow_outside and outside(manifest.root, log.path) is not None:
+        return log   # refused with the other paths, before anything outside is listed
+    folder = bag_folder(full)
+    if folder is None:
+        if full.is_dir():
+            raise ManifestError(f"{manifest.path}: vehicle {vehicle!r}: {log.path}/ is a folder without "
+                                "metadata.yaml, not a ROS 2 bag folder (name a ROS 1 .bag, or a bag folder)")
+        return log
+    files = sorted(p for p in itertools.islice(folder.iterdir(), MAX_GLOB_MATCHES + 1) if p.is_file())
+    if len(files) > MAX_GLOB_MATCHES:
+        raise ManifestError(f"{manifest.path}: vehicle {vehicle!r}: the bag folder {folder} holds more than "
+                            f"{MAX_GLOB_MATCHES} files")
+    given = PurePosixPath(log.path)
+    base = given if full.is_dir() else given.parent   # as the manifest names it (relative, or outside if allowed)
+    return replace(log, parts=tuple(str(base / p.name) for p in files))

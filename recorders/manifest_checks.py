@@ -107,6 +107,10 @@ def check_values(data: dict[str, Any], where: str) -> None:
 
 
 def _check_log(log: dict[str, Any], label: str) -> None:
+    msg_paths = log.get("msg_paths", [])
+    if not (isinstance(msg_paths, list) and all(isinstance(p, str) and p for p in msg_paths)):
+        raise ValueProblem(f"{label}: msg_paths = {msg_paths!r} must be a list of paths to .msg or .idl files "
+                           "(or folders of them)")
     prefix = log.get("prefix", "auto")
     if prefix not in PREFIX_STYLES:
         raise ValueProblem(f"{label}: prefix = {prefix!r} is not one of {', '.join(PREFIX_STYLES)}")

@@ -116,6 +116,8 @@ class RecordingSummary:
 def log_context(manifest: Manifest, log: LogSpec, files: tuple[str, ...] | None = None) -> LogContext:
     """What a converter knows of one log: its vehicle, clock offset, options and files (default: all of them)."""
     options = dict(log.options)
+    if isinstance(options.get("msg_paths"), list):   # relative to the manifest, like the log's own paths
+        options["msg_paths"] = [str(manifest.root / p) for p in options["msg_paths"]]
     return LogContext(
         vehicle=log.vehicle, role=manifest.role_of(log.vehicle), path=log.path, trial_date=manifest.date,
         clock_offset_ns=log_offset_ns(log.time_base, log.start_ns, log.clock_offset_s), time_base=log.time_base,

@@ -7,8 +7,10 @@ a topic it does not list is not mapped), else by message type:
 - ``sensor_msgs/NavSatFix`` -> ``/<v>/gps`` (LocationFix; its covariance and covariance type are the same ENU m²
   convention) and ``/<v>/gps/status``. Status -1 (no fix) or a NaN position gives the status only.
 - ``nmea_msgs/Sentence`` and ``std_msgs/String`` whose text is a vendor sentence -> through our NMEA, PHINS,
-  Micro-Modem, EvoLogics or NovAtel converters (`recorders.containers`), one text stream per topic.
-- ``sensor_msgs/Imu`` -> ``/<v>/ins`` attitude (heading, roll, pitch and their sigmas); ``nav_msgs/Odometry``
+  Micro-Modem, EvoLogics, NovAtel or Water Linked converters (`recorders.containers`), one text stream per topic,
+  timed by the bag (a Water Linked report's own clock kept as ``device_time``).
+- ``sensor_msgs/Imu`` -> ``/<v>/ins`` attitude (heading, roll, pitch and their sigmas), body rates and specific
+  force (FRD); ``nav_msgs/Odometry``
   -> ``/<v>/ins`` with position (latitude/longitude from the manifest's ``origin = [lat, lon]``, depth = -z in
   an ENU frame), attitude and velocity rotated into NED.
 - ``geometry_msgs/TwistWithCovarianceStamped`` / ``TwistStamped`` on a GNSS topic (named gps, gnss, navsat,
@@ -19,9 +21,14 @@ a topic it does not list is not mapped), else by message type:
   simulator) -> ``/<v>/dvl`` in the instrument frame (``dvl_frame`` overrides), with altitude, validity and
   figure of merit where they have them.
 
-The bag: a ROS 1 ``.bag`` (a list or glob of them for a split recording), a ROS 2 storage file (``.mcap``,
-``.db3``), or a whole ROS 2 bag folder (``path = "dive3/*"``: its ``metadata.yaml`` with the split or
-compressed storage files it lists). Every file given is attached.
+Each ROS topic is its own source (`_Sources`): the first of a vehicle's topic keeps it, any other goes below it
+(``/<v>/ins/odometry_gps``).
+
+The bag: a ROS 1 ``.bag`` (a list or glob of them for a split recording), or a ROS 2 bag folder (``path =
+"dive3/"``, its ``metadata.yaml`` or a storage file in it: `recorders.manifest` makes every file of the folder a
+part, all attached; the ``metadata.yaml`` reads the split or compressed storage files it lists); a ``.mcap`` or
+``.db3`` alone is read alone. ``msg_paths = [...]`` (``.msg``/``.idl`` files or folders, relative to the manifest)
+define custom types the bag does not.
 
 Times: the header stamp is the measurement time (log time), the bag time the publish time; a message without a
 header or with a zero stamp takes its bag time. Every bag message is counted: archived, rejected with a reason,
@@ -31,8 +38,10 @@ or ignored with a reason (an unmapped topic is listed once, with its type and co
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterator
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 from formats import rosbag as rb
@@ -70,6 +79,9 @@ DEFAULT_FAMILY = {"sensor_msgs/NavSatFix": "gps", **{t: "" for t in RAW_TYPES},
                   **{t: "ins" for t in INS_TYPES}, **{t: "dvl" for t in TWIST_TYPES}}
 # NavSatStatus.status -> GGA-style quality: -1 no fix, 0 fix, 1 SBAS, 2 GBAS (ground-based: DGPS/RTK)
 NAVSAT_QUALITY = {-1: 0, 0: 1, 1: 2, 2: 2}
+# names our topics use below a family's (gps/status, gps/velocity, gps/input, ins/local...): a ROS topic's own
+# source never takes one
+RESERVED_NAMES = frozenset({"status", "velocity", "input", "local", "sbg", "range", "node_report"})
 GNSS_WORDS = ("gps", "gnss", "fix_velocity", "navsat")
 # ds_sensor_msgs/Dvl (and marine_acoustic_msgs/Dvl) coordinate_mode: 0 beam, 1 instrument, 2 ship, 3 earth
 DVL_COORDINATE_MODES = {1: "INSTRUMENT", 2: "BODY_FRD", 3: "EARTH_NED"}
@@ -138,15 +150,76 @@ def _sigma_deg(variance_rad2: float) -> float:
     return math.degrees(math.sqrt(variance_rad2)) if variance_rad2 >= 0 else NAN
 
 
+def _main_key(msgtype: str, family: str) -> str | None:
+    """The archive topic (below the vehicle) a typed ROS topic writes first; None for raw text, whose vendor
+    converter decides."""
+    if msgtype == "sensor_msgs/NavSatFix":
+        return "gps"
+    if msgtype in INS_TYPES:
+        return "ins"
+    if msgtype in TWIST_TYPES:
+        return VELOCITY if family == "gps" else "dvl"
+    return "dvl" if _is_dvl_type(msgtype) else None
+
+
+def source_name(topic: str) -> str:
+    """The name of a ROS topic as a source of its own below its family's topic: "/odometry/gps" -> "odometry_gps"
+    (a name our topics already use below a family, "status" say, gets a "ros_" prefix)."""
+    name = re.sub(r"[^A-Za-z0-9_]+", "_", topic.strip("/")).strip("_") or "topic"
+    return "ros_" + name if name in RESERVED_NAMES else name
+
+
+class _Sources:
+    """Each ROS topic its own source: the first ROS topic of a vehicle's archive topic keeps it; every other one
+    mapped there (a second Odometry, an Imu beside an Odometry) writes below it, `/<v>/ins/<name>`, as MAVLink's
+    GPS_INPUT writes `/<v>/gps/input`: two clocks never share a topic, and the replay draws each as a track."""
+
+    def __init__(self) -> None:
+        self.owner: dict[tuple[str, str], str] = {}   # (vehicle, archive topic below it) -> the ROS topic there
+        self.name: dict[str, str] = {}                # ROS topic -> "" (owns its topic) or its name below it
+
+    def claim(self, vehicle: str, key: str, topic: str) -> None:
+        """The ROS topic's place, once: its archive topic, or its own name below the one another topic holds."""
+        if topic not in self.name:
+            owner = self.owner.setdefault((vehicle, key), topic)
+            self.name[topic] = "" if owner == topic else source_name(topic)
+
+    def place(self, item: Output, topic: str) -> None:
+        """Move an output of a ROS topic to that topic's own source (claimed by its first output if not yet)."""
+        parts = item.topic.split("/", 3)   # "", vehicle, family, rest
+        if topic not in self.name and len(parts) >= 3:
+            self.claim(parts[1], parts[2], topic)
+        name = self.name.get(topic)
+        if name:
+            item.topic = "/".join([*parts[:3], name, *parts[3:]])
+
+
 class _Bag:
     """One recording of a bag's messages: converts each, keeps raw text streams to convert at the end."""
 
-    def __init__(self, ctx: LogContext):
+    def __init__(self, ctx: LogContext, topics: list[tuple[str, str]]):
         self.ctx = ctx
         self.origin = origin_option(ctx)
         self.streams: dict[str, TextStream] = {}
+        self.sources = _Sources()
+        # typed topics claim their archive topics first, a position (Odometry) before an attitude alone (Imu)
+        ranked = []
+        for topic, msgtype in dict.fromkeys(topics):
+            target = _target(topic, msgtype, ctx)
+            key = _main_key(msgtype, target[0]) if target is not None else None
+            if target is not None and key is not None:
+                ranked.append((target[1], key, msgtype == "sensor_msgs/Imu", topic))
+        for vehicle, key, _, topic in sorted(ranked):
+            self.sources.claim(vehicle, key, topic)
 
     def item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored]:
+        """The archive messages of one bag message (raw text kept for `finish`), each on its topic's source."""
+        for item in self._item(m, where):
+            if type(item) is Output:
+                self.sources.place(item, m.topic)
+            yield item
+
+    def _item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored]:
         label = f"{m.topic} ({m.msgtype})"
         target = _target(m.topic, m.msgtype, self.ctx)
         if target is None:
@@ -187,8 +260,12 @@ class _Bag:
             yield Reject(where, f"{label}: mapped to {family}, but we convert no {m.msgtype} message")
 
     def finish(self) -> Iterator[Output | Reject | Ignored]:
+        """The raw text streams through their vendor converters, each on its topic's source."""
         for topic, stream in self.streams.items():
-            yield from convert_stream(stream, self.ctx, topic)
+            for item in convert_stream(stream, self.ctx, topic):
+                if type(item) is Output:
+                    self.sources.place(item, topic)
+                yield item
 
 
 def _with_vehicle(ctx: LogContext, vehicle: str) -> LogContext:
@@ -232,8 +309,22 @@ def _imu(ctx: LogContext, msg: Any, t: int, publish: int, where: Where) -> Itera
         return
     state = ins_state(t, ctx, "rosbag:sensor_msgs/Imu", roll_deg=roll, pitch_deg=pitch, heading_deg=heading,
                       roll_std_deg=_sigma_deg(cov[0]), pitch_std_deg=_sigma_deg(cov[4]),
-                      heading_std_deg=_sigma_deg(cov[8]))
+                      heading_std_deg=_sigma_deg(cov[8]), **_imu_rates(msg))
     yield _out(ctx, "ins", state, t, publish, where)
+
+
+def _imu_rates(msg: Any) -> dict[str, float]:
+    """An Imu's angular velocity and linear acceleration in FRD body axes (REP-103: FLU unless the frame is
+    _frd/_ned), each left out when its covariance[0] is -1 (REP-145: not given)."""
+    frd = is_ned(_frame(msg))
+    out: dict[str, float] = {}
+    for name, unit in (("angular_velocity", "radps"), ("linear_acceleration", "mps2")):
+        if _cov(getattr(msg, name + "_covariance", ()), 1)[0] == -1:
+            continue
+        v = _vec(getattr(msg, name, None))
+        for axis, value in zip("xyz", v if frd else flu_to_frd(v)):
+            out[f"{name}_{axis}_{unit}"] = value
+    return out
 
 
 def _odometry(ctx: LogContext, msg: Any, t: int, publish: int, where: Where,
@@ -328,11 +419,13 @@ def convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | I
 def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     if not ctx.files:
         raise FormatError("a bag is read from its file: no file given")
-    bag = _Bag(ctx)
-    start, number = 0, 0
     folders = {p.parent for p in ctx.files if p.name == "metadata.yaml"}
-    # a ROS 2 bag folder given whole (path = "dive3/*"): its metadata.yaml reads every storage file of it
+    # a ROS 2 bag folder given whole (path = "dive3/"): its metadata.yaml reads every storage file of it
     files = [p for p in ctx.files if p.name == "metadata.yaml" or p.parent not in folders]
+    bag = _Bag(ctx, [t for path in files for t in _topics(path)])
+    msg_paths = ctx.options.get("msg_paths")
+    types = rb.definitions([Path(p) for p in msg_paths]) if isinstance(msg_paths, list) else {}
+    start, number = 0, 0
     for path in files:
         try:
             size = path.stat().st_size
@@ -340,7 +433,7 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
             raise FormatError(f"cannot read {path.name} ({exc.strerror or exc})") from exc
         # offset: the file's first byte in the log plus the message's index in it, so that the recorder maps
         # each message to its file (a message takes more than one byte) for a split bag's gap report
-        for m in rb.read_bag(path):
+        for m in rb.read_bag(path, types):
             number += 1
             where = Where(start + min(m.index, max(size - 1, 0)), None, m.bag_time_ns, number)
             if not m.topic:
@@ -351,9 +444,18 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
     yield from bag.finish()
 
 
+def _topics(path: Path) -> list[tuple[str, str]]:
+    """A bag file's topics and types, or none when it does not open (reading it then says why)."""
+    try:
+        return rb.bag_topics(path)
+    except FormatError:
+        return []
+
+
 MANIFEST_EXAMPLE = """[[vehicles.logs]]
-format = "rosbag"                  # ROS 1 .bag, ROS 2 .mcap or .db3 (the storage file inside the bag folder)
-path = "auv1/dive3/dive3_0.mcap"
+format = "rosbag"                  # ROS 1 .bag, or a ROS 2 bag folder (.mcap or .db3 storage)
+path = "auv1/dive3/"
+# msg_paths = ["auv1/msgs"]        # .msg/.idl files (or folders) for custom types the bag does not define
 origin = [45.70, 126.60]           # datum of the bag's local (odom/map) frame, for Odometry positions
 # time_base = "sim"                # a bag in simulated time: start is the UTC instant of its time 0
 # start = "2024-05-01T10:00:00Z"   # (docs/time-bases.md)

@@ -197,29 +197,33 @@ def test_bag_maps_every_type_like_the_vendor_logs(bags, tmp_path, kind):
     m = manifest(bags["root"], log("rosbag", str(rel), extra='origin = [45.7, 126.6]'))
     by, info = messages(tmp_path, m)
     vendor = _vendor_gps(tmp_path)
-    # the raw sentences, as nmea_msgs/Sentence and as std_msgs/String, give the vendor log's messages
-    fixes = [x for x in by["/auv/gps"]]
+    # the raw sentences, as nmea_msgs/Sentence and as std_msgs/String, give the vendor log's messages, each ROS
+    # topic a source of its own below the NavSatFix's /auv/gps (which claims it first, being typed)
     vendor_fixes = vendor["/auv/gps"]
     assert len(vendor_fixes) == 2
-    for fix in vendor_fixes:
-        assert fixes.count(fix) == 2  # once from /nmea, once from /gps/raw
+    assert by["/auv/gps/nmea"] == vendor_fixes and by["/auv/gps/gps_raw"] == vendor_fixes
+    assert by["/auv/gps/nmea/status"] == by["/auv/gps/gps_raw/status"] == vendor["/auv/gps/status"]
     # NavSatFix: status 0 -> a fix with its covariance; -1 -> status only; NaN covariance -> UNKNOWN
     from formats import schemas as S
-    navsat = [S.LocationFix.FromString(b) for t, b in fixes if (t, b) not in vendor_fixes]
+    navsat = [S.LocationFix.FromString(b) for t, b in by["/auv/gps"]]
     assert len(navsat) == 2
     assert navsat[0].position_covariance_type == 2 and navsat[0].position_covariance[0] == pytest.approx(1.62)
     assert navsat[1].position_covariance_type == 0 and math.isnan(navsat[1].position_covariance[0])
     assert navsat[0].latitude == pytest.approx(45.7022621) and navsat[0].altitude == pytest.approx(109.87)
-    ins = {t: S.InsState.FromString(b) for t, b in by["/auv/ins"]}
-    imu, odom = ins[T0 + 2 * 10**9], ins[T0 + 3 * 10**9]
+    # Imu and Odometry: two sources, the Odometry (a position) on /auv/ins, the Imu below it
+    ((t_imu, imu),), ((t_odom, odom),) = by["/auv/ins/imu"], by["/auv/ins"]
+    assert (t_imu, t_odom) == (T0 + 2 * 10**9, T0 + 3 * 10**9)
+    imu, odom = S.InsState.FromString(imu), S.InsState.FromString(odom)
     assert imu.heading_deg == pytest.approx(0.0, abs=1e-9) and imu.roll_deg == pytest.approx(0.0, abs=1e-9)
     assert math.isnan(imu.latitude)
     # odom: x east 100 m, y north 200 m of the origin, z -5 (ENU) -> depth 5; 1.5 m/s forward heading north
     assert odom.depth_m == pytest.approx(5.0)
     assert odom.latitude == pytest.approx(45.7 + math.degrees(200 / MERIDIAN_RADIUS_45_7), abs=1e-11)
     assert odom.velocity_north_mps == pytest.approx(1.5) and odom.velocity_east_mps == pytest.approx(0.0, abs=1e-9)
-    dvl = {t: S.DvlVelocity.FromString(b) for t, b in by["/auv/dvl"]}
-    twist, a50 = dvl[T0 + 4 * 10**9], dvl[T0 + 5 * 10**9]
+    # two DVL topics, two sources: /dvl/data (first by name) on /auv/dvl, /dvl/twist below it
+    ((t_a50, a50),), ((t_twist, twist),) = by["/auv/dvl"], by["/auv/dvl/dvl_twist"]
+    assert (t_twist, t_a50) == (T0 + 4 * 10**9, T0 + 5 * 10**9)
+    twist, a50 = S.DvlVelocity.FromString(twist), S.DvlVelocity.FromString(a50)
     assert (twist.frame, twist.velocity_x_mps, twist.velocity_y_mps, twist.velocity_z_mps) == \
         (S.DvlVelocity.BODY_FRD, 1.0, -0.5, pytest.approx(0.1))
     assert a50.frame == S.DvlVelocity.INSTRUMENT and a50.altitude_m == 12.5 and a50.valid
@@ -235,7 +239,8 @@ def test_bag_maps_every_type_like_the_vendor_logs(bags, tmp_path, kind):
     reasons = stats["ignored_reasons"]
     assert reasons["topic /diag_count (std_msgs/Int32) is not mapped"] == 1
     assert any("/camera/info" in r for r in reasons)
-    assert info["attachments"] == [str(rel)]
+    # a ROS 2 storage file stands for its bag folder: every file of it is kept
+    assert info["attachments"] == ([str(rel)] if kind == "ros1" else [f"{rel.parent}/metadata.yaml", str(rel)])
     # header stamps are log time, bag time publish time
     with ArchiveReader(tmp_path / "a.mcap") as r:
         fix = next(x for x in r.messages(["/auv/gps"]) if x.log_time_ns == T0)
