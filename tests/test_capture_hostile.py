@@ -379,3 +379,24 @@ def test_the_one_pass_stamp_equals_the_line_by_line_one(lines, prefix):
             expected += stamp
         expected += line
     assert bytes(fast._buf) == bytes(expected)
+
+
+def test_garbage_after_the_last_record_is_settled_in_bounded_memory():
+    # found by tests/fuzz/live.py: the epoch of the last output was held with everything after it, so a stream
+    # of garbage lines after one record was kept whole and decoded again at every decode (quadratic)
+    from recorders.capture.decoder import MAX_WARMUP
+    table = converters()
+    manifest = parse_manifest(manifest_text("tail:x"), Path("/tmp/live.toml"))
+    log = manifest.logs()[0]
+    dec = StreamDecoder(table[("gps", "nmea")], log_context(manifest, log), "gps", "nmea")
+    dec.feed(gga(0) + gga(1), 1)
+    items = dec.decode()
+    garbage = b"$\r\n" * 20_000
+    for k in range(8):   # 480 KB of lines that are no record
+        dec.feed(garbage, 2 + k)
+        while dec.pending:   # as the capture loop decodes: in slices, until nothing is pending
+            items += dec.decode(budget=128 << 10)
+        assert len(dec._buf) <= 2 * MAX_WARMUP + 4096
+    items += dec.decode(final=True)
+    assert len([i for i in items if getattr(i, "topic", "") == "/a/gps"]) == 2
+    assert sum(1 for i in items if getattr(i, "reason", None)) >= 8 * 20_000

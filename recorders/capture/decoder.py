@@ -9,10 +9,13 @@ settled:
 - the window starts at the record of the last output committed before the
   current frontier (and at least MIN_WARMUP bytes before it), so the epoch
   that straddles the frontier is decoded whole, with its predecessor's
-  records as warm-up;
+  records as warm-up; but at most MAX_WARMUP bytes before it, so that a
+  long run without any output (garbage) is not decoded again at every
+  decode, nor kept in memory;
 - of the items, those at or after the frontier are committed, except the
   trailing epoch (the outputs after the last change of log time, and
-  whatever follows them): the next bytes may still belong to it.
+  whatever follows them, up to MAX_WARMUP bytes): the next bytes may still
+  belong to it.
 
 Offsets and line numbers are rebased to the whole stream, so statistics
 and diagnostics count as `record` counts a file. At the end (`final`)
@@ -45,6 +48,7 @@ from ..base import Converter, Ignored, LogContext, Output
 from ..registry import is_binary
 
 MIN_WARMUP = 256
+MAX_WARMUP = 16 << 10
 HOLD_BYTES = 4096  # kept back while a window gives no output at all (noise, or a record still arriving)
 MAX_LINE_BYTES = 1 << 20  # an unfinished line longer than this is no record of any text format we decode
 
@@ -216,7 +220,8 @@ class StreamDecoder:
             if o.log_time_ns != last:
                 break
             cut = min(cut, _offset(o))
-        return cut
+        # an epoch followed by MAX_WARMUP bytes without an output is over: what follows it is not held
+        return max(cut, end - MAX_WARMUP)
 
     def _advance(self, items: Iterable[Item], cut: int) -> None:
         """Move the frontier to `cut` and the next window's start before it; drop the bytes before that."""
@@ -224,6 +229,7 @@ class StreamDecoder:
             return
         before = [_offset(i) for i in items if type(i) is Output and _offset(i) < cut]
         anchor = min(max(before), cut - MIN_WARMUP) if before else cut - MIN_WARMUP
+        anchor = max(anchor, cut - MAX_WARMUP)
         if self.text:  # a line start
             anchor = self._buf.rfind(b"\n", 0, max(anchor - self._base, 0)) + 1 + self._base
         self._frontier = cut
