@@ -225,3 +225,15 @@ def test_no_sentence_like_text_makes_decode_raise(parts: list[str]) -> None:
     list(nmea.decode(data))
     for address in ("GPGGA", "GPRMC", "GPZDA", "GPVTG", "GPGST", "GPHDT", "GPTHS", "GPGLL"):
         list(nmea.decode(build(address, parts).encode("latin-1")))
+
+
+def test_a_flood_of_dollars_is_one_broken_line_and_glued_sentences_still_frame() -> None:
+    # found by tests/fuzz/live.py: a line of a million '$' was a million rejects (a minute of CPU in capture)
+    flood = b"noise" + b"$" * 1_000_000 + GGA[:-2] + b"$$" + b"$GP,x" * 3 + HDT[:-2] + b"$BAD*00" + b"$\r\n"
+    out = list(nmea.decode(GGA + flood + GGA))
+    kinds = [type(r).__name__ for r in out]
+    assert kinds == ["Gga", "Reject", "Gga", "Reject", "Hdt", "Reject", "Reject", "Gga"]
+    assert out[1].reason == "malformed sentence address '' and 999999 more broken pieces after it"
+    assert out[3].reason == "malformed sentence address '' and 4 more broken pieces after it"
+    assert out[5].bad_checksum and not out[6].bad_checksum  # a bad checksum is a sentence of its own
+    assert {r.where.line for r in out[1:7]} == {2}

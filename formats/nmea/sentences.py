@@ -344,11 +344,7 @@ def _block_frames(block: Block, prefix: str, strip: bool) -> Iterator[Frame | Re
             text = rest
         where = Where(line_start, number, host)
         if text.count("$") > 1:
-            # noise holding a '$', or sentences glued together: every start on its own
-            for piece in text.split("$")[1:]:
-                result = frame_line("$" + piece, where)
-                if result is not None:
-                    yield result
+            yield from _glued_frames(text, where)
             continue
         start = text.find("$")
         star = text.find("*", start) if start >= 0 else -1
@@ -359,6 +355,36 @@ def _block_frames(block: Block, prefix: str, strip: bool) -> Iterator[Frame | Re
         result = frame_line(text, where, checksum)
         if result is not None:
             yield result
+
+
+def _glued_frames(text: str, where: Where) -> Iterator[Frame | Reject]:
+    """A line holding several '$': every start framed on its own (sentences glued together), and each run of
+    consecutive pieces that frame as nothing one Reject, so a flood of '$' is one broken line, not a million.
+
+    A bad checksum stays a reject of its own: it is a whole sentence, counted apart as bad checksum.
+    """
+    broken: Reject | None = None
+    more = 0
+    for piece in text.split("$")[1:]:
+        result = frame_line("$" + piece, where) if piece else Reject(where, "malformed sentence address ''")
+        if isinstance(result, Reject) and not result.bad_checksum:
+            if broken is None:
+                broken = result
+            else:
+                more += 1
+            continue
+        if broken is not None:
+            yield _run_of(broken, more)
+            broken, more = None, 0
+        if result is not None:
+            yield result
+    if broken is not None:
+        yield _run_of(broken, more)
+
+
+def _run_of(first: Reject, more: int) -> Reject:
+    """One Reject for a run of broken pieces of a line: the first one's reason, and how many followed it."""
+    return first if not more else Reject(first.where, f"{first.reason} and {more} more broken pieces after it")
 
 
 def _frame_values(frame: Frame) -> Scanned | Reject | None:
