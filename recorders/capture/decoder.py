@@ -159,6 +159,32 @@ class StreamDecoder:
         """Bytes received and not yet settled (what a decode with a budget left behind, mostly)."""
         return self._base + len(self._buf) - self._frontier
 
+    def shed(self, keep: int) -> int:
+        """Give up decoding the oldest undecoded bytes so that at most about `keep` wait; the bytes given up.
+
+        For a socket, which cannot be left unread the way a file waits on
+        disk: its bytes are archived raw as they arrive, and only the live
+        decode skips them (one counted reject says how many), so `record` of
+        the capture still decodes them and memory stays bounded.
+        """
+        over = self.backlog - keep
+        if over <= 0 or not self._windowed:
+            return 0
+        cut = self._frontier - self._base + over
+        if self.text:  # at a line start
+            newline = self._buf.find(b"\n", cut)
+            cut = len(self._buf) if newline < 0 else newline + 1
+        skipped = self._base + cut - self._frontier
+        self._dropped.append(Reject(Where(self._frontier), f"{skipped} bytes arrived faster than they could be "
+                                    "decoded live: archived, not decoded (`auvreplay record` of the capture "
+                                    "decodes them)"))
+        self._lines_before += self._buf.count(b"\n", 0, cut)
+        del self._buf[:cut]
+        self._base += cut
+        self._frontier = self._base
+        self._pending = True
+        return skipped
+
     def decode(self, final: bool = False, budget: int | None = None) -> list[Item]:
         """The items settled since the last call (with `final`, every item left).
 
