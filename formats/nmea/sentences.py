@@ -437,6 +437,8 @@ def scan(data: bytes, prefix: str = "auto", base: int = 0, lines: int = 0) -> It
         offset += len(raw) + 1
         star = raw.find("*", 6)
         if raw[:1] != "$" or raw[6:7] != "," or star < 0 or raw.count("$") != 1:
+            if raw.isspace() or not raw:
+                continue  # blank: a flood of them must cost no framing (iter_frames skips them too)
             yield from _scan_general(raw, base + line_start, number, prefix)
             continue
         kind = raw[3:6]
