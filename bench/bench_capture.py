@@ -17,7 +17,12 @@ complete only when the next one starts, so the latency includes one epoch
 of the stream at the feed rate: at 1x that is about a second, by design of
 the formats, at 20x a twentieth of it. Median and p95 are printed per rate.
 
+Tail: a file of --tail-mb MB of GGA sentences, written whole before the
+capture starts (a writer faster than any reader), captured through `tail:`
+until every byte is archived and decoded: wall and CPU MB/s, bytes lost.
+
 Run: .venv/bin/python bench/bench_capture.py [--rate 400] [--latency-rates 1,20] [--latency-seconds 10]
+     [--tail-mb 30]
 """
 
 from __future__ import annotations
@@ -126,6 +131,48 @@ def throughput(tmp: Path, rate: float) -> None:
                 rows)
 
 
+def _gga_lines(n: int) -> bytes:
+    """n GGA sentences a second apart (times of day wrap at 24 h), with their checksums."""
+    out = []
+    for i in range(n):
+        h, rest = divmod(i % 86400, 3600)
+        body = (f"GPGGA,{h:02d}{rest // 60:02d}{rest % 60:02d}.00,4542.{i % 10000:04d},N,12636.0000,E,1,08,0.9,"
+                "10.0,M,0.0,M,,")
+        checksum = 0
+        for c in body.encode():
+            checksum ^= c
+        out.append(f"${body}*{checksum:02X}\r\n")
+    return "".join(out).encode()
+
+
+def tail(tmp: Path, megabytes: float) -> None:
+    one = len(_gga_lines(1))
+    data = _gga_lines(int(megabytes * 1e6 / one))
+    (tmp / "a").mkdir(exist_ok=True)
+    (tmp / "a" / "gps.log").write_bytes(data)
+    manifest = parse_manifest('[trial]\nname = "t"\ndate = "2016-10-12"\n[[vehicles]]\nname = "a"\n'
+                              'role = "leader"\n[[vehicles.logs]]\nsensor = "gps"\nformat = "nmea"\n'
+                              'path = "a/gps.log"\nsource = "tail:a/gps.log"\n', tmp / "live.toml")
+    session = CaptureSession(manifest, tmp / "tail.mcap", CaptureOptions(flush_s=1.0))
+    cpu0, wall0 = time.thread_time(), time.monotonic()
+    read_s: list[float] = []
+
+    def done() -> bool:
+        if not read_s and session.statuses()[0].bytes >= len(data):
+            read_s.append(time.monotonic() - wall0)
+        return bool(read_s) and not session.logs[0].decoder.pending
+
+    session.run(done)
+    cpu, wall = time.thread_time() - cpu0, time.monotonic() - wall0
+    st = session.statuses()[0]
+    mb = len(data) / 1e6
+    print_table(f"capture through tail: a {mb:.1f} MB file of GGA sentences written before the capture starts",
+                ["run", "MB", "read+archived wall s", "all decoded wall s", "wall MB/s", "CPU s", "CPU MB/s",
+                 "bytes lost", "records"],
+                [["tail", f"{mb:.1f}", f"{read_s[0]:.2f}", f"{wall:.2f}", f"{mb / wall:.1f}", f"{cpu:.2f}",
+                  f"{mb / cpu:.1f}", len(data) - st.bytes, st.records]])
+
+
 def latency(tmp: Path, rates: list[float], seconds: float) -> None:
     rows = []
     for rate in rates:
@@ -158,9 +205,11 @@ def main() -> None:
     parser.add_argument("--rate", type=float, default=400.0)
     parser.add_argument("--latency-rates", default="1,20")
     parser.add_argument("--latency-seconds", type=float, default=8.0, help="wall seconds per latency run")
+    parser.add_argument("--tail-mb", type=float, default=30.0, help="size of the file captured through tail:")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         throughput(Path(tmp), args.rate)
+        tail(Path(tmp), args.tail_mb)
         latency(Path(tmp), [float(r) for r in args.latency_rates.split(",")], args.latency_seconds)
 
 

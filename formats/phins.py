@@ -322,6 +322,8 @@ def _scan_block(block: Block, prefix: str) -> Iterator[Scanned | Reject]:
         star = raw.find("*")
         given = hexes.get(raw[star + 1 : star + 3]) if star > 0 else None
         if given is None or raw[0] != "$" or raw.count("$") != 1:
+            if raw.isspace() or not raw:
+                continue  # blank: a flood of them must cost no framing (iter_frames skips them too)
             yield from _scan_general(raw, line_start, number, prefix)
             continue
         at = line_start - base  # in the block, where `pxor` is

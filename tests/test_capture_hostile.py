@@ -379,3 +379,64 @@ def test_the_one_pass_stamp_equals_the_line_by_line_one(lines, prefix):
             expected += stamp
         expected += line
     assert bytes(fast._buf) == bytes(expected)
+
+
+def test_garbage_after_the_last_record_is_settled_in_bounded_memory():
+    # found by tests/fuzz/live.py: the epoch of the last output was held with everything after it, so a stream
+    # of garbage lines after one record was kept whole and decoded again at every decode (quadratic)
+    from recorders.capture.decoder import MAX_WARMUP
+    table = converters()
+    manifest = parse_manifest(manifest_text("tail:x"), Path("/tmp/live.toml"))
+    log = manifest.logs()[0]
+    dec = StreamDecoder(table[("gps", "nmea")], log_context(manifest, log), "gps", "nmea")
+    dec.feed(gga(0) + gga(1), 1)
+    items = dec.decode()
+    garbage = b"$\r\n" * 20_000
+    for k in range(8):   # 480 KB of lines that are no record
+        dec.feed(garbage, 2 + k)
+        while dec.pending:   # as the capture loop decodes: in slices, until nothing is pending
+            items += dec.decode(budget=128 << 10)
+        assert len(dec._buf) <= 2 * MAX_WARMUP + 4096
+    items += dec.decode(final=True)
+    assert len([i for i in items if getattr(i, "topic", "") == "/a/gps"]) == 2
+    assert sum(1 for i in items if getattr(i, "reason", None)) >= 8 * 20_000
+
+
+def test_a_backlog_given_up_by_the_live_decode_keeps_its_line_numbers_and_offsets():
+    table = converters()
+    manifest = parse_manifest(manifest_text("udp://127.0.0.1:1") + 'prefix = "none"\n', Path("/tmp/live.toml"))
+    log = manifest.logs()[0]
+    dec = StreamDecoder(table[("gps", "nmea")], log_context(manifest, log), "gps", "nmea")
+    lines = [gga(i) for i in range(2000)]
+    stream = b"".join(lines)
+    dec.feed(stream, 1)
+    skipped = dec.shed(10_000)
+    assert 0 < dec.backlog <= 10_000 + len(lines[0]) and skipped == len(stream) - dec.backlog
+    items = dec.decode(final=True)
+    outputs = [i for i in items if getattr(i, "topic", "") == "/a/gps"]
+    rejects = [i for i in items if getattr(i, "reason", "")]
+    first = len(lines) - len(outputs)
+    assert len(outputs) == len(lines) - skipped // len(lines[0]) >= 10_000 // len(lines[0])
+    assert outputs[0].where.offset == skipped == sum(map(len, lines[:first]))   # offsets of the whole stream
+    assert outputs[0].where.line == first + 1
+    assert len(rejects) == 1 and rejects[0].reason.startswith(f"{skipped} bytes arrived faster")
+
+
+def test_a_socket_faster_than_the_decoder_is_archived_whole_in_bounded_memory(tmp_path, monkeypatch):
+    import recorders.capture.session as session_module
+    monkeypatch.setattr(session_module, "MAX_BACKLOG", 20_000)
+    port = free_port()
+    manifest = parse_manifest(manifest_text(f"tcp-listen://127.0.0.1:{port}"), tmp_path / "live.toml")
+    said: list[str] = []
+    session = CaptureSession(manifest, tmp_path / "out.mcap", CaptureOptions(flush_s=0.1, decode_s=3600),
+                             report=said.append)
+    session.step(time.monotonic())   # listening
+    payload = b"".join(gga(i) for i in range(4000))   # 300 KB, never decoded while it arrives
+    with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+        s.sendall(payload)
+    deadline = time.monotonic() + WAIT_S
+    session.run(lambda: session.statuses()[0].bytes >= len(payload) or time.monotonic() > deadline)
+    assert list(raw_by_connection(tmp_path / "out.mcap").values()) == [payload]   # every byte archived
+    assert 0 < gps_count(tmp_path / "out.mcap") < 4000   # the decode gave up the oldest, not the newest
+    assert sum("faster than it can be decoded live" in line for line in said) == 1
+    assert session.statuses()[0].rejects >= 1

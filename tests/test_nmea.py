@@ -225,3 +225,44 @@ def test_no_sentence_like_text_makes_decode_raise(parts: list[str]) -> None:
     list(nmea.decode(data))
     for address in ("GPGGA", "GPRMC", "GPZDA", "GPVTG", "GPGST", "GPHDT", "GPTHS", "GPGLL"):
         list(nmea.decode(build(address, parts).encode("latin-1")))
+
+
+def test_a_flood_of_dollars_is_one_broken_line_and_glued_sentences_still_frame() -> None:
+    # found by tests/fuzz/live.py: a line of a million '$' was a million rejects (a minute of CPU in capture)
+    flood = b"noise" + b"$" * 1_000_000 + GGA[:-2] + b"$$" + b"$GP,x" * 3 + HDT[:-2] + b"$BAD*00" + b"$\r\n"
+    out = list(nmea.decode(GGA + flood + GGA))
+    kinds = [type(r).__name__ for r in out]
+    assert kinds == ["Gga", "Reject", "Gga", "Reject", "Hdt", "Reject", "Reject", "Gga"]
+    assert out[1].reason == "malformed sentence address '' and 999999 more broken pieces after it"
+    assert out[3].reason == "malformed sentence address '' and 4 more broken pieces after it"
+    assert out[5].bad_checksum and not out[6].bad_checksum  # a bad checksum is a sentence of its own
+    assert {r.where.line for r in out[1:7]} == {2}
+
+
+_STAMPS = st.sampled_from(["", "2016-10-12T08:00:01.250000000Z ", "2016-10-12T08:00:01Z ", "[2016-10-12 08:00:02]\t",
+                           "1476259201.5 ", "[1476259202],", "2016-10-12T08:00:01+02:00 ", "2016-13-45T99:00:00Z ",
+                           "1476259201.5 junk ", "1476259201.5  "])
+_SENTENCES = st.sampled_from([GGA, RMC, VTG, ZDA, HDT, GST, GLL, b"$GPGSV,1,1,00*79\r\n", b"$PIXSE,ATITUD,1,2*00\r\n",
+                              b"$GPGGA,1*00\r\n", b"$gpgga,x*00\r\n", b"$GPGGA,123519,4807.038,N*47\r\n", b"\r\n"])
+
+
+@given(st.lists(st.tuples(_STAMPS, _SENTENCES), max_size=12), st.sampled_from(["auto", "iso8601", "unix", "none"]))
+@settings(max_examples=300)
+def test_a_prefixed_line_gives_what_the_line_without_its_prefix_gives(lines, prefix) -> None:
+    # the reference: each line's prefix stripped by strip_prefix, the rest scanned alone, its host time put back
+    from formats.lines import strip_prefix
+    data = b"".join(stamp.encode() + sentence for stamp, sentence in lines)
+    expected: list = []
+    offset = 0
+    for number, raw in enumerate(data.decode("latin-1").split("\n"), start=1):
+        rest, host = (raw, None) if prefix == "none" or raw[:1] in "$#%" else strip_prefix(raw, prefix)
+        if raw.strip() and not rest.strip():   # a stamp alone on its line: "no NMEA sentence" as before
+            expected += nmea._scan_general(raw, offset, number, prefix)
+        for item in nmea.scan(rest.encode("latin-1"), "none", base=offset, lines=number - 1):
+            if isinstance(item, Reject):
+                w = item.where
+                expected.append(Reject(type(w)(w.offset, w.line, host), item.reason, item.bad_checksum))
+            else:
+                expected.append((*item[:5], host))
+        offset += len(raw) + 1
+    assert repr(list(nmea.scan(data, prefix))) == repr(expected)

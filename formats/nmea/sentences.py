@@ -344,11 +344,7 @@ def _block_frames(block: Block, prefix: str, strip: bool) -> Iterator[Frame | Re
             text = rest
         where = Where(line_start, number, host)
         if text.count("$") > 1:
-            # noise holding a '$', or sentences glued together: every start on its own
-            for piece in text.split("$")[1:]:
-                result = frame_line("$" + piece, where)
-                if result is not None:
-                    yield result
+            yield from _glued_frames(text, where)
             continue
         start = text.find("$")
         star = text.find("*", start) if start >= 0 else -1
@@ -359,6 +355,36 @@ def _block_frames(block: Block, prefix: str, strip: bool) -> Iterator[Frame | Re
         result = frame_line(text, where, checksum)
         if result is not None:
             yield result
+
+
+def _glued_frames(text: str, where: Where) -> Iterator[Frame | Reject]:
+    """A line holding several '$': every start framed on its own (sentences glued together), and each run of
+    consecutive pieces that frame as nothing one Reject, so a flood of '$' is one broken line, not a million.
+
+    A bad checksum stays a reject of its own: it is a whole sentence, counted apart as bad checksum.
+    """
+    broken: Reject | None = None
+    more = 0
+    for piece in text.split("$")[1:]:
+        result = frame_line("$" + piece, where) if piece else Reject(where, "malformed sentence address ''")
+        if isinstance(result, Reject) and not result.bad_checksum:
+            if broken is None:
+                broken = result
+            else:
+                more += 1
+            continue
+        if broken is not None:
+            yield _run_of(broken, more)
+            broken, more = None, 0
+        if result is not None:
+            yield result
+    if broken is not None:
+        yield _run_of(broken, more)
+
+
+def _run_of(first: Reject, more: int) -> Reject:
+    """One Reject for a run of broken pieces of a line: the first one's reason, and how many followed it."""
+    return first if not more else Reject(first.where, f"{first.reason} and {more} more broken pieces after it")
 
 
 def _frame_values(frame: Frame) -> Scanned | Reject | None:
@@ -404,36 +430,71 @@ def scan(data: bytes, prefix: str = "auto", base: int = 0, lines: int = 0) -> It
         raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
     pxor = prefix_xor(data)
     parsers, hexes = VALUES, HEX
+    prefixes = HostPrefixes(prefix)
     skipped: set[str] = set()  # well-formed addresses of other sentence types
     offset = 0  # in `data`; positions given out are `base` + it
     for number, raw in enumerate(data.decode("latin-1").split("\n"), start=lines + 1):
         line_start = offset
         offset += len(raw) + 1
-        star = raw.find("*", 6)
-        if raw[:1] != "$" or raw[6:7] != "," or star < 0 or raw.count("$") != 1:
+        s, host = 0, None  # where the sentence starts in the line, and the line's host time
+        if raw[:1] != "$":
+            if raw.isspace() or not raw:
+                continue  # blank: a flood of them must cost no framing (iter_frames skips them too)
+            s, host = prefixes.split(raw)
+        star = raw.find("*", s + 6)
+        if raw[s : s + 1] != "$" or raw[s + 6 : s + 7] != "," or star < 0 or raw.count("$") != 1:
             yield from _scan_general(raw, base + line_start, number, prefix)
             continue
-        kind = raw[3:6]
+        kind = raw[s + 3 : s + 6]
         parser = parsers.get(kind)
-        if parser is None or raw[1] == "P":
-            address = raw[1:6]
+        if parser is None or raw[s + 1] == "P":
+            address = raw[s + 1 : s + 6]
             if address in skipped:
                 continue  # a sentence of another family seen before ($GPGSV...): one set lookup
             if not (address.isascii() and address.isalnum() and address.isupper()):
-                yield Reject(Where(base + line_start, number), f"malformed sentence address {address!r}")
+                yield Reject(Where(base + line_start, number, host), f"malformed sentence address {address!r}")
             else:
                 skipped.add(address)
             continue
         given = hexes.get(raw[star + 1 : star + 3])
-        computed = pxor[line_start + star - 1] ^ pxor[line_start]
+        computed = pxor[line_start + star - 1] ^ pxor[line_start + s]
         if given != computed:
-            yield Reject(Where(base + line_start, number),
+            yield Reject(Where(base + line_start, number, host),
                          f"bad checksum {raw[star + 1 : star + 3]!r}, computed {computed:02X}", bad_checksum=True)
             continue
         try:
-            yield kind, raw[1:3], parser(raw[7:star].split(",")), base + line_start, number, None
+            yield kind, raw[s + 1 : s + 3], parser(raw[s + 7 : star].split(",")), base + line_start, number, host
         except (ValueError, IndexError, OverflowError) as exc:
-            yield Reject(Where(base + line_start, number), f"bad {kind} sentence: {exc}")
+            yield Reject(Where(base + line_start, number, host), f"bad {kind} sentence: {exc}")
+
+
+class HostPrefixes:
+    """Splits host-timestamp prefixes off lines, the stamp of the line before parsed once for all lines that
+    repeat it (a capture stamps every line of one read alike; a logger stamps a burst alike)."""
+
+    def __init__(self, style: str):
+        self.style = style
+        self._last: str | None = None
+        self._host: int | None = None
+
+    def split(self, raw: str) -> tuple[int, int | None]:
+        """(where the text after the prefix starts, the host time in ns), or (0, None) without a prefix.
+
+        A cached stamp is used only when a '$' follows it, where neither prefix pattern can read further,
+        so the split is the one `strip_prefix` gives.
+        """
+        last = self._last
+        if last is not None and raw.startswith(last) and raw[len(last) : len(last) + 1] == "$":
+            return len(last), self._host
+        if self.style == "none":
+            return 0, None
+        rest, host = strip_prefix(raw, self.style)
+        if host is None:
+            return 0, None
+        s = len(raw) - len(rest)
+        if rest[:1] == "$":
+            self._last, self._host = raw[:s], host
+        return s, host
 
 
 def _scan_general(raw: str, line_start: int, number: int, prefix: str) -> Iterator[Scanned | Reject]:

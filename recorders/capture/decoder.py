@@ -9,10 +9,13 @@ settled:
 - the window starts at the record of the last output committed before the
   current frontier (and at least MIN_WARMUP bytes before it), so the epoch
   that straddles the frontier is decoded whole, with its predecessor's
-  records as warm-up;
+  records as warm-up; but at most MAX_WARMUP bytes before it, so that a
+  long run without any output (garbage) is not decoded again at every
+  decode, nor kept in memory;
 - of the items, those at or after the frontier are committed, except the
   trailing epoch (the outputs after the last change of log time, and
-  whatever follows them): the next bytes may still belong to it.
+  whatever follows them, up to MAX_WARMUP bytes): the next bytes may still
+  belong to it.
 
 Offsets and line numbers are rebased to the whole stream, so statistics
 and diagnostics count as `record` counts a file. At the end (`final`)
@@ -45,6 +48,7 @@ from ..base import Converter, Ignored, LogContext, Output
 from ..registry import is_binary
 
 MIN_WARMUP = 256
+MAX_WARMUP = 16 << 10
 HOLD_BYTES = 4096  # kept back while a window gives no output at all (noise, or a record still arriving)
 MAX_LINE_BYTES = 1 << 20  # an unfinished line longer than this is no record of any text format we decode
 
@@ -155,6 +159,32 @@ class StreamDecoder:
         """Bytes received and not yet settled (what a decode with a budget left behind, mostly)."""
         return self._base + len(self._buf) - self._frontier
 
+    def shed(self, keep: int) -> int:
+        """Give up decoding the oldest undecoded bytes so that at most about `keep` wait; the bytes given up.
+
+        For a socket, which cannot be left unread the way a file waits on
+        disk: its bytes are archived raw as they arrive, and only the live
+        decode skips them (one counted reject says how many), so `record` of
+        the capture still decodes them and memory stays bounded.
+        """
+        over = self.backlog - keep
+        if over <= 0 or not self._windowed:
+            return 0
+        cut = self._frontier - self._base + over
+        if self.text:  # at a line start
+            newline = self._buf.find(b"\n", cut)
+            cut = len(self._buf) if newline < 0 else newline + 1
+        skipped = self._base + cut - self._frontier
+        self._dropped.append(Reject(Where(self._frontier), f"{skipped} bytes arrived faster than they could be "
+                                    "decoded live: archived, not decoded (`auvreplay record` of the capture "
+                                    "decodes them)"))
+        self._lines_before += self._buf.count(b"\n", 0, cut)
+        del self._buf[:cut]
+        self._base += cut
+        self._frontier = self._base
+        self._pending = True
+        return skipped
+
     def decode(self, final: bool = False, budget: int | None = None) -> list[Item]:
         """The items settled since the last call (with `final`, every item left).
 
@@ -216,7 +246,8 @@ class StreamDecoder:
             if o.log_time_ns != last:
                 break
             cut = min(cut, _offset(o))
-        return cut
+        # an epoch followed by MAX_WARMUP bytes without an output is over: what follows it is not held
+        return max(cut, end - MAX_WARMUP)
 
     def _advance(self, items: Iterable[Item], cut: int) -> None:
         """Move the frontier to `cut` and the next window's start before it; drop the bytes before that."""
@@ -224,6 +255,7 @@ class StreamDecoder:
             return
         before = [_offset(i) for i in items if type(i) is Output and _offset(i) < cut]
         anchor = min(max(before), cut - MIN_WARMUP) if before else cut - MIN_WARMUP
+        anchor = max(anchor, cut - MAX_WARMUP)
         if self.text:  # a line start
             anchor = self._buf.rfind(b"\n", 0, max(anchor - self._base, 0)) + 1 + self._base
         self._frontier = cut

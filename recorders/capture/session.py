@@ -58,7 +58,8 @@ RETRY_MAX_S = 5.0
 # a growing file is read until it has nothing new, up to this much per turn of the loop, so that a fast
 # writer is kept up with (20 MB/s and more) and the other sources still get their turn
 POLL_BUDGET = 8 << 20
-# a file is not read further while this much of it waits to be decoded (it waits on disk instead)
+# a file is not read further while this much of it waits to be decoded (it waits on disk instead); a socket's
+# bytes over it are archived and not decoded live (StreamDecoder.shed)
 MAX_BACKLOG = 64 << 20
 # decoding is done in slices of about DECODE_SLICE bytes, for at most DECODE_TURN_S a turn, so that
 # reading (the archive: nothing lost) never waits on a converter slower than the stream; a clean stop
@@ -116,6 +117,7 @@ class _Live:
         self.fds: set[int] = set()         # registered with the selector
         self.peers: dict[int, int] = {}    # a source's peer -> its connection number in the archive
         self.dropped_lines = False         # an overlong line was reported once
+        self.shed = False                  # a backlog given up by the live decode was reported once
 
 
 def _prepare(manifest: Manifest, allow_outside: bool = False) -> list[_Live]:
@@ -278,6 +280,12 @@ class CaptureSession:
             raise self._stopped(exc) from None
         live.sha.update(data)
         live.decoder.feed(data, t, peer)
+        if live.source.selectable and live.decoder.backlog > MAX_BACKLOG and live.decoder.shed(MAX_BACKLOG // 2) \
+                and not live.shed:
+            live.shed = True
+            self.report(f"warning: {live.log.path}: {live.log.source} sends faster than it can be decoded live: "
+                        f"bytes over a {MAX_BACKLOG >> 20} MiB backlog are archived and not decoded "
+                        "(counted as rejects; reported once)")
         st.bytes += len(data)
         st.reads += 1
         st.last_data_s = now
