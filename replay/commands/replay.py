@@ -27,7 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", help="results archive (default: <archive>-replay-<run>.mcap)")
     parser.add_argument("--rrd", help="also save a Rerun recording of the run")
     parser.add_argument("--compare", metavar="RESULTS.mcap",
-                        help="with --rrd: put this earlier run into the same recording, side by side")
+                        help="with --rrd: put this earlier run into the same recording, side by side, as run A "
+                             "(this run is B, as in `auvreplay compare RESULTS.mcap THIS.mcap`)")
     parser.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
     parser.add_argument("--focus", type=focus_list, default=None, metavar="M1,M2|all",
                         help="with --rrd: the methods shown at first (default: the best of each scoreboard "
@@ -47,10 +48,8 @@ def run(args: argparse.Namespace) -> int:
     if args.rrd:
         from replay.views.recording import save_rrd
 
-        reviews = [outcome.review]
-        if args.compare:
-
-            reviews.append(review_from_results(args.compare))
+        # A is the first argument everywhere: the earlier run named by --compare is A, this run B
+        reviews = [review_from_results(args.compare), outcome.review] if args.compare else [outcome.review]
         save_rrd(reviews, args.rrd, focus=args.focus)
     if args.json:
         print(json.dumps(outcome.metrics, indent=2, sort_keys=True))
@@ -61,6 +60,6 @@ def run(args: argparse.Namespace) -> int:
               f"({outcome.metrics['anomalous']} anomalous), {outcome.messages} messages in {outcome.wall_s:.2f} s")
         print(format_table(outcome.metrics))
         print(f"results: {outcome.output}" + (f"; recording: {args.rrd}" if args.rrd else ""))
-    compared = reviews[1].input_warning if args.rrd and args.compare else None
+    compared = reviews[0].input_warning if args.rrd and args.compare else None
     warn_damage("replay", "; ".join(filter(None, [outcome.warning, compared])) or None)
     return 0

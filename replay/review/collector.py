@@ -21,14 +21,26 @@ from replay.events import (
 )
 from replay.navigation.review import DR_METHOD, NavigationReview
 from replay.review.data import ReviewData
+from replay.stack.detectors.why_text import epoch_features
 from replay.stack.features import EXTRA_FEATURES
-from replay.stack.methods import detecting_names, short_names, why_line
+from replay.stack.methods import anfis_models, detecting_names, short_names, why_line
 from replay.stack.model import horizontal_offset_m, offset_to_latlon
 
 RAD = 180.0 / math.pi
 INS_DECIMATE_S = 1.0
 # mission seconds are float differences of ns times: a 1 Hz source's 1.4 - 0.4 is 0.9999999999999999 s
 DECIMATE_SLACK_S = 1e-6
+
+
+PAPER_INPUTS = ("f1", "f2", "f3")
+"""The inputs of paper A's ANFIS detectors (a wide detector names its own: `inputs`)."""
+
+
+def anfis_core(det: Any) -> Any | None:
+    """The trained ANFIS model of a detector: the detector itself, or the one a wide detector wraps (anfis_hybrid);
+    None for anything else or before training."""
+    core = getattr(det, "anfis", det)
+    return core if hasattr(core, "snapshots") and getattr(core, "trained", False) else None
 
 
 class ReviewCollector(Listener):
@@ -47,6 +59,7 @@ class ReviewCollector(Listener):
         self._last_drawn: dict[tuple[str, str], float] = {}    # (vehicle, source) -> its last track point
         self._models: dict[str, TrainedDetectors] = {}
         self._detecting = detecting_names()     # the method table's detectors, in its order
+        self._anfis = frozenset(anfis_models()) & frozenset(self._detecting)
         self._detectors: dict[str, dict[str, dict[str, Any]]] = {}     # follower -> method -> leader -> detector
 
     def origin(self, lat_rad: float, lon_rad: float) -> None:
@@ -100,8 +113,8 @@ class ReviewCollector(Listener):
                 "f2_mahalanobis2": r.f2, "f3_r_adapted_m2": r.f3, "label": int(r.label),
                 "isolated": bool(r.isolated), "capped": bool(r.capped), **extra,
                 "why": why_line(r, dets.get(r.method, {}).get(r.leader)) if dets is not None else ""})
-            if r.method == "anfis" and models is not None and r.time_s > models.training_end_s:
-                self._explain(models, r)
+            if r.method in self._anfis and models is not None and r.time_s > models.training_end_s:
+                self._explain(follower, models, r)
 
     def _who(self, follower: str, leader: str) -> str:
         return f"{follower}/{leader}" if self._many else leader
@@ -149,13 +162,20 @@ class ReviewCollector(Listener):
         else:
             self.event(r0.time_s, "INFO", f"FLAGGED {who} (no truth label): {short_names(hit)}")
 
-    def _explain(self, models: TrainedDetectors, r: EpochResult) -> None:
-        det = models.detectors("anfis").get(r.leader)
-        if det is None or not hasattr(det, "explain"):
+    def _model_key(self, method: str, follower: str, leader: str) -> str:
+        """An ANFIS model's name in anfis_epochs and anfis_explain: "<method>/<leader>" (or its follower/leader)."""
+        return f"{method}/{self._who(follower, leader)}"
+
+    def _explain(self, follower: str, models: TrainedDetectors, r: EpochResult) -> None:
+        det: Any = models.detectors(r.method).get(r.leader)
+        if anfis_core(det) is None:
             return
-        ex = det.explain(np.array([r.f1, r.f2, r.f3]))
+        # a wide detector (anfis_hybrid) turns the epoch's feature row into its model's inputs itself
+        ex = det.explain(epoch_features(r)) if hasattr(det, "anfis") else det.explain(np.array([r.f1, r.f2, r.f3]))
+        ex = getattr(ex, "anfis", ex)
         self.rows["anfis_explain"].append({
-            "t_s": r.time_s, "model": r.leader, "inputs": np.asarray(ex.normalized_inputs).tolist(),
+            "t_s": r.time_s, "model": self._model_key(r.method, follower, r.leader),
+            "inputs": np.asarray(ex.normalized_inputs).tolist(),
             "memberships": np.asarray(ex.memberships).tolist(), "firing": np.asarray(ex.normalized_firing).tolist(),
             "output": float(np.asarray(ex.output)), "threshold": r.threshold, "flagged": bool(r.flagged)})
 
@@ -167,19 +187,23 @@ class ReviewCollector(Listener):
         self._models[follower] = models
         self._detectors[follower] = {m: dict(models.detectors(m)) for m in self._detecting}
         for method in self._detecting:
-            per_leader = models.detectors(method)
-            if method != "anfis":
+            if method not in self._anfis:
                 continue
-            for leader, det in per_leader.items():
-                if det is None or not hasattr(det, "snapshots"):
+            for leader, det in models.detectors(method).items():
+                core = anfis_core(det)
+                if core is None:
                     continue
-                for snap in det.snapshots():
-                    self.rows["anfis_epochs"].append({"model": leader, "epoch": int(snap.epoch),
+                about = {"method": method, "leader": leader, "trainer": core.trainer,
+                         "inputs": list(getattr(det, "inputs", PAPER_INPUTS)), "compensation": core.compensation,
+                         "training_samples": core.training_samples}
+                model = self._model_key(method, follower, leader)
+                for snap in core.snapshots():
+                    self.rows["anfis_epochs"].append({"model": model, "epoch": int(snap.epoch),
                                                       "rmse": float(snap.training_rmse), "params": {
                         "a": snap.a.tolist(), "b": snap.b.tolist(), "c": snap.c.tolist(),
                         "consequents": snap.consequents.tolist(), "input_min": snap.input_min.tolist(),
-                        "input_max": snap.input_max.tolist(), "threshold": float(snap.threshold),
-                        "rule_structure": snap.rule_structure}})
+                        "input_max": snap.input_max.tolist(), "threshold": float(core.threshold),
+                        "rule_structure": snap.rule_structure, **about}})
 
     def usbl(self, epoch: UsblEpoch, positions: dict[str, tuple[float, float]]) -> None:
         fixes = epoch.fix.fixes

@@ -1,9 +1,9 @@
 """Comparing two replay runs: parameters, metrics and per-epoch detections, in mission seconds.
 
-Runs are named by what differs in their configuration (`replay.review.naming.run_labels`); every
-decision that differs is listed with its truth label, and each run is credited
-with the differing decisions it got right (flagged an anomalous range, or
-passed a normal one).
+Runs are named by what differs in their configuration (`replay.review.naming.run_labels`); A is the
+first argument. Every decision that differs is listed with its truth label, and each run is credited
+with the differing decisions it got right (`replay.review.differing`, the rule the viewer's table reads
+too).
 """
 
 from __future__ import annotations
@@ -13,14 +13,12 @@ from pathlib import Path
 from typing import Any
 
 from formats.mcap_reader import ArchiveReader
-from formats.units import NS
 from replay.errors import UserError
+from replay.review.differing import DetectionKey, decision_word, differing_epochs, truth_word
 from replay.review.naming import flatten, run_labels
 from replay.review.scoreboard import format_value
 from replay.run.mission_time import trial_start_ns
 from replay.stack.scoring import RESULT_KEYS
-
-DetectionKey = tuple[int, str, str, str]
 
 
 def load_run(path: str | Path) -> tuple[dict[str, Any], dict[DetectionKey, tuple[bool, int]]]:
@@ -60,21 +58,7 @@ def compare_runs(a: str | Path, b: str | Path) -> dict[str, Any]:
             row[key] = {"a": va, "b": vb, "diff": (vb - va) if isinstance(va, (int, float)) and
                         isinstance(vb, (int, float)) else None}
         metrics[method] = row
-    differing: dict[str, list[dict[str, Any]]] = {}
-    right: dict[str, dict[str, int]] = {}
-    for dkey in sorted(set(det_a) | set(det_b)):
-        da, db = det_a.get(dkey), det_b.get(dkey)
-        fa, fb = (da[0] if da else None), (db[0] if db else None)
-        if fa == fb:
-            continue
-        t_ns, follower, leader, method = dkey
-        label = (da or db or (False, 0))[1]
-        differing.setdefault(method, []).append({"mission_s": t_ns / NS, "follower": follower, "leader": leader,
-                                                 "a": fa, "b": fb, "label": label})
-        tally = right.setdefault(method, {"a": 0, "b": 0, "epochs": 0})
-        tally["epochs"] += 1
-        tally["a"] += int(fa is not None and fa == bool(label))
-        tally["b"] += int(fb is not None and fb == bool(label))
+    differing, right = differing_epochs(det_a, det_b)
     label_a, label_b = run_labels([meta_a["parameters"], meta_b["parameters"]])
     return {"a": {"run_id": meta_a["run_id"], "file": str(a), "label": label_a},
             "b": {"run_id": meta_b["run_id"], "file": str(b), "label": label_b},
@@ -82,10 +66,6 @@ def compare_runs(a: str | Path, b: str | Path) -> dict[str, Any]:
             "parameters": params, "metrics": metrics, "differing_epochs": differing, "right": right,
             "warning": "; ".join(f"{path}: {m['damage']}" for path, m in ((a, meta_a), (b, meta_b)) if m["damage"])
             or None}
-
-
-def _decision(flagged: bool | None) -> str:
-    return "-" if flagged is None else ("flagged" if flagged else "passed")
 
 
 def verdict(tally: dict[str, int], name_a: str, name_b: str) -> str:
@@ -118,9 +98,8 @@ def format_comparison(result: dict[str, Any], limit: int = 20) -> str:
         lines.append(f"{method}: {len(rows)} epochs decided differently; "
                      f"{verdict(result['right'][method], la, lb)}")
         for r in rows[:limit]:
-            truth = "anomalous" if r["label"] else "normal"
             lines.append(f"  {r['mission_s']:9.1f} s  {r['follower']} <- {r['leader']:<10} "
-                         f"A {_decision(r['a']):<7}  B {_decision(r['b']):<7}  truth {truth}")
+                         f"A {decision_word(r['a']):<7}  B {decision_word(r['b']):<7}  truth {truth_word(r['label'])}")
         if len(rows) > limit:
             lines.append(f"  ... {len(rows) - limit} more (--limit)")
     if result["right"]:

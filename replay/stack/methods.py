@@ -71,6 +71,7 @@ class Method:
     default: bool = False            # run by a replay that names no methods
     score_plot: tuple[str, str] | None = None   # (title, what it compares) of its plot beside its threshold
     anfis_plot: bool = False         # drawn on the ANFIS plot: its output against its T2, in metres
+    anfis_model: bool = False        # an ANFIS model: the ANFIS tab draws its MFs, rules and training, one view each
     pooled_training: bool = False    # trained on every leader's rows together, whatever anfis.model says
     threaded_training: bool = False  # whole-population numpy training: trained on threads beside its like
 
@@ -119,12 +120,14 @@ METHOD_TABLE: dict[str, Method] = {m.name: m for m in (
            (75, 105, 255), dual_threshold.DualThresholdDetector, _PAPER, dual_threshold.why_line, default=True,
            score_plot=("dual_threshold vs 1", "max(f2/gate, CUSUM S/h) against 1")),
     Method("anfis", "detector", "detect", _TRAINED, "ACKF + ANFIS (hybrid learning)", "anfis", (0, 158, 115),
-           _anfis("hybrid", False), _PAPER, anfis_detector.why_line, anfis_plot=True, default=True),
+           _anfis("hybrid", False), _PAPER, anfis_detector.why_line, anfis_plot=True, anfis_model=True,
+           default=True),
     Method("anfis_aqpso", "detector", "detect", _TRAINED, "ACKF + ANFIS (AQPSO-GA)", "aqpso", (240, 180, 135),
-           _anfis("aqpso_ga", False), _PAPER, anfis_detector.why_line, anfis_plot=True, default=True,
-           threaded_training=True),
+           _anfis("aqpso_ga", False), _PAPER, anfis_detector.why_line, anfis_plot=True, anfis_model=True,
+           default=True, threaded_training=True),
     Method("anfis_compensation", "detector", "detect", _TRAINED, "ACKF + ANFIS range compensation", "comp",
-           (105, 135, 15), _anfis("hybrid", True), _PAPER, anfis_detector.why_line, anfis_plot=True, default=True),
+           (105, 135, 15), _anfis("hybrid", True), _PAPER, anfis_detector.why_line, anfis_plot=True, anfis_model=True,
+           default=True),
     # detectors on filter-independent features: their hybrid database and extra ANFIS training cost about
     # half again a replay's time, so they run when named (`--set methods=...`), in `evaluate` and in `demo`
     Method("cusum_drift", "detector", "detect", _TRAINED, "ACKF + CUSUM of the drift residual", "cusum",
@@ -132,7 +135,8 @@ METHOD_TABLE: dict[str, Method] = {m.name: m for m in (
            score_plot=("cusum_drift S vs h (sd)", "max(S+, S-) of drift_z against h, in sd")),
     Method("anfis_hybrid", "detector", "detect", _TRAINED, "ACKF + ANFIS on the hybrid database", "hybrid",
            (195, 0, 255), anfis_hybrid.HybridAnfisDetector, _WIDE, anfis_hybrid.why_line,
-           score_plot=("anfis_hybrid vs thr (m)", "output against the threshold of its 2 % training FPR, in m")),
+           score_plot=("anfis_hybrid vs thr (m)", "output against the threshold of its 2 % training FPR, in m"),
+           anfis_model=True),
     Method("drift_reference", "detector", "detect", _TRAINED, "ACKF + DR error reference", "dref",
            (204, 121, 167), drift_reference.DriftReferenceDetector, _WIDE, drift_reference.why_line,
            score_plot=("drift_reference vs h (sd)",
@@ -207,6 +211,11 @@ def detecting_names() -> tuple[str, ...]:
 def anfis_family() -> frozenset[str]:
     """The methods drawn on the ANFIS plot (paper A's ANFIS detectors)."""
     return frozenset(m.name for m in methods() if m.anfis_plot)
+
+
+def anfis_models() -> tuple[str, ...]:
+    """The methods with an ANFIS model of their own (the ANFIS tab's views), in table order."""
+    return tuple(m.name for m in methods() if m.anfis_model)
 
 
 def method(name: str) -> Method:

@@ -12,10 +12,13 @@ Tabs, each answering one question (the event log sits on the right of every tab)
   features grouped by unit (or a note saying which the run did not compute);
 - Navigation: the map and the local east/north plot, every track, trails ending at the cursor,
   bounds holding every vehicle and buoy, a colour key;
-- ANFIS (one tab per model): what the model learned and where this epoch sits in it;
+- ANFIS (one tab per model: each ANFIS method that ran, per leader, titled with both): what the model
+  is (a note), what it learned (MFs over the input's own values) and where this epoch sits in it;
 - KMCDF (one view pair per target): the fixes around the GPS truth, and the nodes by name.
 With two runs, the scoreboards sit side by side with what changed, and the other views overlay
-both runs (every name tagged with the run's label) instead of repeating per run.
+both runs (every name tagged with the run's letter, A the first run given; what differs is said once, in
+the event log's title and in "What changed") instead of repeating per run; the epochs they decided
+differently are a table beside the scoreboards.
 The recording opens on the `mission_s` timeline with the cursor on the mission's last sample (Rerun
 0.41's blueprint cannot place it; "following" does, for a loaded file) and every time series and
 lane on the whole mission.
@@ -34,8 +37,9 @@ from rerun.encodings import EntityPathLike
 
 from replay.review.data import ReviewData
 from replay.stack.methods import anfis_family
+from replay.views.anfis import input_title, model_inputs, model_order, model_parts, model_path
 from replay.views.cdf import HEIGHT, WIDTH
-from replay.views.common import Run, floats, part
+from replay.views.common import Run, floats
 from replay.views.features import (
     FEATURE_GROUPS,
     feature_note,
@@ -149,7 +153,7 @@ def _vehicles(runs: list[Run]) -> rrb.Container | None:
     """Per vehicle with a navigation review: its summary and drift at the fixes beside its series."""
     tabs = []
     for run in runs:
-        tag = f" [{run.label}]" if run.label else ""
+        tag = f" [{run.tag}]" if run.tag else ""
         for vehicle in run.review.navigation:
             base = run.path("vehicle", vehicle)
             plots = [_series(title, [f"+ {base}/{key}/**"], y_range=(0.0, 1.05) if key == "lock" else None)
@@ -164,11 +168,12 @@ def _vehicles(runs: list[Run]) -> rrb.Container | None:
 
 def _scoreboard(runs: list[Run], error_top: float, focus: Sequence[str] | None) -> rrb.Container:
     followers = sorted({str(k[0]) for r in runs for k, _ in r.groups(r.review.errors, ["follower"])})
-    docs = [rrb.TextDocumentView(name=f"Scoreboard{' [' + r.label + ']' if r.label else ''}",
+    docs = [rrb.TextDocumentView(name=f"Scoreboard{' of ' + r.tag if r.tag else ''}",
                                  contents=[f"+ {r.path('scoreboard')}"]) for r in runs]
     if len(runs) == 2:
-        docs.append(rrb.TextDocumentView(name="What changed, and which run did better",
+        docs.append(rrb.TextDocumentView(name="What changed: A vs B",
                                          contents=[f"+ {runs[1].path('changes')}"]))
+        docs.append(rrb.TextDocumentView(name="Epochs that differ", contents=[f"+ {runs[1].path('differing')}"]))
     cdfs: list[rrb.View | rrb.Container] = []
     for f in followers:
         bounds = rrb.VisualBounds2D(x_range=[-13.0, WIDTH + 8.0], y_range=[-HEIGHT - 8.0, 11.0])
@@ -177,15 +182,16 @@ def _scoreboard(runs: list[Run], error_top: float, focus: Sequence[str] | None) 
                                       + [f"- {r.path('cdf', f, 'table')}" for r in runs], visual_bounds=bounds,
                                       overrides=hide(runs, focus, "cdf")))
         cdfs.append(rrb.Horizontal(*(rrb.TextDocumentView(
-            name=f"Percentiles from t_a to the cursor{' [' + r.label + ']' if r.label else ''}",
+            name=f"Percentiles from t_a to the cursor{' [' + r.tag + ']' if r.tag else ''}",
             contents=[f"+ {r.path('cdf', f, 'table')}"]) for r in runs)))
     note = focus_note(runs, focus)
     errors = _series("Error vs GPS (m), whole mission; grey line: t_a" + (f"; {note}" if note else ""),
                      _contents(runs, "series", "error") + _contents(runs, "series", "marks"), error_top,
                      overrides=hide(runs, focus, "error"))
-    # two runs: what changed first, the two scoreboards as tabs beneath (side by side they would not fit)
+    # two runs: what changed first, the epochs that differ and the two scoreboards as tabs beneath (side by side
+    # they would not fit)
     left = (rrb.Vertical(docs[0], errors, row_shares=[1, 1]) if len(docs) == 1 else
-            rrb.Vertical(docs[2], rrb.Tabs(*docs[:2]), errors, row_shares=[1.1, 1.1, 1]))
+            rrb.Vertical(docs[2], rrb.Tabs(docs[3], *docs[:2]), errors, row_shares=[1.1, 1.1, 1]))
     return rrb.Horizontal(
         left,
         rrb.Vertical(*cdfs, row_shares=[1.4, 1] * len(followers)) if cdfs else rrb.Vertical(),
@@ -208,7 +214,7 @@ def _detection(runs: list[Run]) -> rrb.Container:
     pairs = _pairs(runs)
     many = len({f for f, _ in pairs}) > 1
     whys = [rrb.TextDocumentView(
-        name=f"Why (not) flagged at the cursor: {f + '/' if many else ''}{ld}{' [' + r.label + ']' if r.label else ''}",
+        name=f"Why (not) flagged: {f + '/' if many else ''}{ld}{' [' + r.tag + ']' if r.tag else ''}",
         contents=[f"+ {r.path('why', f, ld)}"]) for r in runs for f, ld in pairs]
     return rrb.Horizontal(lanes, rrb.Vertical(*whys), column_shares=[2.1, 1], name="Detection") if whys else \
         rrb.Vertical(lanes, name="Detection")
@@ -266,16 +272,21 @@ def anfis_top(runs: list[Run]) -> float | None:
     return float(4.0 * v.max()) if v.size else None
 
 
-def _anfis_model(run: Run, model: str) -> rrb.Container:
-    base = run.path("anfis", model)
-    tag = f" [{run.label}]" if run.label else ""
-    mf_bounds = rrb.VisualBounds2D(x_range=[-0.08, 1.08], y_range=[-1.15, 0.12])
-    names = ("f1 |r|", "f2 Mahal.", "f3 R*")
-    mf = [rrb.Spatial2DView(name=f"{n}: MFs learned", contents=[f"+ {base}/training/mf/in{i}/**"],
+def _anfis_model(run: Run, model: str, inputs: tuple[str, ...]) -> rrb.Container:
+    """One ANFIS model's tab, titled with its method and leader: note, MFs (x in the input's units), surface, why."""
+    method, leader = model_parts(model)
+    base = model_path(run, model)
+    tag = f" [{run.tag}]" if run.tag else ""
+    mf_bounds = rrb.VisualBounds2D(x_range=[-0.14, 1.1], y_range=[-1.12, 0.2])
+    names = [input_title(n, method) for n in inputs]
+    # titles short enough for a quarter of 1400 px: the learned MFs by the input's name, the cursor's by "now"
+    mf = [rrb.Spatial2DView(name=n, contents=[f"+ {base}/training/mf/in{i}/**"],
                             visual_bounds=mf_bounds) for i, n in enumerate(names, start=1)]
-    now = [rrb.Spatial2DView(name=f"{n}: now", contents=[f"+ {base}/explain/mf/in{i}/**"],
+    now = [rrb.Spatial2DView(name=f"{n.split(' ')[0]} now", contents=[f"+ {base}/explain/mf/in{i}/**",
+                                                                      f"+ {base}/training/mf/in{i}/axis/**"],
                              visual_bounds=mf_bounds) for i, n in enumerate(names, start=1)]
-    surface = rrb.Spatial3DView(name="Output surface (f3 at median)",
+    third = f"{names[2].split(' ')[0]} at median" if len(names) > 2 else "2 inputs"
+    surface = rrb.Spatial3DView(name=f"{method} {leader}: output surface ({third})",
                                 eye_controls=rrb.EyeControls3D(kind="Orbital", position=(2.5, -1.7, 1.8),
                                                                look_target=(0.45, 0.45, 0.3), eye_up=(0, 0, 1)),
                                 contents=[f"+ {base}/training/surface", f"+ {base}/training/axes",
@@ -283,30 +294,33 @@ def _anfis_model(run: Run, model: str) -> rrb.Container:
                                           f"+ {base}/training/epoch"])
     return rrb.Horizontal(
         rrb.Vertical(*mf),
-        rrb.Vertical(surface, rrb.BarChartView(name="Training RMSE (m) per epoch",
+        rrb.Vertical(rrb.TextDocumentView(name=f"{method} on {leader}: the model", contents=[f"+ {base}/note"]),
+                     surface, rrb.BarChartView(name="Training RMSE (m) per epoch",
                                                contents=[f"+ {base}/training/rmse_bars"],
-                                               plot_legend=rrb.PlotLegend(visible=False)), row_shares=[3, 1]),
+                                               plot_legend=rrb.PlotLegend(visible=False)), row_shares=[1.7, 2.7, 1]),
         rrb.Vertical(*now),
-        rrb.Vertical(rrb.Spatial2DView(name="Rule firing strengths", contents=[f"+ {base}/explain/firing"],
-                                       visual_bounds=rrb.VisualBounds2D(x_range=[-0.1, 1.1], y_range=[-1.1, 0.1])),
+        rrb.Vertical(rrb.Spatial2DView(name="Rule firing w",
+                                       contents=[f"+ {base}/explain/firing/**", f"+ {base}/explain/firing_axis/**"],
+                                       visual_bounds=rrb.VisualBounds2D(x_range=[-0.34, 1.12], y_range=[-1.2, 0.16])),
                      rrb.TextDocumentView(name="Why (not) flagged", contents=[f"+ {base}/explain/verdict"])),
-        column_shares=[1, 1.4, 1, 1], name=f"{model}{tag}",
+        column_shares=[1, 1.4, 1, 1], name=f"{method} {leader}{tag}",
     )
 
 
 def _anfis(runs: list[Run]) -> rrb.Container | None:
+    """One tab per ANFIS model that ran (method and leader), in the method table's order."""
     tabs = []
     for run in runs:
-        models = {str(k[0]) for k, _ in run.groups(run.review.anfis_epochs, ["model"])}
-        models |= {str(k[0]) for k, _ in run.groups(run.review.anfis_explain, ["model"])}
-        tabs += [_anfis_model(run, part(m)) for m in sorted(models)]
+        epochs = {str(k[0]): rows for k, rows in run.groups(run.review.anfis_epochs, ["model"])}
+        models = set(epochs) | {str(k[0]) for k, _ in run.groups(run.review.anfis_explain, ["model"])}
+        tabs += [_anfis_model(run, m, model_inputs(epochs.get(m))) for m in model_order(models)]
     return rrb.Tabs(*tabs, name="ANFIS") if tabs else None
 
 
 def _kmcdf(runs: list[Run]) -> rrb.Container | None:
     views = []
     for run in runs:
-        tag = f" [{run.label}]" if run.label else ""
+        tag = f" [{run.tag}]" if run.tag else ""
         with_fixes = fix_methods(run.review.kmcdf)
         for (target,), rows in run.groups(run.review.kmcdf, ["target"]):
             t = str(target)
@@ -328,6 +342,11 @@ def _kmcdf(runs: list[Run]) -> rrb.Container | None:
     return rrb.Grid(*views, name="KMCDF", grid_columns=2) if views else None
 
 
+def events_title(runs: list[Run]) -> str:
+    """The event log's title: in a comparison it says once what A and B are (each line carries only the letter)."""
+    return "Events" if len(runs) < 2 else "Events; " + ", ".join(f"{r.tag} = {r.label}" for r in runs)
+
+
 def build_blueprint(runs: list[Run], error_top: float, active_tab: int | str = 0,
                     focus: Sequence[str] | None = None) -> rrb.Blueprint:
     """The workstation layout for one run or two compared; `error_top` the error plots' y extent.
@@ -338,7 +357,7 @@ def build_blueprint(runs: list[Run], error_top: float, active_tab: int | str = 0
             _navigation(runs, focus),
             _vehicles(runs), _anfis(runs), _kmcdf(runs)]
     main = rrb.Tabs(*(t for t in tabs if t is not None), active_tab=active_tab)
-    log = rrb.TextLogView(name="Events", contents=_contents(runs, "events"),
+    log = rrb.TextLogView(name=events_title(runs), contents=_contents(runs, "events"),
                           columns=rrb.archetypes.TextLogColumns(
                               timeline_columns=[rrb.encodings.TimelineColumn("mission_s")],
                               text_log_columns=[rrb.encodings.TextLogColumn("LogLevel"),

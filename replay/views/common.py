@@ -90,9 +90,15 @@ class Run:
         return [rr.TimeColumn("time", timestamp=ns.astype("datetime64[ns]")),
                 rr.TimeColumn("mission_s", duration=np.round(t * 1e9).astype(np.int64).astype("timedelta64[ns]"))]
 
+    @property
+    def tag(self) -> str:
+        """The run's letter in a comparison: "A" for the first run (the first argument everywhere), "B" for the
+        second; "" for a run alone. Names and lines carry the letter; what differs (`label`) is said once."""
+        return "AB"[self.index] if self.label else ""
+
     def name(self, method: str) -> str:
-        """A series name: the method, tagged with the run label in a comparison."""
-        return method if self.index == 0 and self.label == "" else f"{method} [{self.label}]"
+        """A series name: the method, tagged with the run's letter in a comparison."""
+        return f"{method} [{self.tag}]" if self.tag else method
 
 
 def make_runs(reviews: list[ReviewData]) -> list[Run]:

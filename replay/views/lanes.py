@@ -64,7 +64,7 @@ WINDOW_LANE = "_scoring_window"
 
 def lane_path(run: Run, *parts: str) -> str:
     """A lane's entity path: under LANES_ROOT, the run's label last in a comparison."""
-    tail = (f"{run.index + 1} {run.label}",) if run.label else ()
+    tail = (run.tag,) if run.tag else ()
     # `part` strips a leading "_", which sorts the truth and window lanes first: keep theirs
     return "/".join([LANES_ROOT, *(p if p in (TRUTH_LANE, WINDOW_LANE) else part(p) for p in (*parts, *tail))])
 

@@ -146,7 +146,7 @@ def log_events(rec: rr.RecordingStream, run: Run) -> None:
     level = ev["level"].fillna("INFO").astype(str).str.upper() if "level" in ev else pd.Series("INFO", index=ev.index)
     text = ev["text"].astype(str)
 
-    if run.label:
-        text = f"[{run.label}] " + text
+    if run.tag:    # the letter only: what differs between A and B is said once, in the Events title
+        text = f"[{run.tag}] " + text
     rec.send_columns(run.path("events"), indexes=run.times(ev["t_s"]),
                      columns=rr.TextLog.columns(text=text.to_numpy(), level=level.to_numpy()))

@@ -5,7 +5,9 @@ Entities under a run prefix P (static TextDocuments, markdown):
   `replay.review.scoreboard` (nothing recomputed), the window stated, and the best method by
   error and by detection said in words;
 - ``P/changes`` (the second run of a comparison): what differs in the configuration, and per
-  method which run did better.
+  method which run did better;
+- ``P/differing`` (the second run of a comparison): every epoch the two runs decided differently, with its
+  truth and which run was right (`replay.review.differing`, the rule `auvreplay compare` lists them by).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from typing import Any
 
 import rerun as rr
 
+from replay.review.differing import decision_word, detection_map, differing_epochs, truth_word, who_was_right
 from replay.review.naming import run_labels
 from replay.review.scoreboard import (
     DETECTION_COLUMNS,
@@ -46,7 +49,7 @@ def scoreboard_markdown(run: Run) -> str:
     """The scoreboard of one run as a markdown document: the verdict first, then each group's table."""
     metrics = run.review.metrics
     rows = scoreboard(metrics)
-    title = f"Scoreboard{' [' + run.label + ']' if run.label else ''}"
+    title = f"Scoreboard of {run.tag} ({run.label})" if run.tag else "Scoreboard"
     lines = [f"**{title}**", ""] + [f"- {line}" for line in verdict(metrics)]
     cols = ERROR_COLUMNS + DETECTION_COLUMNS
     for group, what in GROUPS.items():
@@ -85,7 +88,9 @@ def changes_markdown(runs: list[Run]) -> str:
     """What differs between two runs' configurations, and per method which run had the lower error p50."""
     a, b = runs
     names = run_labels([a.review.parameters, b.review.parameters])
-    lines = [f"**A = {a.label or names[0]}** against **B = {b.label or names[1]}** (after t_a)", ""]
+    lines = [f"**A = {a.label or names[0]}** (run {a.review.run_id}) against **B = {b.label or names[1]}** "
+             f"(run {b.review.run_id}), after t_a. A is the first run given (`compare A B`, `view A B`, "
+             "`replay --compare A`); series, lanes and events carry the letter.", ""]
     ma, mb = a.review.metrics.get("methods", {}), b.review.metrics.get("methods", {})
     lines += ["| method | p50 A (m) | p50 B (m) | FP+FN A | FP+FN B | better |", "|---|---:|---:|---:|---:|---|"]
     for method in [m for m in ma if m in mb]:
@@ -102,6 +107,35 @@ def changes_markdown(runs: list[Run]) -> str:
     return "\n".join(lines)
 
 
+DIFFERING_ROWS = 400
+"""Rows of the table of differing epochs shown in the viewer (the rest counted; `auvreplay compare` lists all)."""
+
+
+def differing_rows(runs: list[Run]) -> tuple[dict[str, list[dict[str, Any]]], dict[str, dict[str, int]]]:
+    """The epochs runs A and B decided differently, per method, and how many each got right."""
+    a, b = runs
+    return differing_epochs(detection_map(a.review.detections), detection_map(b.review.detections))
+
+
+def differing_markdown(runs: list[Run]) -> str:
+    """The differing epochs as one markdown table in time order: time, pair, method, A, B, truth, who was right."""
+    differing, tally = differing_rows(runs)
+    if not differing:
+        return "**Epochs that differ**: none; A and B decided every epoch alike."
+    total = {k: sum(t[k] for t in tally.values()) for k in ("a", "b", "epochs")}
+    lines = [f"**Epochs that differ: {total['epochs']}**; A right on {total['a']}, B on {total['b']} "
+             "(mission seconds; right: the decision matches the truth)", ""]
+    lines += [f"- {m}: {t['epochs']} epochs, A right on {t['a']}, B on {t['b']}" for m, t in tally.items()]
+    rows = sorted(((r, m) for m, rs in differing.items() for r in rs), key=lambda x: (x[0]["mission_s"], x[1]))
+    lines += ["", "| t (s) | pair | method | A | B | truth | right |", "|---:|---|---|---|---|---|---|"]
+    lines += [f"| {r['mission_s']:.1f} | {r['follower']} <- {r['leader']} | {m} | {decision_word(r['a'])} | "
+              f"{decision_word(r['b'])} | {truth_word(r['label'])} | {who_was_right(r)} |"
+              for r, m in rows[:DIFFERING_ROWS]]
+    if len(rows) > DIFFERING_ROWS:
+        lines += ["", f"... {len(rows) - DIFFERING_ROWS} more (`auvreplay compare A B --limit N` lists them all)"]
+    return "\n".join(lines)
+
+
 def log_scores(rec: rr.RecordingStream, runs: list[Run]) -> None:
     """The scoreboard of every run, and with two runs what changed."""
     for run in runs:
@@ -109,4 +143,6 @@ def log_scores(rec: rr.RecordingStream, runs: list[Run]) -> None:
                 static=True)
     if len(runs) == 2:
         rec.log(runs[1].path("changes"), rr.TextDocument(changes_markdown(runs), media_type="text/markdown"),
+                static=True)
+        rec.log(runs[1].path("differing"), rr.TextDocument(differing_markdown(runs), media_type="text/markdown"),
                 static=True)
