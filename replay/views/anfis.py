@@ -103,6 +103,11 @@ def input_title(name: str, model_method: str = "") -> str:
     return INPUT_TITLES.get(name, name)
 
 
+def input_short(title: str) -> str:
+    """An input's title without its unit or formula: "f1", "|drift res.|"."""
+    return title.split(" ")[0] if title[:1] == "f" and title[1:2].isdigit() else title.rsplit(" (", 1)[0]
+
+
 def model_inputs(rows: pd.DataFrame | None) -> tuple[str, ...]:
     """The feature names a model reads (from its anfis_epochs params; paper A's three when not given)."""
     if rows is None or rows.empty or "params" not in rows:
@@ -194,7 +199,7 @@ def log_anfis(rec: rr.RecordingStream, run: Run) -> None:
     explain = {str(k[0]): rows for k, rows in run.groups(run.review.anfis_explain, ["model"])}
     for model, h in histories.items():
         if h is not None:
-            _log_training(rec, run, model, h, explain.get(model))
+            _log_training(rec, run, model, h, explain.get(model), model_inputs(epochs[model]))
             _log_mf_axes(rec, run, model, h, model_inputs(epochs[model]))
         rec.log(model_path(run, model, "note"), rr.TextDocument(model_note(model, epochs[model], h,
                                                                             explain.get(model)),
@@ -342,7 +347,7 @@ def surface_epochs(h: ModelHistory) -> np.ndarray:
 
 
 def _log_training(rec: rr.RecordingStream, run: Run, model: str, h: ModelHistory,
-                  explain: pd.DataFrame | None) -> None:
+                  explain: pd.DataFrame | None, names: tuple[str, ...] = PAPER_INPUTS) -> None:
     """MFs at every epoch and the surface at SURFACE_FRAMES of them on `anfis_epoch`; the kept (best) epoch
     once more on `time`, from the end of training."""
     all_epochs = np.arange(h.a.shape[0])
@@ -367,18 +372,19 @@ def _log_training(rec: rr.RecordingStream, run: Run, model: str, h: ModelHistory
     rec.log(model_path(run, model, "training", "rmse_bars"),
             rr.BarChart(np.nan_to_num(h.rmse), abscissa=h.epochs.astype(float), color=(90, 160, 255)), static=True)
     if h.a.shape[1] >= 2:
-        _log_surface_frame(rec, run, model, h, frame, explain)
+        _log_surface_frame(rec, run, model, h, frame, explain, names)
 
 
 def _log_surface_frame(rec: rr.RecordingStream, run: Run, model: str, h: ModelHistory, frame: SurfaceFrame,
-                       explain: pd.DataFrame | None) -> None:
+                       explain: pd.DataFrame | None, names: tuple[str, ...] = PAPER_INPUTS) -> None:
     """Axes labelled in the inputs' own units and range, and T2 as a translucent plane."""
     lo, hi = h.input_min, h.input_max
     real = lo[:2, None] + frame.grid * (hi[:2, None] - lo[:2, None])          # grid values in the inputs' units
     mid = SURFACE_GRID // 2
-    labels = [f"f1 by rank: median {real[0, mid]:.3g} m, 99 % {real[0, -1]:.3g} m",
-              f"f2 by rank: median {real[1, mid]:.3g}, 99 % {real[1, -1]:.3g}",
-              f"output (m), top {frame.z_top:.3g}"]
+    titles = [input_title(n, model_parts(model)[0]) for n in names]
+    span = hi[:2] - lo[:2]
+    labels = [f"{titles[d]} by rank: median {tick(real[d, mid], span[d])}, 99 % {tick(real[d, -1], span[d])}"
+              for d in range(2)] + [f"output (m), top {frame.z_top:.3g}"]
     axes = [np.array([[0, 0, 0], [1, 0, 0]]), np.array([[0, 0, 0], [0, 1, 0]]), np.array([[0, 0, 0], [0, 0, 1]])]
     rec.log(model_path(run, model, "training", "axes"),
             rr.LineStrips3D(axes, labels=labels, colors=[(128, 128, 128)]), static=True)
@@ -474,7 +480,8 @@ def _log_explain(rec: rr.RecordingStream, run: Run, model: str, rows: pd.DataFra
     _log_firing(rec, run, model, w, times)
     _log_firing_axis(rec, run, model, w.shape[1])
     rules = h.rules if h is not None and h.rules.shape[0] == w.shape[1] else None
-    rule_words = _rule_names(rules, m, names) if rules is not None else [f"rule {r + 1}" for r in range(w.shape[1])]
+    short = tuple(input_short(input_title(nm, model_parts(model)[0])) for nm in names)
+    rule_words = _rule_names(rules, m, short) if rules is not None else [f"rule {r + 1}" for r in range(w.shape[1])]
     real = None
     if h is not None and h.input_min.size == d:
         real = h.input_min + x * (h.input_max - h.input_min)

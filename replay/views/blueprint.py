@@ -37,7 +37,7 @@ from rerun.encodings import EntityPathLike
 
 from replay.review.data import ReviewData
 from replay.stack.methods import anfis_family
-from replay.views.anfis import input_title, model_inputs, model_order, model_parts, model_path
+from replay.views.anfis import input_short, input_title, model_inputs, model_order, model_parts, model_path
 from replay.views.cdf import HEIGHT, WIDTH
 from replay.views.common import Run, floats
 from replay.views.features import (
@@ -282,11 +282,11 @@ def _anfis_model(run: Run, model: str, inputs: tuple[str, ...]) -> rrb.Container
     # titles short enough for a quarter of 1400 px: the learned MFs by the input's name, the cursor's by "now"
     mf = [rrb.Spatial2DView(name=n, contents=[f"+ {base}/training/mf/in{i}/**"],
                             visual_bounds=mf_bounds) for i, n in enumerate(names, start=1)]
-    now = [rrb.Spatial2DView(name=f"{n.split(' ')[0]} now", contents=[f"+ {base}/explain/mf/in{i}/**",
+    now = [rrb.Spatial2DView(name=f"{input_short(n)} now", contents=[f"+ {base}/explain/mf/in{i}/**",
                                                                       f"+ {base}/training/mf/in{i}/axis/**"],
                              visual_bounds=mf_bounds) for i, n in enumerate(names, start=1)]
-    third = f"{names[2].split(' ')[0]} at median" if len(names) > 2 else "2 inputs"
-    surface = rrb.Spatial3DView(name=f"{method} {leader}: output surface ({third})",
+    third = f"{input_short(names[2])} at median" if len(names) > 2 else "2 inputs"
+    surface = rrb.Spatial3DView(name=f"Output surface, {third}",
                                 eye_controls=rrb.EyeControls3D(kind="Orbital", position=(2.5, -1.7, 1.8),
                                                                look_target=(0.45, 0.45, 0.3), eye_up=(0, 0, 1)),
                                 contents=[f"+ {base}/training/surface", f"+ {base}/training/axes",
@@ -294,7 +294,7 @@ def _anfis_model(run: Run, model: str, inputs: tuple[str, ...]) -> rrb.Container
                                           f"+ {base}/training/epoch"])
     return rrb.Horizontal(
         rrb.Vertical(*mf),
-        rrb.Vertical(rrb.TextDocumentView(name=f"{method} on {leader}: the model", contents=[f"+ {base}/note"]),
+        rrb.Vertical(rrb.TextDocumentView(name=f"{method} {leader}", contents=[f"+ {base}/note"]),
                      surface, rrb.BarChartView(name="Training RMSE (m) per epoch",
                                                contents=[f"+ {base}/training/rmse_bars"],
                                                plot_legend=rrb.PlotLegend(visible=False)), row_shares=[1.7, 2.7, 1]),
