@@ -202,7 +202,7 @@ def test_error_cdf_grows_with_readable_percentiles(rrd: Rrd, review: ReviewData)
 
 def test_anfis_training_and_explanations(rrd: Rrd, review: ReviewData) -> None:
     for leader in LEADERS:
-        base = f"/run-a/anfis/anfis_{leader}"
+        base = f"/run-a/anfis/anfis/{leader}"         # one root per model: method, then leader
         for d in (1, 2, 3):
             mf = rrd.cells(f"{base}/training/mf/in{d}", "LineStrips2D:strips")
             assert len(mf) == ANFIS_EPOCHS + 1                    # every epoch, and the kept one on `time`
@@ -243,7 +243,7 @@ def test_blueprint_saved_with_every_view(rrd: Rrd) -> None:
     names = rrd.view_names
     for expected in ("Local east/north (m), range circles", "Events",
                      "leader1: range measured / true (m)", "leader1: ANFIS vs T2 (m)", "Colours",
-                     "Rule firing strengths", "Why (not) flagged", "Output surface (f3 at median)", "Scoreboard",
+                     "Rule firing w", "Why (not) flagged", "Output surface, f3 at median", "Scoreboard",
                      "Colour key", "Training RMSE (m) per epoch"):
         assert expected in names
     assert any(n.startswith("Error CDF of follower") for n in names)
@@ -265,9 +265,11 @@ def test_two_runs_compared_in_one_recording(review: ReviewData, tmp_path: Path) 
     assert out.rows("/run-a_1/map/follower/ckf/position") == (other.tracks.source == "ckf").sum()
     context = out.static["/run-a_1"][0].column("AnnotationContext:context").to_pylist()[0][0]
     labels = {c["class_description"]["info"]["label"]: c["class_id"] for c in context}
-    assert labels["ckf [run-a_1]"] == 4 and labels["gps [run-a_1]"] == 1
-    assert any(n.endswith("[run-a_1]") for n in out.view_names)
-    assert any(t.startswith("[run-a_1] ") for t in (x[0] for x in out.cells("/run-a_1/events", "TextLog:text")))
+    # the second run is B: its names and lines carry the letter; what it is (here its prefix) is said once
+    assert labels["ckf [B]"] == 4 and labels["gps [B]"] == 1
+    assert any(n.endswith("[B]") for n in out.view_names)
+    assert "Events; A = run-a, B = run-a_1" in out.view_names
+    assert all(t.startswith("[B] ") for t in (x[0] for x in out.cells("/run-a_1/events", "TextLog:text")))
 
 
 def test_kmcdf_rows_without_fixes_keep_the_final_fix(review: ReviewData, tmp_path: Path) -> None:
@@ -372,16 +374,21 @@ def test_comparison_names_runs_by_what_differs_and_says_what_changed(review: Rev
     info = {c["class_description"]["info"]["label"]: c["class_description"]["info"]["color"] for c in context}
     first = out.static["/run-a"][0].column("AnnotationContext:context").to_pylist()[0][0]
     info_a = {c["class_description"]["info"]["label"]: c["class_description"]["info"]["color"] for c in first}
-    assert "ckf [r_m=2.5]" in info and "ckf [r_m=2]" in info_a and info["ckf [r_m=2.5]"] != info_a["ckf [r_m=2]"]
+    assert "ckf [B]" in info and "ckf [A]" in info_a and info["ckf [B]"] != info_a["ckf [A]"]
     assert not any("] " in n and n.count("[") > 1 for n in out.view_names)          # no doubled tags
     changes = out.static["/run-b/changes"][0].column("TextDocument:text").to_pylist()[0][0]
-    assert "**A = r_m=2** against **B = r_m=2.5**" in changes
-    assert sum(n.startswith("Scoreboard") for n in out.view_names) == 2
+    assert "**A = r_m=2** (run run-a) against **B = r_m=2.5** (run run-b)" in changes
+    # the setting that differs is said once, in the event log's title; each line carries only the letter
+    assert "Events; A = r_m=2, B = r_m=2.5" in out.view_names
+    lines = [x[0] for run in ("run-a", "run-b") for x in out.cells(f"/{run}/events", "TextLog:text")]
+    assert lines and all(t[:4] in ("[A] ", "[B] ") and "r_m=" not in t for t in lines)
+    assert {n for n in out.view_names if n.startswith("Scoreboard")} == {"Scoreboard of A", "Scoreboard of B"}
+    assert "Epochs that differ" in out.view_names and "What changed: A vs B" in out.view_names
     assert sum(n.startswith("Detection lanes") for n in out.view_names) == 1     # both runs in one view
     # a detector's lanes of both runs are neighbours: one root, the run last
-    assert out.rows("/lanes/leader1/chi_square/1_r_m_2") == (
+    assert out.rows("/lanes/leader1/chi_square/A") == (
         (a.detections.leader == "leader1") & (a.detections.method == "chi_square")).sum()
-    assert out.rows("/lanes/leader1/chi_square/2_r_m_2.5") == (
+    assert out.rows("/lanes/leader1/chi_square/B") == (
         (b.detections.leader == "leader1") & (b.detections.method == "chi_square")).sum()
 
 

@@ -3,7 +3,8 @@
 `build_recording` turns `ReviewData` into a Rerun recording with the columnar API
 (`send_columns`: one call per entity and series, no Python loop per sample);
 `save_rrd` writes it atomically with the blueprint inside; `open_viewer` opens a
-file in Rerun's native viewer, or in the web viewer bound to 127.0.0.1 only.
+file in Rerun's native viewer, or in the web viewer bound to 127.0.0.1 only, the file served to it
+over HTTP on 127.0.0.1 (`replay.views.web`: the page shows its loading progress at once).
 
 Timelines: every mission row is on both `time` (UTC timestamps, trial_start_ns + t_s) and
 `mission_s` (seconds from the trial start, the one time base of the events, `compare` and
@@ -40,8 +41,7 @@ from replay.views.scores import log_scores
 from replay.views.series import error_ceiling, log_detections, log_errors, log_ranges
 from replay.views.tracks import log_colour_key, log_range_circles, log_tracks
 from replay.views.vehicle import log_vehicles
-
-WEB_BIND = "127.0.0.1"
+from replay.views.web import WEB_BIND, free_port, serve_file, viewer_url, web_viewer_command
 
 
 def recording_id(reviews: list[ReviewData]) -> str:
@@ -141,7 +141,8 @@ def rerun_executable() -> str:
 
 
 def viewer_command(path: str | os.PathLike[str], web: bool = False) -> list[str]:
-    """The command that opens an .rrd or .mcap file: native viewer, or web viewer on 127.0.0.1 only."""
+    """The command that opens an .rrd or .mcap file: native viewer, or web viewer on 127.0.0.1 only (streamed
+    through Rerun's gRPC proxy; `open_viewer` serves the file by URL instead)."""
     cmd = [rerun_executable(), str(path)]
     if web:
         cmd += ["--web-viewer", "--bind", WEB_BIND]
@@ -149,7 +150,15 @@ def viewer_command(path: str | os.PathLike[str], web: bool = False) -> list[str]
 
 
 def open_viewer(path: str | os.PathLike[str], web: bool = False) -> int:
-    """Open a file in Rerun and wait for the viewer (or the web server) to exit; its exit code."""
+    """Open a file in Rerun and wait for the viewer (or the web server) to exit; its exit code.
+
+    The web viewer gets the file by URL from a server of our own on 127.0.0.1 (`replay.views.web`).
+    """
     if not Path(path).exists():
         raise FileNotFoundError(f"{path}: no such file")
-    return subprocess.run(viewer_command(path, web), check=False).returncode
+    if not web:
+        return subprocess.run(viewer_command(path), check=False).returncode
+    port = free_port()
+    with serve_file(path, port) as served:
+        print(f"serving {path} on {WEB_BIND} to the web viewer: {viewer_url(served.url, port)}", flush=True)
+        return subprocess.run(web_viewer_command(rerun_executable(), served.url, port), check=False).returncode
