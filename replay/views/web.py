@@ -10,6 +10,7 @@ origin (CORS), and hands its URL to `rerun --web-viewer --bind 127.0.0.1`.
 
 from __future__ import annotations
 
+import os
 import secrets
 import socket
 import threading
@@ -76,7 +77,7 @@ def _handler(path: Path, route: str, origin: str) -> type[BaseHTTPRequestHandler
 
 
 @contextmanager
-def serve_file(path: str | Path, viewer_port: int, host: str = WEB_BIND) -> Iterator[Served]:
+def serve_file(path: str | os.PathLike[str], viewer_port: int, host: str = WEB_BIND) -> Iterator[Served]:
     """Serve one file over HTTP on `host` (a free port) while the block runs; readable by the web viewer on
     `viewer_port` only."""
     file = Path(path).resolve()
