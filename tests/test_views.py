@@ -379,7 +379,7 @@ def test_comparison_names_runs_by_what_differs_and_says_what_changed(review: Rev
     changes = out.static["/run-b/changes"][0].column("TextDocument:text").to_pylist()[0][0]
     assert "**A = r_m=2** (run run-a) against **B = r_m=2.5** (run run-b)" in changes
     # the setting that differs is said once, in the event log's title; each line carries only the letter
-    assert "Events; A = r_m=2, B = r_m=2.5" in out.view_names
+    assert "Events; r_m: A 2, B 2.5" in out.view_names
     lines = [x[0] for run in ("run-a", "run-b") for x in out.cells(f"/{run}/events", "TextLog:text")]
     assert lines and all(t[:4] in ("[A] ", "[B] ") and "r_m=" not in t for t in lines)
     assert {n for n in out.view_names if n.startswith("Scoreboard")} == {"Scoreboard of A", "Scoreboard of B"}

@@ -136,7 +136,7 @@ def test_a_is_the_first_argument_everywhere(pair, tmp_path, capsys, monkeypatch)
     assert main(["view", str(a), str(b), "--save", str(tmp_path / "v.rrd")]) == 0
     view = Rrd(tmp_path / "v.rrd")
     assert _changes(view).startswith(head)
-    assert "Events; A = chi_square_alpha=0.01, B = chi_square_alpha=0.2" in view.view_names
+    assert "Events; chi_square_alpha: A 0.01, B 0.2" in view.view_names
     assert view.static[f"/{b_id}/differing"] and f"/{a_id}/events" in view.temporal
     lines = [t[0] for t in view.cells(f"/{a_id}/events", "TextLog:text")]
     assert lines and all(t.startswith("[A] ") and "chi_square_alpha" not in t for t in lines)

@@ -181,9 +181,10 @@ def _scoreboard(runs: list[Run], error_top: float, focus: Sequence[str] | None) 
                                       contents=[f"+ {r.path('cdf', f)}/**" for r in runs]
                                       + [f"- {r.path('cdf', f, 'table')}" for r in runs], visual_bounds=bounds,
                                       overrides=hide(runs, focus, "cdf")))
-        cdfs.append(rrb.Horizontal(*(rrb.TextDocumentView(
-            name=f"Percentiles from t_a to the cursor{' [' + r.tag + ']' if r.tag else ''}",
-            contents=[f"+ {r.path('cdf', f, 'table')}"]) for r in runs)))
+        # two runs: their tables as tabs, each the column's width (side by side, neither title nor table fits)
+        tables = [rrb.TextDocumentView(name=f"Percentiles from t_a to the cursor{' of ' + r.tag if r.tag else ''}",
+                                       contents=[f"+ {r.path('cdf', f, 'table')}"]) for r in runs]
+        cdfs.append(tables[0] if len(tables) == 1 else rrb.Tabs(*tables))
     note = focus_note(runs, focus)
     errors = _series("Error vs GPS (m), whole mission; grey line: t_a" + (f"; {note}" if note else ""),
                      _contents(runs, "series", "error") + _contents(runs, "series", "marks"), error_top,
@@ -342,9 +343,23 @@ def _kmcdf(runs: list[Run]) -> rrb.Container | None:
     return rrb.Grid(*views, name="KMCDF", grid_columns=2) if views else None
 
 
+EVENTS_TITLE_MAX = 44
+"""Characters of the event log's title that fit its panel at 1400 px (a longer one is cut off)."""
+
+
 def events_title(runs: list[Run]) -> str:
-    """The event log's title: in a comparison it says once what A and B are (each line carries only the letter)."""
-    return "Events" if len(runs) < 2 else "Events; " + ", ".join(f"{r.tag} = {r.label}" for r in runs)
+    """The event log's title: in a comparison it says once what A and B are (each line carries only the letter):
+    "Events; chi_square_alpha: A 0.01, B 0.05", or "Events of A and B (What changed says which)" if that is too long."""
+    if len(runs) < 2:
+        return "Events"
+    pairs = [[part.split("=", 1) for part in r.label.split(", ")] for r in runs]
+    keys = [[p[0] for p in ps] for ps in pairs]
+    if all(len(p) == 2 for ps in pairs for p in ps) and keys[0] == keys[1]:
+        title = f"Events; {', '.join(keys[0])}: " + ", ".join(
+            f"{r.tag} {'/'.join(p[1] for p in ps)}" for r, ps in zip(runs, pairs, strict=True))
+    else:
+        title = "Events; " + ", ".join(f"{r.tag} = {r.label}" for r in runs)
+    return title if len(title) <= EVENTS_TITLE_MAX else "Events of A and B (What changed says which)"
 
 
 def build_blueprint(runs: list[Run], error_top: float, active_tab: int | str = 0,
