@@ -243,7 +243,7 @@ def test_blueprint_saved_with_every_view(rrd: Rrd) -> None:
     names = rrd.view_names
     for expected in ("Local east/north (m), range circles", "Events",
                      "leader1: range measured / true (m)", "leader1: ANFIS vs T2 (m)", "Colours",
-                     "Rule firing w", "Why (not) flagged", "Output surface, f3 at median", "Scoreboard",
+                     "Rule firing w", "Verdict", "Output surface, f3 at median", "Scoreboard",
                      "Colour key", "Training RMSE (m) per epoch"):
         assert expected in names
     assert any(n.startswith("Error CDF of follower") for n in names)

@@ -6,16 +6,18 @@ anfis, anfis_aqpso, anfis_compensation, anfis_hybrid) that ran, per leader. A mo
 Entities under ``P/anfis/<method>/<leader>`` (P the run prefix):
 - static: ``note`` (a TextDocument: method, leader, inputs, MFs per input, rules, training, threshold)
   and ``training/mf/in<d>/axis`` (tick marks labelled with the input's real values, and the grade);
-- on the `anfis_epoch` sequence timeline: ``training/mf/in<d>`` (LineStrips2D, one
-  strip per MF, x = normalized input, y = -grade), ``training/rmse`` (Scalars),
-  ``training/surface`` (Mesh3D over inputs 1 and 2 with input 3 at its median, over the
+- on the `anfis_epoch` sequence timeline, at TRAINING_FRAMES epochs and the kept one:
+  ``training/mf/in<d>`` (LineStrips2D, one strip per MF, x = normalized input, y = -grade) and
+  ``training/surface`` (Mesh3D over inputs 1 and 2 with the others at their median, over the
   range the explained epochs occupy, z = output / the frame's top, clipped; triangles static);
+  at every epoch ``training/rmse`` (Scalars);
 - static: ``training/axes`` (labelled with each input's range in its own units),
   ``training/T2`` (a translucent plane at the threshold) and ``training/rmse_bars``
   (RMSE per training epoch as a bar chart, readable on any timeline);
 - on `time` / `mission_s`, from the end of training: the kept model's MFs and surface again,
   ``training/epoch`` (this epoch's inputs and output on the surface, red when above T2),
-  ``explain/mf/in<d>/grade`` (the epoch's input on each MF, labelled with its grade) over the
+  ``explain/mf/in<d>/grade`` (the epoch's input on each MF) with ``explain/mf/in<d>/readout`` (the
+  grades, one line per MF at the top of the plot) over the
   static final curves ``explain/mf/in<d>/curves``, ``explain/firing`` (one bar per rule,
   y = -w, the strongest labelled with its weight, over the static ``explain/firing_axis``: rule
   numbers and the w scale), and ``explain/verdict`` (a TextDocument saying why it was or was not flagged).
@@ -50,7 +52,7 @@ INPUT_TITLES = {"f1": "f1 |r| (m)", "f2": "f2 r'P^-1 r", "f3": "f3 R* (m^2)", "r
                 "drift_residual_m": "|drift res.| (m)", "drift_cusum_m": "drift CUSUM (m)",
                 "exclusion_residual_m": "|excl. res.| (m)", "drift_z": "|drift_z| (sd)",
                 "exclusion_z": "|excl_z| (sd)"}
-TRAINERS = {"hybrid": "hybrid learning (least squares + gradient descent)", "aqpso_ga": "AQPSO-GA"}
+TRAINERS = {"hybrid": "hybrid learning (LSE + gradient)", "aqpso_ga": "AQPSO-GA"}
 MF_TICKS = np.linspace(0.0, 1.0, 5)
 MF_POINTS = 101
 SURFACE_GRID = 21
@@ -217,24 +219,23 @@ def model_note(model: str, rows: pd.DataFrame, h: ModelHistory | None, explain: 
     lines = [f"**{method}** on **{leader}**" + (f": {entry.label}" if entry else "")]
     if h is None:
         return "\n\n".join([*lines, "(its parameters could not be read)"])
-    d, m, r = h.a.shape[1], h.a.shape[2], h.rules.shape[0]
+    m, r = h.a.shape[2], h.rules.shape[0]
     names = model_inputs(rows)
     ranges = "; ".join(f"{input_title(n, method)} {tick(lo, hi - lo)} to {tick(hi, hi - lo)}"
                        for n, lo, hi in zip(names, h.input_min, h.input_max, strict=False))
     trainer = str(params.get("trainer", "hybrid"))
     steps = "iterations" if trainer == "aqpso_ga" else "epochs"
-    target = "signed range error (compensation)" if params.get("compensation") else "|range error|"
+    target = "the signed range error" if params.get("compensation") else "|range error|"
     samples = params.get("training_samples")
-    lines += [f"- {d} inputs over the training data's range: {ranges}",
-              f"- {m} bell MFs per input, {r} rules ({params.get('rule_structure', 'grid')}), linear consequents",
-              f"- trained by {TRAINERS.get(trainer, trainer)} on {target}"
-              + (f", {samples} epochs of data" if samples else "")
-              + f"; {h.epochs.size} {steps}, kept {steps[:-1]} {int(h.epochs[h.best])} "
-              f"(RMSE {h.rmse[h.best]:.3g} m)"]
+    kept = f"kept {steps[:-1]} {int(h.epochs[h.best])} of {h.epochs.size}, RMSE {h.rmse[h.best]:.3g} m"
+    lines += [f"- inputs (training range): {ranges}",
+              f"- {m} bell MFs each, {r} rules ({params.get('rule_structure', 'grid')}), linear consequents",
+              f"- {TRAINERS.get(trainer, trainer)} on {target}" + (f", {samples} epochs" if samples else "")
+              + f"; {kept}"]
     thr = floats(explain, "threshold") if explain is not None else np.zeros(0)
     thr = thr[np.isfinite(thr)]
     if thr.size:
-        lines.append(f"- flags an epoch when its output exceeds T2 = {thr[0]:.3g} m")
+        lines.append(f"- flags an epoch whose output exceeds T2 = {thr[0]:.3g} m")
     return "\n".join(lines)
 
 
@@ -253,22 +254,21 @@ def axis_labels(lo: float, hi: float) -> list[str]:
 
 
 def _log_mf_axes(rec: rr.RecordingStream, run: Run, model: str, h: ModelHistory, names: tuple[str, ...]) -> None:
-    """Under each MF plot: tick marks at MF_TICKS labelled with the input's real values, and the grade scale."""
+    """Under each MF plot: tick marks at MF_TICKS labelled with the input's real values (``axis/values``: the
+    first MF_TICKS labels), and the grade scale beside it (the last three)."""
     d = h.a.shape[1]
     grey = (150, 150, 150)
+    lines = [np.array([[0.0, 0.0], [1.0, 0.0]])] + [np.array([[x, 0.0], [x, 0.04]]) for x in MF_TICKS] \
+        + [np.array([[0.0, -g], [-0.03, -g]]) for g in (0.0, 0.5, 1.0)]
+    spots = np.vstack([np.column_stack([MF_TICKS, np.full(MF_TICKS.size, 0.07)]), [[-0.06, 0.0], [-0.06, -0.5],
+                                                                                  [-0.06, -1.0]]])
     for i in range(d):
         lo = float(h.input_min[i]) if i < h.input_min.size else 0.0
         hi = float(h.input_max[i]) if i < h.input_max.size else 1.0
-        ticks = [np.array([[x, 0.0], [x, 0.04]]) for x in MF_TICKS]
-        grade = [np.array([[0.0, -g], [-0.03, -g]]) for g in (0.0, 0.5, 1.0)]
-        rec.log(model_path(run, model, "training", "mf", f"in{i + 1}", "axis"),
-                rr.LineStrips2D([np.array([[0.0, 0.0], [1.0, 0.0]]), *ticks, *grade], colors=[grey]), static=True)
-        rec.log(model_path(run, model, "training", "mf", f"in{i + 1}", "axis", "values"),
-                rr.Points2D(np.column_stack([MF_TICKS, np.full(MF_TICKS.size, 0.07)]), labels=axis_labels(lo, hi),
-                            colors=[grey], radii=rr.Radius.ui_points(0.5)), static=True)
-        rec.log(model_path(run, model, "training", "mf", f"in{i + 1}", "axis", "grade"),
-                rr.Points2D([[-0.06, 0.0], [-0.06, -0.5], [-0.06, -1.0]], labels=["0", "0.5", "1"],
-                            colors=[grey], radii=rr.Radius.ui_points(0.5)), static=True)
+        base = model_path(run, model, "training", "mf", f"in{i + 1}", "axis")
+        rec.log(base, rr.LineStrips2D(lines, colors=[grey]), static=True)
+        rec.log(base + "/values", rr.Points2D(spots, labels=[*axis_labels(lo, hi), "0", "0.5", "1"], colors=[grey],
+                                              radii=rr.Radius.ui_points(0.5)), static=True)
 
 
 def _third_input(rows: pd.DataFrame | None) -> float:
@@ -335,34 +335,32 @@ def surface_frame(grid: np.ndarray, explain: pd.DataFrame | None, thr: float) ->
     return SurfaceFrame(grid, top if top > 0 else 1.0, thr)
 
 
-SURFACE_FRAMES = 21
-"""The output surface is drawn at this many training epochs, evenly spread, and at the kept one: a mesh per
-epoch of every model would cost more than every other view of the recording."""
+TRAINING_FRAMES = 21
+"""The MFs and the output surface are drawn at this many training epochs, evenly spread, and at the kept one:
+every epoch of all eight models of a replay would cost more than every other view of the recording."""
 
 
-def surface_epochs(h: ModelHistory) -> np.ndarray:
-    """Indices of the epochs whose surface is drawn: SURFACE_FRAMES evenly from first to last, and the kept one."""
+def training_frames(h: ModelHistory) -> np.ndarray:
+    """Indices of the epochs drawn on `anfis_epoch`: TRAINING_FRAMES evenly from first to last, and the kept one."""
     e = h.a.shape[0]
-    return np.union1d(np.round(np.linspace(0, e - 1, min(SURFACE_FRAMES, e))).astype(np.intp), [h.best])
+    return np.union1d(np.round(np.linspace(0, e - 1, min(TRAINING_FRAMES, e))).astype(np.intp), [h.best])
 
 
 def _log_training(rec: rr.RecordingStream, run: Run, model: str, h: ModelHistory,
                   explain: pd.DataFrame | None, names: tuple[str, ...] = PAPER_INPUTS) -> None:
-    """MFs at every epoch and the surface at SURFACE_FRAMES of them on `anfis_epoch`; the kept (best) epoch
-    once more on `time`, from the end of training."""
-    all_epochs = np.arange(h.a.shape[0])
-    shown = surface_epochs(h)
+    """MFs and surface at TRAINING_FRAMES epochs on `anfis_epoch` (the RMSE at every epoch); the kept (best)
+    epoch once more on `time`, from the end of training."""
+    shown = training_frames(h)
     grid = data_grid(explain)
     x, out = surface(h, _third_input(explain), grid, shown)
     thr = float(floats(explain, "threshold")[0]) if explain is not None and not explain.empty else float("nan")
     frame = surface_frame(grid, explain, thr)
     best = int(np.searchsorted(shown, h.best))
-    for sel, rows, index in ((all_epochs, np.arange(shown.size), [rr.TimeColumn("anfis_epoch", sequence=h.epochs)]),
+    for sel, rows, index in ((shown, np.arange(shown.size), [rr.TimeColumn("anfis_epoch", sequence=h.epochs[shown])]),
                              (np.array([h.best]), np.array([best]), run.times(np.array([_training_end(explain)])))):
         _log_mfs(rec, run, model, h, sel, index)
         if h.a.shape[1] >= 2:
-            surface_index = index if sel.size == 1 else [rr.TimeColumn("anfis_epoch", sequence=h.epochs[shown])]
-            _log_surface(rec, run, model, x, out[rows], frame, surface_index)
+            _log_surface(rec, run, model, x, out[rows], frame, index)
     rec.log(model_path(run, model, "training", "rmse"), rr.SeriesLines(names=run.name(f"{model} RMSE")),
             static=True)
     rec.send_columns(model_path(run, model, "training", "rmse"), indexes=[rr.TimeColumn("anfis_epoch",
@@ -394,7 +392,8 @@ def _log_surface_frame(rec: rr.RecordingStream, run: Run, model: str, h: ModelHi
                 rr.Mesh3D(vertex_positions=[[0, 0, z], [0.99, 0, z], [0.99, 0.99, z], [0, 0.99, z]],
                           triangle_indices=[[0, 1, 2], [0, 2, 3]], albedo_factor=(235, 70, 50, 70)), static=True)
         rec.log(model_path(run, model, "training", "T2_label"),
-                rr.Points3D([[0.99, 0.99, z]], labels=[f"T2 = {frame.threshold:.2f} m"], colors=[(235, 70, 50)],
+                # on the corner nearest the camera: the far one sits behind the axes' labels
+                rr.Points3D([[0.99, 0.0, z]], labels=[f"T2 = {frame.threshold:.2f} m"], colors=[(235, 70, 50)],
                             radii=rr.Radius.ui_points(3.0)), static=True)
     if explain is not None and not explain.empty:
         try:
@@ -526,11 +525,9 @@ def _log_firing_axis(rec: rr.RecordingStream, run: Run, model: str, r: int) -> N
     rec.log(base, rr.LineStrips2D([np.array([[-0.05, 0.0], [1.05, 0.0]])]
                                   + [np.array([[-0.12, -g], [1.05, -g]]) for g in (0.5, 1.0)],
                                   colors=[grey, (70, 70, 70), (70, 70, 70)]), static=True)
-    rec.log(base + "/rules", rr.Points2D(np.column_stack([xs[::step], np.full(xs[::step].size, 0.06)]),
-                                         labels=[f"R{k + 1}" for k in range(0, r, step)], colors=[grey],
-                                         radii=rr.Radius.ui_points(0.5)), static=True)
-    rec.log(base + "/w", rr.Points2D([[-0.24, -0.5], [-0.24, -1.0]], labels=["0.5", "1"], colors=[grey],
-                                     radii=rr.Radius.ui_points(0.5)), static=True)
+    spots = np.vstack([np.column_stack([xs[::step], np.full(xs[::step].size, 0.06)]), [[-0.24, -0.5], [-0.24, -1.0]]])
+    rec.log(base + "/labels", rr.Points2D(spots, labels=[f"R{k + 1}" for k in range(0, r, step)] + ["0.5", "1"],
+                                          colors=[grey], radii=rr.Radius.ui_points(0.5)), static=True)
 
 
 def verdicts(rows: pd.DataFrame, w: np.ndarray, rule_names: list[str], real: np.ndarray | None = None,

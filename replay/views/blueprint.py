@@ -36,7 +36,7 @@ from rerun.blueprint.api import VisualizerLike
 from rerun.encodings import EntityPathLike
 
 from replay.review.data import ReviewData
-from replay.stack.methods import anfis_family
+from replay.stack.methods import METHOD_TABLE, anfis_family
 from replay.views.anfis import input_short, input_title, model_inputs, model_order, model_parts, model_path
 from replay.views.cdf import HEIGHT, WIDTH
 from replay.views.common import Run, floats
@@ -273,6 +273,12 @@ def anfis_top(runs: list[Run]) -> float | None:
     return float(4.0 * v.max()) if v.size else None
 
 
+def short_name(method: str) -> str:
+    """A method's short name from the method table (the name itself for a method it does not know)."""
+    entry = METHOD_TABLE.get(method)
+    return entry.short if entry is not None else method
+
+
 def _anfis_model(run: Run, model: str, inputs: tuple[str, ...]) -> rrb.Container:
     """One ANFIS model's tab, titled with its method and leader: note, MFs (x in the input's units), surface, why."""
     method, leader = model_parts(model)
@@ -303,8 +309,9 @@ def _anfis_model(run: Run, model: str, inputs: tuple[str, ...]) -> rrb.Container
         rrb.Vertical(rrb.Spatial2DView(name="Rule firing w",
                                        contents=[f"+ {base}/explain/firing/**", f"+ {base}/explain/firing_axis/**"],
                                        visual_bounds=rrb.VisualBounds2D(x_range=[-0.34, 1.12], y_range=[-1.2, 0.16])),
-                     rrb.TextDocumentView(name="Why (not) flagged", contents=[f"+ {base}/explain/verdict"])),
-        column_shares=[1, 1.4, 1, 1], name=f"{method} {leader}{tag}",
+                     rrb.TextDocumentView(name="Verdict", contents=[f"+ {base}/explain/verdict"])),
+        # the tab by the method's short name (eight models' tabs fit 1400 px); the note inside names it in full
+        column_shares=[1, 1.4, 1, 1], name=f"{short_name(method)} {leader}{tag}",
     )
 
 
