@@ -217,7 +217,12 @@ def test_anfis_training_and_explanations(rrd: Rrd, review: ReviewData) -> None:
         heights = np.array([[-bar[1][1] for bar in f] for f in firing])
         np.testing.assert_allclose(heights, np.stack(ex.firing.to_numpy()), rtol=1e-6)
         grades = rrd.cells(f"{base}/explain/mf/in1/grade", "Points2D:positions")
-        np.testing.assert_allclose([[-p[1] for p in g] for g in grades], [m[0] for m in ex.memberships], rtol=1e-6)
+        # the markers first (at the input, y = -grade), then as many grade labels at the top of the plot
+        np.testing.assert_allclose([[-p[1] for p in g[: len(g) // 2]] for g in grades], [m[0] for m in ex.memberships],
+                                   rtol=1e-6)
+        labels = rrd.cells(f"{base}/explain/mf/in1/grade", "Points2D:labels")
+        assert [lab[2:] for lab in labels] == [[f"MF{j + 1} {v:.2f}" for j, v in enumerate(m[0])]
+                                               for m in ex.memberships]
         verdicts = [t[0] for t in rrd.cells(f"{base}/explain/verdict", "TextDocument:text")]
         assert len(verdicts) == len(ex)
         for text, flagged in zip(verdicts, ex.flagged, strict=True):

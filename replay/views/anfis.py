@@ -16,8 +16,8 @@ Entities under ``P/anfis/<method>/<leader>`` (P the run prefix):
   (RMSE per training epoch as a bar chart, readable on any timeline);
 - on `time` / `mission_s`, from the end of training: the kept model's MFs and surface again,
   ``training/epoch`` (this epoch's inputs and output on the surface, red when above T2),
-  ``explain/mf/in<d>/grade`` (the epoch's input on each MF) with ``explain/mf/in<d>/readout`` (the
-  grades, one line per MF at the top of the plot) over the
+  ``explain/mf/in<d>/grade`` (the epoch's input on each MF, then its grades read out one line per MF
+  at the top of the plot) over the
   static final curves ``explain/mf/in<d>/curves``, ``explain/firing`` (one bar per rule,
   y = -w, the strongest labelled with its weight, over the static ``explain/firing_axis``: rule
   numbers and the w scale), and ``explain/verdict`` (a TextDocument saying why it was or was not flagged).
@@ -450,10 +450,12 @@ READOUT_STEP = 0.16
 def _log_explain(rec: rr.RecordingStream, run: Run, model: str, rows: pd.DataFrame,
                  h: ModelHistory | None, names: tuple[str, ...] = PAPER_INPUTS) -> None:
     try:
-        x = np.stack([np.asarray(v, dtype=float) for v in rows["inputs"]])          # (n, D)
-        mu = np.stack([np.asarray(v, dtype=float) for v in rows["memberships"]])    # (n, D, M)
-        w = np.stack([np.asarray(v, dtype=float) for v in rows["firing"]])          # (n, R)
+        x = np.array(rows["inputs"].tolist(), dtype=float)              # (n, D)
+        mu = np.array(rows["memberships"].tolist(), dtype=float)        # (n, D, M)
+        w = np.array(rows["firing"].tolist(), dtype=float)              # (n, R)
     except (KeyError, ValueError):
+        return
+    if x.ndim != 2 or mu.ndim != 3 or w.ndim != 2:
         return
     n, d, m = mu.shape
     times = run.times(rows["t_s"])
@@ -463,19 +465,18 @@ def _log_explain(rec: rr.RecordingStream, run: Run, model: str, rows: pd.DataFra
             k = h.best
             rec.log(base + "/curves", rr.LineStrips2D(list(mf_strips(h.a[k, i], h.b[k, i], h.c[k, i])),
                                                       colors=MF_COLORS[np.arange(m) % len(MF_COLORS)]), static=True)
-        pos = np.stack([np.repeat(x[:, i], m), -mu[:, i].ravel()], axis=-1)
-        colors = np.tile(MF_COLORS[np.arange(m) % len(MF_COLORS)], (n, 1))
-        cols = rr.Points2D.columns(positions=pos, colors=colors,
-                                   radii=np.full(n * m, rr.Radius.ui_points(5.0), dtype=np.float32))
-        rec.send_columns(base + "/grade", indexes=times, columns=cols.partition(np.full(n, m)))
-        # the grades read out in a column of their own at the top (labels at the points would overlap where
-        # two MFs cross)
-        labels = (pd.Series(np.tile([f"MF{j + 1} " for j in range(m)], n))
-                  + pd.Series(mu[:, i].ravel()).map("{:.2f}".format)).to_numpy()
-        spot = np.tile(np.column_stack([np.full(m, 0.5), -1.02 + READOUT_STEP * np.arange(m)]), (n, 1))
-        cols = rr.Points2D.columns(positions=spot, labels=labels, colors=colors,
-                                   radii=np.full(n * m, rr.Radius.ui_points(0.5), dtype=np.float32))
-        rec.send_columns(base + "/readout", indexes=times, columns=cols.partition(np.full(n, m)))
+        # per epoch, the input on each MF (m markers), then the grades read out in a column of their own at the
+        # top (m labels; at the markers they would overlap where two MFs cross): one entity, 2 m points a row
+        marks = np.stack([np.repeat(x[:, i], m), -mu[:, i].ravel()], axis=-1).reshape(n, m, 2)
+        spot = np.broadcast_to(np.column_stack([np.full(m, 0.5), -1.02 + READOUT_STEP * np.arange(m)]), (n, m, 2))
+        pos = np.concatenate([marks, spot], axis=1).reshape(-1, 2)
+        grades = mu[:, i]
+        labels = [""] * m + [f"MF{j + 1} " for j in range(m)]
+        text = [lab + (f"{g[j - m]:.2f}" if j >= m else "") for g in grades.tolist() for j, lab in enumerate(labels)]
+        colors = np.tile(MF_COLORS[np.arange(m) % len(MF_COLORS)], (2 * n, 1))
+        radii = np.tile(np.r_[np.full(m, rr.Radius.ui_points(5.0)), np.full(m, rr.Radius.ui_points(0.5))], n)
+        cols = rr.Points2D.columns(positions=pos, labels=text, colors=colors, radii=radii.astype(np.float32))
+        rec.send_columns(base + "/grade", indexes=times, columns=cols.partition(np.full(n, 2 * m)))
     _log_firing(rec, run, model, w, times)
     _log_firing_axis(rec, run, model, w.shape[1])
     rules = h.rules if h is not None and h.rules.shape[0] == w.shape[1] else None
