@@ -316,12 +316,14 @@ def _anfis_model(run: Run, model: str, inputs: tuple[str, ...]) -> rrb.Container
 
 
 def _anfis(runs: list[Run]) -> rrb.Container | None:
-    """One tab per ANFIS model that ran (method and leader), in the method table's order."""
-    tabs = []
+    """One tab per ANFIS model that ran (method and leader), in the method table's order; with two runs, a
+    model's A and B tabs side by side."""
+    found: dict[str, list[tuple[Run, tuple[str, ...]]]] = {}
     for run in runs:
         epochs = {str(k[0]): rows for k, rows in run.groups(run.review.anfis_epochs, ["model"])}
-        models = set(epochs) | {str(k[0]) for k, _ in run.groups(run.review.anfis_explain, ["model"])}
-        tabs += [_anfis_model(run, m, model_inputs(epochs.get(m))) for m in model_order(models)]
+        for m in set(epochs) | {str(k[0]) for k, _ in run.groups(run.review.anfis_explain, ["model"])}:
+            found.setdefault(m, []).append((run, model_inputs(epochs.get(m))))
+    tabs = [_anfis_model(run, m, inputs) for m in model_order(set(found)) for run, inputs in found[m]]
     return rrb.Tabs(*tabs, name="ANFIS") if tabs else None
 
 
