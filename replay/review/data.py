@@ -52,9 +52,11 @@ class ReviewData:
     - detections: one row per (epoch, detecting method): outcome, score and threshold, every feature,
       and `why`, one line saying what the detector compared (`replay.review.why`).
     - errors: horizontal error of each method's follower estimate against GPS.
-    - anfis_epochs: the model after every training epoch (params as a dict:
-      membership [input][mf] -> (a, b, c), consequents, input_min, input_max).
-    - anfis_explain: per ranging epoch after training, the inputs (normalized),
+    - anfis_epochs: every ANFIS model (each method of the method table's `anfis_models` that ran, per
+      leader; `model` "<method>/<leader>", "<method>/<follower>/<leader>" with several followers) after
+      every training epoch (params as a dict: a, b, c [input][mf], consequents, input_min, input_max,
+      and what the model is: method, leader, trainer, inputs, compensation, training_samples).
+    - anfis_explain: per ranging epoch after training and per ANFIS model, the inputs (normalized),
       memberships per input/MF, rule firing strengths, output and threshold.
     - kmcdf: per USBL epoch and positioning method, the final fix, the preliminary fixes with
       their cluster (only methods that make them: kmcdf2), and the nodes by vehicle name (`nodes`).
