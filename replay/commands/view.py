@@ -2,7 +2,9 @@
 
 The native viewer needs a display ($DISPLAY or $WAYLAND_DISPLAY); without one,
 and without --web, the command prints the command to run elsewhere and exits 0.
---web serves Rerun's web viewer bound to 127.0.0.1 only.
+--web serves Rerun's web viewer bound to 127.0.0.1 only, the recording fed to it
+by URL from a file server on 127.0.0.1 (`replay.views.web`), so the page shows its
+loading at once. Of two results archives, the first is run A (as in `compare A B`).
 
 Archives are made into a recording first: a trial archive is replayed with
 the default methods (those its inputs allow), results archives are re-run
@@ -35,7 +37,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("file", nargs="+",
                         help="a Rerun recording (.rrd), a trial archive (.mcap: replayed and shown with every "
                              "view), or one or two replay results archives (two are compared in one recording)")
-    parser.add_argument("--web", action="store_true", help="serve the web viewer on 127.0.0.1 instead")
+    parser.add_argument("--web", action="store_true", help="serve the web viewer on 127.0.0.1 instead (it prints "
+                                                           "the page to open; the recording is served by URL)")
     parser.add_argument("--archive", help="the input trial archive of the results, if not found by itself")
     parser.add_argument("--save", help="with archives: where to save the recording (.rrd); an existing "
                                        "file is refused unless --force")
