@@ -49,10 +49,10 @@ def test_demo_writes_archive_results_metrics_and_recording(demo_dir, capsys):
     assert at("features/follower/leader1/z/drift_z") > 100 and at("scores/cusum_drift/follower/leader1/score") > 100
     assert at("why/follower/leader1") + at("why/follower/leader2") == metrics["epochs"] + 2   # + "before t_a"
     assert at("cdf/follower/anfis/curve") > 10
-    # one view per ANFIS model (method, leader): the MFs at 21 of the 100 epochs (the kept one among them), and the
+    # one view per ANFIS model (method, leader): the MFs at 11 of the 100 epochs (the kept one among them), and the
     # kept model on `time`; every scored epoch after t_a is explained by each model
     for method in ("anfis", "anfis_aqpso", "anfis_compensation", "anfis_hybrid"):
-        assert at(f"anfis/{method}/leader1/training/mf/in1") in (22, 23)
+        assert at(f"anfis/{method}/leader1/training/mf/in1") in (12, 13)
         explained = at(f"anfis/{method}/leader1/explain/firing") + at(f"anfis/{method}/leader2/explain/firing")
         assert explained == metrics["epochs"]
     assert at("kmcdf/follower/kmcdf2/fixes") == metrics["usbl_epochs"]

@@ -335,7 +335,7 @@ def surface_frame(grid: np.ndarray, explain: pd.DataFrame | None, thr: float) ->
     return SurfaceFrame(grid, top if top > 0 else 1.0, thr)
 
 
-TRAINING_FRAMES = 21
+TRAINING_FRAMES = 11
 """The MFs and the output surface are drawn at this many training epochs, evenly spread, and at the kept one:
 every epoch of all eight models of a replay would cost more than every other view of the recording."""
 
