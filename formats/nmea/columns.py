@@ -86,8 +86,9 @@ def _vtg(f: list[list[str]]) -> dict | None:
     # `sentences._vtg` reads the unit-letter layout unless both letters are odd: only that layout here
     if not all((t in ("T", "") and m in ("M", "")) or t == "T" or m == "M" for t, m in set(zip(f[1], f[3]))):
         return None
-    cols = {name: number_column(float, f[k], NAN) for k, name in
-            ((0, "course"), (2, "course_magnetic"), (4, "speed"), (6, "kmh"))}
+    cols: dict = {name: number_column(float, f[k], NAN) for k, name in
+                  ((0, "course"), (2, "course_magnetic"), (4, "speed"), (6, "kmh"))}
+    cols["mode"] = f[8]
     return None if any(v is None for v in cols.values()) else cols
 
 
