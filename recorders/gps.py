@@ -240,8 +240,11 @@ def _nmea_block(block: Block, last: bool, ctx: LogContext, state: _NmeaState, co
                 ) -> Iterator[Output | Reject | Ignored]:
     """One block's outputs; the epoch still open at its end (unless `last`) is left in `state`."""
     data, base, lines = block.data, block.offset, block.lines
+    counts = ctx.counts
     if state.epoch:  # the previous block's last epoch: line by line until a sentence closes it
-        closed = yield from _nmea_lines(nmea.scan(data, ctx.prefix, base, lines), ctx, state, until_closed=True)
+        items = nmea.scan(data, ctx.prefix, base, lines, counts)
+        closed = yield from _nmea_lines(items, ctx, state, until_closed=True)
+        items.close()  # its lines counted up to the sentence that closed the epoch, which is read on from
         if closed is None:
             return
         start = closed[0] - base
@@ -251,6 +254,7 @@ def _nmea_block(block: Block, last: bool, ctx: LogContext, state: _NmeaState, co
     if cols is not None and last:  # a clean log of the types `nmea_columns` takes: columns to its end
         outputs = gps_columns.convert_columns(cols, ctx, NO_DATE, state.clock, base, lines)
         if outputs is not None:
+            nmea_columns.count_sentences(cols, counts)
             yield from outputs
             return
     elif cols is not None and k is not None:  # columns up to the last epoch, which the next block may go on
@@ -259,8 +263,9 @@ def _nmea_block(block: Block, last: bool, ctx: LogContext, state: _NmeaState, co
             assert outputs is not None  # a head of columns that have epochs has them too
             yield from outputs
         tail, number = int(cols.offsets[k]), int(cols.numbers[k])
+        nmea_columns.count_sentences(cols, counts, number)
         data, base, lines = data[tail:], base + tail, lines + number - 1
-    yield from _nmea_lines(nmea.scan(data, ctx.prefix, base, lines), ctx, state)
+    yield from _nmea_lines(nmea.scan(data, ctx.prefix, base, lines, counts), ctx, state)
 
 
 def _nmea_lines(items: Iterator[nmea.Scanned | Reject], ctx: LogContext, state: _NmeaState,
