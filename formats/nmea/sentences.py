@@ -28,7 +28,7 @@ written for NaN values.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 from dataclasses import dataclass
 from datetime import UTC, date, datetime
 
@@ -428,7 +428,7 @@ Scanned = tuple[str, str, tuple, int, int | None, int | None]
 
 
 def scan(data: bytes, prefix: str = "auto", base: int = 0, lines: int = 0,
-         counts: SentenceCounts | None = None) -> Iterator[Scanned | Reject]:
+         counts: SentenceCounts | None = None) -> Generator[Scanned | Reject, None, None]:
     """What `decode` yields, as plain tuples instead of records (for converters on the hot path).
 
     `data` may be a block of a longer log (`formats.log_blocks`) starting at
