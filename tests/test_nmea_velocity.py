@@ -235,3 +235,20 @@ def test_record_counts_sentences_in_the_metadata_the_note_and_info(tmp_path, cap
     assert "gps.log: 213 lines: (blank line) 1 ignored" in capsys.readouterr().out
     assert main(["record", str(tmp_path / "trial.toml"), "-o", str(tmp_path / "t2.mcap"), "--workers", "1"]) == 0
     assert "note: gps.log: 213 lines: " in capsys.readouterr().out
+
+
+def test_host_prefixes_and_glued_sentences_are_counted_like_their_sentences():
+    lines = [nmea.encode_gga(T0, 45.7, 126.6), nmea.encode_vtg(40.0, 3.0),
+             build("GPGSV", ["3", "1", "11", "03", "03", "111", "00"]), build("PGRME", ["1.0", "M"]), "noise\n"]
+    plain = "".join(lines).encode()
+    prefixed = "".join(f"{T0 / NS:.3f} {line}" for line in lines).encode()
+    counted = []
+    for data in (plain, prefixed):
+        ctx = _ctx()
+        list(convert_nmea(data, ctx))
+        counted.append(ctx.counts.as_dict())
+    assert counted[0] == counted[1] == reference_counts(plain)
+    glued = (nmea.encode_gga(T0, 45.7, 126.6).rstrip() + build("GPGSV", ["3", "1", "11"])).encode()
+    ctx = _ctx()
+    list(convert_nmea(glued, ctx))
+    assert ctx.counts.as_dict() == {"GPGGA": {C.USED: 1}, "GPGSV": {C.IGNORED: 1}}  # one line, two sentences
