@@ -1,4 +1,4 @@
-"""GNSS logs into ``/<vehicle>/gps`` (foxglove.LocationFix) and ``/<vehicle>/gps/status``.
+"""GNSS logs into ``/<vehicle>/gps`` (foxglove.LocationFix), ``/<vehicle>/gps/status`` and ``/<vehicle>/gps/velocity``.
 
 Epochs. A receiver writes several sentences per fix (GGA, RMC, GST, VTG...)
 and the order varies between receivers (GST often comes after GGA). The
@@ -22,6 +22,13 @@ trial date), with midnight rollover (`recorders.clock.DayClock`); an epoch
 with no time of its own takes the host-timestamp prefix; NovAtel GPS
 week/seconds go through the leap-second table. The log's clock offset is
 added to all of them. A time of day without any date is rejected.
+
+Velocity. An epoch's speed and course over ground (`nmea_epochs.nmea_motion`: a
+valid VTG, else an RMC with status A; NovAtel BESTVEL) give a GnssVelocity
+stamped and placed like its fix (`recorders.gnss_velocity`); an NMEA epoch
+whose VTG/RMC gives no speed and course yields an `Ignored` saying so.
+Every line of an NMEA log is counted into the context's `counts`
+(`formats.nmea.counts`), by the scan or the columns, whichever read it.
 """
 
 from __future__ import annotations
