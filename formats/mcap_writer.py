@@ -38,7 +38,7 @@ import json
 import os
 import struct
 import zlib
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping
 from itertools import chain
 from pathlib import Path
 from typing import Any
@@ -253,28 +253,6 @@ class ArchiveWriter:
         ch.index.append((log_time_ns, offset))
         if len(buf) >= self._chunk_size:
             self._finish_chunk()
-
-    def write_serialized_run(self, channel_ids: Sequence[int], blob: bytes | memoryview, ends: Sequence[int],
-                             log_times: Sequence[int], publish_times: Sequence[int], start: int = 0) -> None:
-        """`write_serialized` of a run of messages on registered channels: message i is blob[ends[i-1]:ends[i]]
-        (the first from `start`), on channel channel_ids[i]. The same bytes as one call per message."""
-        by_id = self._by_id
-        if self._closed or any(cid not in by_id for cid in set(channel_ids)):
-            why = "closed" if self._closed else "a channel of the run is not registered"
-            raise KeyError(f"{self.path}: {why}")
-        pack, limit, fixed = _MESSAGE.pack, self._chunk_size, _MESSAGE_FIXED
-        buf = self._chunk
-        for cid, end, log_time, publish_time in zip(channel_ids, ends, log_times, publish_times):
-            ch = by_id[cid]
-            offset = len(buf)
-            buf += pack(OP_MESSAGE, fixed + end - start, cid, ch.count & _SEQUENCE_MASK, log_time, publish_time)
-            buf += blob[start:end]
-            start = end
-            ch.count += 1
-            ch.index.append((log_time, offset))
-            if len(buf) >= limit:
-                self._finish_chunk()
-                buf = self._chunk
 
     def _finish_chunk(self) -> None:
         """Compress the open chunk into a Chunk record, its Message Indexes and a Chunk Index."""

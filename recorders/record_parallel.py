@@ -42,7 +42,6 @@ from multiprocessing.process import BaseProcess
 from multiprocessing.reduction import recv_handle, send_handle
 from typing import Any, Generic, TypeVar, cast
 
-import numpy as np
 from google.protobuf.message import Message
 
 from formats.json_messages import JsonMessage
@@ -129,28 +128,21 @@ class Capture:
 
 
 def write_captured(writer: ArchiveWriter, captured: Captured) -> None:
-    """Write one log's captured messages, registering each channel at its first message as write() does.
-
-    The messages between two first uses of a topic go in one `write_serialized_run`.
-    """
-    index = np.frombuffer(captured.index, dtype=np.int64).reshape(-1, _FIELDS)
-    if not len(index):
-        return
-    numbers, ends = index[:, 0], index[:, 1]
-    _, firsts = np.unique(numbers, return_index=True)
-    firsts = np.sort(firsts).tolist()
-    ids = np.zeros(len(captured.topics), dtype=np.int64)
-    blob = memoryview(captured.blob)
-    for k, first in enumerate(firsts):
-        number = int(numbers[first])
-        topic, name = captured.topics[number]
-        json_schema = captured.json_schemas.get(number)
-        ids[number] = writer.channel(topic, MESSAGE_CLASSES[name]) if json_schema is None \
-            else writer.json_channel(topic, *json_schema)
-        stop = firsts[k + 1] if k + 1 < len(firsts) else len(index)
-        run = slice(first, stop)
-        writer.write_serialized_run(ids[numbers[run]].tolist(), blob, ends[run].tolist(), index[run, 2].tolist(),
-                                    index[run, 3].tolist(), int(ends[first - 1]) if first else 0)
+    """Write one log's captured messages, registering each channel at its first message as write() does."""
+    ids: list[int | None] = [None] * len(captured.topics)
+    index, blob = captured.index, memoryview(captured.blob)
+    write = writer.write_serialized
+    start = 0
+    fields = [iter(index)] * _FIELDS  # one iterator zipped with itself: the index read _FIELDS at a time
+    for number, end, log_time, publish_time in zip(*fields):
+        cid = ids[number]
+        if cid is None:
+            topic, name = captured.topics[number]
+            json_schema = captured.json_schemas.get(number)
+            cid = ids[number] = writer.channel(topic, MESSAGE_CLASSES[name]) if json_schema is None \
+                else writer.json_channel(topic, *json_schema)
+        write(cid, blob[start:end], log_time, publish_time)
+        start = end
 
 
 class WorkerDied(RuntimeError):

@@ -388,27 +388,3 @@ def test_location_fix_equals_the_field_by_field_construction(t, name, lat, lon, 
     assert got.SerializeToString() == location_fix_reference(t, name, lat, lon, alt, cov, kind).SerializeToString()
     assert got.HasField("timestamp") == archivable_ns(t) and got.frame_id == name
     assert S.to_ns(got.timestamp) == (t if archivable_ns(t) else 0)
-
-
-@settings(max_examples=40, deadline=None)
-@given(st.lists(st.tuples(st.integers(0, 2), st.binary(max_size=40), st.integers(0, 2**40)), max_size=60),
-       st.integers(30, 400))
-def test_a_run_of_serialized_messages_is_the_same_bytes_as_one_call_each(tmp_path_factory, items, chunk_size):
-    tmp = tmp_path_factory.mktemp("run")
-    files = []
-    for by_run in (False, True):
-        path = tmp / f"{by_run}.mcap"
-        with ArchiveWriter(path, chunk_size=chunk_size) as w:
-            ids = [w.channel(f"/t{k}", LocationFix) for k in range(3)]
-            if by_run:
-                ends, end = [], 0
-                for _, data, _ in items:
-                    end += len(data)
-                    ends.append(end)
-                w.write_serialized_run([ids[k] for k, _, _ in items], b"".join(d for _, d, _ in items), ends,
-                                       [t for _, _, t in items], [t + 1 for _, _, t in items])
-            else:
-                for k, data, t in items:
-                    w.write_serialized(ids[k], data, t, t + 1)
-        files.append(path.read_bytes())
-    assert files[0] == files[1]
