@@ -56,9 +56,6 @@ SEAM_GAP_MIN_NS = NS
 # together (one record or epoch at a time), so a repeat is never further back than this and memory stays bounded
 RECORDS_WINDOW = 4096
 _KIND = re.compile(r"[^'\":\d(]*")
-# a log's items checked and written together (`LogRecorder.add_block`): numpy's per-call cost spread over
-# this many messages, and at most this many held before they are written
-ITEMS_PER_BLOCK = 1024
 
 
 class MessageSink(Protocol):
@@ -292,31 +289,15 @@ class LogRecorder:
         self.unchecked = bool(shift_text(log.time_base, self.offset_ns))
 
     def add(self, item: Output | Reject | Ignored) -> None:
-        """One item: an Output checked and written, a Reject counted and listed, an Ignored counted."""
         if type(item) is not Output:
             if type(item) is Ignored:
                 self.ignored[item.reason] += 1
             else:
                 self._reject(item)  # type: ignore[arg-type]
             return
-        self._output(item, False)
-
-    def add_block(self, items: list[Output | Reject | Ignored]) -> None:
-        """`add` of every item in order, the value checks of the block's messages done at once
-        (`ValueChecks.passing`): the same writes, in the same order, as item by item."""
-        outputs = [item for item in items if isinstance(item, Output)]
-        passed = iter(self.checks.passing([o.message for o in outputs], [o.log_time_ns for o in outputs]))
-        for item in items:
-            if isinstance(item, Output):
-                self._output(item, next(passed))
-            else:
-                self.add(item)
-
-    def _output(self, item: Output, passed: bool) -> None:
-        """One message written, unless a value check refuses it (`passed`: the block's checks found nothing)."""
         if self.unchecked:  # before the value checks, which would refuse each message of a log in 2250 alone
             self._check_shift(item.log_time_ns)
-        problem = None if passed else self.checks.problem(item.message, item.log_time_ns)
+        problem = self.checks.problem(item.message, item.log_time_ns)
         if problem is not None:
             # stamped at the message's own time when it has one: a log whose every message is refused must not
             # move its diagnostics to the fallback (the trial date's midnight) and with them the trial's start
@@ -430,18 +411,6 @@ def trial_metadata(manifest: Manifest) -> dict:
     }
 
 
-def _blocks_of_items(items: Iterator[Output | Reject | Ignored]) -> Iterator[list[Output | Reject | Ignored]]:
-    """A converter's items in lists of ITEMS_PER_BLOCK (the last one shorter), for `LogRecorder.add_block`."""
-    block: list[Output | Reject | Ignored] = []
-    for item in items:
-        block.append(item)
-        if len(block) == ITEMS_PER_BLOCK:
-            yield block
-            block = []
-    if block:
-        yield block
-
-
 def _iter_outputs(convert: AnyConverter, data: Any, ctx: LogContext,
                   log: LogSpec) -> Iterator[Output | Reject | Ignored]:
     try:
@@ -504,12 +473,11 @@ def _decode_log(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]]
     step = max(len(data) // 50, 1 << 16)
     next_report = step
     ctx = log_context(manifest, log, tuple(n for n, _ in parts))
-    for block in _blocks_of_items(_iter_outputs(convert, data, ctx, log)):
-        rec.add_block(block)
-        where = block[-1].where
-        if progress is not None and where is not None and where.offset >= next_report:
-            progress(log.path, where.offset, len(data))
-            next_report = where.offset + step
+    for item in _iter_outputs(convert, data, ctx, log):
+        rec.add(item)
+        if progress is not None and item.where is not None and item.where.offset >= next_report:
+            progress(log.path, item.where.offset, len(data))
+            next_report = item.where.offset + step
     rec.finish()
     stats.sentences = ctx.counts.as_dict()
     return stats, data
@@ -531,12 +499,11 @@ def _decode_streamed(manifest: Manifest, log: LogSpec, names: list[str], convert
     next_report = step
     ctx = log_context(manifest, log, tuple(names))
     try:
-        for block in _blocks_of_items(_iter_outputs(convert, files.blocks(), ctx, log)):
-            rec.add_block(block)
-            where = block[-1].where
-            if progress is not None and where is not None and where.offset >= next_report:
-                progress(log.path, where.offset, files.size)
-                next_report = where.offset + step
+        for item in _iter_outputs(convert, files.blocks(), ctx, log):
+            rec.add(item)
+            if progress is not None and item.where is not None and item.where.offset >= next_report:
+                progress(log.path, item.where.offset, files.size)
+                next_report = item.where.offset + step
     except ChangedWhileRead as exc:
         raise ManifestError(f"{log.path}: changed while it was recorded ({exc})") from None
     stats.sha256 = files.sha256

@@ -15,13 +15,9 @@ the field, the value and the limit. NaN stays allowed where a field means
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from operator import attrgetter
 from typing import Any
 
-import numpy as np
-
-from formats.units import TIME_MAX_NS, TIME_MIN_NS, archivable_ns
+from formats.units import archivable_ns
 
 MAX_RANGE_M = 20_000.0
 RANGE_FIELDS = frozenset({"range_m"})
@@ -100,7 +96,6 @@ class ValueChecks:
         self.bad_ranges = 0
         self.out_of_range = 0
         self._by_class: dict[type, tuple[tuple[tuple[str, float, float, bool], ...], Any]] = {}
-        self._as_columns: dict[type, tuple[Any, np.ndarray, np.ndarray, np.ndarray] | None] = {}
 
     def _rules(self, cls: type) -> tuple[tuple[tuple[str, float, float, bool], ...], Any]:
         name = getattr(getattr(cls, "DESCRIPTOR", None), "full_name", "")  # JSON messages have no rules
@@ -109,46 +104,6 @@ class ValueChecks:
             rules = (("range_m", _ABOVE_ZERO, self.max_range_m, _RANGE_NAN_OK[name]), *rules)
         self._by_class[cls] = found = (rules, _EXTRA.get(name))
         return found
-
-    def _columns(self, cls: type) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray] | None:
-        """The rules of a class as columns: one getter of every field checked, lows, highs, NaN allowed."""
-        found = self._as_columns.get(cls)
-        if found is None and cls not in self._as_columns:
-            rules = (self._by_class.get(cls) or self._rules(cls))[0]
-            names = [r[0] for r in rules]
-            found = None if not rules else (
-                attrgetter(*names) if len(names) > 1 else (lambda m, n=names[0]: (getattr(m, n),)),
-                np.array([r[1] for r in rules]), np.array([r[2] for r in rules]), np.array([r[3] for r in rules]))
-            self._as_columns[cls] = found
-        return found
-
-    def passing(self, messages: Sequence[Any], times: Sequence[int]) -> list[bool]:
-        """Per message, True where `problem` would find nothing: the rules checked per class on a block at once.
-
-        Counts nothing: a message it does not pass goes through `problem`, which gives the reason and counts
-        it (the two agree; tests/test_value_checks_block.py). The time rule is `archivable_ns`, inline.
-        """
-        ok = [TIME_MIN_NS <= t < TIME_MAX_NS for t in times]
-        by_class: dict[type, list[int]] = {}
-        for i, m in enumerate(messages):
-            by_class.setdefault(type(m), []).append(i)
-        for cls, idx in by_class.items():
-            extra = (self._by_class.get(cls) or self._rules(cls))[1]
-            columns = self._columns(cls)
-            if columns is not None:
-                get, low, high, nan_ok = columns
-                values = np.array([get(messages[i]) for i in idx], dtype=np.float64)
-                with np.errstate(invalid="ignore"):
-                    good = ((low <= values) & (values <= high)) | (np.isnan(values) & nan_ok)
-                rows = good.all(axis=1).tolist()
-                for i, row in zip(idx, rows):
-                    if not row:
-                        ok[i] = False
-            if extra is not None:
-                for i in idx:
-                    if ok[i] and extra(messages[i]) is not None:
-                        ok[i] = False
-        return ok
 
     def problem(self, message: Any, log_time_ns: int) -> str | None:
         """Why a message cannot be archived (field, value, limits), or None when every value is in range."""
