@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from formats.log_blocks import Block, LogBlocks, LogText
+from formats.nmea.counts import SentenceCounts
 from formats.records import Reject, Where
 
 
@@ -44,6 +45,9 @@ class LogContext:
     sound_speed_mps: float = 1500.0
     # the log's files on disk, in log order: for containers (ROS bags) that their library must open by path
     files: tuple[Path, ...] = ()
+    # what the converter read, counted by kind and outcome (NMEA: every line by sentence address), for the
+    # recording's statistics; a new one per context, shared by the contexts `replace` makes of it
+    counts: SentenceCounts = field(default_factory=SentenceCounts, compare=False, repr=False)
 
     def vehicle_for_address(self, address: int | None) -> str:
         """The vehicle name for a modem address, or 'addr<N>' when the manifest has none."""

@@ -478,7 +478,9 @@ def test_alog_maps_variables_and_raw_nmea(tmp_path):
     assert nav.latitude == pytest.approx(45.7 + math.degrees(200 / MERIDIAN_RADIUS_45_7), abs=1e-11)
     gps = S.LocationFix.FromString(next(b for t, b in by["/auv/gps"] if t == T0 + 3 * 10**9))
     assert (gps.latitude, gps.longitude) == (45.71, 126.61)
-    (vel_t, vel), = by["/auv/gps/velocity"]
+    # the raw NMEA's RMC/VTG velocity, as the vendor log gives it, then GPS_SPEED/GPS_HEADING's
+    assert [v for v in by["/auv/gps/velocity"] if v[0] < T0 + 2 * 10**9] == vendor["/auv/gps/velocity"] != []
+    (vel_t, vel), = [v for v in by["/auv/gps/velocity"] if v[0] >= T0 + 2 * 10**9]
     vel = S.GnssVelocity.FromString(vel)
     assert vel_t == T0 + 3 * 10**9 and vel.velocity_north_mps == pytest.approx(-1.5)
     rng = S.AcousticRange.FromString(by["/auv/modem/range"][0][1])
