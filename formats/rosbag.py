@@ -46,6 +46,7 @@ from typing import Any
 
 from .mcap_chunks import MAX_CHUNK_BYTES, lz4_bounded, mib
 from .records import FormatError, library_error
+from .ros_messages import RosSchema, ros_schema
 from .rosbag_mcap import bounded_reader, storage_problems
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
@@ -67,7 +68,8 @@ RawRow = tuple[Any, int, bytes | None, str]
 
 @dataclass(frozen=True, slots=True)
 class BagMessage:
-    """One bag message: topic, type ("sensor_msgs/NavSatFix"), bag time, index, and the message or why not."""
+    """One bag message: topic, type ("sensor_msgs/NavSatFix"), bag time, index, and the message or why not;
+    with the message's bytes as the bag stores them and its type's schema (`formats.ros_messages`)."""
 
     topic: str
     msgtype: str
@@ -75,6 +77,8 @@ class BagMessage:
     index: int                 # 0-based, in read order within its file (bag time order, chunk by chunk)
     message: Any = None        # the decoded message (rosbags dataclass), None when `problem` says why
     problem: str = ""
+    data: bytes = b""          # the serialized message (ROS 1 or CDR), when `message` decoded from it
+    schema: RosSchema | None = None   # its type's schema, one object per connection type, when `message` is set
 
 
 def ros_type(msgtype: str) -> str:
@@ -260,6 +264,14 @@ def _messages(reader: Any, ros1: bool, types: dict[str, Any]) -> Iterator[BagMes
         if isinstance(conn.msgtype, str) and conn.msgtype not in store.fielddefs and conn.msgtype not in broken:
             broken[conn.msgtype] = (f"no definition of {ros_type(conn.msgtype)}: the bag carries none and rosbags "
                                     "knows none (give its .msg or .idl in the log's msg_paths)")
+    schemas: dict[str, RosSchema] = {}
+    for conn in connections:   # a type whose definition rosbags cannot write out is its messages' problem
+        if isinstance(conn.msgtype, str) and conn.msgtype not in broken and conn.msgtype not in schemas:
+            try:
+                schemas[conn.msgtype] = ros_schema(conn.msgtype, getattr(conn.msgdef, "data", "") or "",
+                                                   getattr(conn.msgdef.format, "name", "NONE"), store, ros1)
+            except Exception as exc:  # noqa: BLE001 - rosbags' type errors are of many kinds: this type only
+                broken[conn.msgtype] = f"no message definition to archive it by ({library_error(exc)})"
     index = 0
     stream = _ros1_rows(reader) if ros1 else _ros2_rows(reader)
     while True:
@@ -288,7 +300,10 @@ def _messages(reader: Any, ros1: bool, types: dict[str, Any]) -> Iterator[BagMes
                     problem = f"serialization {fmt!r} is not CDR"
             except Exception as exc:  # noqa: BLE001 - unknown type, short or garbled payload: this message only
                 problem = f"does not decode as {msgtype} ({library_error(exc)})"
-        yield BagMessage(conn.topic, msgtype, t_ns, index, message, problem)
+        if problem:
+            yield BagMessage(conn.topic, msgtype, t_ns, index, None, problem)
+        else:
+            yield BagMessage(conn.topic, msgtype, t_ns, index, message, "", raw or b"", schemas[conn.msgtype])
         index += 1
 
 

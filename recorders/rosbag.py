@@ -70,6 +70,7 @@ from .gnss_velocity import gnss_velocity
 from .gps import gnss_status
 from .ins import ins_state
 from .manifest import SENSORS
+from .ros_raw import RosTopics
 
 NAN = math.nan
 RAW_TYPES = ("nmea_msgs/Sentence", "std_msgs/String")
@@ -222,13 +223,9 @@ class _Bag:
     def _item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored]:
         label = f"{m.topic} ({m.msgtype})"
         target = _target(m.topic, m.msgtype, self.ctx)
-        if target is None:
-            yield Ignored(where, f"topic {label} is not mapped")
+        if target is None:   # archived as itself alone (`recorders.ros_raw`)
             return
         family, vehicle, wanted = target
-        if m.problem:
-            yield Reject(where, f"{label}: {m.problem}")
-            return
         if family and family not in SENSORS:
             yield Reject(where, f"{label}: the manifest maps it to {family!r}, not one of {', '.join(SENSORS)}")
             return
@@ -423,6 +420,7 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
     # a ROS 2 bag folder given whole (path = "dive3/"): its metadata.yaml reads every storage file of it
     files = [p for p in ctx.files if p.name == "metadata.yaml" or p.parent not in folders]
     bag = _Bag(ctx, [t for path in files for t in _topics(path)])
+    raw = RosTopics(ctx)
     msg_paths = ctx.options.get("msg_paths")
     types = rb.definitions([Path(p) for p in msg_paths]) if isinstance(msg_paths, list) else {}
     start, number = 0, 0
@@ -438,10 +436,16 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
             where = Where(start + min(m.index, max(size - 1, 0)), None, m.bag_time_ns, number)
             if not m.topic:
                 yield Reject(where, m.problem)
-                continue
-            yield from bag.item(m, where)
+            elif m.problem:   # neither itself nor ours: refused, with the reason
+                yield Reject(where, f"{m.topic} ({m.msgtype}): {m.problem}")
+            else:
+                yield raw.output(m, where)
+                yield from bag.item(m, where)
         start += size
     yield from bag.finish()
+    note = raw.note(ctx.path or files[0].name, Where(0))
+    if note is not None:
+        yield note
 
 
 def _topics(path: Path) -> list[tuple[str, str]]:
