@@ -41,7 +41,7 @@ class RosSchema:
     message_encoding: str
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)  # not frozen: one per bag message, and frozen's __setattr__ path costs
 class RosMessage:
     """One ROS message as the bag stores it: its type's schema and its serialized bytes."""
 

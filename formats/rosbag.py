@@ -66,7 +66,7 @@ OP_MSGDATA, OP_CHUNK, OP_CONNECTION = 2, 5, 7
 RawRow = tuple[Any, int, bytes | None, str]
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)  # not frozen: one per bag message, and frozen's __setattr__ path costs
 class BagMessage:
     """One bag message: topic, type ("sensor_msgs/NavSatFix"), bag time, index, and the message or why not;
     with the message's bytes as the bag stores them and its type's schema (`formats.ros_messages`)."""
@@ -438,13 +438,12 @@ def _ros1_record(data: bytes, offset: int) -> tuple[bytes | None, str]:
     try:
         while True:
             (hlen,) = _U32.unpack_from(data, pos)
-            fields = _header_fields(data, pos + 4, pos + 4 + hlen)
+            op = _header_op(data, pos + 4, pos + 4 + hlen)
             pos += 4 + hlen
             (dlen,) = _U32.unpack_from(data, pos)
             pos += 4
             if pos + dlen > len(data):
                 return None, f"a record of {dlen} bytes overruns its chunk"
-            op = fields.get("op", b"")
             if op == bytes([OP_MSGDATA]):
                 return data[pos:pos + dlen], ""
             if op != bytes([OP_CONNECTION]):
@@ -454,19 +453,20 @@ def _ros1_record(data: bytes, offset: int) -> tuple[bytes | None, str]:
         return None, f"damaged record in its chunk ({exc})"
 
 
-def _header_fields(data: bytes, start: int, end: int) -> dict[str, bytes]:
-    """A ROS 1 record header's name=value fields; ValueError when it overruns."""
+def _header_op(data: bytes, start: int, end: int) -> bytes:
+    """The op field of a ROS 1 record header (b"" without one), every field checked to lie inside it and hold a
+    '='; ValueError when one does not. Only op is read: it is all a message's record needs, once per message."""
     if end > len(data):
         raise ValueError("a record header overruns its chunk")
-    fields, pos = {}, start
+    op, pos = b"", start
     while pos < end:
         (n,) = _U32.unpack_from(data, pos)
         pos += 4
         if pos + n > end:
             raise ValueError("a header field overruns its header")
-        name, sep, value = data[pos:pos + n].partition(b"=")
-        if not sep:
+        if data.startswith(b"op=", pos, pos + n):
+            op = data[pos + 3:pos + n]
+        elif data.find(b"=", pos, pos + n) < 0:
             raise ValueError("a header field without '='")
-        fields[name.decode("latin-1")] = value
         pos += n
-    return fields
+    return op

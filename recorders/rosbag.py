@@ -37,12 +37,15 @@ or ignored with a reason (an unmapped topic is listed once, with its type and co
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from formats import rosbag as rb
 from formats import schemas as S
@@ -68,7 +71,6 @@ from .containers import (
 from .gnss_velocity import SUFFIX as VELOCITY
 from .gnss_velocity import gnss_velocity
 from .gps import gnss_status
-from .ins import ins_state
 from .manifest import SENSORS
 from .ros_raw import RosTopics
 
@@ -134,17 +136,37 @@ def _frame(msg: Any) -> str:
     return str(getattr(getattr(msg, "header", None), "frame_id", "") or "")
 
 
+# a bag's few frame names, each looked at once (Imu and Odometry ask at every message)
+_ned = functools.lru_cache(maxsize=1024)(is_ned)
+
+
+def _num(x: Any) -> float:
+    """`finite_or_nan`, with a finite float (what a typed field holds) returned at once: x - x is 0 for those only."""
+    return x if type(x) is float and x - x == 0.0 else finite_or_nan(x)
+
+
 def _vec(v: Any) -> tuple[float, float, float]:
-    return finite_or_nan(getattr(v, "x", NAN)), finite_or_nan(getattr(v, "y", NAN)), finite_or_nan(getattr(v, "z", NAN))
+    return _num(getattr(v, "x", NAN)), _num(getattr(v, "y", NAN)), _num(getattr(v, "z", NAN))
 
 
 def _quat(q: Any) -> tuple[float, float, float, float]:
-    return (*_vec(q), finite_or_nan(getattr(q, "w", NAN)))
+    return _num(getattr(q, "x", NAN)), _num(getattr(q, "y", NAN)), _num(getattr(q, "z", NAN)), \
+        _num(getattr(q, "w", NAN))
 
 
 def _cov(values: Any, n: int) -> list[float]:
+    if type(values) is np.ndarray and values.dtype == np.float64 and values.ndim == 1 and len(values) >= n:
+        out = values[:n].tolist()   # the typed field's array: one conversion, then only non-finite ones replaced
+        return out if all(map(math.isfinite, out)) else [v if math.isfinite(v) else NAN for v in out]
     out = [finite_or_nan(v) for v in list(values if values is not None else ())[:n]]
     return out + [NAN] * (n - len(out))
+
+
+def _first(values: Any) -> float:
+    """A covariance's first element (NaN when it has none or it is not a number)."""
+    if type(values) is np.ndarray and values.ndim == 1 and len(values):
+        return _num(float(values[0])) if values.dtype.kind == "f" else finite_or_nan(values[0])
+    return _cov(values, 1)[0]
 
 
 def _sigma_deg(variance_rad2: float) -> float:
@@ -203,6 +225,7 @@ class _Bag:
         self.origin = origin_option(ctx)
         self.streams: dict[str, TextStream] = {}
         self.sources = _Sources()
+        self.targets: dict[tuple[str, str], bool] = {}   # (topic, type) -> mapped to ours
         # typed topics claim their archive topics first, a position (Odometry) before an attitude alone (Imu)
         ranked = []
         for topic, msgtype in dict.fromkeys(topics):
@@ -212,6 +235,14 @@ class _Bag:
                 ranked.append((target[1], key, msgtype == "sensor_msgs/Imu", topic))
         for vehicle, key, _, topic in sorted(ranked):
             self.sources.claim(vehicle, key, topic)
+
+    def maps(self, topic: str, msgtype: str) -> bool:
+        """Whether a topic of this type gives messages of ours (the manifest's topics, else its type)."""
+        key = (topic, msgtype)
+        found = self.targets.get(key)
+        if found is None:
+            found = self.targets[key] = _target(topic, msgtype, self.ctx) is not None
+        return found
 
     def item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored]:
         """The archive messages of one bag message (raw text kept for `finish`), each on its topic's source."""
@@ -300,34 +331,34 @@ def _imu(ctx: LogContext, msg: Any, t: int, publish: int, where: Where) -> Itera
     if cov[0] == -1:  # REP-145: -1 in the first element means the IMU gives no orientation
         yield Reject(where, "sensor_msgs/Imu without orientation (orientation_covariance[0] = -1)")
         return
-    roll, pitch, heading = attitude_deg(_quat(getattr(msg, "orientation", None)), is_ned(_frame(msg)))
+    frd = _ned(_frame(msg))
+    roll, pitch, heading = attitude_deg(_quat(getattr(msg, "orientation", None)), frd)
     if not math.isfinite(heading):
         yield Reject(where, "sensor_msgs/Imu orientation is not a rotation (zero or NaN quaternion)")
         return
-    state = ins_state(t, ctx, "rosbag:sensor_msgs/Imu", roll_deg=roll, pitch_deg=pitch, heading_deg=heading,
-                      roll_std_deg=_sigma_deg(cov[0]), pitch_std_deg=_sigma_deg(cov[4]),
-                      heading_std_deg=_sigma_deg(cov[8]), **_imu_rates(msg))
+    state = S.ins_state(t, ctx.vehicle, "rosbag:sensor_msgs/Imu", "", NAN, NAN, NAN, roll, pitch, heading, NAN, NAN,
+                        NAN, _sigma_deg(cov[8]), NAN, NAN, _sigma_deg(cov[0]), _sigma_deg(cov[4]), NAN)
+    _imu_rates(state, msg, frd)
     yield _out(ctx, "ins", state, t, publish, where)
 
 
-def _imu_rates(msg: Any) -> dict[str, float]:
+def _imu_rates(state: S.InsState, msg: Any, frd: bool) -> None:
     """An Imu's angular velocity and linear acceleration in FRD body axes (REP-103: FLU unless the frame is
-    _frd/_ned), each left out when its covariance[0] is -1 (REP-145: not given)."""
-    frd = is_ned(_frame(msg))
-    out: dict[str, float] = {}
-    for name, unit in (("angular_velocity", "radps"), ("linear_acceleration", "mps2")):
-        if _cov(getattr(msg, name + "_covariance", ()), 1)[0] == -1:
-            continue
-        v = _vec(getattr(msg, name, None))
-        for axis, value in zip("xyz", v if frd else flu_to_frd(v)):
-            out[f"{name}_{axis}_{unit}"] = value
-    return out
+    _frd/_ned) set on its state, each left out when its covariance[0] is -1 (REP-145: not given)."""
+    if _first(getattr(msg, "angular_velocity_covariance", ())) != -1:
+        x, y, z = _vec(getattr(msg, "angular_velocity", None))
+        state.angular_velocity_x_radps = x
+        state.angular_velocity_y_radps, state.angular_velocity_z_radps = (y, z) if frd else (-y, -z)
+    if _first(getattr(msg, "linear_acceleration_covariance", ())) != -1:
+        x, y, z = _vec(getattr(msg, "linear_acceleration", None))
+        state.linear_acceleration_x_mps2 = x
+        state.linear_acceleration_y_mps2, state.linear_acceleration_z_mps2 = (y, z) if frd else (-y, -z)
 
 
 def _odometry(ctx: LogContext, msg: Any, t: int, publish: int, where: Where,
               origin: tuple[float, float] | None) -> Iterator[Output | Reject]:
     pose = getattr(getattr(msg, "pose", None), "pose", None)
-    ned = is_ned(_frame(msg))
+    ned = _ned(_frame(msg))
     position = _vec(getattr(pose, "position", None))
     north, east, down = position if ned else enu_to_ned(position)
     roll, pitch, heading = attitude_deg(_quat(getattr(pose, "orientation", None)), ned)
@@ -345,12 +376,9 @@ def _odometry(ctx: LogContext, msg: Any, t: int, publish: int, where: Where,
     if not any(map(math.isfinite, (north, east, down, heading, vn))):
         yield Reject(where, "nav_msgs/Odometry with neither position, orientation nor velocity")
         return
-    state = ins_state(t, ctx, "rosbag:nav_msgs/Odometry", latitude=lat, longitude=lon, depth_m=down,
-                      roll_deg=roll, pitch_deg=pitch, heading_deg=heading, velocity_north_mps=vn,
-                      velocity_east_mps=ve, velocity_down_mps=vd,
-                      position_std_north_m=math.sqrt(sn) if sn >= 0 else NAN,
-                      position_std_east_m=math.sqrt(se) if se >= 0 else NAN,
-                      heading_std_deg=_sigma_deg(pcov[35]))
+    state = S.ins_state(t, ctx.vehicle, "rosbag:nav_msgs/Odometry", "", lat, lon, down, roll, pitch, heading, vn, ve,
+                        vd, _sigma_deg(pcov[35]), math.sqrt(sn) if sn >= 0 else NAN,
+                        math.sqrt(se) if se >= 0 else NAN, NAN, NAN, NAN)
     yield _out(ctx, "ins", state, t, publish, where)
 
 
@@ -440,7 +468,8 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
                 yield Reject(where, f"{m.topic} ({m.msgtype}): {m.problem}")
             else:
                 yield raw.output(m, where)
-                yield from bag.item(m, where)
+                if bag.maps(m.topic, m.msgtype):
+                    yield from bag.item(m, where)
         start += size
     yield from bag.finish()
     note = raw.note(ctx.path or files[0].name, Where(0))
