@@ -47,7 +47,7 @@ from typing import Any
 from .mcap_chunks import MAX_CHUNK_BYTES, lz4_bounded, mib
 from .records import FormatError, library_error
 from .ros_messages import RosSchema, ros_schema
-from .rosbag_mcap import bounded_reader, storage_problems
+from .rosbag_mcap import bounded_reader, inflate_message, storage_problems
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -324,6 +324,7 @@ def _storage_rows(problems: list[list[str]]) -> Iterator[RawRow]:
 
 
 def _ros2_checked(reader: Any) -> Iterator[RawRow]:
+    compressed = getattr(getattr(reader, "storage", None), "message_compressed", False)
     for conn, t_ns, raw in reader.messages():
         if not (isinstance(conn.topic, str) and isinstance(conn.msgtype, str)):   # the topics table's row
             yield None, 0, None, f"topic {conn.topic!r} of type {conn.msgtype!r}: not text"
@@ -333,6 +334,8 @@ def _ros2_checked(reader: Any) -> Iterator[RawRow]:
             problem, t_ns = f"timestamp {t_ns!r} is not a time in ns", 0
         elif not isinstance(raw, (bytes, bytearray, memoryview)):
             problem = f"data {type(raw).__name__} is not bytes"
+        elif compressed:   # compression mode "message": each message inflated here, bounded
+            raw, problem = inflate_message(bytes(raw))
         yield conn, t_ns, None if problem else bytes(raw), problem
 
 

@@ -424,3 +424,56 @@ def test_rerun_mcap_convert_reads_every_ros_topic(tmp_path, venv_bin):
         kinds.setdefault(str(chunk.entity_path), set()).update(n.split(":")[0] for n in names if ":" in n)
     assert "Transform3D" in kinds["/auv/ros/tf"] and "TextLog" in kinds["/auv/ros/rosout"]
     assert "GeoPoints" in kinds["/auv/ros/gps/fix"] and "my_auv_msgs.msg.Thrusters" in kinds["/auv/ros/thrusters"]
+
+
+# ---------------------------------------------------------------- compressed ROS 2 bags, bounded
+
+def _compressed_bag(folder: Path, mode: str) -> tuple[Any, list[tuple[str, str, int, Any]]]:
+    from rosbags.rosbag2 import Writer
+    from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
+    store = _ros2_store()
+    items = [x for x in bag_items(store, ros1=False) if x[0] != "/thrusters"]
+    w = Writer(folder, version=8)
+    w.set_compression(CompressionMode[mode.upper()], CompressionFormat.ZSTD)
+    w.open()
+    conns: dict[str, Any] = {}
+    for topic, msgtype, t, msg in sorted(items, key=lambda x: x[2]):
+        if topic not in conns:
+            conns[topic] = w.add_connection(topic, msgtype, typestore=store)
+        w.write(conns[topic], t, store.serialize_cdr(msg, msgtype))
+    w.close()
+    return store, items
+
+
+BOMB = 65 << 20   # zeros past the 64 MiB cap, a few KB compressed
+
+
+def test_a_bag_compressed_per_message_is_inflated_within_the_cap(tmp_path):
+    import zstandard
+    _, items = _compressed_bag(tmp_path / "dive", "message")
+    stats = record(load_manifest(manifest(tmp_path, "dive/")), tmp_path / "a.mcap", workers=1).files[0]
+    ros, _ = archived(tmp_path / "a.mcap")   # the messages as the bag's writer gave them, inflated
+    assert sum(len(v) for v in ros.values()) == len(items) == stats.parsed and stats.skipped == 0
+    assert [d.data for _, _, d in ros["/auv/ros/status"]] == [f"ok {k}" for k in range(4)]
+    # one message a zstd bomb: that message refused with its reason, in bounded memory, the others archived
+    with sqlite3.connect(next((tmp_path / "dive").glob("*.db3"))) as con:
+        con.execute("UPDATE messages SET data = ? WHERE id = 1", (zstandard.ZstdCompressor().compress(bytes(BOMB)),))
+    stats = record(load_manifest(manifest(tmp_path, "dive/")), tmp_path / "b.mcap", workers=1).files[0]
+    assert stats.skipped == 1 and stats.parsed == len(items) - 1
+    with ArchiveReader(tmp_path / "b.mcap") as reader:
+        (line,) = [m.message.message for m in reader.messages(["/diagnostics"])]
+    assert "inflates past the 64 MiB limit" in line
+
+
+def test_a_bag_compressed_per_file_is_checked_before_rosbags_inflates_it(tmp_path):
+    import zstandard
+
+    from recorders.manifest import ManifestError
+    _, items = _compressed_bag(tmp_path / "dive", "file")
+    stats = record(load_manifest(manifest(tmp_path, "dive/")), tmp_path / "a.mcap", workers=1).files[0]
+    assert stats.parsed == len(items) and stats.skipped == 0
+    (compressed,) = (tmp_path / "dive").glob("*.zstd")
+    compressed.write_bytes(zstandard.ZstdCompressor().compress(bytes(BOMB)))
+    with pytest.raises(ManifestError, match=r"\(compression mode file\) inflates past the 64 MiB limit") as err:
+        record(load_manifest(manifest(tmp_path, "dive/")), tmp_path / "b.mcap", workers=1)
+    assert "\n" not in str(err.value)
