@@ -79,6 +79,7 @@ class BagMessage:
     problem: str = ""
     data: bytes = b""          # the serialized message (ROS 1 or CDR), when `message` decoded from it
     schema: RosSchema | None = None   # its type's schema, one object per connection type, when `message` is set
+    undecoded: bool = False    # a type the caller reads from `data` itself (read_bag's `own`): `message` is None
 
 
 def ros_type(msgtype: str) -> str:
@@ -208,16 +209,19 @@ def _open(path: Path, kind: str) -> Any:
     return bounded_reader(path)
 
 
-def read_bag(path: Path, types: dict[str, Any] | None = None) -> Iterator[BagMessage]:
+def read_bag(path: Path, types: dict[str, Any] | None = None,
+             own: dict[str, dict[int, str]] | None = None) -> Iterator[BagMessage]:
     """Every message of one bag file, in bag time order; FormatError when rosbags cannot open it.
 
     `path` may be a ROS 2 bag's ``metadata.yaml``: the whole bag folder is read then (its storage files,
     split or compressed, as the metadata lists them). `types` (from `definitions`) define custom types the
-    bag does not.
+    bag does not. `own` names types (rosbags' names) the caller reads from the bytes itself, with rosbags' MD5
+    of the definition it reads by ROS version: where the bag's definition is that one, their messages come
+    `undecoded`.
     """
     reader, kind = _opened(path)
     try:
-        yield from _messages(reader, kind == "ros1", types or {})
+        yield from _messages(reader, kind == "ros1", types or {}, own or {})
     finally:
         with contextlib.suppress(Exception):  # closing a damaged bag may fail again; nothing is left to lose
             reader.close()
@@ -257,7 +261,7 @@ def _opened(path: Path) -> tuple[Any, str]:
     return reader, kind
 
 
-def _messages(reader: Any, ros1: bool, types: dict[str, Any]) -> Iterator[BagMessage]:
+def _messages(reader: Any, ros1: bool, types: dict[str, Any], own: dict[str, dict[int, str]]) -> Iterator[BagMessage]:
     connections = list(reader.connections)
     store, broken = _typestore(connections, ros1, types)
     for conn in connections:   # (a type that is not text is its rows' problem: _ros2_rows says so)
@@ -272,6 +276,7 @@ def _messages(reader: Any, ros1: bool, types: dict[str, Any]) -> Iterator[BagMes
                                                    getattr(conn.msgdef.format, "name", "NONE"), store, ros1)
             except Exception as exc:  # noqa: BLE001 - rosbags' type errors are of many kinds: this type only
                 broken[conn.msgtype] = f"no message definition to archive it by ({library_error(exc)})"
+    undecoded = {t for t in schemas if t in own and _md5(store, t, ros1) == own[t].get(1 if ros1 else 2)}
     index = 0
     stream = _ros1_rows(reader) if ros1 else _ros2_rows(reader)
     while True:
@@ -289,6 +294,10 @@ def _messages(reader: Any, ros1: bool, types: dict[str, Any]) -> Iterator[BagMes
         msgtype = ros_type(conn.msgtype)
         problem = problem or broken.get(conn.msgtype, "")
         message = None
+        if not problem and conn.msgtype in undecoded and getattr(conn.ext, "serialization_format", "cdr") == "cdr":
+            yield BagMessage(conn.topic, msgtype, t_ns, index, None, "", raw or b"", schemas[conn.msgtype], True)
+            index += 1
+            continue
         if not problem:
             fmt = getattr(conn.ext, "serialization_format", "cdr")
             try:
@@ -305,6 +314,14 @@ def _messages(reader: Any, ros1: bool, types: dict[str, Any]) -> Iterator[BagMes
         else:
             yield BagMessage(conn.topic, msgtype, t_ns, index, message, "", raw or b"", schemas[conn.msgtype])
         index += 1
+
+
+def _md5(store: Any, msgtype: str, ros1: bool) -> str:
+    """rosbags' MD5 of a type's definition as the store holds it ("" when it cannot write one)."""
+    try:
+        return str(store.generate_msgdef(msgtype, ros_version=1 if ros1 else 2)[1])
+    except Exception:  # noqa: BLE001 - such a type is decoded by rosbags, which says what is wrong
+        return ""
 
 
 def _ros2_rows(reader: Any) -> Iterator[RawRow]:

@@ -477,3 +477,67 @@ def test_a_bag_compressed_per_file_is_checked_before_rosbags_inflates_it(tmp_pat
     with pytest.raises(ManifestError, match=r"\(compression mode file\) inflates past the 64 MiB limit") as err:
         record(load_manifest(manifest(tmp_path, "dive/")), tmp_path / "b.mcap", workers=1)
     assert "\n" not in str(err.value)
+
+
+# ---------------------------------------------------------------- Imu read from its bytes, judged by rosbags'
+
+_component = st.one_of(st.floats(-2.0, 2.0), st.sampled_from([0.0, -1.0, math.nan, math.inf]))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.booleans(), st.lists(st.tuples(
+    st.tuples(_component, _component, _component, _component),            # orientation
+    st.sampled_from([-1.0, 0.0, 0.01, math.nan]), st.floats(0.0, 1.0),    # orientation covariance [0], [4]
+    st.tuples(_component, _component, _component), st.sampled_from([-1.0, 0.0, math.nan]),   # rates, cov [0]
+    st.tuples(_component, _component, _component), st.sampled_from([-1.0, 0.5]),             # accel, cov [0]
+    st.sampled_from(["imu_link", "imu_frd", "", "base_link_ned"]), st.integers(0, 3)), min_size=1, max_size=6))
+def test_imu_read_from_its_bytes_gives_what_rosbags_decoding_gives(ros1, rows):
+    """`_ImuBatch` over the serialized bytes (`formats.ros_imu`) gives the very states and refusals the one-by-one
+    `_imu` gives from rosbags' decoded messages."""
+    from formats import ros_imu
+    from formats.records import Reject, Where
+    from recorders import rosbag as RB
+    from recorders.base import LogContext
+    store = _common_store(ros1)
+    T = store.types
+    V3, Q = T["geometry_msgs/msg/Vector3"], T["geometry_msgs/msg/Quaternion"]
+    ctx = LogContext("auv")
+    batch = RB._ImuBatch(ctx)
+    expected = []
+    for k, (q, c0, c4, av, av0, la, la0, frame, stamp_s) in enumerate(rows):
+        t = T0 + k
+        stamp = T0 + stamp_s * NS if stamp_s else 0
+        header = (ros_header(store, stamp, frame) if ros1 else T["std_msgs/msg/Header"](
+            stamp=T["builtin_interfaces/msg/Time"](sec=stamp // NS, nanosec=stamp % NS), frame_id=frame))
+        cov = np.zeros(9)
+        cov[0], cov[4], cov[8] = c0, c4, 0.02
+        msg = T["sensor_msgs/msg/Imu"](
+            header=header, orientation=Q(x=q[0], y=q[1], z=q[2], w=q[3]), orientation_covariance=cov,
+            angular_velocity=V3(x=av[0], y=av[1], z=av[2]), angular_velocity_covariance=np.full(9, av0),
+            linear_acceleration=V3(x=la[0], y=la[1], z=la[2]), linear_acceleration_covariance=np.full(9, la0))
+        data = bytes(store.serialize_ros1(msg, ros_imu.MSGTYPE) if ros1 else store.serialize_cdr(msg, ros_imu.MSGTYPE))
+        decoded = store.deserialize_ros1(data, ros_imu.MSGTYPE) if ros1 else store.deserialize_cdr(data,
+                                                                                                   ros_imu.MSGTYPE)
+        head = ros_imu.header(data, ros1)
+        assert head is not None and head == (stamp, frame.encode())
+        where = Where(k, None, t, k + 1)
+        expected += list(RB._imu(ctx, decoded, RB._stamp_ns(decoded, t), t, where))
+        batch.add(head[0] if head[0] > 0 else t, t, where, head[1], data)
+        assert ros_imu.header(data[:-1], ros1) is None and ros_imu.header(data + b"\0", ros1) is None
+    got = list(batch.flush())
+    assert len(got) == len(expected)
+    for a, b in zip(got, expected):
+        assert type(a) is type(b) and a.where == b.where
+        if isinstance(a, Reject):
+            assert a.reason == b.reason
+            continue
+        assert (a.topic, a.log_time_ns, a.publish_time_ns) == (b.topic, b.log_time_ns, b.publish_time_ns)
+        for f in S.InsState.DESCRIPTOR.fields:
+            x, y = getattr(a.message, f.name), getattr(b.message, f.name)
+            if f.name in ("timestamp",):
+                assert x == y
+            elif isinstance(x, float):
+                assert a.message.HasField(f.name) == b.message.HasField(f.name) if f.has_presence else True
+                assert (math.isnan(x) and math.isnan(y)) or x == pytest.approx(y, rel=1e-12, abs=1e-9), f.name
+            else:
+                assert x == y, f.name
