@@ -417,13 +417,13 @@ class _ImuBatch:
         v = ros_imu.values(data)
         frd = np.array([_ned_bytes(frame) for _, _, _, frame in rows])
         x, y, z, w = (v[:, k] for k in range(4))
-        with np.errstate(invalid="ignore", divide="ignore"):
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             n = np.sqrt(x * x + y * y + z * z + w * w)
             x, y, z, w = x / n, y / n, z / n, w / n
             roll = np.degrees(np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)))
             pitch = np.degrees(np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0)))
             yaw = np.degrees(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
-            rotation = n > 1e-9
+            rotation = (n > 1e-9) & np.isfinite(n)   # as quaternion_euler: a zero or overflowing one is none
             heading = np.where(frd, yaw, 90.0 - yaw) % 360.0
             heading = np.where(rotation & np.isfinite(heading), np.where(heading >= 360.0, 0.0, heading), np.nan)
             pitch = np.where(frd, pitch, -pitch)
