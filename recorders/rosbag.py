@@ -31,8 +31,12 @@ part, all attached; the ``metadata.yaml`` reads the split or compressed storage 
 define custom types the bag does not.
 
 Times: the header stamp is the measurement time (log time), the bag time the publish time; a message without a
-header or with a zero stamp takes its bag time. Every bag message is counted: archived, rejected with a reason,
-or ignored with a reason (an unmapped topic is listed once, with its type and count).
+header or with a zero stamp takes its bag time.
+
+Every bag message is archived as itself on ``/<v>/ros/<topic>`` (`recorders.ros_raw`), or refused with a reason
+(it does not decode by its type, or its type is defined nowhere); a mapped one gives ours as well, and says why
+when it gives none (an ignored reason, counted). A standard ``sensor_msgs/Imu`` is read from its bytes
+(`formats.ros_imu`) and converted a batch at a time (`_ImuBatch`), the others one by one from rosbags' objects.
 """
 
 from __future__ import annotations
