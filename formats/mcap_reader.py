@@ -38,6 +38,8 @@ from .json_messages import JsonMessage
 from .mcap_chunks import MAX_CHUNK_BYTES, RawMessage, ordered_messages
 from .mcap_records import MAGIC, OP_ATTACHMENT, OP_METADATA, RecordError, read_record, read_summary, scan
 from .records import FormatError
+from .ros_messages import ENCODINGS as ROS_ENCODINGS
+from .ros_messages import RosMessage, RosSchema
 from .schemas import MESSAGE_CLASSES
 
 # what a protobuf decoder raises on bytes that are not its message
@@ -149,6 +151,16 @@ def _json_decoder(schema: Schema | None) -> Callable[[bytes], JsonMessage]:
     return decode
 
 
+def _ros_decoder(channel: Channel, schema: Schema) -> Callable[[bytes], RosMessage]:
+    """A ROS channel's messages as RosMessages: the bytes as the bag stored them (the replay reads none of them;
+    Foxglove, Rerun and the mcap library's ROS decoders do)."""
+    kind = RosSchema(schema.name, schema.encoding, schema.data.decode("utf-8", "replace"), channel.message_encoding)
+
+    def decode(data: bytes) -> RosMessage:
+        return RosMessage(kind, bytes(data))
+    return decode
+
+
 def _check_magic(path: Path) -> int:
     try:
         size = path.stat().st_size
@@ -252,6 +264,8 @@ class ArchiveReader:
         """(decode function, "") for a channel, or (None, why its messages are skipped)."""
         if channel.message_encoding == JSON_ENCODING and (schema is None or schema.encoding == JSON_SCHEMA_ENCODING):
             return _json_decoder(schema), ""
+        if schema is not None and ROS_ENCODINGS.get(channel.message_encoding) == schema.encoding:
+            return _ros_decoder(channel, schema), ""
         if channel.message_encoding != "protobuf":
             return None, f"of encoding {channel.message_encoding[:40]!r}, not protobuf"
         if schema is None:

@@ -78,6 +78,12 @@ class Ignored:
     reason: str
 
 
+@dataclass(frozen=True, slots=True)
+class Note(Ignored):
+    """A line about the log as a whole (what a container held, topic by topic) in `reason`: kept in the log's
+    notes and printed after the recording's table, once per log (an Ignored to whatever does not know it)."""
+
+
 # a LogContext option set for text carried in a container (a ROS string topic): each line's host prefix is the
 # container's stamp of its message, and is its time even where the vendor's record has a clock of its own (a
 # Water Linked DVL's time_of_validity, then kept beside it)

@@ -21,7 +21,7 @@ from formats.mcap_writer import ArchiveWriter
 from formats.records import FormatError, Reject, Where
 from formats.units import NS, archivable_ns
 
-from .base import BlockConverter, Converter, Ignored, LogContext, Output
+from .base import BlockConverter, Converter, Ignored, LogContext, Note, Output
 from .clock import date_to_ns, iso_utc, log_offset_ns, offset_problem, shift_text
 from .manifest import LogSpec, Manifest, ManifestError
 from .output_checks import OutputProblem, check_output
@@ -292,6 +292,8 @@ class LogRecorder:
         if type(item) is not Output:
             if type(item) is Ignored:
                 self.ignored[item.reason] += 1
+            elif type(item) is Note:
+                self.stats.notes.append(item.reason)
             else:
                 self._reject(item)  # type: ignore[arg-type]
             return
