@@ -21,8 +21,9 @@ from replay.stack.detectors.why_text import epoch_features
 from replay.stack.features import EXTRA_FEATURES, FEATURE_NAMES
 from replay.stack.methods import why_line
 from replay.views import recording as views
+from replay.views.common import make_runs
 from replay.views.features import FEATURE_GROUPS
-from replay.views.lanes import epoch_states
+from replay.views.lanes import detector_order, epoch_states
 from tests.review_fixtures import FOLLOWER, LEADERS, synthetic_review
 from tests.test_views import Rrd
 
@@ -164,8 +165,8 @@ def test_detector_scores_against_thresholds_and_colour_key(featured: tuple[Revie
     assert {"chi_square: f2 vs gate", "dual_threshold vs 1", "Colours"} <= rrd.view_names
 
 
-def test_blueprint_opens_following_on_mission_seconds(featured: tuple[ReviewData, Rrd, Path]) -> None:
-    """The cursor cannot be placed by a 0.41 blueprint: 'following' puts it on the last sample of a loaded file."""
+def test_blueprint_opens_paused_on_mission_seconds(featured: tuple[ReviewData, Rrd, Path]) -> None:
+    """The cursor cannot be placed by a 0.41 blueprint: paused, a loaded file opens at its start (not its end)."""
     *_, path = featured
     reader = RrdReader(path)
     panel = {}
@@ -175,13 +176,15 @@ def test_blueprint_opens_following_on_mission_seconds(featured: tuple[ReviewData
             if name in batch.schema.names:
                 panel[name] = batch.column(name).to_pylist()[0][0]
     assert panel["TimePanelBlueprint:timeline"] == "mission_s"
-    assert panel["TimePanelBlueprint:play_state"] in ("Following", 3, "following")
+    assert panel["TimePanelBlueprint:play_state"] in ("Paused", 1, "paused")
 
 
 def test_lane_names_read_leader_and_method(featured: tuple[ReviewData, Rrd, Path]) -> None:
     review, rrd, _ = featured
     lanes = sorted(e for e in rrd.temporal if e.startswith("/lanes/"))
-    detectors = sorted(review.detections.method.unique())
-    assert lanes == sorted(["/lanes/_scoring_window"] + [f"/lanes/{ld}/{m}" for ld in LEADERS
-                                                          for m in ["_truth", *detectors]])
+    detectors = detector_order(make_runs([review])[0])
+    assert sorted(detectors) == sorted(review.detections.method.unique())
+    assert lanes == sorted(["/lanes/_key", "/lanes/_scoring_window"]
+                           + [f"/lanes/{ld}/{m}" for ld in LEADERS
+                              for m in ["0_truth", *(f"{i}_{d}" for i, d in enumerate(detectors, start=1))]])
     assert pd.Series(lanes).str.len().max() < 40

@@ -16,9 +16,9 @@ Tabs, each answering one question (the event log sits on the right of every tab)
 - KMCDF (one view pair per target): the fixes around the GPS truth, and the nodes by name.
 With two runs, the scoreboards sit side by side with what changed, and the other views overlay
 both runs (every name tagged with the run's label) instead of repeating per run.
-The recording opens on the `mission_s` timeline with the cursor on the mission's last sample (Rerun
-0.41's blueprint cannot place it; "following" does, for a loaded file) and every time series and
-lane on the whole mission.
+The recording opens paused on the `mission_s` timeline (whole seconds, the axes read "#620") with the
+cursor at the mission's start (Rerun 0.41's blueprint cannot place it elsewhere; "following" would put
+it on the last sample), and every time series and lane on the whole mission.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from rerun.encodings import EntityPathLike
 from replay.review.data import ReviewData
 from replay.stack.methods import anfis_family
 from replay.views.cdf import HEIGHT, WIDTH
-from replay.views.common import Run, floats, part
+from replay.views.common import MISSION, Run, floats, part
 from replay.views.features import (
     FEATURE_GROUPS,
     feature_note,
@@ -50,7 +50,7 @@ from replay.views.positioning import fix_methods, kmcdf_half_width
 from replay.views.tracks import KEY, KEY_STEP, geo_bounds, key_rows, track_bounds
 from replay.views.vehicle import PANELS
 
-TIMELINES = ("time", "mission_s")
+TIMELINES = ("time", MISSION)
 
 
 def _contents(runs: list[Run], *parts: str) -> list[str]:
@@ -340,14 +340,14 @@ def build_blueprint(runs: list[Run], error_top: float, active_tab: int | str = 0
     main = rrb.Tabs(*(t for t in tabs if t is not None), active_tab=active_tab)
     log = rrb.TextLogView(name="Events", contents=_contents(runs, "events"),
                           columns=rrb.archetypes.TextLogColumns(
-                              timeline_columns=[rrb.encodings.TimelineColumn("mission_s")],
+                              timeline_columns=[rrb.encodings.TimelineColumn(MISSION)],
                               text_log_columns=[rrb.encodings.TextLogColumn("LogLevel"),
                                                 rrb.encodings.TextLogColumn("Body")]))
     return rrb.Blueprint(
         rrb.Horizontal(main, log, column_shares=[3, 1.3]),
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
-        # Rerun 0.41's blueprint cannot place the cursor; "following" puts it on the last sample of a
-        # loaded file, where it stays: every view opens on the whole mission (CDFs = metrics.json)
-        rrb.TimePanel(timeline="mission_s", state="collapsed", play_state="following"),
+        # Rerun 0.41's blueprint cannot place the cursor: paused, it opens at the mission's start (the time
+        # series and lanes still show the whole mission); "following" would open on the last sample
+        rrb.TimePanel(timeline=MISSION, state="collapsed", play_state="paused"),
     )

@@ -90,8 +90,10 @@ def log_t_a(rec: rr.RecordingStream, run: Run, height: float) -> None:
     if t_a <= 0:
         return
     path = run.path("series", "marks", "t_a")
+    # aggregation off: zoomed out, Rerun averages the samples that share a pixel column, and the two samples of
+    # one instant would average to a point (the line would vanish)
     rec.log(path, rr.SeriesLines(names=run.name(f"t_a = {t_a:.0f} s (scoring starts)"), colors=[(128, 128, 128)],
-                                 widths=2.0), static=True)
+                                 widths=2.0, aggregation_policy="Off"), static=True)
     rec.send_columns(path, indexes=run.times(np.array([t_a, t_a])), columns=rr.Scalars.columns(
         scalars=np.array([0.0, height])))
 
