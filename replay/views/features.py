@@ -12,7 +12,8 @@ Entities under a run prefix P, on `time` and `mission_s`:
 - ``P/scores/<method>/<follower>/<leader>/{score,threshold}`` for every detector outside the ANFIS
   family (that one is `replay.views.series`' ``P/series/anfis``): chi_square's f2 against its gate,
   dual_threshold's max(f2/gate, S/h) against 1, cusum_drift's max(S+, S-) against h,
-  anfis_hybrid's output against its false-alarm-rate threshold;
+  anfis_hybrid's output against its false-alarm-rate threshold; ``.../truth``: triangles below zero at
+  the truth's anomalous epochs (`replay.views.series.log_truth_marks`);
 - ``P/why/<follower>/<leader>``: a TextDocument per epoch after t_a, one line per detector with
   its outcome ("hit", "false alarm", "miss", "quiet") and what it compared (`replay.review.why`),
   and one at t = 0 saying that nothing is judged before t_a.
@@ -28,7 +29,7 @@ from replay.stack.features import EXTRA_FEATURES
 from replay.stack.methods import methods
 from replay.views.common import Run, floats
 from replay.views.lanes import epoch_states, training_end_s
-from replay.views.series import LEADER_RGB
+from replay.views.series import LEADER_RGB, log_truth_marks
 
 # (key, title, features): one plot per group and leader; units never mix within a group; "{}" in a title
 # takes the names of the group's features a run computed (REFERENCE_NAMES), so a short title fits
@@ -50,6 +51,23 @@ FEATURE_RGB: dict[str, tuple[int, int, int]] = {
 def scored() -> dict[str, str]:
     """The detectors whose score is drawn against its threshold here, with the plot's title (the method table)."""
     return {m.name: m.score_plot[0] for m in methods("detector") if m.score_plot is not None}
+
+FEATURE_WORDS: dict[str, str] = {
+    # paper A's three, short enough for a plot title in a third of the tab at 1400 x 875
+    "f1_innovation_m": "f1, innovation (m)", "f2_mahalanobis2": "f2, Mahalanobis²",
+    "f3_r_adapted_m2": "f3, adaptive R (m²)",
+    "dr_residual_m": "range - dead-reckoned range", "leader_consistency_m": "leader consistency",
+    "usbl_residual_m": "vs USBL fix", "lag_residual_m": "vs lagged ACKF", "exclusion_residual_m": "vs other leaders",
+    "drift_residual_m": "DR model residual", "drift_cusum_m": "its CUSUM", "drift_z": "drift, standardized",
+    "exclusion_z": "exclusion, standardized", "repeat_count": "identical ranges in a row",
+}
+"""Each feature in words, for plot titles and legends (the field names stay in the entity paths)."""
+
+
+def feature_words(name: str) -> str:
+    """A feature's name in words ("f1, innovation (m)"); an unknown name as it is."""
+    return FEATURE_WORDS.get(name, name)
+
 
 REFERENCE_NAMES: dict[str, str] = {"usbl_residual_m": "USBL fix", "lag_residual_m": "lagged ACKF",
                                    "exclusion_residual_m": "other leaders"}
@@ -113,23 +131,33 @@ def log_features(rec: rr.RecordingStream, run: Run) -> None:
             for f in names:
                 if f in have:
                     _finite_series(rec, run, run.path("features", str(follower), str(leader), key, f), t,
-                                   floats(epochs, f), run.name(f), FEATURE_RGB[f])
+                                   floats(epochs, f), run.name(feature_words(f)), FEATURE_RGB[f])
 
 
 LEADER_COLOUR_NAMES = ("orange", "blue", "violet", "green")     # of LEADER_RGB, for the colour key
 
 
+def scores_key(leaders: list[str], shown: list[str]) -> str:
+    """The Scores tab's colour note, short enough for its grid cell: the leaders' colours, the threshold, the
+    truth marks, and what each plotted detector's statistic is (`shown`, the method table's order)."""
+    colours = ", ".join(f"{LEADER_COLOUR_NAMES[k % len(LEADER_RGB)]} {leader}" for k, leader in enumerate(leaders))
+    titles = "".join(f"\n- {m.name}: {m.score_plot[1]}" for m in methods("detector")
+                     if m.score_plot is not None and m.name in shown)
+    return (f"**Lines**: {colours}; grey: the threshold (above it: flagged). ANFIS plots: each method in its "
+            "Scoreboard colour, its T2 a step line alike.\n\n**Triangles below 0**: the truth's anomalous epochs, "
+            "in the leader's colour.\n" + titles)
+
+
 def log_detector_scores(rec: rr.RecordingStream, run: Run) -> None:
-    """Each detector with a score plot (the method table): per leader its statistic, its threshold in grey; a key."""
+    """Each detector with a score plot (the method table): per leader its statistic, its threshold in grey and the
+    truth marks; a key."""
     pairs = run.groups(run.review.detections, ["follower", "leader"])
-    key = [f"- {LEADER_COLOUR_NAMES[k % len(LEADER_RGB)]}: {leader}" for k, ((_, leader), _) in enumerate(pairs)]
-    titles = "".join(f"\n- {m.name}: {m.score_plot[1]}" for m in methods("detector") if m.score_plot is not None)
-    rec.log(run.path("scores", "key"), rr.TextDocument(
-        "Detector plots, one line per leader:\n\n" + "\n".join(key) + "\n- grey: the detector's threshold\n\n"
-        "ANFIS plots: each method in its Scoreboard colour, its T2 as a step line of the same colour; "
-        "above the threshold = flagged. Hover a line for its name and value.\n" + titles, media_type="text/markdown"),
-        static=True)
     plotted = scored()
+    shown = sorted({str(m) for m in run.review.detections["method"].unique()} & set(plotted)) \
+        if "method" in run.review.detections else []
+    rec.log(run.path("scores", "key"), rr.TextDocument(scores_key([str(ld) for (_, ld), _ in pairs], shown),
+                                                       media_type="text/markdown"), static=True)
+    tops = {m: score_top([run], m) for m in shown}
     for k, ((follower, leader), rows) in enumerate(pairs):
         rgb = LEADER_RGB[k % len(LEADER_RGB)]
         for (method,), m_rows in run.groups(rows, ["method"]):
@@ -141,6 +169,7 @@ def log_detector_scores(rec: rr.RecordingStream, run: Run) -> None:
             _line(rec, run, base + "/score", t, floats(m_rows, "score"), run.name(f"{leader} {m}"), rgb, False)
             _line(rec, run, base + "/threshold", t, floats(m_rows, "threshold"), run.name(f"{leader} threshold"),
                   (150, 150, 150), True)
+            log_truth_marks(rec, run, base + "/truth", m_rows, k, tops[m])
 
 
 def score_top(runs: list[Run], method: str) -> float | None:

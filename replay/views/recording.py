@@ -38,7 +38,7 @@ from replay.views.lanes import detector_order, log_lanes
 from replay.views.positioning import log_events, log_kmcdf
 from replay.views.scores import log_scores
 from replay.views.series import error_ceiling, log_detections, log_errors, log_ranges
-from replay.views.tracks import log_colour_key, log_range_circles, log_tracks
+from replay.views.tracks import log_colour_key, log_local_scale, log_range_circles, log_tracks
 from replay.views.vehicle import log_vehicles
 
 WEB_BIND = "127.0.0.1"
@@ -101,6 +101,7 @@ def log_runs(rec: rr.RecordingStream, reviews: list[ReviewData], runs: list[Run]
     rec.send_recording_start_time_nanos(int(reviews[0].trial_start_ns))
     log_scores(rec, runs)
     log_colour_key(rec, runs, focus)
+    log_local_scale(rec, runs)
     log_cdf_frame(rec, runs, axes)
     order = detector_order(runs[0])       # both runs of a comparison rank their lanes alike: neighbours
     growth = [log_review(rec, run, axes, error_top, order) for run in runs]

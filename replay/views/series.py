@@ -4,7 +4,8 @@ Entities under a run prefix P, all on the `time` and `mission_s` timelines:
 - ``P/series/range/<follower>/<leader>/{measured,true}``, ``P/series/residual/<follower>/<leader>``;
 - ``P/series/<feature>/<follower>/<leader>`` for f1_innovation_m, f2_mahalanobis2, f3_r_adapted_m2;
 - ``P/series/anfis/<follower>/<leader>/<method>/{output,T2}`` for anfis, anfis_aqpso, anfis_compensation
-  (anfis_hybrid's output is drawn with the other detectors' statistics, `replay.views.features`);
+  (anfis_hybrid's output is drawn with the other detectors' statistics, `replay.views.features`), and
+  ``P/series/anfis/<follower>/<leader>/truth``: triangles below zero at the truth's anomalous epochs;
 - ``P/series/error/<follower>/<method>``: horizontal error against GPS, filters and positioning alike;
 - ``P/series/marks/t_a``: a vertical line at t_a (the start of the metrics window) in every plot
   that includes it.
@@ -23,6 +24,8 @@ from replay.views.common import Run, floats, method_rgb
 from replay.views.lanes import training_end_s
 
 FEATURES = ("f1_innovation_m", "f2_mahalanobis2", "f3_r_adapted_m2")
+FEATURE_NAMES = {"f1_innovation_m": "f1", "f2_mahalanobis2": "f2", "f3_r_adapted_m2": "f3"}
+"""How a legend names paper A's features (the plot's title says them in words, replay.views.features)."""
 
 
 def _scalars(rec: rr.RecordingStream, path: str, run: Run, t_s: pd.Series, values: np.ndarray,
@@ -37,6 +40,39 @@ def _scalars(rec: rr.RecordingStream, path: str, run: Run, t_s: pd.Series, value
 
 
 LEADER_RGB = ((235, 150, 30), (60, 150, 235), (200, 100, 240), (90, 190, 80))
+TRUTH_ROW = 0.05
+"""Truth marks sit below zero, leader k's row at -(k + 1) * TRUTH_ROW of the plot's height."""
+
+
+def anfis_top(runs: list[Run]) -> float | None:
+    """The ANFIS plot's y extent: four times the largest T2 (outputs reach 1000 m where T2 is a few)."""
+    thr = [floats(r.review.detections[r.review.detections["method"].astype(str).isin(anfis_family())],
+                  "threshold") for r in runs if "method" in r.review.detections]
+    v = np.concatenate(thr) if thr else np.zeros(0)
+    v = v[np.isfinite(v)]
+    return float(4.0 * v.max()) if v.size else None
+
+
+def truth_range(top: float | None, leaders: int) -> tuple[float, float] | None:
+    """A score plot's y range from its top down to below the truth marks of `leaders` leaders."""
+    return (-(leaders + 0.5) * TRUTH_ROW * top, top) if top else None
+
+
+def log_truth_marks(rec: rr.RecordingStream, run: Run, path: str, rows: pd.DataFrame, k: int,
+                    top: float | None, row: int | None = None) -> None:
+    """Triangles below zero at the epochs whose truth label is anomalous, in leader k's colour, on its row (k's
+    unless given): the truth windows under a detector's statistic."""
+    epochs = rows.drop_duplicates("t_s")
+    anomalous = pd.to_numeric(epochs["label"], errors="coerce").to_numpy() == 1 if "label" in epochs else []
+    t = floats(epochs, "t_s")[anomalous]
+    if t.size == 0:
+        return
+    rgb = LEADER_RGB[k % len(LEADER_RGB)]
+    leader = str(epochs["leader"].iloc[0]) if "leader" in epochs else ""
+    rec.log(path, rr.SeriesPoints(names=run.name(f"{leader} truth: anomaly"), colors=[rgb], markers="Up",
+                                  marker_sizes=2.5), static=True)
+    rec.send_columns(path, indexes=run.times(t), columns=rr.Scalars.columns(
+        scalars=np.full(t.size, -((k if row is None else row) + 1) * TRUTH_ROW * (top or 1.0))))
 
 
 def log_ranges(rec: rr.RecordingStream, run: Run) -> None:
@@ -56,12 +92,15 @@ def log_detections(rec: rr.RecordingStream, run: Run) -> None:
     """Features per leader, and each ANFIS-family detector's output against its T2."""
     det = run.review.detections
     family = anfis_family()
+    top = anfis_top([run])
     for k, ((follower, leader), rows) in enumerate(run.groups(det, ["follower", "leader"])):
         f, ld = str(follower), str(leader)
         epochs = rows.drop_duplicates("t_s")
+        if "method" in rows and family & set(rows["method"].astype(str).unique()):      # one leader a plot: row 0
+            log_truth_marks(rec, run, run.path("series", "anfis", f, ld, "truth"), rows, k, top, row=0)
         for feature in FEATURES:
             _scalars(rec, run.path("series", feature, f, ld), run, epochs["t_s"], floats(epochs, feature),
-                     run.name(f"{ld} {feature}"), LEADER_RGB[k % len(LEADER_RGB)])
+                     run.name(f"{ld} {FEATURE_NAMES[feature]}"), LEADER_RGB[k % len(LEADER_RGB)])
         for (method,), m_rows in run.groups(rows, ["method"]):
             m = str(method)
             if m in family:
