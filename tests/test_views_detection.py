@@ -145,7 +145,10 @@ def test_why_document_per_epoch_after_t_a_one_line_per_detector(featured: tuple[
             at = rows[rows.t_s == t]
             label = int(at.label.iloc[0])
             truth = "anomaly" if label == 1 else "normal" if label == 0 else "no label"
-            assert doc[0].startswith(f"**{leader} at {t:.1f} s: truth {truth}**")
+            # the epoch's true range error (measured - GPS-true range), as the event log gives it
+            rng = review.ranges[(review.ranges.leader == leader) & (review.ranges.t_s == t)]
+            err = float(rng.measured_m.iloc[0] - rng.true_m.iloc[0])
+            assert doc[0].startswith(f"**{leader} at {t:.1f} s: truth {truth}; true range error {err:+.1f} m**")
             lines = [ln for ln in doc[0].splitlines() if ln.startswith("- ")]
             states = epoch_states(at.flagged.to_numpy(), at.label.to_numpy(), np.ones(len(at), dtype=bool))
             assert lines == [f"- **{s}** {m}: {w}" for s, m, w in zip(states, at.method, at.why, strict=True)]

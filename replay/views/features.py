@@ -14,7 +14,8 @@ Entities under a run prefix P, on `time` and `mission_s`:
   dual_threshold's max(f2/gate, S/h) against 1, cusum_drift's max(S+, S-) against h,
   anfis_hybrid's output against its false-alarm-rate threshold; ``.../truth``: triangles below zero at
   the truth's anomalous epochs (`replay.views.series.log_truth_marks`);
-- ``P/why/<follower>/<leader>``: a TextDocument per epoch after t_a, one line per detector with
+- ``P/why/<follower>/<leader>``: a TextDocument per epoch after t_a, headed by the truth label and
+  the epoch's true range error (measured - GPS-true range), one line per detector with
   its outcome ("hit", "false alarm", "miss", "quiet") and what it compared (`replay.review.why`),
   and one at t = 0 saying that nothing is judged before t_a.
 """
@@ -180,8 +181,21 @@ def score_top(runs: list[Run], method: str) -> float | None:
     return float(4.0 * v.max()) if v.size and v.max() > 0 else None
 
 
-def why_documents(rows: pd.DataFrame, t_a: float) -> tuple[np.ndarray, list[str]]:
-    """Per epoch after t_a of one follower and leader: its time and a markdown list, one line per detector.
+def range_error_at(ranges: pd.DataFrame | None, t_s: np.ndarray) -> np.ndarray:
+    """The true range error (measured - GPS-true range, m) of one follower and leader's ranging epoch at each
+    instant (`ranges` in time order); NaN where no epoch is at that instant or its truth is unknown."""
+    out = np.full(t_s.size, np.nan)
+    if ranges is None or ranges.empty or "residual_m" not in ranges:
+        return out
+    rt, err = floats(ranges, "t_s"), floats(ranges, "residual_m")
+    k = np.clip(np.searchsorted(rt, t_s), 0, max(rt.size - 1, 0))
+    same = np.abs(rt[k] - t_s) < 1e-6
+    return np.where(same, err[k], np.nan)
+
+
+def why_documents(rows: pd.DataFrame, t_a: float, ranges: pd.DataFrame | None = None) -> tuple[np.ndarray, list[str]]:
+    """Per epoch after t_a of one follower and leader: its time and a markdown list, one line per detector, under
+    a heading with the truth label and the epoch's true range error (from `ranges`, that pair's ranging epochs).
 
     `rows` in time order (as `groups` gives them); one join per epoch over contiguous slices.
     """
@@ -198,16 +212,19 @@ def why_documents(rows: pd.DataFrame, t_a: float) -> tuple[np.ndarray, list[str]
     ends = np.r_[starts[1:], t.size]
     leaders = rows["leader"].astype(str).to_numpy()
     truth = np.where(label == 1, "anomaly", np.where(label == 0, "normal", "no label"))
-    docs = [f"**{leaders[a]} at {t[a]:.1f} s: truth {truth[a]}**\n\n" + "\n".join(lines[a:b])
-            for a, b in zip(starts, ends, strict=True)]
+    err = range_error_at(ranges, t[starts])
+    said = np.where(np.isfinite(err), np.char.mod("; true range error %+.1f m", np.nan_to_num(err)), "")
+    docs = [f"**{leaders[a]} at {t[a]:.1f} s: truth {truth[a]}{e}**\n\n" + "\n".join(lines[a:b])
+            for a, b, e in zip(starts, ends, said, strict=True)]
     return t[starts], docs
 
 
 def log_why(rec: rr.RecordingStream, run: Run) -> None:
     """The "why (not) flagged" document of every follower and leader, one per epoch after t_a."""
     t_a = training_end_s(run)
+    ranges = dict(run.groups(run.review.ranges, ["follower", "leader"]))
     for (follower, leader), rows in run.groups(run.review.detections, ["follower", "leader"]):
-        t, docs = why_documents(rows, t_a)
+        t, docs = why_documents(rows, t_a, ranges.get((follower, leader)))
         if docs:
             # before t_a the view would say "(empty)": say why instead
             t = np.r_[0.0, t]
