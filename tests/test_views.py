@@ -266,7 +266,7 @@ def test_kmcdf_epochs_and_events(rrd: Rrd, review: ReviewData) -> None:
 
 def test_blueprint_saved_with_every_view(rrd: Rrd) -> None:
     names = rrd.view_names
-    for expected in ("Local east/north (m), range circles", "Events",
+    for expected in ("Local east/north (m), range circles, scale bar", "Events",
                      "leader1: range measured / true (m)", "leader1: ANFIS vs T2 (m)", "Colours",
                      "Rule firing strengths", "Why (not) flagged", "Output surface (f3 at median)", "Scoreboard",
                      "Colour key", "Training RMSE (m) per epoch"):
