@@ -138,15 +138,14 @@ def log_features(rec: rr.RecordingStream, run: Run) -> None:
 LEADER_COLOUR_NAMES = ("orange", "blue", "violet", "green")     # of LEADER_RGB, for the colour key
 
 
-def scores_key(leaders: list[str], shown: list[str]) -> str:
-    """The Scores tab's colour note, short enough for its grid cell: the leaders' colours, the threshold, the
-    truth marks, and what each plotted detector's statistic is (`shown`, the method table's order)."""
+def scores_key(leaders: list[str]) -> str:
+    """The Scores tab's colour note, short enough for its grid cell with every detector plotted: the leaders'
+    colours, the threshold and the truth marks (each plot's title says what it compares; the Detection tab's
+    why lines spell out each statistic)."""
     colours = ", ".join(f"{LEADER_COLOUR_NAMES[k % len(LEADER_RGB)]} {leader}" for k, leader in enumerate(leaders))
-    titles = "".join(f"\n- {m.name}: {m.score_plot[1]}" for m in methods("detector")
-                     if m.score_plot is not None and m.name in shown)
     return (f"**Lines**: {colours}; grey: the threshold (above it: flagged). ANFIS plots: each method in its "
             "Scoreboard colour, its T2 a step line alike.\n\n**Triangles below 0**: the truth's anomalous epochs, "
-            "in the leader's colour.\n" + titles)
+            "in the leader's colour.\n\nWhat each statistic is: the why lines of the Detection tab.")
 
 
 def log_detector_scores(rec: rr.RecordingStream, run: Run) -> None:
@@ -154,9 +153,9 @@ def log_detector_scores(rec: rr.RecordingStream, run: Run) -> None:
     truth marks; a key."""
     pairs = run.groups(run.review.detections, ["follower", "leader"])
     plotted = scored()
-    shown = sorted({str(m) for m in run.review.detections["method"].unique()} & set(plotted)) \
-        if "method" in run.review.detections else []
-    rec.log(run.path("scores", "key"), rr.TextDocument(scores_key([str(ld) for (_, ld), _ in pairs], shown),
+    shown = {str(m) for m in run.review.detections["method"].unique()} & set(plotted) \
+        if "method" in run.review.detections else set()
+    rec.log(run.path("scores", "key"), rr.TextDocument(scores_key([str(ld) for (_, ld), _ in pairs]),
                                                        media_type="text/markdown"), static=True)
     tops = {m: score_top([run], m) for m in shown}
     for k, ((follower, leader), rows) in enumerate(pairs):
