@@ -118,8 +118,8 @@ def test_features_drawn_where_finite_in_groups_by_unit(featured: tuple[ReviewDat
     note = rrd.static["/run-a/features/note"][0].column("TextDocument:text").to_pylist()[0][0]
     assert "usbl_residual_m" in note and "drift_z" not in note
     for leader in LEADERS:
-        assert f"{leader}: standardized residuals (sd)" in rrd.view_names
-        assert f"{leader}: vs lagged ACKF / other leaders (m)" in rrd.view_names      # no USBL fix: not named
+        assert f"{leader}: standardized (sd)" in rrd.view_names
+        assert f"{leader}: vs lagged / others (m)" in rrd.view_names      # no USBL fix: not named
 
 
 def test_a_run_without_the_new_features_says_so(tmp_path: Path) -> None:
@@ -129,7 +129,7 @@ def test_a_run_without_the_new_features_says_so(tmp_path: Path) -> None:
     assert note.startswith("The filter-independent features") and "not computed" in note
     assert not [e for e in rrd.temporal if e.startswith("/run-a/features/")]
     assert "Features this run did not compute" in rrd.view_names
-    assert not any(n.endswith("standardized residuals (sd)") for n in rrd.view_names)
+    assert not any(n.endswith("standardized (sd)") for n in rrd.view_names)
 
 
 def test_why_document_per_epoch_after_t_a_one_line_per_detector(featured: tuple[ReviewData, Rrd, Path]) -> None:

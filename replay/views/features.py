@@ -34,12 +34,13 @@ from replay.views.series import LEADER_RGB, log_truth_marks
 
 # (key, title, features): one plot per group and leader; units never mix within a group; "{}" in a title
 # takes the names of the group's features a run computed (REFERENCE_NAMES), so a short title fits
+# titles of at most about 20 characters: "leader1: " and the title fit a third of the tab at 1400 x 875
 FEATURE_GROUPS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
-    ("dr", "range - dead-reckoned range (m)", ("dr_residual_m", "leader_consistency_m")),
+    ("dr", "range - DR range (m)", ("dr_residual_m", "leader_consistency_m")),
     ("anchored", "vs {} (m)", ("usbl_residual_m", "lag_residual_m", "exclusion_residual_m")),
-    ("drift", "DR model residual, CUSUM (m)", ("drift_residual_m", "drift_cusum_m")),
-    ("z", "standardized residuals (sd)", ("drift_z", "exclusion_z")),
-    ("repeats", "identical ranges in a row (count)", ("repeat_count",)),
+    ("drift", "DR model, CUSUM (m)", ("drift_residual_m", "drift_cusum_m")),
+    ("z", "standardized (sd)", ("drift_z", "exclusion_z")),
+    ("repeats", "same range (count)", ("repeat_count",)),
 )
 FEATURE_RGB: dict[str, tuple[int, int, int]] = {
     "dr_residual_m": (90, 160, 255), "leader_consistency_m": (250, 170, 60),
@@ -70,8 +71,8 @@ def feature_words(name: str) -> str:
     return FEATURE_WORDS.get(name, name)
 
 
-REFERENCE_NAMES: dict[str, str] = {"usbl_residual_m": "USBL fix", "lag_residual_m": "lagged ACKF",
-                                   "exclusion_residual_m": "other leaders"}
+REFERENCE_NAMES: dict[str, str] = {"usbl_residual_m": "USBL", "lag_residual_m": "lagged",
+                                   "exclusion_residual_m": "others"}
 
 
 def group_title(title: str, shown: list[str]) -> str:
