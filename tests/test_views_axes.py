@@ -12,12 +12,14 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from rerun.chunk import RrdReader
 
 from replay.review.report_plots import series_figure
 from replay.views import recording as views
 from replay.views.common import MISSION, mission_column, mission_seconds
 from replay.views.features import range_error_at
 from replay.views.scale import label, nice_length, scale_bar
+from replay.views.series import SPAN
 from replay.views.tracks import CIRCLE_SHARE, local_frame, track_bounds
 from tests.review_fixtures import synthetic_review
 from tests.test_views import Rrd
@@ -114,3 +116,25 @@ def test_report_error_panels_label_time_on_every_row() -> None:
         labels = [tl for tl in ax.get_xticklabels() if tl.get_visible() and tl.get_text()]
         assert labels and "1000" in {tl.get_text() for tl in labels}
         assert ax.get_xlabel() == "mission time (s)"
+
+
+def test_every_time_series_view_spans_the_mission_from_zero(tmp_path: Path) -> None:
+    """A hidden series at 0 s and at the end, in every time series view: each x axis starts at 0 (round ticks,
+    plots aligned) whatever its first sample."""
+    review = synthetic_review(6, n_epochs=30, anfis_epochs=3)
+    path = views.save_rrd([review], tmp_path / "span.rrd")
+    rrd = Rrd(path)
+    mission = np.concatenate([b.column(MISSION).to_numpy() for b in rrd.temporal[SPAN]])
+    end = max(review.tracks.t_s.max(), review.errors.t_s.max(), review.ranges.t_s.max())
+    np.testing.assert_array_equal(np.sort(mission), [0, round(end)])
+    assert np.isnan([c[0] for c in rrd.cells(SPAN, "Scalars:scalars")]).all()
+    reader = RrdReader(path)
+    contents: list[list[str]] = []
+    for chunk in reader.stream(store=reader.blueprints()[0]).to_chunks():
+        batch = chunk.to_record_batch()
+        for name in batch.schema.names:
+            if name.endswith("ViewContents:query"):
+                contents += [c for c in batch.column(name).to_pylist() if c]
+    series_views = [c for c in contents if any("/series/" in q or "/scores/" in q for q in c)
+                    and not any(q.endswith("/scores/key") for q in c)]        # the key is a text document
+    assert series_views and [c for c in series_views if f"+ {SPAN}" not in c] == []

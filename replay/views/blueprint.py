@@ -47,7 +47,7 @@ from replay.views.features import (
 from replay.views.focus import focus_note, hide
 from replay.views.lanes import LANES_ROOT, training_end_s
 from replay.views.positioning import fix_methods, kmcdf_half_width
-from replay.views.series import anfis_top, truth_range
+from replay.views.series import SPAN, anfis_top, truth_range
 from replay.views.tracks import KEY, KEY_STEP, geo_bounds, key_rows, local_frame
 from replay.views.vehicle import PANELS
 
@@ -69,7 +69,7 @@ def _series(name: str, contents: list[str], y_max: float | None = None, legend: 
             overrides: dict[EntityPathLike, VisualizerLike] | None = None) -> rrb.TimeSeriesView:
     """A time series over the whole mission; y from 0 to `y_max`, or over `y_range`, else fitted to the data."""
     y = y_range if y_range is not None else (0.0, y_max) if y_max else None
-    return rrb.TimeSeriesView(name=name, contents=contents, axis_x=_whole_mission(),
+    return rrb.TimeSeriesView(name=name, contents=[*contents, f"+ {SPAN}"], axis_x=_whole_mission(),
                               axis_y=rrb.ScalarAxis(range=y, zoom_lock=False) if y else None,
                               plot_legend=rrb.PlotLegend(corner="RightTop", visible=legend), overrides=overrides)
 

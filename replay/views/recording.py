@@ -37,7 +37,7 @@ from replay.views.focus import hidden_methods
 from replay.views.lanes import detector_order, log_lanes
 from replay.views.positioning import log_events, log_kmcdf
 from replay.views.scores import log_scores
-from replay.views.series import error_ceiling, log_detections, log_errors, log_ranges
+from replay.views.series import error_ceiling, log_detections, log_errors, log_mission_span, log_ranges
 from replay.views.tracks import log_colour_key, log_local_scale, log_range_circles, log_tracks
 from replay.views.vehicle import log_vehicles
 
@@ -102,6 +102,7 @@ def log_runs(rec: rr.RecordingStream, reviews: list[ReviewData], runs: list[Run]
     log_scores(rec, runs)
     log_colour_key(rec, runs, focus)
     log_local_scale(rec, runs)
+    log_mission_span(rec, runs)
     log_cdf_frame(rec, runs, axes)
     order = detector_order(runs[0])       # both runs of a comparison rank their lanes alike: neighbours
     growth = [log_review(rec, run, axes, error_top, order) for run in runs]

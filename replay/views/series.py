@@ -142,3 +142,22 @@ def error_ceiling(reviews: list[pd.DataFrame]) -> float:
     v = np.concatenate([floats(e, "error_m") for e in reviews if not e.empty] or [np.zeros(0)])
     v = v[np.isfinite(v)]
     return float(1.2 * np.quantile(v, 0.95)) if v.size else 1.0
+
+
+SPAN = "/mission_span"
+"""An entity with no visible value at the mission's first and last second, in every time series view: each
+plot's x axis then spans the whole mission from 0 (round ticks, "#0 #1000"; plots aligned with each other),
+not from its own first sample ("#6 #1006")."""
+
+
+def log_mission_span(rec: rr.RecordingStream, runs: list[Run]) -> None:
+    """The span entity: NaN (drawn as nothing) at 0 s and at the last second any run's table reaches, a hidden
+    series whose greyed legend entry names the x axis ("x: mission s (0-1700)")."""
+    ends = [float(np.nanmax(floats(f, "t_s"))) for r in runs for f in (r.review.tracks, r.review.errors,
+                                                                       r.review.ranges) if len(f) and "t_s" in f]
+    if not ends:
+        return
+    rec.log(SPAN, rr.SeriesPoints(names=f"x: mission s (0-{max(ends):.0f})", colors=[(0, 0, 0, 0)], marker_sizes=0.0,
+                                  visible_series=[False]), static=True)
+    rec.send_columns(SPAN, indexes=runs[0].times(np.array([0.0, max(ends)])),
+                     columns=rr.Scalars.columns(scalars=np.array([np.nan, np.nan])))
