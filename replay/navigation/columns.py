@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from formats.mcap_blocks import MessageBlock
 from formats.mcap_reader import ArchiveReader
 from formats.units import NS
 
@@ -224,6 +225,67 @@ class ColumnCollector:
                 self._append(vehicle, "ins", (held_ns - self.start_ns) / NS, held_msg, f"/{vehicle}/ins")
             self._held[vehicle].clear()
         self._append(vehicle, kind, t, msg, topic)
+
+    def add_block(self, block: MessageBlock) -> None:
+        """A block of messages (formats.mcap_blocks, every topic's objects kept): what `add` would gather of
+        each, with the INS sample rule run over the block's times rather than message by message."""
+        where_of = {topic: np.flatnonzero(block.topic_index == i) for i, topic in enumerate(block.topics)
+                    if topic in self.topics}
+        if not where_of:
+            return
+        t_all = (block.log_ns - self.start_ns) / NS if len(block) else np.empty(0)
+        for topic, where in where_of.items():
+            vehicle, kind = self.topics[topic]
+            msgs = block.messages[topic]
+            if kind == "ins":
+                continue      # with the GPS fixes of its vehicle, below
+            if kind == "gps":
+                ins_topic = f"/{vehicle}/ins"
+                self._ins_and_fixes(vehicle, block, where_of.get(ins_topic), where, t_all)
+                continue
+            for t, msg in zip(t_all[where].tolist(), msgs):
+                self._append(vehicle, kind, t, msg, topic)
+        for topic, where in where_of.items():
+            vehicle, kind = self.topics[topic]
+            if kind == "ins" and f"/{vehicle}/gps" not in where_of:
+                self._ins_and_fixes(vehicle, block, where, None, t_all)
+
+    def _ins_and_fixes(self, vehicle: str, block: MessageBlock, ins_at: np.ndarray | None,
+                       gps_at: np.ndarray | None, t_all: np.ndarray) -> None:
+        """One vehicle's INS samples and GPS fixes of a block, in stream order, by the rule of `add`."""
+        ins_topic, gps_topic = f"/{vehicle}/ins", f"/{vehicle}/gps"
+        ins_msgs = block.messages.get(ins_topic, [])
+        gps_msgs = block.messages.get(gps_topic, [])
+        fixes = gps_at.tolist() if gps_at is not None else []
+        held = self._held[vehicle]
+        last = self._last_ins[vehicle]
+        gap = self.ins_min_dt_s - 1e-6
+        g = 0
+        log = block.log_ns
+        if ins_at is not None:
+            for r, (at, t) in enumerate(zip(ins_at.tolist(), t_all[ins_at].tolist())):
+                while g < len(fixes) and fixes[g] < at:
+                    self._fix_row(vehicle, held, t_all[fixes[g]], gps_msgs[g])
+                    g += 1
+                if t - last < gap:
+                    held.append((int(log[at]), ins_msgs[r]))
+                    if len(held) > 2:
+                        del held[0]
+                    continue
+                last = t
+                held.clear()
+                self._append(vehicle, "ins", t, ins_msgs[r], ins_topic)
+        self._last_ins[vehicle] = last
+        while g < len(fixes):
+            self._fix_row(vehicle, held, t_all[fixes[g]], gps_msgs[g])
+            g += 1
+
+    def _fix_row(self, vehicle: str, held: list[tuple[int, Any]], t: float, msg: Any) -> None:
+        """A GPS fix: the INS samples held before it first (as `add` does)."""
+        for held_ns, held_msg in held:
+            self._append(vehicle, "ins", (held_ns - self.start_ns) / NS, held_msg, f"/{vehicle}/ins")
+        held.clear()
+        self._append(vehicle, "gps", float(t), msg, f"/{vehicle}/gps")
 
     def _append(self, vehicle: str, kind: str, t: float, msg: Any, topic: str) -> None:
         c = self._cols[vehicle][kind]

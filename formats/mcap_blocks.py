@@ -1,0 +1,247 @@
+"""Reading an archive as blocks of columns: the messages of a time window, decoded by topic, in log-time order.
+
+`ArchiveReader.messages` hands out one decoded message object at a time,
+merged across chunks by a heap. A consumer that computes on columns (the
+replay engine's INS, DVL and GPS intake) wants instead, per window, each
+topic's fields as numpy columns and the window's stream order as two arrays
+(topic index and row within the topic). `read_blocks` gives that: the window
+ends where the next chunk starts (every message before it is in hand, as in
+the heap merge), so memory holds only the chunks that overlap in time. The
+stream order is the heap merge's exactly: log time, then chunk position in
+the file, then position in the chunk.
+
+Every message is decoded (the protobuf runtime) and kept as an object;
+a topic asked for as columns has the fields of COLUMN_FIELDS gathered into
+float64 columns as well (what a consumer reads of every row), so a field
+read of a few rows only is read from the objects. What does not decode is skipped and
+counted as `messages` counts it.
+"""
+
+from __future__ import annotations
+
+import struct
+from bisect import bisect_left
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from operator import attrgetter
+from typing import Any, BinaryIO
+
+import numpy as np
+
+from .mcap_chunks import MAX_CHUNK_BYTES, OP_MESSAGE, ChunkError, OnDamage, read_chunk
+
+_RECORD_HEAD = struct.Struct("<BQ")
+_MESSAGE_HEAD = struct.Struct("<HIQQ")
+
+# the fields a columnar consumer reads of each schema (float64 columns; booleans and enums as 0/1, ints)
+COLUMN_FIELDS: dict[str, tuple[str, ...]] = {
+    "auvreplay.InsState": ("latitude", "longitude", "depth_m", "heading_deg"),
+    "auvreplay.DvlVelocity": ("velocity_x_mps", "velocity_y_mps", "valid", "frame"),
+    "foxglove.LocationFix": ("latitude", "longitude"),
+}
+
+
+@dataclass
+class MessageBlock:
+    """The messages of one time window: stream order as arrays, each topic's rows as columns or objects."""
+
+    topics: list[str]                        # topic index -> topic
+    schemas: list[str]                       # topic index -> schema name
+    topic_index: np.ndarray                  # per message in stream order: its topic index (int32)
+    row: np.ndarray                          # per message in stream order: its row within its topic (int64)
+    log_ns: np.ndarray                       # per message in stream order: log time (int64)
+    columns: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)   # topic -> field -> column
+    messages: dict[str, list[Any]] = field(default_factory=dict)    # topic -> decoded objects (every topic)
+
+    def __len__(self) -> int:
+        return int(self.log_ns.size)
+
+
+class _Run:
+    """One chunk's (or the loose messages') wanted messages, sorted by log time, with a read position."""
+
+    __slots__ = ("order", "log", "cid", "data", "pos")
+
+    def __init__(self, order: int, log: list[int], cid: list[int], data: list[bytes]):
+        self.order, self.log, self.cid, self.data, self.pos = order, log, cid, data, 0
+
+
+def _chunk_run(f: BinaryIO, ci: Any, channels: set[int], validate_crc: bool, start_ns: int | None,
+               end_ns: int | None, file_size: int, on_damage: OnDamage | None, limit: int) -> _Run | None:
+    """The wanted messages of one chunk as a sorted run (the loop of `mcap_chunks.chunk_messages`, as columns)."""
+    offset = ci.chunk_start_offset
+    _, _, data = read_chunk(f, offset, ci.chunk_length, file_size, validate_crc, limit)
+    log: list[int] = []
+    cids: list[int] = []
+    datas: list[bytes] = []
+    pos, end = 0, len(data)
+    head, msg_head = _RECORD_HEAD.unpack_from, _MESSAGE_HEAD.unpack_from
+    lo = -1 if start_ns is None else start_ns
+    hi = 1 << 64 if end_ns is None else end_ns
+    while pos < end:
+        if pos + 9 > end:
+            _overrun(offset, on_damage, "the chunk ends inside a record header")
+            break
+        op, rlen = head(data, pos)
+        pos += 9
+        if rlen > end - pos or (op == OP_MESSAGE and rlen < _MESSAGE_HEAD.size):
+            _overrun(offset, on_damage, f"a record of {rlen} bytes does not fit its chunk")
+            break
+        if op == OP_MESSAGE:
+            channel, _, log_time, _ = msg_head(data, pos)
+            if channel in channels and lo <= log_time < hi:
+                log.append(log_time)
+                cids.append(channel)
+                datas.append(data[pos + 22:pos + rlen])
+        pos += rlen
+    if not log:
+        return None
+    if any(a > b for a, b in zip(log, log[1:])):     # a chunk out of log-time order: sorted stably
+        idx = sorted(range(len(log)), key=log.__getitem__)
+        log, cids, datas = [log[i] for i in idx], [cids[i] for i in idx], [datas[i] for i in idx]
+    return _Run(offset, log, cids, datas)
+
+
+def _overrun(offset: int, on_damage: OnDamage | None, what: str) -> None:
+    if on_damage is None:
+        raise ChunkError(f"byte {offset}: {what}")
+    on_damage(offset, f"byte {offset}: {what}; the rest of the chunk skipped")
+
+
+def read_blocks(f: BinaryIO, chunk_indexes: Iterable[Any], info: Mapping[int, tuple[str, str, Any, str]],
+                columnar: set[str], validate_crc: bool, start_ns: int | None = None, end_ns: int | None = None,
+                on_damage: OnDamage | None = None, skip: Callable[[str, str], None] | None = None,
+                limit: int = MAX_CHUNK_BYTES, loose: Sequence[tuple[int, int, int, bytes]] = (),
+                decode_errors: tuple[type[BaseException], ...] = (ValueError,)) -> Iterator[MessageBlock]:
+    """Blocks of the channels in `info` (channel id -> topic, schema, decode function or None, why not) in
+    log-time order; topics in `columnar` whose schema has COLUMN_FIELDS come as columns. See the module doc."""
+    f.seek(0, 2)
+    file_size = f.tell()
+    channels = set(info)
+    todo = sorted(
+        (ci for ci in chunk_indexes
+         if (channels & ci.message_index_offsets.keys() or not ci.message_index_offsets)
+         and (start_ns is None or ci.message_end_time >= start_ns)
+         and (end_ns is None or ci.message_start_time < end_ns)),
+        key=lambda ci: (ci.message_start_time, ci.chunk_start_offset))
+    runs: list[_Run] = []
+    if loose:
+        runs.append(_Run(-1, [m[0] for m in loose], [m[2] for m in loose], [m[3] for m in loose]))
+    for ci in todo:
+        if runs and ci.message_start_time > min(r.log[r.pos] for r in runs):
+            block = _take(runs, ci.message_start_time, info, columnar, skip, decode_errors)
+            if block is not None:
+                yield block
+        try:
+            run = _chunk_run(f, ci, channels, validate_crc, start_ns, end_ns, file_size, on_damage, limit)
+        except ChunkError as exc:
+            if on_damage is None:
+                raise
+            on_damage(ci.chunk_start_offset, str(exc))
+            continue
+        if run is not None:
+            runs.append(run)
+    if runs:
+        block = _take(runs, None, info, columnar, skip, decode_errors)
+        if block is not None:
+            yield block
+
+
+def _take(runs: list[_Run], before: int | None, info: Mapping[int, tuple[str, str, Any, str]],
+          columnar: set[str], skip: Callable[[str, str], None] | None,
+          decode_errors: tuple[type[BaseException], ...]) -> MessageBlock | None:
+    """The messages of every run with log time before `before` (all with None) as one block; runs consumed."""
+    logs: list[int] = []
+    orders: list[int] = []
+    cids: list[int] = []
+    datas: list[bytes] = []
+    for r in runs:
+        j = len(r.log) if before is None else bisect_left(r.log, before, r.pos)
+        if j > r.pos:
+            logs += r.log[r.pos:j]
+            cids += r.cid[r.pos:j]
+            datas += r.data[r.pos:j]
+            orders += [r.order] * (j - r.pos)
+            r.pos = j
+    runs[:] = [r for r in runs if r.pos < len(r.log)]
+    if not logs:
+        return None
+    log = np.array(logs, dtype=np.int64)
+    if len(runs) == 0 and before is None and len({*orders}) == 1:
+        order = np.arange(log.size)
+    else:
+        # the heap merge's order: log time, then the chunk's file offset, then position in it (already in place)
+        order = np.lexsort((np.arange(log.size), np.array(orders, dtype=np.int64), log))
+    cid_arr = np.array(cids, dtype=np.int64)[order]
+    log = log[order]
+    if not (order[:-1] < order[1:]).all():
+        datas = [datas[i] for i in order.tolist()]
+    keep = np.ones(log.size, dtype=bool)
+    topics: list[str] = []
+    schemas: list[str] = []
+    topic_index = np.empty(log.size, dtype=np.int32)
+    out_cols: dict[str, dict[str, np.ndarray]] = {}
+    out_msgs: dict[str, list[Any]] = {}
+    for cid in np.unique(cid_arr).tolist():
+        topic, schema, decode, why = info[cid]
+        where = np.flatnonzero(cid_arr == cid)
+        if decode is None:
+            if skip is not None:
+                for _ in range(where.size):
+                    skip(topic, why)
+            keep[where] = False
+            continue
+        at = where.tolist()
+        try:
+            decoded = [decode(datas[i]) for i in at]
+        except decode_errors:
+            decoded, good = [], []
+            for i in at:
+                try:
+                    decoded.append(decode(datas[i]))
+                except decode_errors:
+                    keep[i] = False
+                    if skip is not None:
+                        skip(topic, "that do not decode")
+                    continue
+                good.append(i)
+            where = np.array(good, dtype=np.int64)
+        if not decoded:
+            continue
+        if topic in out_msgs:      # two channels of one topic: one topic index
+            ti = topics.index(topic)
+        else:
+            ti = len(topics)
+            topics.append(topic)
+            schemas.append(schema)
+        topic_index[where] = ti
+        out_msgs.setdefault(topic, []).extend(decoded)
+        names = COLUMN_FIELDS.get(schema) if topic in columnar else None
+        if names is not None:
+            n = len(decoded)
+            cols = {name: np.fromiter(map(attrgetter(name), decoded), dtype=float, count=n) for name in names}
+            prev = out_cols.get(topic)
+            out_cols[topic] = cols if prev is None else {k: np.concatenate((prev[k], v)) for k, v in cols.items()}
+    log, topic_index = log[keep], topic_index[keep]
+    if not log.size:
+        return None
+    # rows: a topic of two channels had its rows concatenated by channel, so rows are given in that order
+    row = np.empty(log.size, dtype=np.int64)
+    for ti in range(len(topics)):
+        where = np.flatnonzero(topic_index == ti)
+        row[where] = np.arange(where.size)
+    block = MessageBlock(topics, schemas, topic_index, row, log, out_cols, out_msgs)
+    _fix_two_channel_rows(block, cid_arr[keep])
+    return block
+
+
+def _fix_two_channel_rows(block: MessageBlock, cid: np.ndarray) -> None:
+    """Rows of a topic held by several channels follow the channels' concatenation order, not the stream's."""
+    for ti, topic in enumerate(block.topics):
+        where = np.flatnonzero(block.topic_index == ti)
+        ids = cid[where]
+        if where.size < 2 or np.all(ids == ids[0]):
+            continue
+        # the decoded rows were concatenated channel by channel (ascending id): stream row k -> that position
+        rank = np.argsort(np.argsort(ids, kind="stable"), kind="stable")
+        block.row[where] = rank
