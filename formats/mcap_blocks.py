@@ -10,10 +10,11 @@ the heap merge), so memory holds only the chunks that overlap in time. The
 stream order is the heap merge's exactly: log time, then chunk position in
 the file, then position in the chunk.
 
-Every message is decoded (the protobuf runtime) and kept as an object;
-a topic asked for as columns has the fields of COLUMN_FIELDS gathered into
-float64 columns as well (what a consumer reads of every row), so a field
-read of a few rows only is read from the objects. What does not decode is skipped and
+A topic asked for as columns has the fields of COLUMN_FIELDS (what a consumer
+reads of every row) decoded straight from the wire into float64 columns
+(formats.proto_columns, the runtime for any message the walk does not vouch
+for); a row's message object is decoded only when asked (`message`). Any
+other topic's messages are decoded objects. What does not decode is skipped and
 counted as `messages` counts it.
 """
 
@@ -29,6 +30,8 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from .mcap_chunks import MAX_CHUNK_BYTES, OP_MESSAGE, ChunkError, OnDamage, read_chunk
+from .proto_columns import decode_columns
+from .schemas import MESSAGE_CLASSES
 
 _RECORD_HEAD = struct.Struct("<BQ")
 _MESSAGE_HEAD = struct.Struct("<HIQQ")
@@ -51,10 +54,19 @@ class MessageBlock:
     row: np.ndarray                          # per message in stream order: its row within its topic (int64)
     log_ns: np.ndarray                       # per message in stream order: log time (int64)
     columns: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)   # topic -> field -> column
-    messages: dict[str, list[Any]] = field(default_factory=dict)    # topic -> decoded objects (every topic)
+    messages: dict[str, list[Any]] = field(default_factory=dict)    # topic -> decoded objects (not columnar)
+    raw: dict[str, list[bytes]] = field(default_factory=dict)       # columnar topic -> its rows' bytes
+    decoders: dict[str, Callable[[bytes], Any]] = field(default_factory=dict)
 
     def __len__(self) -> int:
         return int(self.log_ns.size)
+
+    def message(self, topic: str, row: int) -> Any:
+        """One row's decoded message (a columnar topic's is decoded now: most are never asked for)."""
+        held = self.messages.get(topic)
+        if held is not None:
+            return held[row]
+        return self.decoders[topic](self.raw[topic][row])
 
 
 class _Run:
@@ -182,6 +194,9 @@ def _take(runs: list[_Run], before: int | None, info: Mapping[int, tuple[str, st
     topic_index = np.empty(log.size, dtype=np.int32)
     out_cols: dict[str, dict[str, np.ndarray]] = {}
     out_msgs: dict[str, list[Any]] = {}
+    out_raw: dict[str, list[bytes]] = {}
+    out_dec: dict[str, Callable[[bytes], Any]] = {}
+    topic_of: dict[str, int] = {}
     for cid in np.unique(cid_arr).tolist():
         topic, schema, decode, why = info[cid]
         where = np.flatnonzero(cid_arr == cid)
@@ -192,34 +207,65 @@ def _take(runs: list[_Run], before: int | None, info: Mapping[int, tuple[str, st
             keep[where] = False
             continue
         at = where.tolist()
-        try:
-            decoded = [decode(datas[i]) for i in at]
-        except decode_errors:
-            decoded, good = [], []
-            for i in at:
-                try:
-                    decoded.append(decode(datas[i]))
-                except decode_errors:
-                    keep[i] = False
-                    if skip is not None:
-                        skip(topic, "that do not decode")
-                    continue
-                good.append(i)
-            where = np.array(good, dtype=np.int64)
-        if not decoded:
-            continue
-        if topic in out_msgs:      # two channels of one topic: one topic index
-            ti = topics.index(topic)
+        names = COLUMN_FIELDS.get(schema) if topic in columnar else None
+        cls = MESSAGE_CLASSES.get(schema) if names is not None else None
+        raw: list[bytes] | None = None
+        cols: dict[str, np.ndarray] | None = None
+        if cls is not None and decode == cls.FromString:
+            # columns straight from the wire; a row the walk does not vouch for is the runtime's to decode
+            raw = [datas[i] for i in at]
+            cols, ok = decode_columns(raw, cls, names)
+            if not ok.all():
+                good = np.ones(len(raw), dtype=bool)
+                for r in np.flatnonzero(~ok).tolist():
+                    try:
+                        m = decode(raw[r])
+                    except decode_errors:
+                        good[r] = False
+                        keep[at[r]] = False
+                        if skip is not None:
+                            skip(topic, "that do not decode")
+                        continue
+                    for name in names:
+                        cols[name][r] = float(getattr(m, name))
+                if not good.all():
+                    raw = [d for d, g in zip(raw, good.tolist()) if g]
+                    cols = {k: v[good] for k, v in cols.items()}
+                    where = where[good]
+            decoded: list[Any] = []
         else:
-            ti = len(topics)
+            try:
+                decoded = [decode(datas[i]) for i in at]
+            except decode_errors:
+                decoded, kept = [], []
+                for i in at:
+                    try:
+                        decoded.append(decode(datas[i]))
+                    except decode_errors:
+                        keep[i] = False
+                        if skip is not None:
+                            skip(topic, "that do not decode")
+                        continue
+                    kept.append(i)
+                where = np.array(kept, dtype=np.int64)
+            if names is not None and decoded:
+                cols = {name: np.fromiter(map(attrgetter(name), decoded), dtype=float, count=len(decoded))
+                        for name in names}
+        if not where.size:
+            continue
+        if topic in topic_of:      # two channels of one topic: one topic index
+            ti = topic_of[topic]
+        else:
+            ti = topic_of[topic] = len(topics)
             topics.append(topic)
             schemas.append(schema)
         topic_index[where] = ti
-        out_msgs.setdefault(topic, []).extend(decoded)
-        names = COLUMN_FIELDS.get(schema) if topic in columnar else None
-        if names is not None:
-            n = len(decoded)
-            cols = {name: np.fromiter(map(attrgetter(name), decoded), dtype=float, count=n) for name in names}
+        if raw is not None:
+            out_raw.setdefault(topic, []).extend(raw)
+            out_dec[topic] = decode
+        else:
+            out_msgs.setdefault(topic, []).extend(decoded)
+        if cols is not None:
             prev = out_cols.get(topic)
             out_cols[topic] = cols if prev is None else {k: np.concatenate((prev[k], v)) for k, v in cols.items()}
     log, topic_index = log[keep], topic_index[keep]
@@ -230,7 +276,7 @@ def _take(runs: list[_Run], before: int | None, info: Mapping[int, tuple[str, st
     for ti in range(len(topics)):
         where = np.flatnonzero(topic_index == ti)
         row[where] = np.arange(where.size)
-    block = MessageBlock(topics, schemas, topic_index, row, log, out_cols, out_msgs)
+    block = MessageBlock(topics, schemas, topic_index, row, log, out_cols, out_msgs, out_raw, out_dec)
     _fix_two_channel_rows(block, cid_arr[keep])
     return block
 

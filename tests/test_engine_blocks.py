@@ -193,7 +193,7 @@ def assert_blocks_are_messages(archive: Path) -> None:
                 topic = block.topics[block.topic_index[i]]
                 row = int(block.row[i])
                 assert (topic, int(block.log_ns[i])) == (m.topic, m.log_time_ns)
-                assert block.messages[topic][row] == m.message
+                assert block.message(topic, row) == m.message
                 for name, col in block.columns.get(topic, {}).items():
                     want = float(getattr(m.message, name))
                     assert col[row] == want or (math.isnan(want) and math.isnan(col[row]))
@@ -267,3 +267,25 @@ def test_track_blocks_with_a_horizon_equal_fixes_one_by_one(rows: list[tuple[flo
         horizon.seq = i + 1
         for x in lookups:
             assert many.at(x, 5.0) == one.at(x, 5.0)
+
+
+@pytest.mark.parametrize("archive_name", ["sample_archive", "mission_archive"])
+@pytest.mark.parametrize("min_dt", [1.0, 0.05, 7.0])
+def test_navigation_columns_from_blocks_equal_messages(archive_name: str, min_dt: float,
+                                                        request: pytest.FixtureRequest) -> None:
+    """ColumnCollector.add_block gathers what add gathers message by message (INS samples kept and held)."""
+    from replay.navigation.columns import ColumnCollector
+
+    archive = request.getfixturevalue(archive_name)
+    with ArchiveReader(archive) as reader:
+        summary = reader.summary()
+        vehicles = sorted({t.strip("/").split("/")[0] for t in summary.topics if t.endswith("/ins")})
+        one, many = (ColumnCollector(vehicles, summary.start_ns, min_dt) for _ in range(2))
+        topics = [t for t in one.topics if t in summary.topics]
+        for m in reader.messages(topics):
+            one.add(m.topic, m.log_time_ns, m.message)
+        columnar = [t for t in topics if summary.topics[t]["schema"] in COLUMN_FIELDS]
+        for block in reader.blocks(topics, columns=columnar):
+            many.add_block(block)
+    for v in vehicles:
+        assert pickle.dumps(many.columns(v)) == pickle.dumps(one.columns(v)), v

@@ -65,7 +65,7 @@ def push_block(engine: Engine, block: MessageBlock) -> None:
     if kinds is None:
         for j in range(n):       # a block the columns cannot take: message by message
             topic = block.topics[block.topic_index[j]]
-            engine.push(topic, int(block.log_ns[j]), block.messages[topic][int(block.row[j])])
+            engine.push(topic, int(block.log_ns[j]), block.message(topic, int(block.row[j])))
         return
     ti = block.topic_index
     kind_of = np.array([k for k, _ in kinds])[ti]
@@ -186,7 +186,7 @@ def push_block(engine: Engine, block: MessageBlock) -> None:
                 horizon.seq = seq0 + j + 1
                 _set_state(engine, finals, j - 1)
                 msg_topic = block.topics[ti[j]]
-                engine.push(msg_topic, int(block.log_ns[j]), block.messages[msg_topic][int(block.row[j])])
+                engine.push(msg_topic, int(block.log_ns[j]), block.message(msg_topic, int(block.row[j])))
                 s += 1
                 k = j + 1
                 continue

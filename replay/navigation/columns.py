@@ -11,6 +11,7 @@ counted in `VehicleColumns.dropped`; each column set is sorted by time.
 from __future__ import annotations
 
 import math
+from bisect import bisect_left
 from array import array
 from collections import Counter
 from dataclasses import dataclass, field
@@ -227,65 +228,81 @@ class ColumnCollector:
         self._append(vehicle, kind, t, msg, topic)
 
     def add_block(self, block: MessageBlock) -> None:
-        """A block of messages (formats.mcap_blocks, every topic's objects kept): what `add` would gather of
-        each, with the INS sample rule run over the block's times rather than message by message."""
+        """A block of messages (formats.mcap_blocks): what `add` would gather of each, the INS sample rule run
+        over the block's times; only the rows kept are decoded."""
         where_of = {topic: np.flatnonzero(block.topic_index == i) for i, topic in enumerate(block.topics)
                     if topic in self.topics}
         if not where_of:
             return
-        t_all = (block.log_ns - self.start_ns) / NS if len(block) else np.empty(0)
+        t_all = (block.log_ns - self.start_ns) / NS
         for topic, where in where_of.items():
             vehicle, kind = self.topics[topic]
-            msgs = block.messages[topic]
-            if kind == "ins":
-                continue      # with the GPS fixes of its vehicle, below
             if kind == "gps":
-                ins_topic = f"/{vehicle}/ins"
-                self._ins_and_fixes(vehicle, block, where_of.get(ins_topic), where, t_all)
-                continue
-            for t, msg in zip(t_all[where].tolist(), msgs):
-                self._append(vehicle, kind, t, msg, topic)
-        for topic, where in where_of.items():
-            vehicle, kind = self.topics[topic]
-            if kind == "ins" and f"/{vehicle}/gps" not in where_of:
-                self._ins_and_fixes(vehicle, block, where, None, t_all)
+                self._ins_and_fixes(vehicle, block, where_of.get(f"/{vehicle}/ins"), where, t_all)
+            elif kind == "ins":
+                if f"/{vehicle}/gps" not in where_of:
+                    self._ins_and_fixes(vehicle, block, where, None, t_all)
+            else:
+                for at, t in zip(where.tolist(), t_all[where].tolist()):
+                    self._append(vehicle, kind, t, block.message(topic, int(block.row[at])), topic)
 
     def _ins_and_fixes(self, vehicle: str, block: MessageBlock, ins_at: np.ndarray | None,
                        gps_at: np.ndarray | None, t_all: np.ndarray) -> None:
-        """One vehicle's INS samples and GPS fixes of a block, in stream order, by the rule of `add`."""
+        """One vehicle's INS samples and GPS fixes of a block, by the rule of `add`: the samples kept are found
+        by bisection (times are in stream order), the two held before each fix by position."""
         ins_topic, gps_topic = f"/{vehicle}/ins", f"/{vehicle}/gps"
-        ins_msgs = block.messages.get(ins_topic, [])
-        gps_msgs = block.messages.get(gps_topic, [])
+        pos = ins_at.tolist() if ins_at is not None else []
+        ts = t_all[ins_at].tolist() if ins_at is not None else []
         fixes = gps_at.tolist() if gps_at is not None else []
-        held = self._held[vehicle]
         last = self._last_ins[vehicle]
         gap = self.ins_min_dt_s - 1e-6
-        g = 0
-        log = block.log_ns
-        if ins_at is not None:
-            for r, (at, t) in enumerate(zip(ins_at.tolist(), t_all[ins_at].tolist())):
-                while g < len(fixes) and fixes[g] < at:
-                    self._fix_row(vehicle, held, t_all[fixes[g]], gps_msgs[g])
-                    g += 1
-                if t - last < gap:
-                    held.append((int(log[at]), ins_msgs[r]))
-                    if len(held) > 2:
-                        del held[0]
-                    continue
-                last = t
-                held.clear()
-                self._append(vehicle, "ins", t, ins_msgs[r], ins_topic)
+        kept: list[int] = []
+        i = 0
+        while i < len(ts):
+            ref = last
+            i = bisect_left(ts, gap, i, key=lambda x: x - ref)     # the first with t - last >= gap
+            if i == len(ts):
+                break
+            kept.append(i)
+            last = ts[i]
+            i += 1
+        # what is appended, in stream order: (position, 0 INS kept | 1 INS held | 2 fix, index)
+        out: list[tuple[int, int, int]] = [(pos[k], 0, k) for k in kept]
+        carried: list[tuple[int, Any]] = list(self._held[vehicle])
+        floor = 0        # INS samples before this index are kept, flushed or passed over
+        for f in fixes:
+            j = bisect_left(pos, f)
+            k = bisect_left(kept, j) - 1      # the last kept sample before the fix
+            lo = max(floor, kept[k] + 1 if k >= 0 else 0)
+            if k >= 0:
+                carried = []      # a kept sample let go of what was held
+            held = list(range(max(lo, j - 2), j))
+            if len(held) < 2 and carried:
+                out.extend((f, 1, -1 - c) for c in range(len(carried))[-(2 - len(held)):])
+            out.extend((f, 1, h) for h in held)
+            out.append((f, 2, f))
+            carried = []
+            floor = j
+        out.sort(key=lambda e: e[0])      # stable: a fix's held samples stay before it
+        for at, kind, k in out:
+            if kind == 2:
+                self._append(vehicle, "gps", float(t_all[at]), block.message(gps_topic, int(block.row[at])),
+                             gps_topic)
+            elif k < 0:
+                held_ns, msg = self._held[vehicle][-1 - k]
+                self._append(vehicle, "ins", (held_ns - self.start_ns) / NS, msg, ins_topic)
+            else:
+                self._append(vehicle, "ins", ts[k], block.message(ins_topic, int(block.row[pos[k]])), ins_topic)
+        # the samples held at the end of the block: after the last kept one and the last fix, the last two
+        k = len(kept) - 1
+        lo = max(floor, kept[k] + 1 if k >= 0 else 0)
+        if kept or fixes:
+            carried = []
+        tail = list(range(max(lo, len(ts) - 2), len(ts)))
+        keep_carried = carried[len(carried) - (2 - len(tail)):] if len(tail) < 2 and carried else []
+        self._held[vehicle] = keep_carried + [(int(block.log_ns[pos[h]]), block.message(ins_topic, int(block.row[pos[h]])))
+                                              for h in tail]
         self._last_ins[vehicle] = last
-        while g < len(fixes):
-            self._fix_row(vehicle, held, t_all[fixes[g]], gps_msgs[g])
-            g += 1
-
-    def _fix_row(self, vehicle: str, held: list[tuple[int, Any]], t: float, msg: Any) -> None:
-        """A GPS fix: the INS samples held before it first (as `add` does)."""
-        for held_ns, held_msg in held:
-            self._append(vehicle, "ins", (held_ns - self.start_ns) / NS, held_msg, f"/{vehicle}/ins")
-        held.clear()
-        self._append(vehicle, "gps", float(t), msg, f"/{vehicle}/gps")
 
     def _append(self, vehicle: str, kind: str, t: float, msg: Any, topic: str) -> None:
         c = self._cols[vehicle][kind]
