@@ -6,7 +6,8 @@ replay engine's INS, DVL and GPS intake) wants instead, per window, each
 topic's fields as numpy columns and the window's stream order as two arrays
 (topic index and row within the topic). `read_blocks` gives that: the window
 ends where the next chunk starts (every message before it is in hand, as in
-the heap merge), so memory holds only the chunks that overlap in time. The
+the heap merge) once `BLOCK_MESSAGES` are in hand, so memory holds those and
+the chunks that overlap in time. The
 stream order is the heap merge's exactly: log time, then chunk position in
 the file, then position in the chunk.
 
@@ -33,6 +34,7 @@ from .mcap_chunks import MAX_CHUNK_BYTES, OP_MESSAGE, ChunkError, OnDamage, read
 from .proto_columns import decode_columns
 from .schemas import MESSAGE_CLASSES
 
+BLOCK_MESSAGES = 1 << 16     # messages in hand before a block is cut: numpy steps per block are amortized
 _RECORD_HEAD = struct.Struct("<BQ")
 _MESSAGE_HEAD = struct.Struct("<HIQQ")
 
@@ -83,6 +85,9 @@ def _chunk_run(f: BinaryIO, ci: Any, channels: set[int], validate_crc: bool, sta
     """The wanted messages of one chunk as a sorted run (the loop of `mcap_chunks.chunk_messages`, as columns)."""
     offset = ci.chunk_start_offset
     _, _, data = read_chunk(f, offset, ci.chunk_length, file_size, validate_crc, limit)
+    found = _indexed(f, ci, data, file_size)
+    if found is not None:
+        return _indexed_run(offset, data, *found, channels, start_ns, end_ns)
     log: list[int] = []
     cids: list[int] = []
     datas: list[bytes] = []
@@ -114,6 +119,90 @@ def _chunk_run(f: BinaryIO, ci: Any, channels: set[int], validate_crc: bool, sta
     return _Run(offset, log, cids, datas)
 
 
+def _u64(buf: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Little-endian u64 at each (unaligned) byte position of `buf`."""
+    return buf[at[:, None] + np.arange(8)].copy().view("<u8")[:, 0]
+
+
+def _indexed(f: BinaryIO, ci: Any, data: bytes, file_size: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """(offset, length) of every message record of a chunk from its message index records, or None.
+
+    The index (records after the chunk in the file) is only believed when its records are exactly the
+    chunk's message records: each an 0x05 record that fits, none overlapping, and what lies between
+    them (walked here) records of other kinds that tile the chunk. Otherwise the caller walks the chunk.
+    """
+    offsets = ci.message_index_offsets
+    size = ci.message_index_length
+    if not offsets or size <= 0 or size > 16 * len(data) + 4096:
+        return None
+    first = min(offsets.values())
+    if first < 0 or first + size > file_size:
+        return None
+    f.seek(first)
+    raw = f.read(size)
+    parts: list[np.ndarray] = []
+    pos = 0
+    try:
+        while pos < len(raw):
+            op, rlen = _RECORD_HEAD.unpack_from(raw, pos)
+            if op != 0x07 or rlen < 6 or pos + 9 + rlen > len(raw):
+                return None
+            (n,) = struct.unpack_from("<I", raw, pos + 11)
+            if n % 16 or 6 + n > rlen:
+                return None
+            parts.append(np.frombuffer(raw, dtype="<u8", count=n // 8, offset=pos + 15)[1::2].astype(np.int64))
+            pos += 9 + rlen
+    except struct.error:
+        return None
+    at = np.sort(np.concatenate(parts)) if parts else np.empty(0, dtype=np.int64)
+    end = len(data)
+    if not at.size or at[0] < 0 or at[-1] + 31 > end or (at.size > 1 and not (np.diff(at) > 0).all()):
+        return None
+    buf = np.frombuffer(data, dtype=np.uint8)
+    if not (buf[at] == OP_MESSAGE).all():
+        return None
+    rlen_all = _u64(buf, at + 1)
+    if (rlen_all < _MESSAGE_HEAD.size).any() or (rlen_all > end).any():
+        return None
+    nxt = at + 9 + rlen_all.astype(np.int64)
+    if nxt[-1] > end or (nxt[:-1] > at[1:]).any():
+        return None
+    # the gaps: before the first, between, after the last; records of other kinds only
+    starts = np.concatenate(([0], nxt))
+    stops = np.concatenate((at, [end]))
+    for a, b in zip(*(x[starts < stops].tolist() for x in (starts, stops))):
+        while a < b:
+            if a + 9 > b:
+                return None
+            op, rlen = _RECORD_HEAD.unpack_from(data, a)
+            if op == OP_MESSAGE or rlen > b - a - 9:
+                return None
+            a += 9 + rlen
+    return at, rlen_all.astype(np.int64)
+
+
+def _indexed_run(offset: int, data: bytes, at: np.ndarray, rlen: np.ndarray, channels: set[int],
+                 start_ns: int | None, end_ns: int | None) -> _Run | None:
+    """The wanted messages of a chunk whose message records are known (`_indexed`), as a sorted run."""
+    buf = np.frombuffer(data, dtype=np.uint8)
+    channel = buf[at + 9].astype(np.int64) | (buf[at + 10].astype(np.int64) << 8)
+    log = _u64(buf, at + 15)
+    keep = np.isin(channel, np.fromiter(channels, dtype=np.int64, count=len(channels)))
+    if start_ns is not None:
+        keep &= log >= np.uint64(start_ns)
+    if end_ns is not None:
+        keep &= log < np.uint64(end_ns)
+    if not keep.any():
+        return None
+    at, rlen, channel, log = at[keep], rlen[keep], channel[keep], log[keep]
+    if not (log[:-1] <= log[1:]).all():
+        order = np.argsort(log, kind="stable")
+        at, rlen, channel, log = at[order], rlen[order], channel[order], log[order]
+    a = (at + 31).tolist()
+    b = (at + 9 + rlen).tolist()
+    return _Run(offset, log.tolist(), channel.tolist(), [data[x:y] for x, y in zip(a, b)])
+
+
 def _overrun(offset: int, on_damage: OnDamage | None, what: str) -> None:
     if on_damage is None:
         raise ChunkError(f"byte {offset}: {what}")
@@ -139,9 +228,12 @@ def read_blocks(f: BinaryIO, chunk_indexes: Iterable[Any], info: Mapping[int, tu
     runs: list[_Run] = []
     if loose:
         runs.append(_Run(-1, [m[0] for m in loose], [m[2] for m in loose], [m[3] for m in loose]))
+    held = 0        # messages read and not yet handed out
     for ci in todo:
-        if runs and ci.message_start_time > min(r.log[r.pos] for r in runs):
+        # a block is what comes before the next chunk's start, once enough is in hand (a few chunks)
+        if held >= BLOCK_MESSAGES and ci.message_start_time > min(r.log[r.pos] for r in runs):
             block = _take(runs, ci.message_start_time, info, columnar, skip, decode_errors)
+            held = sum(len(r.log) - r.pos for r in runs)
             if block is not None:
                 yield block
         try:
@@ -153,6 +245,7 @@ def read_blocks(f: BinaryIO, chunk_indexes: Iterable[Any], info: Mapping[int, tu
             continue
         if run is not None:
             runs.append(run)
+            held += len(run.log)
     if runs:
         block = _take(runs, None, info, columnar, skip, decode_errors)
         if block is not None:

@@ -90,7 +90,20 @@ def _walk(buf: np.ndarray, high: np.ndarray, start: np.ndarray, end: np.ndarray,
     nested: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     while live.size:
         lim = end[live]
-        tag, q, good = _varint(buf, pos[live], lim)
+        p = pos[live]
+        first = buf[p]
+        if first[0] < 0x80 and (first == first[0]).all():
+            # the usual step: every message has the same one-byte tag here (the same fields in the same order)
+            after = _uniform_step(buf, high, p, lim, int(first[0]), table, wanted, live, nested)
+            if after is None:
+                ok[live] = False
+                break
+            good = after <= lim
+            ok[live[~good]] = False
+            pos[live] = after
+            live = live[good & (after < lim)]
+            continue
+        tag, q, good = _varint(buf, p, lim)
         number = (tag >> np.uint64(3)).astype(np.int64)
         wire = (tag & np.uint64(7)).astype(np.int64)
         inside = number < table.size
@@ -148,6 +161,62 @@ def _walk(buf: np.ndarray, high: np.ndarray, start: np.ndarray, end: np.ndarray,
         sub = _walk(buf, high, a, b, _TIMESTAMP_TABLE, {})
         ok[rows[~sub]] = False
     return ok
+
+
+def _uniform_step(buf: np.ndarray, high: np.ndarray, p: np.ndarray, lim: np.ndarray, tag: int, table: np.ndarray,
+                  wanted: dict[int, tuple[np.ndarray, int]], live: np.ndarray,
+                  nested: list[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> np.ndarray | None:
+    """One field of every live message, all with the one-byte `tag` at p: the positions after it (past `lim`
+    where a message is not ok), or None when the field is one the walk leaves to the runtime."""
+    number, wire = tag >> 3, tag & 7
+    kind = int(table[number]) if 0 < number < table.size else 0
+    if kind == 0 or wire != _WIRE[kind]:
+        return None
+    q = p + 1
+    bad = np.zeros(p.size, dtype=bool)
+    value = None
+    if wire == 1:
+        after = q + 8
+    elif wire == 0:
+        b = buf[q]
+        if (b < 0x80).all():
+            value, after = b.astype(np.uint64), q + 1
+        else:
+            value, after, g = _varint(buf, q, lim)
+            bad |= ~g
+    else:
+        b = buf[q]
+        if (b < 0x80).all():
+            size, body = b.astype(np.int64), q + 1
+        else:
+            usize, body, g = _varint(buf, q, lim)
+            bad |= ~g | (usize > (lim - np.minimum(body, lim)).astype(np.uint64))
+            size = np.where(bad, 0, usize).astype(np.int64)
+        after = body + size
+        if kind == _STRING:
+            bad |= high[np.minimum(after, high.size - 1)] != high[body]
+        elif kind == _PACKED_DOUBLES:
+            bad |= size % 8 != 0
+        elif kind == _TIMESTAMP:
+            fine = ~bad & (after <= lim)
+            nested.append((live[fine], body[fine], after[fine]))
+    bad |= after > lim
+    if number in wanted:
+        col, ftype = wanted[number]
+        fine = ~bad
+        rows = live[fine]
+        if ftype == _T_DOUBLE:
+            at = q[fine]
+            col[rows] = buf[at[:, None] + np.arange(8)].copy().view("<f8")[:, 0]
+        elif value is not None:
+            v = value[fine]
+            if ftype == _T_BOOL:
+                col[rows] = (v != 0).astype(float)
+            elif ftype in (_T_INT32, _T_ENUM):
+                col[rows] = (v & np.uint64(0xFFFFFFFF)).astype(np.uint32).view(np.int32).astype(float)
+            else:
+                col[rows] = v.astype(float)
+    return np.where(bad, lim + 1, after)
 
 
 def decode_columns(datas: Sequence[bytes], cls: Any, names: Sequence[str]) -> tuple[dict[str, np.ndarray],
