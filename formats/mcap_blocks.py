@@ -41,7 +41,7 @@ _MESSAGE_HEAD = struct.Struct("<HIQQ")
 # the fields a columnar consumer reads of each schema (float64 columns; booleans and enums as 0/1, ints)
 COLUMN_FIELDS: dict[str, tuple[str, ...]] = {
     "auvreplay.InsState": ("latitude", "longitude", "depth_m", "heading_deg"),
-    "auvreplay.DvlVelocity": ("velocity_x_mps", "velocity_y_mps", "valid", "frame"),
+    "auvreplay.DvlVelocity": ("velocity_x_mps", "velocity_y_mps", "valid", "frame", "altitude_m"),
     "foxglove.LocationFix": ("latitude", "longitude"),
 }
 

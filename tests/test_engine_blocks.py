@@ -289,3 +289,22 @@ def test_navigation_columns_from_blocks_equal_messages(archive_name: str, min_dt
             many.add_block(block)
     for v in vehicles:
         assert pickle.dumps(many.columns(v)) == pickle.dumps(one.columns(v)), v
+
+
+def test_long_track_blocks_equal_fixes_one_by_one() -> None:
+    """A day's worth of rows through a short keep_s: pruning and compaction keep every lookup `add`'s."""
+    rng = np.random.default_rng(1)
+    t = np.cumsum(rng.uniform(0.01, 0.05, 30_000))
+    lat, lon, depth = t * 1e-7, -t * 1e-7, t * 1e-3
+    one, horizon = Track(keep_s=5.0), Horizon()
+    many = Track(keep_s=5.0, horizon=horizon)
+    cuts = list(range(0, t.size, 1000)) + [t.size]
+    for a, b in zip(cuts, cuts[1:]):
+        horizon.seq = a
+        many.extend(t[a:b], lat[a:b], lon[a:b], depth[a:b], np.arange(a + 1, b + 1, dtype=float))
+        for i in range(a, b):
+            one.add(Fix(float(t[i]), float(lat[i]), float(lon[i]), float(depth[i])))
+            horizon.seq = i + 1
+            if i % 97 == 0:
+                for x in (t[i] - 1.2, t[i] - 0.013, t[i], t[i] + 0.01, t[i] - 6.0):
+                    assert many.at(float(x), 0.2) == one.at(float(x), 0.2)

@@ -84,8 +84,8 @@ class Track:
     def _prune(self, newest: float) -> None:
         """Forget rows older than keep_s before `newest` (the rows `add` would have dropped by now)."""
         lo = self._lo
-        while lo < len(self._t) and self._t[lo] < newest - self.keep_s:
-            lo += 1
+        if self._t[lo] < newest - self.keep_s:     # times increase: the first row to keep by bisection
+            lo = bisect_left(self._t, newest - self.keep_s, lo, len(self._t))
         self._lo = lo
         if lo > 4096 and lo * 2 > len(self._t):
             for col in (self._t, self._lat, self._lon, self._depth, self._seq):
@@ -110,6 +110,7 @@ class Track:
         if hi == self._lo or not math.isfinite(t_s):
             return None
         self._prune(self._t[hi - 1])
+        hi = self._visible()       # the prune may have moved the rows down
         lo = self._lo
         i = bisect_left(self._t, t_s, lo, hi)
         if i < hi and self._t[i] == t_s:

@@ -242,9 +242,21 @@ class ColumnCollector:
             elif kind == "ins":
                 if f"/{vehicle}/gps" not in where_of:
                     self._ins_and_fixes(vehicle, block, where, None, t_all)
+            elif kind == "dvl" and block.schemas[block.topics.index(topic)] == "auvreplay.DvlVelocity" \
+                    and topic in block.columns:
+                self._dvl_columns(vehicle, t_all[where], block.columns[topic])
             else:
                 for at, t in zip(where.tolist(), t_all[where].tolist()):
                     self._append(vehicle, kind, t, block.message(topic, int(block.row[at])), topic)
+
+    def _dvl_columns(self, vehicle: str, t: np.ndarray, cols: dict[str, np.ndarray]) -> None:
+        """A block's DVL samples from its columns: the rows `_append` makes of each message."""
+        c = self._cols[vehicle]["dvl"]
+        for col, values in zip(c, (t, cols["velocity_x_mps"], cols["velocity_y_mps"], cols["altitude_m"])):
+            col.frombytes(np.ascontiguousarray(values, dtype=float).tobytes())
+        frame = cols["frame"]
+        c[4].frombytes((cols["valid"] != 0).astype(np.int8).tobytes())
+        c[5].frombytes(np.where((frame >= 0) & (frame <= 3), frame, 0).astype(np.int8).tobytes())
 
     def _ins_and_fixes(self, vehicle: str, block: MessageBlock, ins_at: np.ndarray | None,
                        gps_at: np.ndarray | None, t_all: np.ndarray) -> None:
