@@ -376,7 +376,7 @@ def _take(runs: list[_Run], before: int | None, info: Mapping[int, tuple[str, st
 
 def _fix_two_channel_rows(block: MessageBlock, cid: np.ndarray) -> None:
     """Rows of a topic held by several channels follow the channels' concatenation order, not the stream's."""
-    for ti, topic in enumerate(block.topics):
+    for ti in range(len(block.topics)):
         where = np.flatnonzero(block.topic_index == ti)
         ids = cid[where]
         if where.size < 2 or np.all(ids == ids[0]):

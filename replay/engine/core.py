@@ -18,8 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from formats.units import NS
 from formats.mcap_blocks import MessageBlock
+from formats.units import NS
 from replay.engine.blocks import push_block
 from replay.engine.config import RunConfig
 from replay.engine.follower import FollowerPipeline, VehicleTracks

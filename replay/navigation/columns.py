@@ -11,8 +11,8 @@ counted in `VehicleColumns.dropped`; each column set is sorted by time.
 from __future__ import annotations
 
 import math
-from bisect import bisect_left
 from array import array
+from bisect import bisect_left
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
@@ -312,8 +312,8 @@ class ColumnCollector:
             carried = []
         tail = list(range(max(lo, len(ts) - 2), len(ts)))
         keep_carried = carried[len(carried) - (2 - len(tail)):] if len(tail) < 2 and carried else []
-        self._held[vehicle] = keep_carried + [(int(block.log_ns[pos[h]]), block.message(ins_topic, int(block.row[pos[h]])))
-                                              for h in tail]
+        self._held[vehicle] = keep_carried + [
+            (int(block.log_ns[pos[h]]), block.message(ins_topic, int(block.row[pos[h]]))) for h in tail]
         self._last_ins[vehicle] = last
 
     def _append(self, vehicle: str, kind: str, t: float, msg: Any, topic: str) -> None:
