@@ -304,23 +304,23 @@ def _take(runs: list[_Run], before: int | None, info: Mapping[int, tuple[str, st
         cls = MESSAGE_CLASSES.get(schema) if names is not None else None
         raw: list[bytes] | None = None
         cols: dict[str, np.ndarray] | None = None
-        if cls is not None and decode == cls.FromString:
+        if cls is not None and names is not None and decode == cls.FromString:
             # columns straight from the wire; a row the walk does not vouch for is the runtime's to decode
             raw = [datas[i] for i in at]
             cols, ok = decode_columns(raw, cls, names)
             if not ok.all():
                 good = np.ones(len(raw), dtype=bool)
-                for r in np.flatnonzero(~ok).tolist():
+                for x in np.flatnonzero(~ok).tolist():
                     try:
-                        m = decode(raw[r])
+                        m = decode(raw[x])
                     except decode_errors:
-                        good[r] = False
-                        keep[at[r]] = False
+                        good[x] = False
+                        keep[at[x]] = False
                         if skip is not None:
                             skip(topic, "that do not decode")
                         continue
                     for name in names:
-                        cols[name][r] = float(getattr(m, name))
+                        cols[name][x] = float(getattr(m, name))
                 if not good.all():
                     raw = [d for d, g in zip(raw, good.tolist()) if g]
                     cols = {k: v[good] for k, v in cols.items()}

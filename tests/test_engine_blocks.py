@@ -90,6 +90,7 @@ def engine_run(archive: Path, blocks: bool, config: RunConfig | None = None) -> 
         topics = [t for t in readable if t == "/diagnostics" or t in layout.sources
                   or any(t == f"/{v}/{s}" for v in layout.roles for s in P.SENSORS)]
         rec = Recorder()
+        assert summary.start_ns is not None
         engine = Engine(layout, config, summary.start_ns, [rec])
         if blocks:
             columnar = [t for t in topics if summary.topics[t]["schema"] in COLUMN_FIELDS]
@@ -280,6 +281,7 @@ def test_navigation_columns_from_blocks_equal_messages(archive_name: str, min_dt
     with ArchiveReader(archive) as reader:
         summary = reader.summary()
         vehicles = sorted({t.strip("/").split("/")[0] for t in summary.topics if t.endswith("/ins")})
+        assert summary.start_ns is not None
         one, many = (ColumnCollector(vehicles, summary.start_ns, min_dt) for _ in range(2))
         topics = [t for t in one.topics if t in summary.topics]
         for m in reader.messages(topics):
