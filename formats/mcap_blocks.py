@@ -133,7 +133,8 @@ def _indexed(f: BinaryIO, ci: Any, data: bytes, file_size: int) -> tuple[np.ndar
     """
     offsets = ci.message_index_offsets
     size = ci.message_index_length
-    if not offsets or size <= 0 or size > 16 * len(data) + 4096:
+    # an index entry (16 bytes) per message record (31 bytes at least): never more than the chunk's own size
+    if not offsets or size <= 0 or size > len(data) + (1 << 16):
         return None
     first = min(offsets.values())
     if first < 0 or first + size > file_size:

@@ -13,7 +13,9 @@ message's own descriptor with their usual wire type, strings that are ASCII,
 Any other message (an unknown field, a non-ASCII string that must be checked
 as UTF-8, a varint of ten bytes, bytes past the end) is marked and decoded by
 `FromString` instead, so the columns are always what the runtime gives, and a
-message it refuses stays refused.
+message it refuses stays refused. So is a message of more than `MAX_STEPS`
+fields: a crafted one of a million tiny fields costs the runtime, not a
+million numpy steps.
 """
 
 from __future__ import annotations
@@ -61,6 +63,7 @@ def _plan(cls: Any) -> tuple[np.ndarray, dict[str, tuple[int, int]]]:
     return table, names
 
 
+MAX_STEPS = 64     # fields walked per message at most (ours have up to 25); the runtime decodes longer ones
 _TIMESTAMP_TABLE = np.array([0, _VARINT, _VARINT], dtype=np.int8)
 
 
@@ -88,7 +91,12 @@ def _walk(buf: np.ndarray, high: np.ndarray, start: np.ndarray, end: np.ndarray,
     pos = start.copy()
     live = np.flatnonzero(pos < end)
     nested: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    steps = 0
     while live.size:
+        steps += 1
+        if steps > MAX_STEPS:
+            ok[live] = False       # a message of very many fields: the runtime's, one numpy step per field is not
+            break
         lim = end[live]
         p = pos[live]
         first = buf[p]

@@ -79,3 +79,12 @@ def test_our_writers_messages_take_the_fast_walk() -> None:
     cols, ok = decode_columns(ins, S.InsState, COLUMN_FIELDS["auvreplay.InsState"])
     assert ok.all() and cols["latitude"].tolist() == [47.1 + i for i in range(50)]
     assert cols["heading_deg"].tolist() == [float(i) for i in range(50)] and (cols["depth_m"] == 2.0).all()
+
+
+def test_a_message_of_very_many_fields_is_left_to_the_runtime() -> None:
+    """A crafted message repeating one double field 5000 times: the runtime decodes it (the last one wins)."""
+    one = S.InsState(latitude=1.0).SerializeToString()
+    many = one * 4999 + S.InsState(latitude=2.5).SerializeToString()
+    cols, ok = decode_columns([many, one], S.InsState, ("latitude",))
+    assert ok.tolist() == [False, True] and cols["latitude"][1] == 1.0
+    assert S.InsState.FromString(many).latitude == 2.5
