@@ -1,16 +1,28 @@
-"""NMEA to MCAP end to end, against pynmea2 merely parsing the same lines.
+"""NMEA to MCAP end to end, against pynmea2 parsing the same lines and computing the same outputs.
 
 Two synthetic 1 Hz logs written with our encoders: a receiver mix as a
 u-blox or NovAtel port prints it (RMC, VTG, GGA, GSA, 3 x GSV, GLL, GST, ZDA:
 10 sentences and one fix per epoch) and a GGA-only log (one sentence per
 fix, the worst case for us: every sentence becomes two archive messages).
 
+Like with like: both sides give, per epoch, the fix (time, latitude,
+longitude, ellipsoidal altitude, ENU covariance from GST sigmas else HDOP)
+and the velocity over ground (north, east, speed, course from VTG, else a
+valid RMC). pynmea2's side parses every line (checksums verified), groups
+the sentences into epochs by time of day as we do, takes the date from ZDA
+or RMC, and computes those values as Python floats; the script checks they
+equal ours (1e-9) before timing anything. Ours builds the protobuf
+messages (fix, status, velocity), counts every sentence, and writes them
+into a zstd-compressed, CRC-checked MCAP archive.
+
 Columns, per sentence of the log (median of repeats, microseconds):
-  pynmea2 parse       pynmea2.parse() on every line, nothing else
+  pynmea2 parse       pynmea2.parse() on every line, nothing else (the old reference)
+  pynmea2 outputs     parse + epochs + fix + velocity, the same values as ours
   ours decode         formats.nmea.decode (records, checksums verified)
-  ours convert        recorders.gps.convert_nmea (LocationFix + GnssStatus)
+  ours convert        recorders.gps.convert_nmea (LocationFix + GnssStatus + GnssVelocity messages)
   ours to MCAP        convert + formats.mcap_writer.ArchiveWriter (zstd, CRCs)
-and the ratio pynmea2 parse / ours to MCAP (> 1: ours end to end is faster).
+and the ratios pynmea2 outputs / ours to MCAP (the headline: ours does
+more) and pynmea2 outputs / ours convert (> 1: ours is faster).
 The pipelines run interleaved (one of each per round), so a load change on
 the shared machine hits them all alike.
 
@@ -24,12 +36,13 @@ Run: .venv/bin/python bench/bench_nmea.py [epochs]
 
 from __future__ import annotations
 
+import math
 import statistics
 import sys
 import tempfile
 import time
 from collections.abc import Callable
-from datetime import date
+from datetime import date, datetime
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -82,6 +95,90 @@ def gga_only(epochs: int) -> bytes:
 
 
 
+KNOTS = 1852.0 / 3600.0
+UERE_GPS_M = 4.0  # the UERE of a GPS fix (quality 1), as recorders.gnss_covariance uses it
+_TIMED = ("GGA", "RMC", "GLL", "GST", "ZDA")
+
+
+def pynmea2_outputs(data: bytes) -> list[tuple]:
+    """pynmea2 parses every line; epochs by time of day; per epoch the fix and the velocity as plain values."""
+    out: list[tuple] = []
+    epoch: dict[str, object] = {}
+    epoch_time = None
+    day = [CTX.trial_date]  # the manifest's date, until a ZDA or RMC gives one
+    for line in data.decode("latin-1").splitlines():
+        msg = pynmea2.parse(line)
+        kind = msg.sentence_type
+        if kind not in ("GGA", "RMC", "GLL", "GST", "ZDA", "VTG"):
+            continue
+        t = msg.timestamp if kind in _TIMED else None
+        if epoch and (kind in epoch or (t is not None and epoch_time is not None and t != epoch_time)):
+            out += _pynmea2_epoch(epoch, day)
+            epoch, epoch_time = {}, None
+        epoch[kind] = msg
+        if epoch_time is None:
+            epoch_time = t
+    if epoch:
+        out += _pynmea2_epoch(epoch, day)
+    return out
+
+
+def _pynmea2_epoch(epoch: dict, day: list) -> list[tuple]:
+    """('fix', t, lat, lon, alt, covariance) and ('velocity', t, north, east, speed, course) of one epoch."""
+    zda, rmc, gga, gst, vtg = (epoch.get(k) for k in ("ZDA", "RMC", "GGA", "GST", "VTG"))
+    if zda is not None:
+        day[0] = zda.datetime.date()
+    elif rmc is not None and rmc.status == "A":
+        day[0] = rmc.datestamp
+    first = next(m for k, m in epoch.items() if k in _TIMED)
+    t = datetime.combine(day[0], first.timestamp)
+    t_ns = round(t.timestamp() * 1e6) * 1000
+    out = []
+    if gga is not None and gga.gps_qual:
+        alt = float(gga.altitude) + float(gga.geo_sep)
+        if gst is not None:
+            cov = (gst.std_dev_longitude ** 2, 0.0, 0.0, 0.0, gst.std_dev_latitude ** 2, 0.0, 0.0, 0.0,
+                   gst.std_dev_altitude ** 2)
+        else:
+            h = float(gga.horizontal_dil) * UERE_GPS_M
+            cov = (h * h / 2, 0.0, 0.0, 0.0, h * h / 2, 0.0, 0.0, 0.0, 4 * h * h)
+        out.append(("fix", t_ns, gga.latitude, gga.longitude, alt, cov))
+    speed = course = None
+    if vtg is not None and vtg.faa_mode != "N":
+        speed, course = float(vtg.spd_over_grnd_kts) * KNOTS, vtg.true_track
+    elif rmc is not None and rmc.status == "A":
+        speed, course = rmc.spd_over_grnd * KNOTS, rmc.true_course
+    if speed is not None and course is not None:
+        c = math.radians(course)
+        out.append(("velocity", t_ns, speed * math.cos(c), speed * math.sin(c), speed, course))
+    return out
+
+
+def ours_outputs(data: bytes) -> list[tuple]:
+    """Our fix and velocity messages as the same plain values (for the check that both sides agree)."""
+    out = []
+    for o in convert_nmea(data, CTX):
+        m = o.message
+        if o.topic.endswith("/gps"):
+            out.append(("fix", o.log_time_ns, m.latitude, m.longitude, m.altitude, tuple(m.position_covariance)))
+        elif o.topic.endswith("/gps/velocity"):
+            out.append(("velocity", o.log_time_ns, m.velocity_north_mps, m.velocity_east_mps,
+                        m.speed_over_ground_mps, m.course_over_ground_deg))
+    return out
+
+
+def check_same_outputs(data: bytes) -> int:
+    """Raise unless pynmea2's values are ours (1e-9); the number of outputs."""
+    theirs, ours = pynmea2_outputs(data), ours_outputs(data)
+    assert len(theirs) == len(ours) and theirs, (len(theirs), len(ours))
+    for a, b in zip(theirs, ours):
+        assert a[:2] == b[:2], (a, b)
+        flat_a = [*a[2:-1], *(a[-1] if isinstance(a[-1], tuple) else (a[-1],))]
+        flat_b = [*b[2:-1], *(b[-1] if isinstance(b[-1], tuple) else (b[-1],))]
+        assert all(math.isclose(x, y, rel_tol=1e-9, abs_tol=1e-9) for x, y in zip(flat_a, flat_b)), (a, b)
+    return len(ours)
+
+
 def pynmea2_parse(data: bytes) -> int:
     """Parse every line with pynmea2 (checksums verified), keep the objects."""
     parsed = []
@@ -103,16 +200,19 @@ def ours_mcap(data: bytes, path: Path) -> int:
 def row(name: str, data: bytes, tmp: Path) -> list[object]:
     """Timings (us per sentence) of every pipeline on one log, and the ratios."""
     lines = data.count(b"\n")
+    check_same_outputs(data)
     t = interleaved(repeats=REPEATS, fns={
         "pynmea2": lambda: pynmea2_parse(data),
+        "pynmea2 outputs": lambda: len(pynmea2_outputs(data)),
         "decode": lambda: sum(1 for _ in nmea.decode(data)),
         "reference": lambda: sum(1 for _ in convert_nmea_reference(data, CTX)),
         "convert": lambda: sum(1 for _ in convert_nmea(data, CTX)),
         "mcap": lambda: ours_mcap(data, tmp / "bench.mcap"),
     })
     us = {k: v * 1e6 / lines for k, v in t.items()}
-    return [name, lines, us["pynmea2"], us["decode"], us["reference"], us["convert"], us["mcap"],
-            us["pynmea2"] / us["mcap"], us["pynmea2"] / us["decode"]]
+    return [name, lines, us["pynmea2"], us["pynmea2 outputs"], us["decode"], us["reference"], us["convert"],
+            us["mcap"], us["pynmea2 outputs"] / us["mcap"], us["pynmea2 outputs"] / us["convert"],
+            us["pynmea2"] / us["mcap"]]
 
 
 def per_call_us(fn: Callable[[], object], n: int = 20000, repeats: int = REPEATS) -> float:
@@ -176,13 +276,16 @@ def main(argv: list[str] | None = None) -> int:
         rows = [row("receiver mix", receiver_mix(epochs), Path(tmp)), row("GGA only", gga, Path(tmp))]
         stages = stage_table(Path(tmp), gga)
     print(f"NMEA -> MCAP, median of {REPEATS} interleaved runs, microseconds per sentence")
-    head = (f"{'log':<14}{'lines':>8}{'pynmea2 parse':>15}{'ours decode':>13}{'ref. convert':>14}{'ours convert':>14}"
-            f"{'ours to MCAP':>14}{'parse/MCAP':>12}{'parse/decode':>14}")
+    head = (f"{'log':<14}{'lines':>7}{'pynmea2 parse':>15}{'pynmea2 outputs':>17}{'ours decode':>13}"
+            f"{'ref. convert':>14}{'ours convert':>14}{'ours to MCAP':>14}{'outputs/MCAP':>14}{'outputs/convert':>17}"
+            f"{'parse/MCAP':>12}")
     print(head)
     print("-" * len(head))
-    for name, lines, py, dec, ref, conv, mcap, ratio, ratio_dec in rows:
-        print(f"{name:<14}{lines:>8}{py:>15.2f}{dec:>13.2f}{ref:>14.2f}{conv:>14.2f}{mcap:>14.2f}"
-              f"{ratio:>11.2f}x{ratio_dec:>13.2f}x")
+    for name, lines, py, pyout, dec, ref, conv, mcap, ratio, ratio_conv, ratio_parse in rows:
+        print(f"{name:<14}{lines:>7}{py:>15.2f}{pyout:>17.2f}{dec:>13.2f}{ref:>14.2f}{conv:>14.2f}{mcap:>14.2f}"
+              f"{ratio:>13.2f}x{ratio_conv:>16.2f}x{ratio_parse:>11.2f}x")
+    print("  (pynmea2 outputs: parse, epochs, fix and velocity values, checked equal to ours before timing;"
+          " ours: fix, status and velocity messages, every sentence counted)")
     print("  (ref. convert: tests.reference_converters.convert_nmea_reference, the record-based path the fast one"
           " is tested against)")
     print("\nOne GGA-only epoch by stage, median microseconds (per GGA line of the log, or per call)")

@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 MESSAGE_ENCODING = "json"
 SCHEMA_ENCODING = "jsonschema"
@@ -31,6 +31,9 @@ class JsonMessage:
     schema_name: str
     schema: str
     data: bytes
+    # a channel's encodings, as `formats.ros_messages.RosMessage` gives them (the writer reads either)
+    schema_encoding: ClassVar[str] = SCHEMA_ENCODING
+    message_encoding: ClassVar[str] = MESSAGE_ENCODING
 
     def SerializeToString(self) -> bytes:  # the protobuf message method the writers call
         """The message's bytes on the wire: its JSON text."""

@@ -35,9 +35,12 @@ from mcap_protobuf.decoder import DecoderFactory
 from .json_messages import MESSAGE_ENCODING as JSON_ENCODING
 from .json_messages import SCHEMA_ENCODING as JSON_SCHEMA_ENCODING
 from .json_messages import JsonMessage
+from .mcap_blocks import MessageBlock, read_blocks
 from .mcap_chunks import MAX_CHUNK_BYTES, RawMessage, ordered_messages
 from .mcap_records import MAGIC, OP_ATTACHMENT, OP_METADATA, RecordError, read_record, read_summary, scan
 from .records import FormatError
+from .ros_messages import ENCODINGS as ROS_ENCODINGS
+from .ros_messages import RosMessage, RosSchema
 from .schemas import MESSAGE_CLASSES
 
 # what a protobuf decoder raises on bytes that are not its message
@@ -149,6 +152,16 @@ def _json_decoder(schema: Schema | None) -> Callable[[bytes], JsonMessage]:
     return decode
 
 
+def _ros_decoder(channel: Channel, schema: Schema) -> Callable[[bytes], RosMessage]:
+    """A ROS channel's messages as RosMessages: the bytes as the bag stored them (the replay reads none of them;
+    Foxglove, Rerun and the mcap library's ROS decoders do)."""
+    kind = RosSchema(schema.name, schema.encoding, schema.data.decode("utf-8", "replace"), channel.message_encoding)
+
+    def decode(data: bytes) -> RosMessage:
+        return RosMessage(kind, bytes(data))
+    return decode
+
+
 def _check_magic(path: Path) -> int:
     try:
         size = path.stat().st_size
@@ -252,6 +265,8 @@ class ArchiveReader:
         """(decode function, "") for a channel, or (None, why its messages are skipped)."""
         if channel.message_encoding == JSON_ENCODING and (schema is None or schema.encoding == JSON_SCHEMA_ENCODING):
             return _json_decoder(schema), ""
+        if schema is not None and ROS_ENCODINGS.get(channel.message_encoding) == schema.encoding:
+            return _ros_decoder(channel, schema), ""
         if channel.message_encoding != "protobuf":
             return None, f"of encoding {channel.message_encoding[:40]!r}, not protobuf"
         if schema is None:
@@ -297,6 +312,25 @@ class ArchiveReader:
                 skip(topic, "that do not decode")
                 continue
             yield ArchiveMessage(topic, name, log_time, publish_time, msg)
+
+    def blocks(
+        self, topics: Iterable[str] | None = None, start_ns: int | None = None, end_ns: int | None = None,
+        columns: Iterable[str] = (),
+    ) -> Iterator[MessageBlock]:
+        """The messages of `messages(topics, start_ns, end_ns)`, in the same order, as blocks of one time window
+        each (formats.mcap_blocks): the topics in `columns` decoded into numpy columns, the others as objects."""
+        s = self._index
+        wanted = set(topics) if topics is not None else None
+        info: dict[int, tuple[str, str, Callable[[bytes], Any] | None, str]] = {}
+        for cid, ch in s.channels.items():
+            if wanted is None or ch.topic in wanted:
+                schema = s.schemas.get(ch.schema_id)
+                info[cid] = (ch.topic, schema.name if schema else "", *self._decoder(ch, schema))
+        loose = [m for m in self._loose if m[2] in info and (start_ns is None or m[0] >= start_ns)
+                 and (end_ns is None or m[0] < end_ns)]
+        yield from read_blocks(self._file, s.chunk_indexes, info, set(columns), self.validate_crcs, start_ns, end_ns,
+                               self.damage.bad_chunk, self.damage.skip_message, self.max_chunk_bytes, loose,
+                               _DECODE_ERRORS)
 
     # -- summary, metadata, attachments ---------------------------------------
     def summary(self) -> ArchiveSummary:

@@ -1,4 +1,4 @@
-"""Writing archives: chunked, indexed, zstd-compressed MCAP with protobuf messages (and JSON ones).
+"""Writing archives: chunked, indexed, zstd-compressed MCAP with protobuf messages (and JSON and ROS ones).
 
 The records are laid out as the MCAP specification (mcap.dev/spec, major
 version 0) describes them; we build them ourselves because the per-message
@@ -23,9 +23,10 @@ before the channel's first message (as the spec requires); a chunk left with
 such records and no message is written out as plain records, so a channel
 registered without messages is still in the data section.
 
-A record of a source log that has no schema of ours is a `formats.json_messages.JsonMessage`: its topic
-is a `json` channel whose schema is a `jsonschema` (one class for every such topic, so a topic's schema is
-that of its first message).
+A record of a source log kept as itself is a source message: a `formats.json_messages.JsonMessage` (a `json`
+channel whose schema is a `jsonschema`) or a `formats.ros_messages.RosMessage` (a `ros1` or `cdr` channel whose
+schema is a `ros1msg` or `ros2msg` definition). One class for many schemas, so a topic's schema is that of its
+first message.
 
 The file is written under a temporary name next to the target and renamed
 only when `close()` finishes, so an interrupted write never leaves a file
@@ -47,10 +48,9 @@ import zstandard
 from google.protobuf.message import Message
 from mcap_protobuf.schema import build_file_descriptor_set
 
-from .json_messages import MESSAGE_ENCODING as JSON_ENCODING
-from .json_messages import SCHEMA_ENCODING as JSON_SCHEMA_ENCODING
 from .json_messages import JsonMessage
 from .output_files import OutputClaim
+from .ros_messages import RosMessage
 
 PROFILE = ""  # protobuf-encoded MCAP has no well-known profile
 CHUNK_SIZE = 1024 * 1024
@@ -72,6 +72,8 @@ _CHUNK_HEAD = struct.Struct("<QQQI")  # start, end, uncompressed size, uncompres
 _INDEX_HEAD = struct.Struct("<BQHI")  # opcode, length, channel id, byte length of the entries
 _U16_U64 = struct.Struct("<HQ")
 _SEQUENCE_MASK = 0xFFFFFFFF
+# messages that carry their schema (name, encoding, text) and channel encoding: a source log's records as themselves
+SOURCE_CLASSES = (JsonMessage, RosMessage)
 
 
 def _library() -> str:
@@ -146,7 +148,7 @@ class ArchiveWriter:
         self._zstd = zstandard.ZstdCompressor(level=ZSTD_LEVEL)
         self._topics: dict[str, _Channel] = {}
         self._by_id: dict[int, _Channel] = {}
-        self._schemas: dict[str | tuple[str, str], int] = {}  # protobuf: by name; JSON: by name and text
+        self._schemas: dict[str | tuple[str, str, str], int] = {}  # protobuf: by name; others: by encoding, name, text
         self._summary_schemas: list[bytes] = []
         self._summary_channels: list[bytes] = []
         self._chunk_indexes: list[bytes] = []
@@ -175,7 +177,12 @@ class ArchiveWriter:
         Schema on first use."""
         return self._channel(topic, JsonMessage, JsonMessage(schema_name, schema, b"")).id
 
-    def _channel(self, topic: str, message_class: type[Message] | type[JsonMessage],
+    def source_channel(self, topic: str, example: JsonMessage | RosMessage) -> int:
+        """The channel id for a topic of source messages (JSON or ROS), registering it and the schema `example`
+        carries on first use."""
+        return self._channel(topic, type(example), example).id
+
+    def _channel(self, topic: str, message_class: type[Message] | type[JsonMessage] | type[RosMessage],
                  example: Any = None) -> _Channel:
         if self._closed:
             raise ValueError(f"{self.path}: the archive is closed")
@@ -187,17 +194,19 @@ class ArchiveWriter:
                     f"not {getattr(getattr(message_class, 'DESCRIPTOR', None), 'full_name', message_class)}"
                 )
             return known
-        key: str | tuple[str, str]
-        if message_class is JsonMessage:  # one class for every JSON topic: the schema is the example message's
-            name, encoding, key = example.schema_name, JSON_ENCODING, (example.schema_name, example.schema)
+        key: str | tuple[str, str, str]
+        source = message_class in SOURCE_CLASSES
+        if source:  # one class for many schemas: the schema is the example message's
+            name, encoding = example.schema_name, example.message_encoding
+            key = (example.schema_encoding, name, example.schema)
         else:
             name = key = message_class.DESCRIPTOR.full_name  # type: ignore[union-attr]
             encoding = "protobuf"
         schema_id = self._schemas.get(key)
         if schema_id is None:
             schema_id = len(self._schemas) + 1  # 0 means "no schema"
-            if message_class is JsonMessage:
-                data, schema_encoding = example.schema.encode("utf-8"), JSON_SCHEMA_ENCODING
+            if source:
+                data, schema_encoding = example.schema.encode("utf-8"), example.schema_encoding
             else:
                 data, schema_encoding = build_file_descriptor_set(message_class).SerializeToString(), "protobuf"
             rec = record(OP_SCHEMA, _U16.pack(schema_id) + _string(name) + _string(schema_encoding)

@@ -46,7 +46,8 @@ from typing import Any
 
 from .mcap_chunks import MAX_CHUNK_BYTES, lz4_bounded, mib
 from .records import FormatError, library_error
-from .rosbag_mcap import bounded_reader, storage_problems
+from .ros_messages import RosSchema, ros_schema
+from .rosbag_mcap import bounded_reader, inflate_message, storage_problems
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -65,9 +66,10 @@ OP_MSGDATA, OP_CHUNK, OP_CONNECTION = 2, 5, 7
 RawRow = tuple[Any, int, bytes | None, str]
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)  # not frozen: one per bag message, and frozen's __setattr__ path costs
 class BagMessage:
-    """One bag message: topic, type ("sensor_msgs/NavSatFix"), bag time, index, and the message or why not."""
+    """One bag message: topic, type ("sensor_msgs/NavSatFix"), bag time, index, and the message or why not;
+    with the message's bytes as the bag stores them and its type's schema (`formats.ros_messages`)."""
 
     topic: str
     msgtype: str
@@ -75,6 +77,9 @@ class BagMessage:
     index: int                 # 0-based, in read order within its file (bag time order, chunk by chunk)
     message: Any = None        # the decoded message (rosbags dataclass), None when `problem` says why
     problem: str = ""
+    data: bytes = b""          # the serialized message (ROS 1 or CDR), when `message` decoded from it
+    schema: RosSchema | None = None   # its type's schema, one object per connection type, when `message` is set
+    undecoded: bool = False    # a type the caller reads from `data` itself (read_bag's `own`): `message` is None
 
 
 def ros_type(msgtype: str) -> str:
@@ -204,16 +209,19 @@ def _open(path: Path, kind: str) -> Any:
     return bounded_reader(path)
 
 
-def read_bag(path: Path, types: dict[str, Any] | None = None) -> Iterator[BagMessage]:
+def read_bag(path: Path, types: dict[str, Any] | None = None,
+             own: dict[str, dict[int, str]] | None = None) -> Iterator[BagMessage]:
     """Every message of one bag file, in bag time order; FormatError when rosbags cannot open it.
 
     `path` may be a ROS 2 bag's ``metadata.yaml``: the whole bag folder is read then (its storage files,
     split or compressed, as the metadata lists them). `types` (from `definitions`) define custom types the
-    bag does not.
+    bag does not. `own` names types (rosbags' names) the caller reads from the bytes itself, with rosbags' MD5
+    of the definition it reads by ROS version: where the bag's definition is that one, their messages come
+    `undecoded`.
     """
     reader, kind = _opened(path)
     try:
-        yield from _messages(reader, kind == "ros1", types or {})
+        yield from _messages(reader, kind == "ros1", types or {}, own or {})
     finally:
         with contextlib.suppress(Exception):  # closing a damaged bag may fail again; nothing is left to lose
             reader.close()
@@ -253,13 +261,22 @@ def _opened(path: Path) -> tuple[Any, str]:
     return reader, kind
 
 
-def _messages(reader: Any, ros1: bool, types: dict[str, Any]) -> Iterator[BagMessage]:
+def _messages(reader: Any, ros1: bool, types: dict[str, Any], own: dict[str, dict[int, str]]) -> Iterator[BagMessage]:
     connections = list(reader.connections)
     store, broken = _typestore(connections, ros1, types)
     for conn in connections:   # (a type that is not text is its rows' problem: _ros2_rows says so)
         if isinstance(conn.msgtype, str) and conn.msgtype not in store.fielddefs and conn.msgtype not in broken:
             broken[conn.msgtype] = (f"no definition of {ros_type(conn.msgtype)}: the bag carries none and rosbags "
                                     "knows none (give its .msg or .idl in the log's msg_paths)")
+    schemas: dict[str, RosSchema] = {}
+    for conn in connections:   # a type whose definition rosbags cannot write out is its messages' problem
+        if isinstance(conn.msgtype, str) and conn.msgtype not in broken and conn.msgtype not in schemas:
+            try:
+                schemas[conn.msgtype] = ros_schema(conn.msgtype, getattr(conn.msgdef, "data", "") or "",
+                                                   getattr(conn.msgdef.format, "name", "NONE"), store, ros1)
+            except Exception as exc:  # noqa: BLE001 - rosbags' type errors are of many kinds: this type only
+                broken[conn.msgtype] = f"no message definition to archive it by ({library_error(exc)})"
+    undecoded = {t for t in schemas if t in own and _md5(store, t, ros1) == own[t].get(1 if ros1 else 2)}
     index = 0
     stream = _ros1_rows(reader) if ros1 else _ros2_rows(reader)
     while True:
@@ -277,6 +294,10 @@ def _messages(reader: Any, ros1: bool, types: dict[str, Any]) -> Iterator[BagMes
         msgtype = ros_type(conn.msgtype)
         problem = problem or broken.get(conn.msgtype, "")
         message = None
+        if not problem and conn.msgtype in undecoded and getattr(conn.ext, "serialization_format", "cdr") == "cdr":
+            yield BagMessage(conn.topic, msgtype, t_ns, index, None, "", raw or b"", schemas[conn.msgtype], True)
+            index += 1
+            continue
         if not problem:
             fmt = getattr(conn.ext, "serialization_format", "cdr")
             try:
@@ -288,8 +309,19 @@ def _messages(reader: Any, ros1: bool, types: dict[str, Any]) -> Iterator[BagMes
                     problem = f"serialization {fmt!r} is not CDR"
             except Exception as exc:  # noqa: BLE001 - unknown type, short or garbled payload: this message only
                 problem = f"does not decode as {msgtype} ({library_error(exc)})"
-        yield BagMessage(conn.topic, msgtype, t_ns, index, message, problem)
+        if problem:
+            yield BagMessage(conn.topic, msgtype, t_ns, index, None, problem)
+        else:
+            yield BagMessage(conn.topic, msgtype, t_ns, index, message, "", raw or b"", schemas[conn.msgtype])
         index += 1
+
+
+def _md5(store: Any, msgtype: str, ros1: bool) -> str:
+    """rosbags' MD5 of a type's definition as the store holds it ("" when it cannot write one)."""
+    try:
+        return str(store.generate_msgdef(msgtype, ros_version=1 if ros1 else 2)[1])
+    except Exception:  # noqa: BLE001 - such a type is decoded by rosbags, which says what is wrong
+        return ""
 
 
 def _ros2_rows(reader: Any) -> Iterator[RawRow]:
@@ -309,6 +341,7 @@ def _storage_rows(problems: list[list[str]]) -> Iterator[RawRow]:
 
 
 def _ros2_checked(reader: Any) -> Iterator[RawRow]:
+    compressed = getattr(getattr(reader, "storage", None), "message_compressed", False)
     for conn, t_ns, raw in reader.messages():
         if not (isinstance(conn.topic, str) and isinstance(conn.msgtype, str)):   # the topics table's row
             yield None, 0, None, f"topic {conn.topic!r} of type {conn.msgtype!r}: not text"
@@ -318,6 +351,8 @@ def _ros2_checked(reader: Any) -> Iterator[RawRow]:
             problem, t_ns = f"timestamp {t_ns!r} is not a time in ns", 0
         elif not isinstance(raw, (bytes, bytearray, memoryview)):
             problem = f"data {type(raw).__name__} is not bytes"
+        elif compressed:   # compression mode "message": each message inflated here, bounded
+            raw, problem = inflate_message(bytes(raw))
         yield conn, t_ns, None if problem else bytes(raw), problem
 
 
@@ -423,13 +458,12 @@ def _ros1_record(data: bytes, offset: int) -> tuple[bytes | None, str]:
     try:
         while True:
             (hlen,) = _U32.unpack_from(data, pos)
-            fields = _header_fields(data, pos + 4, pos + 4 + hlen)
+            op = _header_op(data, pos + 4, pos + 4 + hlen)
             pos += 4 + hlen
             (dlen,) = _U32.unpack_from(data, pos)
             pos += 4
             if pos + dlen > len(data):
                 return None, f"a record of {dlen} bytes overruns its chunk"
-            op = fields.get("op", b"")
             if op == bytes([OP_MSGDATA]):
                 return data[pos:pos + dlen], ""
             if op != bytes([OP_CONNECTION]):
@@ -439,19 +473,20 @@ def _ros1_record(data: bytes, offset: int) -> tuple[bytes | None, str]:
         return None, f"damaged record in its chunk ({exc})"
 
 
-def _header_fields(data: bytes, start: int, end: int) -> dict[str, bytes]:
-    """A ROS 1 record header's name=value fields; ValueError when it overruns."""
+def _header_op(data: bytes, start: int, end: int) -> bytes:
+    """The op field of a ROS 1 record header (b"" without one), every field checked to lie inside it and hold a
+    '='; ValueError when one does not. Only op is read: it is all a message's record needs, once per message."""
     if end > len(data):
         raise ValueError("a record header overruns its chunk")
-    fields, pos = {}, start
+    op, pos = b"", start
     while pos < end:
         (n,) = _U32.unpack_from(data, pos)
         pos += 4
         if pos + n > end:
             raise ValueError("a header field overruns its header")
-        name, sep, value = data[pos:pos + n].partition(b"=")
-        if not sep:
+        if data.startswith(b"op=", pos, pos + n):
+            op = data[pos + 3:pos + n]
+        elif data.find(b"=", pos, pos + n) < 0:
             raise ValueError("a header field without '='")
-        fields[name.decode("latin-1")] = value
         pos += n
-    return fields
+    return op

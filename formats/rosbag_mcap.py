@@ -20,7 +20,9 @@ from collections.abc import Collection, Generator
 from pathlib import Path
 from typing import Any
 
-from .mcap_chunks import MAX_CHUNK_BYTES, ordered_messages
+import zstandard
+
+from .mcap_chunks import MAX_CHUNK_BYTES, mib, ordered_messages
 from .mcap_records import MAGIC, read_summary, scan
 from .records import FormatError
 
@@ -96,13 +98,61 @@ class BoundedMcapStorage:
             yield wanted[cid], log_time, data
 
 
+def inflate_message(data: bytes) -> tuple[bytes | None, str]:
+    """(the message, "") of a zstd-compressed message (a bag of compression mode "message"), or (None, why not):
+    inflated to at most `MAX_CHUNK_BYTES`, whatever its frame declares."""
+    try:
+        with zstandard.ZstdDecompressor().stream_reader(data) as reader:
+            out = reader.read(MAX_CHUNK_BYTES + 1)
+    except zstandard.ZstdError as exc:
+        return None, f"its zstd data does not decompress ({exc})"
+    if len(out) > MAX_CHUNK_BYTES:
+        return None, f"its zstd data inflates past the {mib(MAX_CHUNK_BYTES)} limit: skipped"
+    return out, ""
+
+
+def check_file_compression(folder: Path) -> None:
+    """FormatError (one line) when a bag folder of compression mode "file" holds a storage file that inflates past
+    `MAX_CHUNK_BYTES`: rosbags inflates such files whole onto disk before reading them. Counted here first, in a
+    bounded stream that keeps nothing; a metadata file that does not parse is left to rosbags to refuse."""
+    try:
+        from ruamel.yaml import YAML
+        info = YAML(typ="safe").load((folder / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+        if str(info.get("compression_mode", "")).lower() != "file":
+            return
+        names = [Path(str(x)).name for x in info["relative_file_paths"]]
+    except Exception:  # noqa: BLE001 - rosbags reads the metadata next and says what is wrong with it
+        return
+    for name in names:
+        try:
+            with (folder / name).open("rb") as fh, zstandard.ZstdDecompressor().stream_reader(fh) as reader:
+                total = 0
+                while piece := reader.read(1 << 20):
+                    total += len(piece)
+                    if total > MAX_CHUNK_BYTES:
+                        raise FormatError(f"{name} (compression mode file) inflates past the "
+                                          f"{mib(MAX_CHUNK_BYTES)} limit; decompress it first (zstd -d)")
+        except (OSError, zstandard.ZstdError) as exc:
+            raise FormatError(f"{name} (compression mode file) does not decompress ({exc})") from None
+
+
 def bounded_reader(path: Path) -> Any:
-    """rosbags' ROS 2 reader of a bag folder or a storage file, with `BoundedMcapStorage` for MCAP storage."""
+    """rosbags' ROS 2 reader of a bag folder or a storage file, with `BoundedMcapStorage` for MCAP storage; a bag
+    compressed per file is checked to inflate within the cap first, one compressed per message is inflated by the
+    bag reader (`inflate_message`, when `message_compressed` is set), not by rosbags."""
     from rosbags.rosbag2 import Reader
     from rosbags.rosbag2.reader import DirectoryReader
 
     class _Directory(DirectoryReader):
         STORAGE_PLUGINS = {**DirectoryReader.STORAGE_PLUGINS, "mcap": BoundedMcapStorage}
+        message_compressed = False
+
+        def open(self) -> None:
+            check_file_compression(Path(str(self.path)))
+            super().open()
+            if self.metadata.compression_mode == "message":   # rosbags' own inflation has no bound
+                self.message_compressed = True
+                self.metadata = self.metadata._replace(compression_mode=None)
 
     class _Reader(Reader):
         STORAGE_PLUGINS = {**Reader.STORAGE_PLUGINS, "dir": _Directory, ".mcap": BoundedMcapStorage}

@@ -10,7 +10,7 @@ from google.protobuf.timestamp_pb2 import Timestamp
 
 from . import auvreplay_pb2 as pb
 from .units import NS, TIME_MAX_NS, TIME_MIN_NS
-from .wire import GNSS_STATUS, INS_STATE, LOCATION_FIX
+from .wire import GNSS_STATUS, GNSS_VELOCITY, INS_STATE, LOCATION_FIX
 
 GnssStatus = pb.GnssStatus
 InsState = pb.InsState
@@ -73,6 +73,7 @@ _NAN9 = (float("nan"),) * 9
 _FIX_KEYS, _FIX_PACK = LOCATION_FIX.keys, LOCATION_FIX.struct.pack
 _INS_KEYS, _INS_PACK = INS_STATE.keys, INS_STATE.struct.pack
 _GNSS_KEYS, _GNSS_PACK = GNSS_STATUS.keys, GNSS_STATUS.struct.pack
+_VEL_KEYS, _VEL_PACK = GNSS_VELOCITY.keys, GNSS_VELOCITY.struct.pack
 
 
 def location_fix(
@@ -136,6 +137,20 @@ def gnss_status(
     msg.frame_id = frame_id
     msg.fix_quality = fix_quality
     msg.satellites = satellites
+    msg.source_format = source_format
+    set_timestamp(msg.timestamp, t_ns)
+    return msg
+
+
+def gnss_velocity(
+    t_ns: int, frame_id: str, north_mps: float, east_mps: float, up_mps: float, speed_mps: float, course_deg: float,
+    speed_std_mps: float, source_format: str,
+) -> GnssVelocity:
+    """An auvreplay.GnssVelocity from every field (NaN where absent), its doubles parsed from packed wire bytes."""
+    k0, k1, k2, k3, k4, k5 = _VEL_KEYS
+    msg = GnssVelocity.FromString(_VEL_PACK(k0, north_mps, k1, east_mps, k2, up_mps, k3, speed_mps, k4, course_deg,
+                                            k5, speed_std_mps))
+    msg.frame_id = frame_id
     msg.source_format = source_format
     set_timestamp(msg.timestamp, t_ns)
     return msg

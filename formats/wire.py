@@ -107,6 +107,8 @@ INS_STATE = field_run(
     "roll_std_deg", "pitch_std_deg", "altitude_m",
 )
 GNSS_STATUS = field_run(pb.GnssStatus, "hdop", "speed_over_ground_mps", "course_over_ground_deg", "heading_deg")
+GNSS_VELOCITY = field_run(pb.GnssVelocity, "velocity_north_mps", "velocity_east_mps", "velocity_up_mps",
+                          "speed_over_ground_mps", "course_over_ground_deg", "speed_std_mps")
 DVL_VELOCITY = field_run(
     pb.DvlVelocity, "velocity_x_mps", "velocity_y_mps", "velocity_z_mps", "error_velocity_mps", ("beam_range_m", 4),
     "altitude_m", "valid", "sound_speed_mps", "temperature_c",
@@ -117,6 +119,7 @@ USBL_OBSERVATION = field_run(
     "relative_east_m", "relative_north_m", "relative_up_m", "integrity", "rssi_db",
 )
 RUNS: dict[str, FieldRun] = {
-    "location_fix": LOCATION_FIX, "ins_state": INS_STATE, "gnss_status": GNSS_STATUS, "dvl_velocity": DVL_VELOCITY,
+    "location_fix": LOCATION_FIX, "ins_state": INS_STATE, "gnss_status": GNSS_STATUS, "gnss_velocity": GNSS_VELOCITY,
+    "dvl_velocity": DVL_VELOCITY,
     "acoustic_range": ACOUSTIC_RANGE, "usbl_observation": USBL_OBSERVATION,
 }

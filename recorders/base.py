@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from formats.log_blocks import Block, LogBlocks, LogText
+from formats.nmea.counts import SentenceCounts
 from formats.records import Reject, Where
 
 
@@ -44,6 +45,9 @@ class LogContext:
     sound_speed_mps: float = 1500.0
     # the log's files on disk, in log order: for containers (ROS bags) that their library must open by path
     files: tuple[Path, ...] = ()
+    # what the converter read, counted by kind and outcome (NMEA: every line by sentence address), for the
+    # recording's statistics; a new one per context, shared by the contexts `replace` makes of it
+    counts: SentenceCounts = field(default_factory=SentenceCounts, compare=False, repr=False)
 
     def vehicle_for_address(self, address: int | None) -> str:
         """The vehicle name for a modem address, or 'addr<N>' when the manifest has none."""
@@ -72,6 +76,12 @@ class Ignored:
 
     where: Where
     reason: str
+
+
+@dataclass(frozen=True, slots=True)
+class Note(Ignored):
+    """A line about the log as a whole (what a container held, topic by topic) in `reason`: kept in the log's
+    notes and printed after the recording's table, once per log (an Ignored to whatever does not know it)."""
 
 
 # a LogContext option set for text carried in a container (a ROS string topic): each line's host prefix is the

@@ -1,4 +1,4 @@
-"""GNSS logs into ``/<vehicle>/gps`` (foxglove.LocationFix) and ``/<vehicle>/gps/status``.
+"""GNSS logs into ``/<vehicle>/gps`` (foxglove.LocationFix), ``/<vehicle>/gps/status`` and ``/<vehicle>/gps/velocity``.
 
 Epochs. A receiver writes several sentences per fix (GGA, RMC, GST, VTG...)
 and the order varies between receivers (GST often comes after GGA). The
@@ -22,6 +22,13 @@ trial date), with midnight rollover (`recorders.clock.DayClock`); an epoch
 with no time of its own takes the host-timestamp prefix; NovAtel GPS
 week/seconds go through the leap-second table. The log's clock offset is
 added to all of them. A time of day without any date is rejected.
+
+Velocity. An epoch's speed and course over ground (`nmea_epochs.nmea_motion`: a
+valid VTG, else an RMC with status A; NovAtel BESTVEL) give a GnssVelocity
+stamped and placed like its fix (`recorders.gnss_velocity`); an NMEA epoch
+whose VTG/RMC gives no speed and course yields an `Ignored` saying so.
+Every line of an NMEA log is counted into the context's `counts`
+(`formats.nmea.counts`), by the scan or the columns, whichever read it.
 """
 
 from __future__ import annotations
@@ -40,12 +47,12 @@ from formats.novatel import scan as novatel_scan
 from formats.records import Reject, Where
 
 from . import gps_columns
-from .base import BlockConverter, Converter, LogContext, Output
+from .base import BlockConverter, Converter, Ignored, LogContext, Output
 from .clock import DayClock
 from .gnss_covariance import Covariance, fix_covariance, sigma_covariance
+from .gnss_velocity import NO_VELOCITY, components, gnss_velocity
 from .gnss_velocity import SUFFIX as VELOCITY
-from .gnss_velocity import gnss_velocity
-from .nmea_epochs import NO_DATE, NO_TIME
+from .nmea_epochs import NO_DATE, NO_TIME, vtg_speed, vtg_valid
 from .novatel_epochs import novatel_publish_ns, novatel_scan_epochs, novatel_scan_time
 
 NAN = math.nan
@@ -147,9 +154,9 @@ def _scan_motion(epoch: dict[str, nmea.Scanned]) -> tuple[float, float, float]:
     """`nmea_motion` on scanned values."""
     speed = course = heading = NAN
     vtg, rmc = epoch.get("VTG"), epoch.get("RMC")
-    if vtg is not None:
-        course, _, knots, _, _ = vtg[2]
-        speed = knots * KNOT_MPS
+    if vtg is not None and vtg_valid(vtg[2][4]):
+        course, _, knots, kmh, _ = vtg[2]
+        speed = vtg_speed(knots, kmh)
     elif rmc is not None:
         _, valid, _, _, knots, course_deg, _, _, _ = rmc[2]
         if valid:
@@ -165,8 +172,8 @@ def _scan_motion(epoch: dict[str, nmea.Scanned]) -> tuple[float, float, float]:
 
 
 def _scan_outputs(
-    epoch: dict[str, nmea.Scanned], ctx: LogContext, clock: DayClock, topics: tuple[str, str],
-) -> tuple[Output | Reject, ...]:
+    epoch: dict[str, nmea.Scanned], ctx: LogContext, clock: DayClock, topics: tuple[str, str, str],
+) -> tuple[Output | Reject | Ignored, ...]:
     """`_nmea_outputs` on scanned values, as a tuple (a generator per epoch costs more than the epoch)."""
     _scan_date(epoch, clock)
     if len(epoch) == 1 and "ZDA" in epoch:
@@ -182,16 +189,24 @@ def _scan_outputs(
     g = epoch.get("GGA")
     if g is not None:
         _, _, _, quality, satellites, hdop, _, _, _, _ = g[2]
-    status = gnss_status(t, ctx.vehicle, quality, satellites, hdop, "nmea:" + ",".join(epoch), *_scan_motion(epoch))
-    status_out = Output(topics[1], status, t, publish, where)
-    if pos is None:
-        return (status_out,)
-    cov, kind = _scan_covariance(epoch, ctx)
-    fix = S.location_fix(t, ctx.vehicle, pos[1], pos[2], pos[3], cov, kind)
-    return Output(topics[0], fix, t, publish, where), status_out
+    source = "nmea:" + ",".join(epoch)
+    speed, course, heading = _scan_motion(epoch)
+    status = gnss_status(t, ctx.vehicle, quality, satellites, hdop, source, speed, course, heading)
+    out: tuple[Output | Reject | Ignored, ...] = (Output(topics[1], status, t, publish, where),)
+    if pos is not None:
+        cov, kind = _scan_covariance(epoch, ctx)
+        fix = S.location_fix(t, ctx.vehicle, pos[1], pos[2], pos[3], cov, kind)
+        out = (Output(topics[0], fix, t, publish, where), *out)
+    if speed - speed == 0.0 and course - course == 0.0:  # both finite: inf - inf and NaN - NaN are NaN
+        north, east = components(speed, course)
+        velocity = S.gnss_velocity(t, ctx.vehicle, north, east, NAN, speed, course, NAN, source)
+        return (*out, Output(topics[2], velocity, t, publish, where))
+    if "VTG" in epoch or "RMC" in epoch:
+        return (*out, Ignored(where, NO_VELOCITY))
+    return out
 
 
-def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     """NMEA 0183 GNSS sentences (GGA, RMC, GLL, GST, VTG, ZDA, HDT, THS; any talker)."""
     return convert_nmea_blocks(blocks_of(data), ctx)
 
@@ -203,12 +218,12 @@ class _NmeaState:
 
     def __init__(self, ctx: LogContext):
         self.clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
-        self.topics = (f"/{ctx.vehicle}/gps", f"/{ctx.vehicle}/gps/status")
+        self.topics = (f"/{ctx.vehicle}/gps", f"/{ctx.vehicle}/gps/status", f"/{ctx.vehicle}/{VELOCITY}")
         self.epoch: dict[str, nmea.Scanned] = {}  # {sentence type: scanned tuple} in arrival order
         self.epoch_time: int | None = None
 
 
-def convert_nmea_blocks(blocks: Iterable[Block], ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_nmea_blocks(blocks: Iterable[Block], ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     """`convert_nmea` over a log read in blocks (`formats.log_blocks`): the same outputs, one block in memory.
 
     A clean block takes the whole-block columns (`gps_columns`), any other the
@@ -229,11 +244,14 @@ def convert_nmea_blocks(blocks: Iterable[Block], ctx: LogContext) -> Iterator[Ou
 
 
 def _nmea_block(block: Block, last: bool, ctx: LogContext, state: _NmeaState, columns: bool
-                ) -> Iterator[Output | Reject]:
+                ) -> Iterator[Output | Reject | Ignored]:
     """One block's outputs; the epoch still open at its end (unless `last`) is left in `state`."""
     data, base, lines = block.data, block.offset, block.lines
+    counts = ctx.counts
     if state.epoch:  # the previous block's last epoch: line by line until a sentence closes it
-        closed = yield from _nmea_lines(nmea.scan(data, ctx.prefix, base, lines), ctx, state, until_closed=True)
+        items = nmea.scan(data, ctx.prefix, base, lines, counts)
+        closed = yield from _nmea_lines(items, ctx, state, until_closed=True)
+        items.close()  # its lines counted up to the sentence that closed the epoch, which is read on from
         if closed is None:
             return
         start = closed[0] - base
@@ -243,6 +261,7 @@ def _nmea_block(block: Block, last: bool, ctx: LogContext, state: _NmeaState, co
     if cols is not None and last:  # a clean log of the types `nmea_columns` takes: columns to its end
         outputs = gps_columns.convert_columns(cols, ctx, NO_DATE, state.clock, base, lines)
         if outputs is not None:
+            nmea_columns.count_sentences(cols, counts)
             yield from outputs
             return
     elif cols is not None and k is not None:  # columns up to the last epoch, which the next block may go on
@@ -251,12 +270,13 @@ def _nmea_block(block: Block, last: bool, ctx: LogContext, state: _NmeaState, co
             assert outputs is not None  # a head of columns that have epochs has them too
             yield from outputs
         tail, number = int(cols.offsets[k]), int(cols.numbers[k])
+        nmea_columns.count_sentences(cols, counts, number)
         data, base, lines = data[tail:], base + tail, lines + number - 1
-    yield from _nmea_lines(nmea.scan(data, ctx.prefix, base, lines), ctx, state)
+    yield from _nmea_lines(nmea.scan(data, ctx.prefix, base, lines, counts), ctx, state)
 
 
 def _nmea_lines(items: Iterator[nmea.Scanned | Reject], ctx: LogContext, state: _NmeaState,
-                until_closed: bool = False) -> Generator[Output | Reject, None, tuple[int, int] | None]:
+                until_closed: bool = False) -> Generator[Output | Reject | Ignored, None, tuple[int, int] | None]:
     """`convert_nmea` line by line over `nmea.scan` items: any log, damaged ones included.
 
     The epoch still open at the end is left in `state`. With `until_closed`, it

@@ -22,9 +22,11 @@ from formats.nmea.sentences import KNOT_MPS
 from formats.records import Reject, Where
 from formats.units import DAY_NS, NS
 
-from .base import LogContext, Output
+from .base import Ignored, LogContext, Output
 from .clock import DayClock, date_to_ns
 from .gnss_covariance import fix_covariance
+from .gnss_velocity import NO_VELOCITY, SUFFIX, components_column
+from .nmea_epochs import vtg_valid
 
 NAN = float("nan")
 
@@ -129,7 +131,7 @@ def last_epoch_start(cols: NmeaColumns) -> int | None:
 
 
 def convert_columns(cols: NmeaColumns, ctx: LogContext, no_date: str, clock: DayClock | None = None,
-                    base: int = 0, lines: int = 0) -> Iterator[Output | Reject] | None:
+                    base: int = 0, lines: int = 0) -> Iterator[Output | Reject | Ignored] | None:
     """The outputs of `convert_nmea` for a clean log's columns; None when the per-line path must run.
 
     `clock` carries the date from earlier blocks of the log (default: a new one) and is left for the next;
@@ -167,13 +169,15 @@ def convert_columns(cols: NmeaColumns, ctx: LogContext, no_date: str, clock: Day
     times = _times(cols.tod[first_timed].tolist(), dates, date_tods, silent, clock or _clock(ctx))
     speed, course, heading = _motion(v, m, valid)
     satellites = np.where(has_g, _pick(gv["satellites"], g, 0), -1).astype(np.int64)
+    sources = _sources(cols.kind, starts)
     status = zip(quality.tolist(), satellites.tolist(), hdop.tolist(),
-                 _sources(cols.kind, starts), speed.tolist(), course.tolist(), heading.tolist())
+                 sources, speed.tolist(), course.tolist(), heading.tolist())
+    velocity = zip(*_velocity(speed, course, (m["VTG"] >= 0) | (r >= 0)))
     fix = zip((gga_pos | gll_pos | rmc_pos).tolist(), lat.tolist(), lon.tolist(), alt.tolist(), cov, cov_kind)
     offsets, numbers = (cols.offsets + base, cols.numbers + lines) if base or lines else (cols.offsets, cols.numbers)
     where = zip(offsets[source].tolist(), numbers[source].tolist())
     first = zip(offsets[first_timed].tolist(), numbers[first_timed].tolist(), cols.tod[first_timed].tolist())
-    return _emit(ctx, times, silent, fix, status, where, first, no_date)
+    return _emit(ctx, times, silent, fix, status, velocity, where, first, no_date)
 
 
 def _dates(cols: NmeaColumns, z: np.ndarray, r: np.ndarray, valid: np.ndarray) -> tuple[list, list[float]]:
@@ -196,12 +200,21 @@ def _dates(cols: NmeaColumns, z: np.ndarray, r: np.ndarray, valid: np.ndarray) -
 
 
 def _motion(v: dict, m: dict, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """`gps._scan_motion` per epoch: speed (m/s) and course from VTG, else a valid RMC; heading from HDT, else THS."""
+    """`gps._scan_motion` per epoch: speed (m/s) and course from a valid VTG, else a valid RMC; heading from HDT,
+    else THS."""
     vt, r = m["VTG"], m["RMC"]
+    vv = v["VTG"]
     has_v = vt >= 0
-    speed = np.where(has_v, _pick(v["VTG"]["speed"], vt, NAN) * KNOT_MPS,
+    if len(vv["mode"]):  # `nmea_epochs.vtg_valid` and `vtg_speed`, on the distinct modes and in numpy
+        ok = {mode: vtg_valid(mode) for mode in set(vv["mode"])}
+        has_v &= _present([ok[mode] for mode in vv["mode"]], vt)
+        knots, kmh = np.asarray(vv["speed"], dtype=np.float64), np.asarray(vv["kmh"], dtype=np.float64)
+        vtg_mps = np.where(np.isnan(knots), kmh / 3.6, knots * KNOT_MPS)
+    else:
+        vtg_mps = np.zeros(0)
+    speed = np.where(has_v, _pick(vtg_mps, vt, NAN),
                      np.where(valid, _pick(v["RMC"]["speed"], r, NAN) * KNOT_MPS, NAN))
-    course = np.where(has_v, _pick(v["VTG"]["course"], vt, NAN),
+    course = np.where(has_v, _pick(vv["course"], vt, NAN),
                       np.where(valid, _pick(v["RMC"]["course"], r, NAN), NAN))
     h, th = m["HDT"], m["THS"]
     if not len(v["HDT"]["heading"]) and not len(v["THS"]["heading"]):
@@ -210,6 +223,17 @@ def _motion(v: dict, m: dict, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray
     heading = np.where(h >= 0, _pick(v["HDT"]["heading"], h, NAN),
                        np.where(ths_ok, _pick(v["THS"]["heading"], th, NAN), NAN))
     return speed, course, heading
+
+
+def _velocity(speed: np.ndarray, course: np.ndarray, motion: np.ndarray) -> tuple[list, list, list]:
+    """Per epoch: whether it has a velocity (True), gives none though it has a VTG/RMC (False) or has neither
+    (None); its north and east components (NaN where none)."""
+    finite = np.isfinite(speed) & np.isfinite(course)
+    north, east = np.full(len(speed), NAN), np.full(len(speed), NAN)
+    at = np.flatnonzero(finite)
+    north[at], east[at] = components_column(speed[at], course[at].tolist())
+    given = np.where(finite, 1, np.where(motion, 0, -1)).tolist()
+    return [(None, False, True)[g + 1] for g in given], north.tolist(), east.tolist()
 
 
 def _clock(ctx: LogContext) -> DayClock:
@@ -224,13 +248,13 @@ def _covariance(sv: dict, s: np.ndarray, hdop: np.ndarray, quality: np.ndarray, 
     return [p[0] for p in pairs], [p[1] for p in pairs]
 
 
-def _emit(ctx: LogContext, times: list, silent: list[bool], fix: zip, status: zip, where: zip, first: zip, no_date: str
-          ) -> Iterator[Output | Reject]:
+def _emit(ctx: LogContext, times: list, silent: list[bool], fix: zip, status: zip, velocity: zip, where: zip,
+          first: zip, no_date: str) -> Iterator[Output | Reject | Ignored]:
     vehicle = ctx.vehicle
-    fix_topic, status_topic = f"/{vehicle}/gps", f"/{vehicle}/gps/status"
-    location_fix, gnss_status = S.location_fix, S.gnss_status
-    for t, quiet, (has_pos, lat, lon, alt, cov, kind), (q, sats, hdop, src, speed, course, heading), w, f in zip(
-            times, silent, fix, status, where, first):
+    fix_topic, status_topic, velocity_topic = f"/{vehicle}/gps", f"/{vehicle}/gps/status", f"/{vehicle}/{SUFFIX}"
+    location_fix, gnss_status, gnss_velocity = S.location_fix, S.gnss_status, S.gnss_velocity
+    for t, quiet, (has_pos, lat, lon, alt, cov, kind), (q, sats, hdop, src, speed, course, heading), \
+            (moving, north, east), w, f in zip(times, silent, fix, status, velocity, where, first):
         if quiet:
             continue  # a ZDA alone: its date counted, nothing to emit
         if t is None:
@@ -241,3 +265,8 @@ def _emit(ctx: LogContext, times: list, silent: list[bool], fix: zip, status: zi
         if has_pos:
             yield Output(fix_topic, location_fix(t, vehicle, lat, lon, alt, cov, kind), t, t, here)
         yield Output(status_topic, message, t, t, here)
+        if moving:
+            velocity = gnss_velocity(t, vehicle, north, east, NAN, speed, course, NAN, src)
+            yield Output(velocity_topic, velocity, t, t, here)
+        elif moving is not None:
+            yield Ignored(here, NO_VELOCITY)

@@ -38,6 +38,7 @@ from formats.records import Reject, Where
 from .base import BlockConverter, Converter, LogContext, Output, blockwise, output
 from .clock import DayClock
 from .epochs import host_time_ns
+from .gnss_velocity import components
 from .nmea_epochs import (
     NmeaEpoch,
     gga_altitude,
@@ -257,8 +258,7 @@ def _nmea_ins(records: list[nmea.NmeaRecord], ctx: LogContext, clock: DayClock) 
         if isinstance(pos, nmea.Gga):
             f["altitude_m"] = gga_altitude(pos)
     if math.isfinite(speed) and math.isfinite(course):  # cos(inf) raises
-        f["velocity_north_mps"] = speed * math.cos(math.radians(course))
-        f["velocity_east_mps"] = speed * math.sin(math.radians(course))
+        f["velocity_north_mps"], f["velocity_east_mps"] = components(speed, course)
     source = "nmea:" + ",".join(type(r).__name__.upper() for r in records)
     yield output(ctx, "ins", ins_state(t, ctx, source, **f), t, records[0].where)
 

@@ -127,12 +127,26 @@ def nmea_position(epoch: NmeaEpoch) -> Gga | Gll | Rmc | None:
     return None
 
 
+def vtg_valid(mode: str) -> bool:
+    """Whether a VTG's values may be used: its NMEA 2.3 mode indicator is not 'N' (data not valid) or 'V'."""
+    return mode != "N" and mode != "V"
+
+
+def vtg_speed(knots: float, kmh: float) -> float:
+    """A VTG's speed over ground in m/s: from knots, else from km/h when only that is given."""
+    return kmh / 3.6 if math.isnan(knots) else knots * KNOT_MPS
+
+
 def nmea_motion(epoch: NmeaEpoch) -> tuple[float, float, float]:
-    """Speed over ground (m/s), course (deg true) and heading (deg true) of an epoch, NaN when absent."""
+    """Speed over ground (m/s), course (deg true) and heading (deg true) of an epoch, NaN when absent.
+
+    Motion from a valid VTG (`vtg_valid`), else a valid RMC (status A); heading from HDT, else THS not 'V'.
+    `gnss_velocity.components` turns a finite speed and course into the epoch's velocity.
+    """
     vtg, rmc = epoch.vtg, epoch.rmc
     speed = course = NAN
-    if vtg is not None:
-        speed, course = vtg.speed_knots * KNOT_MPS, vtg.course_true_deg
+    if vtg is not None and vtg_valid(vtg.mode):
+        speed, course = vtg_speed(vtg.speed_knots, vtg.speed_kmh), vtg.course_true_deg
     elif rmc is not None and rmc.valid:
         speed, course = rmc.speed_knots * KNOT_MPS, rmc.course_deg
     heading = NAN

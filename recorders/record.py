@@ -21,7 +21,7 @@ from formats.mcap_writer import ArchiveWriter
 from formats.records import FormatError, Reject, Where
 from formats.units import NS, archivable_ns
 
-from .base import BlockConverter, Converter, Ignored, LogContext, Output
+from .base import BlockConverter, Converter, Ignored, LogContext, Note, Output
 from .clock import date_to_ns, iso_utc, log_offset_ns, offset_problem, shift_text
 from .manifest import LogSpec, Manifest, ManifestError
 from .output_checks import OutputProblem, check_output
@@ -91,11 +91,15 @@ class FileStats:
     parts: list[dict] = field(default_factory=list)
     # about the log as a whole (a gap or overlap between a split log's files); /diagnostics holds rejected records
     notes: list[str] = field(default_factory=list)
+    # NMEA: every line by sentence address and outcome ({"GPGSV": {"ignored": 3}, ...}, `formats.nmea.counts`)
+    sentences: dict[str, dict[str, int]] = field(default_factory=dict)
 
     def as_json(self) -> dict:
-        """The entry stored in the archive's `recording` metadata."""
+        """The entry stored in the archive's `recording` metadata (`sentences` only for a log that has them)."""
         out = asdict(self)
         out["start"], out["end"] = iso_utc(self.start_ns), iso_utc(self.end_ns)
+        if not self.sentences:
+            del out["sentences"]
         return out
 
 
@@ -288,6 +292,8 @@ class LogRecorder:
         if type(item) is not Output:
             if type(item) is Ignored:
                 self.ignored[item.reason] += 1
+            elif type(item) is Note:
+                self.stats.notes.append(item.reason)
             else:
                 self._reject(item)  # type: ignore[arg-type]
             return
@@ -468,12 +474,14 @@ def _decode_log(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]]
     rec = LogRecorder(sink, log, stats, fallback, starts)
     step = max(len(data) // 50, 1 << 16)
     next_report = step
-    for item in _iter_outputs(convert, data, log_context(manifest, log, tuple(n for n, _ in parts)), log):
+    ctx = log_context(manifest, log, tuple(n for n, _ in parts))
+    for item in _iter_outputs(convert, data, ctx, log):
         rec.add(item)
         if progress is not None and item.where is not None and item.where.offset >= next_report:
             progress(log.path, item.where.offset, len(data))
             next_report = item.where.offset + step
     rec.finish()
+    stats.sentences = ctx.counts.as_dict()
     return stats, data
 
 
@@ -491,8 +499,9 @@ def _decode_streamed(manifest: Manifest, log: LogSpec, names: list[str], convert
     rec = LogRecorder(sink, log, stats, fallback, starts)
     step = max(files.size // 50, 1 << 16)
     next_report = step
+    ctx = log_context(manifest, log, tuple(names))
     try:
-        for item in _iter_outputs(convert, files.blocks(), log_context(manifest, log, tuple(names)), log):
+        for item in _iter_outputs(convert, files.blocks(), ctx, log):
             rec.add(item)
             if progress is not None and item.where is not None and item.where.offset >= next_report:
                 progress(log.path, item.where.offset, files.size)
@@ -503,6 +512,7 @@ def _decode_streamed(manifest: Manifest, log: LogSpec, names: list[str], convert
     if log.parts:
         stats.parts = [{"path": name, "size": d.size, "sha256": d.sha256} for name, d in zip(names, files.digests)]
     rec.finish()
+    stats.sentences = ctx.counts.as_dict()
     return stats
 
 

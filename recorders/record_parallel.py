@@ -36,7 +36,7 @@ import threading
 import traceback
 from array import array
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from multiprocessing.connection import Connection, wait
 from multiprocessing.process import BaseProcess
 from multiprocessing.reduction import recv_handle, send_handle
@@ -45,7 +45,8 @@ from typing import Any, Generic, TypeVar, cast
 from google.protobuf.message import Message
 
 from formats.json_messages import JsonMessage
-from formats.mcap_writer import ArchiveWriter
+from formats.mcap_writer import SOURCE_CLASSES, ArchiveWriter
+from formats.ros_messages import RosMessage
 from formats.schemas import MESSAGE_CLASSES
 
 T = TypeVar("T")
@@ -76,8 +77,8 @@ class Captured:
     """One log's archive writes, serialized: the topics, a blob of message bytes and their index."""
 
     topics: list[tuple[str, str]] = field(default_factory=list)  # (topic, schema name), by first use
-    # a JSON topic's (schema name, JSON Schema text), by its number in `topics`
-    json_schemas: dict[int, tuple[str, str]] = field(default_factory=dict)
+    # a source topic's (JSON, ROS) schema, as a message of it without its bytes, by its number in `topics`
+    sources: dict[int, JsonMessage | RosMessage] = field(default_factory=dict)
     index: array = field(default_factory=lambda: array("q"))
     blob: bytes = b""
     stats: Any = None  # the log's FileStats, filled by the recorder
@@ -106,10 +107,10 @@ class Capture:
             (number, self._size, log_time_ns, log_time_ns if publish_time_ns is None else publish_time_ns))
 
     def _register(self, topic: str, cls: type[Message], message: Any) -> int:
-        if cls is JsonMessage:  # its schema travels with it: JSON topics have no class to find again
+        if cls in SOURCE_CLASSES:  # its schema travels with it: source topics have no class to find again
             number = self._numbers[(topic, cls)] = len(self.captured.topics)
             self.captured.topics.append((topic, message.schema_name))
-            self.captured.json_schemas[number] = (message.schema_name, message.schema)
+            self.captured.sources[number] = replace(message, data=b"")
             return number
         name = cls.DESCRIPTOR.full_name
         # the main process finds the class again by name (foxglove's classes do not pickle)
@@ -138,9 +139,9 @@ def write_captured(writer: ArchiveWriter, captured: Captured) -> None:
         cid = ids[number]
         if cid is None:
             topic, name = captured.topics[number]
-            json_schema = captured.json_schemas.get(number)
-            cid = ids[number] = writer.channel(topic, MESSAGE_CLASSES[name]) if json_schema is None \
-                else writer.json_channel(topic, *json_schema)
+            source = captured.sources.get(number)
+            cid = ids[number] = writer.channel(topic, MESSAGE_CLASSES[name]) if source is None \
+                else writer.source_channel(topic, source)
         write(cid, blob[start:end], log_time, publish_time)
         start = end
 

@@ -31,12 +31,17 @@ part, all attached; the ``metadata.yaml`` reads the split or compressed storage 
 define custom types the bag does not.
 
 Times: the header stamp is the measurement time (log time), the bag time the publish time; a message without a
-header or with a zero stamp takes its bag time. Every bag message is counted: archived, rejected with a reason,
-or ignored with a reason (an unmapped topic is listed once, with its type and count).
+header or with a zero stamp takes its bag time.
+
+Every bag message is archived as itself on ``/<v>/ros/<topic>`` (`recorders.ros_raw`), or refused with a reason
+(it does not decode by its type, or its type is defined nowhere); a mapped one gives ours as well, and says why
+when it gives none (an ignored reason, counted). A standard ``sensor_msgs/Imu`` is read from its bytes
+(`formats.ros_imu`) and converted a batch at a time (`_ImuBatch`), the others one by one from rosbags' objects.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from collections.abc import Iterator
@@ -44,6 +49,9 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from formats import ros_imu
 from formats import rosbag as rb
 from formats import schemas as S
 from formats.records import FormatError, Reject, Where
@@ -68,8 +76,8 @@ from .containers import (
 from .gnss_velocity import SUFFIX as VELOCITY
 from .gnss_velocity import gnss_velocity
 from .gps import gnss_status
-from .ins import ins_state
 from .manifest import SENSORS
+from .ros_raw import RosTopics
 
 NAN = math.nan
 RAW_TYPES = ("nmea_msgs/Sentence", "std_msgs/String")
@@ -133,17 +141,37 @@ def _frame(msg: Any) -> str:
     return str(getattr(getattr(msg, "header", None), "frame_id", "") or "")
 
 
+# a bag's few frame names, each looked at once (Imu and Odometry ask at every message)
+_ned = functools.lru_cache(maxsize=1024)(is_ned)
+
+
+def _num(x: Any) -> float:
+    """`finite_or_nan`, with a finite float (what a typed field holds) returned at once: x - x is 0 for those only."""
+    return x if type(x) is float and x - x == 0.0 else finite_or_nan(x)
+
+
 def _vec(v: Any) -> tuple[float, float, float]:
-    return finite_or_nan(getattr(v, "x", NAN)), finite_or_nan(getattr(v, "y", NAN)), finite_or_nan(getattr(v, "z", NAN))
+    return _num(getattr(v, "x", NAN)), _num(getattr(v, "y", NAN)), _num(getattr(v, "z", NAN))
 
 
 def _quat(q: Any) -> tuple[float, float, float, float]:
-    return (*_vec(q), finite_or_nan(getattr(q, "w", NAN)))
+    return _num(getattr(q, "x", NAN)), _num(getattr(q, "y", NAN)), _num(getattr(q, "z", NAN)), \
+        _num(getattr(q, "w", NAN))
 
 
 def _cov(values: Any, n: int) -> list[float]:
+    if type(values) is np.ndarray and values.dtype == np.float64 and values.ndim == 1 and len(values) >= n:
+        out = values[:n].tolist()   # the typed field's array: one conversion, then only non-finite ones replaced
+        return out if all(map(math.isfinite, out)) else [v if math.isfinite(v) else NAN for v in out]
     out = [finite_or_nan(v) for v in list(values if values is not None else ())[:n]]
     return out + [NAN] * (n - len(out))
+
+
+def _first(values: Any) -> float:
+    """A covariance's first element (NaN when it has none or it is not a number)."""
+    if type(values) is np.ndarray and values.ndim == 1 and len(values):
+        return _num(float(values[0])) if values.dtype.kind == "f" else finite_or_nan(values[0])
+    return _cov(values, 1)[0]
 
 
 def _sigma_deg(variance_rad2: float) -> float:
@@ -202,6 +230,9 @@ class _Bag:
         self.origin = origin_option(ctx)
         self.streams: dict[str, TextStream] = {}
         self.sources = _Sources()
+        self.targets: dict[tuple[str, str], bool] = {}   # (topic, type) -> mapped to ours
+        self.imus: dict[str, _ImuBatch] = {}              # Imu topic -> its messages read from their bytes
+        self.oldest: int | None = None   # the number of the earliest bag message an Imu batch holds
         # typed topics claim their archive topics first, a position (Odometry) before an attitude alone (Imu)
         ranked = []
         for topic, msgtype in dict.fromkeys(topics):
@@ -212,29 +243,59 @@ class _Bag:
         for vehicle, key, _, topic in sorted(ranked):
             self.sources.claim(vehicle, key, topic)
 
-    def item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored]:
-        """The archive messages of one bag message (raw text kept for `finish`), each on its topic's source."""
-        for item in self._item(m, where):
+    def maps(self, topic: str, msgtype: str) -> bool:
+        """Whether a topic of this type gives messages of ours (the manifest's topics, else its type)."""
+        key = (topic, msgtype)
+        found = self.targets.get(key)
+        if found is None:
+            found = self.targets[key] = _target(topic, msgtype, self.ctx) is not None
+        return found
+
+    def item(self, m: rb.BagMessage, where: Where, head: tuple[int, bytes] | None = None,
+             ) -> Iterator[Output | Reject | Ignored]:
+        """The archive messages of one bag message (raw text kept for `finish`, an undecoded Imu, whose `head`
+        `ros_imu.header` read, for its topic's batch), each on its topic's source."""
+        for item in self._item(m, where, head):
             if type(item) is Output:
                 self.sources.place(item, m.topic)
             yield item
 
-    def _item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored]:
+    def due(self, number: int) -> bool:
+        """Whether an Imu batch holds a message more than IMU_SPAN bag messages before message `number`."""
+        return self.oldest is not None and number - self.oldest >= IMU_SPAN
+
+    def flush(self) -> Iterator[Output | Reject]:
+        """Every Imu batch's messages, each on its topic's source."""
+        self.oldest = None
+        for topic, batch in self.imus.items():
+            for item in batch.flush():
+                if type(item) is Output:
+                    self.sources.place(item, topic)
+                yield item
+
+    def _item(self, m: rb.BagMessage, where: Where,
+              head: tuple[int, bytes] | None) -> Iterator[Output | Reject | Ignored]:
         label = f"{m.topic} ({m.msgtype})"
         target = _target(m.topic, m.msgtype, self.ctx)
-        if target is None:
-            yield Ignored(where, f"topic {label} is not mapped")
+        if target is None:   # archived as itself alone (`recorders.ros_raw`)
             return
         family, vehicle, wanted = target
-        if m.problem:
-            yield Reject(where, f"{label}: {m.problem}")
-            return
         if family and family not in SENSORS:
             yield Reject(where, f"{label}: the manifest maps it to {family!r}, not one of {', '.join(SENSORS)}")
             return
         ctx = self.ctx if vehicle == self.ctx.vehicle else _with_vehicle(self.ctx, vehicle)
-        t = _stamp_ns(m.message, m.bag_time_ns) + ctx.clock_offset_ns
         publish = m.bag_time_ns + ctx.clock_offset_ns
+        if head is not None:   # an Imu read from its bytes: converted with its topic's batch
+            batch = self.imus.get(m.topic)
+            if batch is None:
+                batch = self.imus[m.topic] = _ImuBatch(ctx)
+            if self.oldest is None:
+                self.oldest = where.message
+            stamp = head[0] if head[0] > 0 else m.bag_time_ns
+            if batch.add(stamp + ctx.clock_offset_ns, publish, where, head[1], m.data):
+                yield from batch.flush()
+            return
+        t = _stamp_ns(m.message, m.bag_time_ns) + ctx.clock_offset_ns
         msg = m.message
         if m.msgtype in RAW_TYPES:
             text = getattr(msg, "sentence", None) if m.msgtype == "nmea_msgs/Sentence" else getattr(msg, "data", None)
@@ -260,7 +321,9 @@ class _Bag:
             yield Reject(where, f"{label}: mapped to {family}, but we convert no {m.msgtype} message")
 
     def finish(self) -> Iterator[Output | Reject | Ignored]:
-        """The raw text streams through their vendor converters, each on its topic's source."""
+        """The Imu batches, then the raw text streams through their vendor converters, each on its topic's
+        source."""
+        yield from self.flush()
         for topic, stream in self.streams.items():
             for item in convert_stream(stream, self.ctx, topic):
                 if type(item) is Output:
@@ -303,34 +366,107 @@ def _imu(ctx: LogContext, msg: Any, t: int, publish: int, where: Where) -> Itera
     if cov[0] == -1:  # REP-145: -1 in the first element means the IMU gives no orientation
         yield Reject(where, "sensor_msgs/Imu without orientation (orientation_covariance[0] = -1)")
         return
-    roll, pitch, heading = attitude_deg(_quat(getattr(msg, "orientation", None)), is_ned(_frame(msg)))
+    frd = _ned(_frame(msg))
+    roll, pitch, heading = attitude_deg(_quat(getattr(msg, "orientation", None)), frd)
     if not math.isfinite(heading):
         yield Reject(where, "sensor_msgs/Imu orientation is not a rotation (zero or NaN quaternion)")
         return
-    state = ins_state(t, ctx, "rosbag:sensor_msgs/Imu", roll_deg=roll, pitch_deg=pitch, heading_deg=heading,
-                      roll_std_deg=_sigma_deg(cov[0]), pitch_std_deg=_sigma_deg(cov[4]),
-                      heading_std_deg=_sigma_deg(cov[8]), **_imu_rates(msg))
+    state = S.ins_state(t, ctx.vehicle, "rosbag:sensor_msgs/Imu", "", NAN, NAN, NAN, roll, pitch, heading, NAN, NAN,
+                        NAN, _sigma_deg(cov[8]), NAN, NAN, _sigma_deg(cov[0]), _sigma_deg(cov[4]), NAN)
+    _imu_rates(state, msg, frd)
     yield _out(ctx, "ins", state, t, publish, where)
 
 
-def _imu_rates(msg: Any) -> dict[str, float]:
+def _imu_rates(state: S.InsState, msg: Any, frd: bool) -> None:
     """An Imu's angular velocity and linear acceleration in FRD body axes (REP-103: FLU unless the frame is
-    _frd/_ned), each left out when its covariance[0] is -1 (REP-145: not given)."""
-    frd = is_ned(_frame(msg))
-    out: dict[str, float] = {}
-    for name, unit in (("angular_velocity", "radps"), ("linear_acceleration", "mps2")):
-        if _cov(getattr(msg, name + "_covariance", ()), 1)[0] == -1:
-            continue
-        v = _vec(getattr(msg, name, None))
-        for axis, value in zip("xyz", v if frd else flu_to_frd(v)):
-            out[f"{name}_{axis}_{unit}"] = value
-    return out
+    _frd/_ned) set on its state, each left out when its covariance[0] is -1 (REP-145: not given)."""
+    if _first(getattr(msg, "angular_velocity_covariance", ())) != -1:
+        x, y, z = _vec(getattr(msg, "angular_velocity", None))
+        state.angular_velocity_x_radps = x
+        state.angular_velocity_y_radps, state.angular_velocity_z_radps = (y, z) if frd else (-y, -z)
+    if _first(getattr(msg, "linear_acceleration_covariance", ())) != -1:
+        x, y, z = _vec(getattr(msg, "linear_acceleration", None))
+        state.linear_acceleration_x_mps2 = x
+        state.linear_acceleration_y_mps2, state.linear_acceleration_z_mps2 = (y, z) if frd else (-y, -z)
+
+
+# Imu messages converted together (`_ImuBatch`); a batch is given out before a record it holds lies IMU_SPAN bag
+# messages back, well inside the window the recording counts distinct records in (record.RECORDS_WINDOW)
+IMU_BATCH = 512
+IMU_SPAN = 2048
+IMU_SOURCE = "rosbag:sensor_msgs/Imu"
+
+
+class _ImuBatch:
+    """An Imu topic's messages read from their bytes (`formats.ros_imu`), converted IMU_BATCH at a time: the
+    attitude, sigmas and FRD rates over numpy columns, as `_imu` gives them one by one; one InsState each."""
+
+    def __init__(self, ctx: LogContext):
+        self.ctx = ctx
+        self.rows: list[tuple[int, int, Where, bytes]] = []   # (time, publish time, where, frame_id)
+        self.data: list[bytes] = []
+
+    def add(self, t: int, publish: int, where: Where, frame: bytes, data: bytes) -> bool:
+        """Keep one message; whether the batch is full."""
+        self.rows.append((t, publish, where, frame))
+        self.data.append(data)
+        return len(self.data) >= IMU_BATCH
+
+    def flush(self) -> Iterator[Output | Reject]:
+        """The batch's InsStates (or rejects, as `_imu` gives them), in the order the messages came."""
+        rows, data = self.rows, self.data
+        if not rows:
+            return
+        self.rows, self.data = [], []
+        v = ros_imu.values(data)
+        frd = np.array([_ned_bytes(frame) for _, _, _, frame in rows])
+        x, y, z, w = (v[:, k] for k in range(4))
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            n = np.sqrt(x * x + y * y + z * z + w * w)
+            x, y, z, w = x / n, y / n, z / n, w / n
+            roll = np.degrees(np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)))
+            pitch = np.degrees(np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0)))
+            yaw = np.degrees(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+            rotation = (n > 1e-9) & np.isfinite(n)   # as quaternion_euler: a zero or overflowing one is none
+            heading = np.where(frd, yaw, 90.0 - yaw) % 360.0
+            heading = np.where(rotation & np.isfinite(heading), np.where(heading >= 360.0, 0.0, heading), np.nan)
+            pitch = np.where(frd, pitch, -pitch)
+            cov = v[:, ros_imu.ORIENTATION_COV]
+            sigma = np.where(cov >= 0, np.degrees(np.sqrt(np.abs(cov))), np.nan)
+        sign = np.where(frd, 1.0, -1.0)
+        angular, linear = v[:, ros_imu.ANGULAR].copy(), v[:, ros_imu.LINEAR].copy()
+        angular[:, 1:] *= sign[:, None]
+        linear[:, 1:] *= sign[:, None]
+        cols = zip(roll.tolist(), pitch.tolist(), heading.tolist(), sigma[:, 0].tolist(), sigma[:, 4].tolist(),
+                   sigma[:, 8].tolist(), (v[:, 4] == -1).tolist(), (v[:, ros_imu.ANGULAR_COV0] != -1).tolist(),
+                   angular.tolist(), (v[:, ros_imu.LINEAR_COV0] != -1).tolist(), linear.tolist())
+        vehicle, topic = self.ctx.vehicle, f"/{self.ctx.vehicle}/ins"
+        for (t, publish, where, _), (r, p, h, rs, ps, hs, none, has_av, av, has_la, la) in zip(rows, cols):
+            if none:   # REP-145: -1 in the first element means the IMU gives no orientation
+                yield Reject(where, "sensor_msgs/Imu without orientation (orientation_covariance[0] = -1)")
+                continue
+            if h != h:
+                yield Reject(where, "sensor_msgs/Imu orientation is not a rotation (zero or NaN quaternion)")
+                continue
+            state = S.ins_state(t, vehicle, IMU_SOURCE, "", NAN, NAN, NAN, r, p, h, NAN, NAN, NAN, hs, NAN, NAN, rs,
+                                ps, NAN)
+            if has_av:
+                state.angular_velocity_x_radps, state.angular_velocity_y_radps, state.angular_velocity_z_radps = av
+            if has_la:
+                (state.linear_acceleration_x_mps2, state.linear_acceleration_y_mps2,
+                 state.linear_acceleration_z_mps2) = la
+            yield Output(topic, state, t, publish, where)
+
+
+@functools.lru_cache(maxsize=1024)
+def _ned_bytes(frame: bytes) -> bool:
+    return is_ned(frame.decode("utf-8", "replace"))
 
 
 def _odometry(ctx: LogContext, msg: Any, t: int, publish: int, where: Where,
               origin: tuple[float, float] | None) -> Iterator[Output | Reject]:
     pose = getattr(getattr(msg, "pose", None), "pose", None)
-    ned = is_ned(_frame(msg))
+    ned = _ned(_frame(msg))
     position = _vec(getattr(pose, "position", None))
     north, east, down = position if ned else enu_to_ned(position)
     roll, pitch, heading = attitude_deg(_quat(getattr(pose, "orientation", None)), ned)
@@ -348,12 +484,9 @@ def _odometry(ctx: LogContext, msg: Any, t: int, publish: int, where: Where,
     if not any(map(math.isfinite, (north, east, down, heading, vn))):
         yield Reject(where, "nav_msgs/Odometry with neither position, orientation nor velocity")
         return
-    state = ins_state(t, ctx, "rosbag:nav_msgs/Odometry", latitude=lat, longitude=lon, depth_m=down,
-                      roll_deg=roll, pitch_deg=pitch, heading_deg=heading, velocity_north_mps=vn,
-                      velocity_east_mps=ve, velocity_down_mps=vd,
-                      position_std_north_m=math.sqrt(sn) if sn >= 0 else NAN,
-                      position_std_east_m=math.sqrt(se) if se >= 0 else NAN,
-                      heading_std_deg=_sigma_deg(pcov[35]))
+    state = S.ins_state(t, ctx.vehicle, "rosbag:nav_msgs/Odometry", "", lat, lon, down, roll, pitch, heading, vn, ve,
+                        vd, _sigma_deg(pcov[35]), math.sqrt(sn) if sn >= 0 else NAN,
+                        math.sqrt(se) if se >= 0 else NAN, NAN, NAN, NAN)
     yield _out(ctx, "ins", state, t, publish, where)
 
 
@@ -423,6 +556,8 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
     # a ROS 2 bag folder given whole (path = "dive3/"): its metadata.yaml reads every storage file of it
     files = [p for p in ctx.files if p.name == "metadata.yaml" or p.parent not in folders]
     bag = _Bag(ctx, [t for path in files for t in _topics(path)])
+    raw = RosTopics(ctx)
+    own = {ros_imu.MSGTYPE: ros_imu.STANDARD}   # Imu read from its bytes, a batch at a time
     msg_paths = ctx.options.get("msg_paths")
     types = rb.definitions([Path(p) for p in msg_paths]) if isinstance(msg_paths, list) else {}
     start, number = 0, 0
@@ -433,15 +568,29 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
             raise FormatError(f"cannot read {path.name} ({exc.strerror or exc})") from exc
         # offset: the file's first byte in the log plus the message's index in it, so that the recorder maps
         # each message to its file (a message takes more than one byte) for a split bag's gap report
-        for m in rb.read_bag(path, types):
+        for m in rb.read_bag(path, types, own):
             number += 1
             where = Where(start + min(m.index, max(size - 1, 0)), None, m.bag_time_ns, number)
+            head = None
+            if m.undecoded:   # its bytes checked here, as rosbags' decoding checks the others'
+                head = ros_imu.header(m.data, m.schema is not None and m.schema.message_encoding == "ros1")
+                if head is None:
+                    m.problem = f"does not decode as sensor_msgs/Imu ({len(m.data)} bytes)"
             if not m.topic:
                 yield Reject(where, m.problem)
-                continue
-            yield from bag.item(m, where)
+            elif m.problem:   # neither itself nor ours: refused, with the reason
+                yield Reject(where, f"{m.topic} ({m.msgtype}): {m.problem}")
+            else:
+                yield raw.output(m, where)
+                if bag.maps(m.topic, m.msgtype):
+                    yield from bag.item(m, where, head)
+            if bag.due(number):
+                yield from bag.flush()
         start += size
     yield from bag.finish()
+    note = raw.note(ctx.path or files[0].name, Where(0))
+    if note is not None:
+        yield note
 
 
 def _topics(path: Path) -> list[tuple[str, str]]:

@@ -32,6 +32,11 @@ _RULES: dict[str, tuple[tuple[str, float, float, bool], ...]] = {
         ("hdop", 0.0, 1e4, True), ("speed_over_ground_mps", 0.0, 3e3, True),
         ("course_over_ground_deg", -720.0, 720.0, True), ("heading_deg", -720.0, 720.0, True),
     ),
+    "auvreplay.GnssVelocity": (
+        ("velocity_north_mps", -3e3, 3e3, True), ("velocity_east_mps", -3e3, 3e3, True),
+        ("velocity_up_mps", -3e3, 3e3, True), ("speed_over_ground_mps", 0.0, 3e3, True),
+        ("course_over_ground_deg", -720.0, 720.0, True), ("speed_std_mps", 0.0, 1e4, True),
+    ),
     "auvreplay.InsState": (
         ("latitude", -90.0, 90.0, True), ("longitude", -180.0, 180.0, True), ("depth_m", -1e5, 1.2e4, True),
         ("roll_deg", -720.0, 720.0, True), ("pitch_deg", -720.0, 720.0, True), ("heading_deg", -720.0, 720.0, True),

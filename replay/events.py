@@ -199,5 +199,11 @@ class Listener:
     def position(self, vehicle: str, source: str, fix: Fix) -> None:
         """A recorded position (source "gps" or "ins") of any vehicle."""
 
+    def positions(self, vehicle: str, source: str, t_s: Any, lat_rad: Any, lon_rad: Any, depth_m: Any) -> None:
+        """A block's recorded positions of one vehicle and source as columns (numpy arrays, time order); by
+        default each one to `position`."""
+        for t, lat, lon, depth in zip(t_s.tolist(), lat_rad.tolist(), lon_rad.tolist(), depth_m.tolist()):
+            self.position(vehicle, source, Fix(t, lat, lon, depth))
+
     def event(self, t_s: float, level: str, text: str) -> None:
         """Something a reviewer should read: a rejected record, training finished, a note."""

@@ -28,6 +28,8 @@ from recorders.clock import DayClock
 from recorders.dvl import pd0_items
 from recorders.epochs import group_epochs, host_time_ns
 from recorders.gnss_covariance import Covariance, fix_covariance, sigma_covariance
+from recorders.gnss_velocity import NO_VELOCITY
+from recorders.gnss_velocity import SUFFIX as VELOCITY
 from recorders.gps import NOVATEL_QUALITY, gnss_status, novatel_velocity
 from recorders.ins import ins_state
 from recorders.modem import (
@@ -81,7 +83,15 @@ def _nmea_covariance(epoch: NmeaEpoch, ctx: LogContext) -> Covariance:
                           gga.hdop if gga else NAN, gga.quality if gga else -1, ctx.options)
 
 
-def _nmea_outputs(records: list[nmea.NmeaRecord], ctx: LogContext, clock: DayClock) -> Iterator[Output | Reject]:
+def _nmea_velocity(t: int, vehicle: str, source: str, speed: float, course: float) -> S.GnssVelocity:
+    north, east = speed * math.cos(math.radians(course)), speed * math.sin(math.radians(course))
+    return S.GnssVelocity(timestamp=S.timestamp(t), frame_id=vehicle, velocity_north_mps=north, velocity_east_mps=east,
+                          velocity_up_mps=NAN, speed_over_ground_mps=speed, course_over_ground_deg=course,
+                          speed_std_mps=NAN, source_format=source)
+
+
+def _nmea_outputs(records: list[nmea.NmeaRecord], ctx: LogContext, clock: DayClock
+                  ) -> Iterator[Output | Reject | Ignored]:
     epoch = NmeaEpoch.of(records)
     if epoch.only_zda:
         nmea_update_date(epoch, clock)  # a date-only epoch: nothing to emit, but the date counts
@@ -105,9 +115,13 @@ def _nmea_outputs(records: list[nmea.NmeaRecord], ctx: LogContext, clock: DayClo
         speed, course, heading,
     )
     yield output(ctx, "gps/status", status, t, where)
+    if math.isfinite(speed) and math.isfinite(course):
+        yield output(ctx, VELOCITY, _nmea_velocity(t, ctx.vehicle, status.source_format, speed, course), t, where)
+    elif epoch.vtg is not None or epoch.rmc is not None:
+        yield Ignored(where, NO_VELOCITY)
 
 
-def convert_nmea_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_nmea_reference(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
     """`recorders.gps.convert_nmea` the obvious way, over `nmea.decode` records."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     for epoch in record_epochs(data, ctx.prefix):

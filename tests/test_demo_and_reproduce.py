@@ -44,7 +44,7 @@ def test_demo_writes_archive_results_metrics_and_recording(demo_dir, capsys):
     assert 701 <= ranges <= 701 + 2          # the views add one styling row per series
     assert at("series/f1_innovation_m/follower/leader1") + at("series/f1_innovation_m/follower/leader2") == ranges
     # state-timeline lanes named by leader and method (/lanes/...); each has one static StateConfiguration row
-    assert rows["/lanes/leader1/_truth"] + rows["/lanes/leader2/_truth"] == 701 + 2
+    assert rows["/lanes/leader1/0_truth"] + rows["/lanes/leader2/0_truth"] == 701 + 2
     # the demo runs the new detectors, so the new features are drawn, and every scored epoch is explained
     assert at("features/follower/leader1/z/drift_z") > 100 and at("scores/cusum_drift/follower/leader1/score") > 100
     assert at("why/follower/leader1") + at("why/follower/leader2") == metrics["epochs"] + 2   # + "before t_a"

@@ -233,12 +233,11 @@ def test_bag_maps_every_type_like_the_vendor_logs(bags, tmp_path, kind):
     assert gnss.speed_std_mps == pytest.approx(math.sqrt(0.02))
     stats = info["recording"]["files"][0]
     assert stats["format"] == "rosbag" and stats["sensor"] == ""
-    # every message counted: 10 raw + 3 NavSatFix + Imu + Odometry + GNSS twist + 2 DVL + 2 unmapped = 20
+    # every message archived as itself: 10 raw + 3 NavSatFix + Imu + Odometry + GNSS twist + 2 DVL + 2 unmapped
     total = 20
-    assert stats["parsed"] + stats["skipped"] + stats["ignored"] >= total - 4  # GST lines merge into their fix
-    reasons = stats["ignored_reasons"]
-    assert reasons["topic /diag_count (std_msgs/Int32) is not mapped"] == 1
-    assert any("/camera/info" in r for r in reasons)
+    assert stats["parsed"] == total and stats["skipped"] == 0
+    assert sum(len(v) for k, v in by.items() if k.startswith("/auv/ros/")) == total
+    assert len(by["/auv/ros/diag_count"]) == len(by["/auv/ros/camera/info"]) == 1
     # a ROS 2 storage file stands for its bag folder: every file of it is kept
     assert info["attachments"] == ([str(rel)] if kind == "ros1" else [f"{rel.parent}/metadata.yaml", str(rel)])
     # header stamps are log time, bag time publish time
@@ -251,8 +250,9 @@ def test_topic_mapping_and_vehicles(bags, tmp_path):
     rel = bags["ros1"].relative_to(bags["root"])
     extra = 'topics = { "/gps/fix" = { sensor = "gps", vehicle = "buddy" }, "/dvl/twist" = "dvl" }'
     by, info = messages(tmp_path, manifest(bags["root"], log("rosbag", str(rel), extra=extra)))
-    assert set(by) == {"/buddy/gps", "/buddy/gps/status", "/auv/dvl"}  # the rest counted as ignored, by reason
-    assert info["recording"]["files"][0]["ignored"] == 20 - 4
+    # the rest archived as themselves alone; every message as itself on the log's vehicle
+    assert {k for k in by if not k.startswith("/auv/ros/")} == {"/buddy/gps", "/buddy/gps/status", "/auv/dvl"}
+    assert info["recording"]["files"][0]["ignored"] == 0 and info["recording"]["files"][0]["parsed"] == 20
 
 
 def test_split_ros1_bags_are_one_log(bags, tmp_path):
@@ -478,7 +478,9 @@ def test_alog_maps_variables_and_raw_nmea(tmp_path):
     assert nav.latitude == pytest.approx(45.7 + math.degrees(200 / MERIDIAN_RADIUS_45_7), abs=1e-11)
     gps = S.LocationFix.FromString(next(b for t, b in by["/auv/gps"] if t == T0 + 3 * 10**9))
     assert (gps.latitude, gps.longitude) == (45.71, 126.61)
-    (vel_t, vel), = by["/auv/gps/velocity"]
+    # the raw NMEA's RMC/VTG velocity, as the vendor log gives it, then GPS_SPEED/GPS_HEADING's
+    assert [v for v in by["/auv/gps/velocity"] if v[0] < T0 + 2 * 10**9] == vendor["/auv/gps/velocity"] != []
+    (vel_t, vel), = [v for v in by["/auv/gps/velocity"] if v[0] >= T0 + 2 * 10**9]
     vel = S.GnssVelocity.FromString(vel)
     assert vel_t == T0 + 3 * 10**9 and vel.velocity_north_mps == pytest.approx(-1.5)
     rng = S.AcousticRange.FromString(by["/auv/modem/range"][0][1])

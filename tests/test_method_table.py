@@ -101,7 +101,7 @@ def test_a_toy_detector_reaches_metrics_why_lines_lanes_and_evaluate(toy: str, t
     rrd_path = tmp_path / "view.rrd"
     assert _cli(["view", str(results), "--save", str(rrd_path)])[0] == 0
     rrd = Rrd(rrd_path)       # the recording's entities, read back with Rerun's own reader
-    assert [e for e in rrd.temporal if "/lanes/" in e and e.endswith("/toy")], "the toy detector has no lane"
+    assert [e for e in rrd.temporal if "/lanes/" in e and e.endswith("_toy")], "the toy detector has no lane"
     why_docs = [d[0] for e in rrd.temporal if "/why/" in e for d in rrd.cells(e, "TextDocument:text")]
     toy_lines = [ln for d in why_docs for ln in d.splitlines() if " toy: " in ln]
     assert toy_lines and all("toy |innovation| " in ln for ln in toy_lines)

@@ -72,7 +72,7 @@ def test_nmea_blocks_carry_the_date_over_midnight():
         encode_gga(t0 + k * 10**9, 45.7, 126.6, hdop=0.9) for k in range(1, 40))
     data = text.encode()
     whole = _plain(convert_nmea(data, LogContext(vehicle="v")))
-    times = [item[2] for item in whole if item[0] == "/v/gps"]
+    times = [item[2] for item in whole if isinstance(item, tuple) and item[0] == "/v/gps"]
     assert times[-1] - times[0] == 39 * 10**9  # past midnight, the next day
     for size in (100, 200, 333):
         assert _plain(convert_nmea_blocks(blocks_of(data, size), LogContext(vehicle="v"))) == whole

@@ -41,8 +41,12 @@ def test_gst_after_gga_gives_a_known_diagonal_covariance_and_rmc_gives_the_date(
             + nmea.encode_rmc(T0, 45.7, 126.6, speed_knots=10.0, course_deg=90.0)
             + nmea.encode_hdt(33.0)).encode()
     outs, rejects = run(gps.convert_nmea, data, clock_offset_ns=-2 * S1)
-    assert not rejects and [o.topic for o in outs] == ["/boat/gps", "/boat/gps/status"]
-    fix, status = outs[0].message, outs[1].message
+    assert not rejects and [o.topic for o in outs] == ["/boat/gps", "/boat/gps/status", "/boat/gps/velocity"]
+    fix, status, velocity = outs[0].message, outs[1].message, outs[2].message
+    assert outs[2].log_time_ns == outs[0].log_time_ns and outs[2].where == outs[0].where
+    assert velocity.velocity_north_mps == pytest.approx(0.0, abs=1e-12)
+    assert velocity.velocity_east_mps == pytest.approx(10 * 1852 / 3600)
+    assert velocity.course_over_ground_deg == 90.0 and math.isnan(velocity.velocity_up_mps)
     assert outs[0].log_time_ns == T0 - 2 * S1 == S.to_ns(fix.timestamp)
     assert (fix.latitude, fix.longitude, fix.altitude, fix.frame_id) == (45.7, 126.6, 110.0, "boat")
     assert list(fix.position_covariance) == [4.0, 0, 0, 0, 2.25, 0, 0, 0, 9.0]  # ENU: lon, lat, alt

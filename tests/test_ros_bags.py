@@ -319,8 +319,9 @@ def test_water_linked_json_in_a_string_topic_is_the_dvl_on_the_bags_clock(tmp_pa
     # altitude -1: the DVL's "no altitude": the ping kept, not valid (whatever its velocity flag), altitude NaN
     assert math.isnan(no_bottom.altitude_m) and not no_bottom.valid
     assert S.to_ns(no_bottom.device_time) == (dvl_clock + 2_000_000) * 1000
-    # the dead-reckoning report is counted (nothing of it archived), not "no vendor format"
-    assert stats["parsed"] == 2 and stats["skipped"] == 0 and stats["ignored"] == 1
+    # every message archived as itself; the dead-reckoning report gives none of ours, said (not "no vendor format")
+    assert stats["parsed"] == 3 and stats["skipped"] == 0 and stats["ignored"] == 1
+    assert len(by["/auv/ros/dvl/json_data"]) == 3
     assert not any("no vendor format" in r for r in stats["ignored_reasons"])
 
 

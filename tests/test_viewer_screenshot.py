@@ -107,7 +107,7 @@ def test_viewer_renders_the_recording(viewer, tmp_path: Path) -> None:
     client.set_time("time", timestamp=(review.trial_start_ns + 90 * 10**9) / 1e9, play_state="paused")
     state = client.get_state()
     names = {v.name for v in state.views}
-    assert {"Local east/north (m), range circles", "Events"} <= names
+    assert {"Local east/north (m), range circles, scale bar", "Events"} <= names
     assert any(n.startswith("Map: GPS truth and the focus tracks") for n in names)
     assert [(v.name, v.reports) for v in state.views if v.reports] == []
     shot = tmp_path / "viewer.png"

@@ -10,6 +10,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -25,6 +26,7 @@ from replay.views.anfis import SURFACE_GRID, grid_triangles, history_of, surface
 from replay.views.cdf import CDF_SNAPSHOTS, PERCENTILES, error_axis, expanding_quantiles
 from replay.views.common import groups, make_runs
 from replay.views.focus import hidden_methods
+from replay.views.lanes import KEY_STATES, detector_order
 from replay.views.tracks import decimate
 from tests.review_fixtures import FOLLOWER, LEADERS, synthetic_review
 
@@ -138,18 +140,25 @@ def _expected_state(t: float, t_a: float, flagged: bool, label: int) -> str:
 
 
 def test_detection_lanes_are_named_and_tell_hits_false_alarms_and_misses_apart(rrd: Rrd, review: ReviewData) -> None:
-    """Lanes are state-timeline lanes whose path is their label: /lanes/<leader>/<method>, the truth first."""
+    """Lanes are state-timeline lanes whose path is their label: /lanes/<leader>/<rank>_<method>, the truth first,
+    then the detectors best first (fewest false alarms plus misses, as the verdict)."""
     det, t_a = review.detections, review.metrics["window"][0]
     detectors = [m for m in review.methods if m in set(det.method.unique())]
-    assert detectors == ["chi_square", "dual_threshold", "anfis", "anfis_aqpso"]
+    assert sorted(detectors) == sorted(["chi_square", "dual_threshold", "anfis", "anfis_aqpso"])
+    ranked = detector_order(make_runs([review])[0])       # no figures in this metrics: the run's order
+    assert ranked == detectors
     seen: set[str] = set()
     for leader in LEADERS:
+        lanes = [e for e in rrd.temporal if e.startswith(f"/lanes/{leader}/")]
+        # Rerun sorts lanes naturally, so the rank prefix puts them in the scoreboard's order
+        assert sorted(lanes, key=lambda e: int(e.rsplit("/", 1)[1].split("_", 1)[0])) == \
+            [f"/lanes/{leader}/0_truth"] + [f"/lanes/{leader}/{i}_{m}" for i, m in enumerate(ranked, start=1)]
         truth_rows = det[(det.leader == leader) & (det.method == detectors[0])].sort_values("t_s")
-        truth = [s[0] for s in rrd.cells(f"/lanes/{leader}/_truth", "StateChange:state")]
+        truth = [s[0] for s in rrd.cells(f"/lanes/{leader}/0_truth", "StateChange:state")]
         assert truth == ["anomaly" if v == 1 else "normal" if v == 0 else "no label" for v in truth_rows.label]
-        for method in detectors:
+        for rank, method in enumerate(ranked, start=1):
             rows = det[(det.leader == leader) & (det.method == method)].sort_values("t_s")
-            states = [s[0] for s in rrd.cells(f"/lanes/{leader}/{method}",
+            states = [s[0] for s in rrd.cells(f"/lanes/{leader}/{rank}_{method}",
                                               "StateChange:state")]
             assert states == [_expected_state(t, t_a, f, lab) for t, f, lab in zip(rows.t_s, rows.flagged,
                                                                                    rows.label, strict=True)]
@@ -157,8 +166,16 @@ def test_detection_lanes_are_named_and_tell_hits_false_alarms_and_misses_apart(r
     assert {"hit", "quiet", "training"} <= seen
     window = [s[0] for s in rrd.cells("/lanes/_scoring_window", "StateChange:state")]
     assert window == ["training", "scored", "scored"]
-    config = rrd.static[f"/lanes/{leader}/chi_square"][0]
-    assert {"hit", "false alarm", "miss", "quiet"} <= set(config.column("StateConfiguration:values").to_pylist()[0])
+    config = rrd.static[f"/lanes/{leader}/{ranked.index('chi_square') + 1}_chi_square"][0]
+    values = config.column("StateConfiguration:values").to_pylist()[0]
+    assert {"hit", "false alarm", "miss", "quiet"} <= set(values)
+    # no state name in a detector's segments (a one-epoch segment would cut it to "mi"): the key lane names them,
+    # each over an equal share of the mission, wide enough for its name
+    assert set(config.column("StateConfiguration:labels").to_pylist()[0]) == {" "}
+    key = [s[0] for s in rrd.cells("/lanes/_key", "StateChange:state")]
+    assert key[:-1] == list(KEY_STATES) and key[-1] == KEY_STATES[-1]
+    key_config = rrd.static["/lanes/_key"][0].column("StateConfiguration:labels").to_pylist()[0]
+    assert dict(zip(values, key_config, strict=True))["false alarm"] == "false alarm"
 
 
 def test_anfis_output_series(rrd: Rrd) -> None:
@@ -188,14 +205,22 @@ def test_error_cdf_grows_with_readable_percentiles(rrd: Rrd, review: ReviewData)
     np.testing.assert_allclose(axis.error(np.array([p[0] for p in marks[-1]])),
                                np.clip(np.quantile(errors.error_m, PERCENTILES), axis.lo, axis.hi), rtol=1e-4)
     table = rrd.cells(f"/run-a/cdf/{FOLLOWER}/table", "TextDocument:text")
-    assert len(table) == n_snap
+    assert len(table) == n_snap + 1 and "none is counted before t_a" in table[0][0]       # t = 0 says why
     assert f"| ckf | {np.quantile(errors.error_m, 0.5):.2f} |" in table[-1][0] and f"t_a = {t_a:.0f} s" in table[-1][0]
     ticks = rrd.static[f"/run-a/cdf/{FOLLOWER}/axes/x_ticks"][0].column("Points2D:labels").to_pylist()[0]
     assert all(float(t) == pytest.approx(v) for t, v in zip(ticks, axis.ticks(), strict=True)) and len(ticks) >= 3
-    legend = rrd.static[f"/run-a/cdf/{FOLLOWER}/legend/names"][0].column("Points2D:labels").to_pylist()[0]
-    # the legend names the methods in focus (replay.views.focus), best first; the others are hidden
+    # the legend names the methods in focus (replay.views.focus), best first; the others are hidden; its p50 is
+    # the one up to the cursor: "-" at t = 0, then each snapshot's, so at the last the scoreboard's
+    legends = rrd.cells(f"/run-a/cdf/{FOLLOWER}/legend/names", "Points2D:labels")
     hidden = set(hidden_methods(make_runs([review])[0], None))
-    assert sorted(t.split()[0] for t in legend) == sorted(set(review.errors.method.unique()) - hidden)
+    assert sorted(t.split()[0] for t in legends[-1]) == sorted(set(review.errors.method.unique()) - hidden)
+    assert len(legends) == n_snap + 1 and all(t.endswith("p50 - m") for t in legends[0])
+    best = legends[-1][0].split()[0]
+    mine = review.errors[(review.errors.method == best) & (review.errors.t_s >= t_a)]
+    shown = [float(next(t for t in labels if t.startswith(f"{best} ")).split()[2]) for labels in legends[1:]]
+    at = np.unique(errors.t_s)[np.unique(np.linspace(0, errors.t_s.nunique() - 1, n_snap).round().astype(int))]
+    np.testing.assert_allclose(shown, [np.quantile(mine.error_m[mine.t_s <= t], 0.5) for t in at], atol=0.006)
+    assert shown[0] != shown[-1]            # it grows with the curves
     for method in review.errors.method.unique():
         assert rrd.rows(f"/run-a/series/error/{FOLLOWER}/{method}") == (review.errors.method == method).sum()
 
@@ -246,7 +271,7 @@ def test_kmcdf_epochs_and_events(rrd: Rrd, review: ReviewData) -> None:
 
 def test_blueprint_saved_with_every_view(rrd: Rrd) -> None:
     names = rrd.view_names
-    for expected in ("Local east/north (m), range circles", "Events",
+    for expected in ("Local east/north (m), range circles, scale bar", "Events",
                      "leader1: range measured / true (m)", "leader1: ANFIS vs T2 (m)", "Colours",
                      "Rule firing w", "Verdict", "Output surface, f3 at median", "Scoreboard",
                      "Colour key", "Training RMSE (m) per epoch"):
@@ -391,9 +416,10 @@ def test_comparison_names_runs_by_what_differs_and_says_what_changed(review: Rev
     assert "Epochs that differ" in out.view_names and "What changed: A vs B" in out.view_names
     assert sum(n.startswith("Detection lanes") for n in out.view_names) == 1     # both runs in one view
     # a detector's lanes of both runs are neighbours: one root, the run last
-    assert out.rows("/lanes/leader1/chi_square/A") == (
+    rank = detector_order(make_runs([a])[0]).index("chi_square") + 1
+    assert out.rows(f"/lanes/leader1/{rank}_chi_square/A") == (
         (a.detections.leader == "leader1") & (a.detections.method == "chi_square")).sum()
-    assert out.rows("/lanes/leader1/chi_square/B") == (
+    assert out.rows(f"/lanes/leader1/{rank}_chi_square/B") == (
         (b.detections.leader == "leader1") & (b.detections.method == "chi_square")).sum()
 
 
@@ -479,21 +505,31 @@ def test_sample_every_method_has_a_track_an_error_series_and_a_cdf(sample: tuple
         np.testing.assert_allclose(axis.error(np.array([marks[-1][0][0], marks[-1][1][0]])),
                                    [metrics["methods"][method]["error_p50_m"],
                                     min(metrics["methods"][method]["error_p90_m"], axis.hi)], rtol=1e-4)
+    # the lanes of each leader: the truth, then the detectors best first (fewest false alarms plus misses)
+    merit = {m: metrics["methods"][m]["fp"] + metrics["methods"][m]["fn"] for m in metrics["methods"]
+             if method_kind(m) == "detector"}
+    ranked = sorted(merit, key=lambda m: merit[m])
+    assert merit[ranked[0]] < merit[ranked[-1]]
     for leader in ("leader1", "leader2"):
-        lanes = [e for e in rrd.temporal if e.startswith(f"/lanes/{leader}/")]
+        lanes = sorted((e for e in rrd.temporal if e.startswith(f"/lanes/{leader}/")),
+                       key=lambda e: int(e.rsplit("/", 1)[1].split("_", 1)[0]))
         assert len(lanes) == 1 + sum(r.kind == "detector" for r in scoreboard(metrics))
+        assert lanes[0] == f"/lanes/{leader}/0_truth"
+        assert [merit[e.rsplit("/", 1)[1].split("_", 1)[1]] for e in lanes[1:]] == sorted(merit.values())
 
 
 def test_sample_mission_seconds_beside_utc_and_events_use_them(sample: tuple[ReviewData, dict, Rrd]) -> None:
     review, _, rrd = sample
     batches = rrd.temporal[f"/{review.run_id}/events"]
-    mission = np.concatenate([b.column("mission_s").cast("int64").to_numpy() for b in batches])
+    # mission_s is a sequence of whole seconds (Rerun writes it "#620" on every axis, a duration "+10m")
+    assert all(b.schema.field("mission_s").type == pa.int64() for b in batches)
+    mission = np.concatenate([b.column("mission_s").to_numpy() for b in batches])
     utc = np.concatenate([b.column("time").cast("int64").to_numpy() for b in batches])
-    np.testing.assert_array_equal(utc - mission, review.trial_start_ns)
-    np.testing.assert_array_equal(np.sort(mission), np.sort(np.round(review.events.t_s.to_numpy() * 1e9)))
-    assert all("mission_s" in b.schema.names for e in (f"/{review.run_id}/series/error/follower/kmcdf2",
-                                                        f"/{review.run_id}/local/follower/gps/position")
-               for b in rrd.temporal[e])
+    assert np.abs(utc - review.trial_start_ns - mission * 1_000_000_000).max() <= 500_000_000
+    np.testing.assert_array_equal(np.sort(mission), np.sort(np.round(review.events.t_s.to_numpy())))
+    for entity in (f"/{review.run_id}/series/error/follower/kmcdf2", f"/{review.run_id}/local/follower/gps/position",
+                   f"/{review.run_id}/cdf/follower/legend/names", "/lanes/leader1/0_truth"):
+        assert all(b.schema.field("mission_s").type == pa.int64() for b in rrd.temporal[entity]), entity
     ev = review.events
     warn = ev[ev.level == "WARN"].text
     assert warn.str.startswith("FALSE ALARM").any() and warn.str.startswith("MISS").any()

@@ -21,8 +21,9 @@ from replay.stack.detectors.why_text import epoch_features
 from replay.stack.features import EXTRA_FEATURES, FEATURE_NAMES
 from replay.stack.methods import why_line
 from replay.views import recording as views
+from replay.views.common import make_runs
 from replay.views.features import FEATURE_GROUPS
-from replay.views.lanes import epoch_states
+from replay.views.lanes import detector_order, epoch_states
 from tests.review_fixtures import FOLLOWER, LEADERS, synthetic_review
 from tests.test_views import Rrd
 
@@ -117,8 +118,8 @@ def test_features_drawn_where_finite_in_groups_by_unit(featured: tuple[ReviewDat
     note = rrd.static["/run-a/features/note"][0].column("TextDocument:text").to_pylist()[0][0]
     assert "usbl_residual_m" in note and "drift_z" not in note
     for leader in LEADERS:
-        assert f"{leader}: standardized residuals (sd)" in rrd.view_names
-        assert f"{leader}: vs lagged ACKF / other leaders (m)" in rrd.view_names      # no USBL fix: not named
+        assert f"{leader}: standardized (sd)" in rrd.view_names
+        assert f"{leader}: vs lagged / others (m)" in rrd.view_names      # no USBL fix: not named
 
 
 def test_a_run_without_the_new_features_says_so(tmp_path: Path) -> None:
@@ -128,7 +129,7 @@ def test_a_run_without_the_new_features_says_so(tmp_path: Path) -> None:
     assert note.startswith("The filter-independent features") and "not computed" in note
     assert not [e for e in rrd.temporal if e.startswith("/run-a/features/")]
     assert "Features this run did not compute" in rrd.view_names
-    assert not any(n.endswith("standardized residuals (sd)") for n in rrd.view_names)
+    assert not any(n.endswith("standardized (sd)") for n in rrd.view_names)
 
 
 def test_why_document_per_epoch_after_t_a_one_line_per_detector(featured: tuple[ReviewData, Rrd, Path]) -> None:
@@ -144,7 +145,10 @@ def test_why_document_per_epoch_after_t_a_one_line_per_detector(featured: tuple[
             at = rows[rows.t_s == t]
             label = int(at.label.iloc[0])
             truth = "anomaly" if label == 1 else "normal" if label == 0 else "no label"
-            assert doc[0].startswith(f"**{leader} at {t:.1f} s: truth {truth}**")
+            # the epoch's true range error (measured - GPS-true range), as the event log gives it
+            rng = review.ranges[(review.ranges.leader == leader) & (review.ranges.t_s == t)]
+            err = float(rng.measured_m.iloc[0] - rng.true_m.iloc[0])
+            assert doc[0].startswith(f"**{leader} at {t:.1f} s: truth {truth}; true range error {err:+.1f} m**")
             lines = [ln for ln in doc[0].splitlines() if ln.startswith("- ")]
             states = epoch_states(at.flagged.to_numpy(), at.label.to_numpy(), np.ones(len(at), dtype=bool))
             assert lines == [f"- **{s}** {m}: {w}" for s, m, w in zip(states, at.method, at.why, strict=True)]
@@ -160,12 +164,23 @@ def test_detector_scores_against_thresholds_and_colour_key(featured: tuple[Revie
         np.testing.assert_allclose([c[0] for c in rrd.cells(f"{base}/threshold", "Scalars:scalars")], rows.threshold)
         assert not [e for e in rrd.temporal if e.startswith("/run-a/scores/anfis")]   # the ANFIS plot has those
     key = rrd.static["/run-a/scores/key"][0].column("TextDocument:text").to_pylist()[0][0]
-    assert "orange: leader1" in key and "blue: leader2" in key
+    assert "orange leader1, blue leader2" in key and "Triangles below 0" in key
+    # the key is short (it fits its grid cell with all eight detectors), and the truth marks sit under each plot
+    assert len(key) < 400
+    rows_y = []
+    for leader in LEADERS:
+        base = f"/run-a/scores/chi_square/{FOLLOWER}/{leader}"
+        rows = det[(det.leader == leader) & (det.method == "chi_square")].sort_values("t_s")
+        marks = [c[0] for c in rrd.cells(f"{base}/truth", "Scalars:scalars")]
+        assert len(marks) == (rows.label == 1).sum() > 0 and len(set(marks)) == 1 and marks[0] < 0
+        assert rrd.rows(f"/run-a/series/anfis/{FOLLOWER}/{leader}/truth") == len(marks)
+        rows_y.append(marks[0])
+    assert rows_y[0] > rows_y[1]        # one row per leader, the first nearest zero
     assert {"chi_square: f2 vs gate", "dual_threshold vs 1", "Colours"} <= rrd.view_names
 
 
-def test_blueprint_opens_following_on_mission_seconds(featured: tuple[ReviewData, Rrd, Path]) -> None:
-    """The cursor cannot be placed by a 0.41 blueprint: 'following' puts it on the last sample of a loaded file."""
+def test_blueprint_opens_paused_on_mission_seconds(featured: tuple[ReviewData, Rrd, Path]) -> None:
+    """The cursor cannot be placed by a 0.41 blueprint: paused, a loaded file opens at its start (not its end)."""
     *_, path = featured
     reader = RrdReader(path)
     panel = {}
@@ -175,13 +190,15 @@ def test_blueprint_opens_following_on_mission_seconds(featured: tuple[ReviewData
             if name in batch.schema.names:
                 panel[name] = batch.column(name).to_pylist()[0][0]
     assert panel["TimePanelBlueprint:timeline"] == "mission_s"
-    assert panel["TimePanelBlueprint:play_state"] in ("Following", 3, "following")
+    assert panel["TimePanelBlueprint:play_state"] in ("Paused", 1, "paused")
 
 
 def test_lane_names_read_leader_and_method(featured: tuple[ReviewData, Rrd, Path]) -> None:
     review, rrd, _ = featured
     lanes = sorted(e for e in rrd.temporal if e.startswith("/lanes/"))
-    detectors = sorted(review.detections.method.unique())
-    assert lanes == sorted(["/lanes/_scoring_window"] + [f"/lanes/{ld}/{m}" for ld in LEADERS
-                                                          for m in ["_truth", *detectors]])
+    detectors = detector_order(make_runs([review])[0])
+    assert sorted(detectors) == sorted(review.detections.method.unique())
+    assert lanes == sorted(["/lanes/_key", "/lanes/_scoring_window"]
+                           + [f"/lanes/{ld}/{m}" for ld in LEADERS
+                              for m in ["0_truth", *(f"{i}_{d}" for i, d in enumerate(detectors, start=1))]])
     assert pd.Series(lanes).str.len().max() < 40

@@ -39,6 +39,7 @@ class CleanLines:
     offsets: np.ndarray  # byte offset of each line in the log
     numbers: np.ndarray  # 1-based line number of each line in the log
     buf: np.ndarray  # the log's bytes
+    count: int  # lines in the log, blank ones too (the end of the last line is no line)
 
     def heads(self, width: int) -> np.ndarray:
         """The `width` bytes after each line's '$' (bytes past the log's end read as NUL), as S<width>."""
@@ -80,7 +81,7 @@ def clean_lines(data: bytes) -> CleanLines | None:
         return None  # a bad checksum: a Reject, the per-line path's job
     # lines keep a '\r': it sits in the checksum field, which no parser reads
     lines = raw[:-1] if len(idx) == len(raw) - 1 and not keep[-1] else select(raw, idx) if len(idx) != len(raw) else raw
-    return CleanLines(lines, s, idx + 1, buf)
+    return CleanLines(lines, s, idx + 1, buf, len(raw) - (raw[-1] == ""))
 
 
 def field_table(lines: Sequence[str], width: int) -> list[list[str]] | None:

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .clean import CleanLines, clean_lines, field_table, select
+from .counts import BLANK, IGNORED, USED, SentenceCounts, skipped_outcome
 from .fields import (
     NAN,
     angle_column,
@@ -45,6 +46,18 @@ class NmeaColumns:
     numbers: np.ndarray
     rows: dict[str, np.ndarray]  # kind -> its sentences' positions in file order
     values: dict[str, dict[str, np.ndarray | list]]  # kind -> field name -> one value per sentence
+    lines: Lines  # every line of the log, by address, for `count_sentences`
+
+
+@dataclass(frozen=True, slots=True)
+class Lines:
+    """A clean log's sentence lines by address: the distinct addresses, each line's, its line number."""
+
+    addresses: list[str]
+    used: list[bool]  # per address: a type of ours (KINDS), else skipped
+    code: np.ndarray  # per sentence line: index into `addresses`
+    numbers: np.ndarray  # per sentence line: its 1-based line number
+    count: int  # lines of the log, blank ones too
 
 
 def _address_ok(key: bytes) -> bool:
@@ -86,8 +99,9 @@ def _vtg(f: list[list[str]]) -> dict | None:
     # `sentences._vtg` reads the unit-letter layout unless both letters are odd: only that layout here
     if not all((t in ("T", "") and m in ("M", "")) or t == "T" or m == "M" for t, m in set(zip(f[1], f[3]))):
         return None
-    cols = {name: number_column(float, f[k], NAN) for k, name in
-            ((0, "course"), (2, "course_magnetic"), (4, "speed"), (6, "kmh"))}
+    cols: dict = {name: number_column(float, f[k], NAN) for k, name in
+                  ((0, "course"), (2, "course_magnetic"), (4, "speed"), (6, "kmh"))}
+    cols["mode"] = f[8]
     return None if any(v is None for v in cols.values()) else cols
 
 
@@ -123,8 +137,9 @@ def _ths(f: list[list[str]]) -> dict | None:
 _PARSE = {"GGA": _gga, "GST": _gst, "RMC": _rmc, "VTG": _vtg, "GLL": _gll, "ZDA": _zda, "HDT": _hdt, "THS": _ths}
 
 
-def _kinds(clean: CleanLines) -> tuple[np.ndarray, np.ndarray] | None:
-    """(kept line positions, kind code of each) or None when a line needs the per-line path."""
+def _kinds(clean: CleanLines) -> tuple[np.ndarray, np.ndarray, Lines] | None:
+    """(kept line positions, kind code of each, every line by address) or None when a line needs the per-line
+    path."""
     keys, inverse = np.unique(clean.heads(6), return_inverse=True)
     code_of = np.full(len(keys), -1, dtype=np.int64)
     for j, key in enumerate(keys.tolist()):
@@ -137,9 +152,12 @@ def _kinds(clean: CleanLines) -> tuple[np.ndarray, np.ndarray] | None:
             code_of[j] = KINDS.index(kind)
         else:
             return None  # a sentence type of ours this fast path does not handle
-    codes = code_of[inverse.ravel()]
+    inverse = inverse.ravel()
+    codes = code_of[inverse]
     kept = np.flatnonzero(codes >= 0)
-    return kept, codes[kept]
+    lines = Lines([key[:5].decode("latin-1") for key in keys.tolist()], (code_of >= 0).tolist(), inverse,
+                  clean.numbers, clean.count)
+    return kept, codes[kept], lines
 
 
 def decode_columns(data: bytes) -> NmeaColumns | None:
@@ -150,7 +168,7 @@ def decode_columns(data: bytes) -> NmeaColumns | None:
     found = _kinds(clean)
     if found is None:
         return None
-    kept, kind = found
+    kept, kind, lines = found
     tod = np.full(len(kept), NAN)
     rows, values = {}, {}
     for code, name in enumerate(KINDS):
@@ -168,7 +186,7 @@ def decode_columns(data: bytes) -> NmeaColumns | None:
         if times is not None:
             tod[pos] = times
         rows[name], values[name] = pos, cols
-    return NmeaColumns(kind, tod, clean.offsets[kept], clean.numbers[kept], rows, values)
+    return NmeaColumns(kind, tod, clean.offsets[kept], clean.numbers[kept], rows, values, lines)
 
 
 def head(cols: NmeaColumns, k: int) -> NmeaColumns:
@@ -178,4 +196,20 @@ def head(cols: NmeaColumns, k: int) -> NmeaColumns:
         n = int(np.searchsorted(pos, k))
         rows[name] = pos[:n]
         values[name] = {field: column[:n] for field, column in cols.values[name].items()}
-    return NmeaColumns(cols.kind[:k], cols.tod[:k], cols.offsets[:k], cols.numbers[:k], rows, values)
+    return NmeaColumns(cols.kind[:k], cols.tod[:k], cols.offsets[:k], cols.numbers[:k], rows, values, cols.lines)
+
+
+def count_sentences(cols: NmeaColumns, counts: SentenceCounts, upto: int | None = None) -> None:
+    """Count the lines of a clean log's columns before line `upto` (1-based; None: all of them) into `counts`."""
+    lines = cols.lines
+    n = len(lines.code) if upto is None else int(np.searchsorted(lines.numbers, upto))
+    before = lines.count if upto is None else upto - 1
+    per = np.bincount(lines.code[:n], minlength=len(lines.addresses)).tolist()
+    for outcome, take in ((USED, True), (None, False)):
+        table = {a: k for a, k, used in zip(lines.addresses, per, lines.used) if k and used == take}
+        if outcome is not None:
+            counts.merge(outcome, table)
+        else:
+            for a, k in table.items():
+                counts.add(skipped_outcome(a), a, k)
+    counts.add(IGNORED, BLANK, before - n)

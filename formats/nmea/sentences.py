@@ -28,13 +28,26 @@ written for NaN values.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 from dataclasses import dataclass
 from datetime import UTC, date, datetime
 
 from ..lines import PREFIX_STYLES, strip_prefix
 from ..log_blocks import Block, LogText, blocks_in
 from ..records import Reject, Where
+from .counts import (
+    BAD_CHECKSUM,
+    BLANK,
+    IGNORED,
+    NO_SENTENCE,
+    NOVATEL,
+    OUTCOMES,
+    REJECTED,
+    UNKNOWN,
+    USED,
+    SentenceCounts,
+    skipped_outcome,
+)
 from .fields import (
     NAN,
     parse_ddmmyy,
@@ -414,15 +427,20 @@ def parse_frame(frame: Frame) -> NmeaRecord | Reject | None:
 Scanned = tuple[str, str, tuple, int, int | None, int | None]
 
 
-def scan(data: bytes, prefix: str = "auto", base: int = 0, lines: int = 0) -> Iterator[Scanned | Reject]:
+def scan(data: bytes, prefix: str = "auto", base: int = 0, lines: int = 0,
+         counts: SentenceCounts | None = None) -> Generator[Scanned | Reject, None, None]:
     """What `decode` yields, as plain tuples instead of records (for converters on the hot path).
 
     `data` may be a block of a longer log (`formats.log_blocks`) starting at
     byte `base` after `lines` line ends: positions are then the log's.
+    Every line is counted into `counts` (`formats.nmea.counts`) when the
+    scan ends or is closed; a sentence yielded is counted once the consumer
+    asks for the next item, so one it stopped at is left for whoever reads
+    on from it.
 
     The common line (``$TTSSS,...*HH`` with nothing before it) takes a fast
     path: the sentence type is looked up before anything else, so the
-    sentences of other families ($GPGSV, $GPGSA...) cost one dict lookup and
+    sentences of other families ($GPGSV, $GPGSA...) cost one dict update and
     their checksums are not verified; everything else goes through
     `iter_frames`' general path.
     """
@@ -431,41 +449,70 @@ def scan(data: bytes, prefix: str = "auto", base: int = 0, lines: int = 0) -> It
     pxor = prefix_xor(data)
     parsers, hexes = VALUES, HEX
     prefixes = HostPrefixes(prefix)
-    skipped: set[str] = set()  # well-formed addresses of other sentence types
+    tally: dict[str, dict[str, int]] = {outcome: {} for outcome in OUTCOMES}
+    used, skipped, bad, rejected = tally[USED], tally[IGNORED], tally[BAD_CHECKSUM], tally[REJECTED]
+    blank = 0
+    pieces = data.decode("latin-1").split("\n")
     offset = 0  # in `data`; positions given out are `base` + it
-    for number, raw in enumerate(data.decode("latin-1").split("\n"), start=lines + 1):
-        line_start = offset
-        offset += len(raw) + 1
-        s, host = 0, None  # where the sentence starts in the line, and the line's host time
-        if raw[:1] != "$":
-            if raw.isspace() or not raw:
-                continue  # blank: a flood of them must cost no framing (iter_frames skips them too)
-            s, host = prefixes.split(raw)
-        star = raw.find("*", s + 6)
-        if raw[s : s + 1] != "$" or raw[s + 6 : s + 7] != "," or star < 0 or raw.count("$") != 1:
-            yield from _scan_general(raw, base + line_start, number, prefix)
-            continue
-        kind = raw[s + 3 : s + 6]
-        parser = parsers.get(kind)
-        if parser is None or raw[s + 1] == "P":
+    try:
+        for number, raw in enumerate(pieces, start=lines + 1):
+            line_start = offset
+            offset += len(raw) + 1
+            s, host = 0, None  # where the sentence starts in the line, and the line's host time
+            if raw[:1] != "$":
+                if raw.isspace() or not raw:
+                    blank += 1  # a flood of blank lines must cost no framing (iter_frames skips them too)
+                    continue
+                s, host = prefixes.split(raw)
+            star = raw.find("*", s + 6)
+            if raw[s : s + 1] != "$" or raw[s + 6 : s + 7] != "," or star < 0 or raw.count("$") != 1:
+                yield from _scan_general(raw, base + line_start, number, prefix, tally)
+                continue
+            kind = raw[s + 3 : s + 6]
+            parser = parsers.get(kind)
             address = raw[s + 1 : s + 6]
-            if address in skipped:
-                continue  # a sentence of another family seen before ($GPGSV...): one set lookup
-            if not (address.isascii() and address.isalnum() and address.isupper()):
-                yield Reject(Where(base + line_start, number, host), f"malformed sentence address {address!r}")
-            else:
-                skipped.add(address)
-            continue
-        given = hexes.get(raw[star + 1 : star + 3])
-        computed = pxor[line_start + star - 1] ^ pxor[line_start + s]
-        if given != computed:
-            yield Reject(Where(base + line_start, number, host),
-                         f"bad checksum {raw[star + 1 : star + 3]!r}, computed {computed:02X}", bad_checksum=True)
-            continue
-        try:
-            yield kind, raw[s + 1 : s + 3], parser(raw[s + 7 : star].split(",")), base + line_start, number, host
-        except (ValueError, IndexError, OverflowError) as exc:
-            yield Reject(Where(base + line_start, number, host), f"bad {kind} sentence: {exc}")
+            if parser is None or raw[s + 1] == "P":
+                n = skipped.get(address)
+                if n is not None:
+                    skipped[address] = n + 1  # a sentence of another family seen before ($GPGSV...)
+                elif not (address.isascii() and address.isalnum() and address.isupper()):
+                    rejected[NO_SENTENCE] = rejected.get(NO_SENTENCE, 0) + 1
+                    yield Reject(Where(base + line_start, number, host), f"malformed sentence address {address!r}")
+                else:
+                    skipped[address] = 1
+                continue
+            given = hexes.get(raw[star + 1 : star + 3])
+            computed = pxor[line_start + star - 1] ^ pxor[line_start + s]
+            if given != computed:
+                bad[address] = bad.get(address, 0) + 1
+                yield Reject(Where(base + line_start, number, host),
+                             f"bad checksum {raw[star + 1 : star + 3]!r}, computed {computed:02X}", bad_checksum=True)
+                continue
+            try:
+                values = parser(raw[s + 7 : star].split(","))
+            except (ValueError, IndexError, OverflowError) as exc:
+                rejected[address] = rejected.get(address, 0) + 1
+                yield Reject(Where(base + line_start, number, host), f"bad {kind} sentence: {exc}")
+                continue
+            yield kind, raw[s + 1 : s + 3], values, base + line_start, number, host
+            used[address] = used.get(address, 0) + 1
+        if pieces[-1] == "":
+            blank -= 1  # the end of the last line, no line of its own
+    finally:
+        if counts is not None:
+            _count(counts, tally, blank)
+
+
+def _count(counts: SentenceCounts, tally: dict[str, dict[str, int]], blank: int) -> None:
+    """A scan's tally into `counts`: the types skipped split into ignored and unknown, blank lines added."""
+    skipped = tally[IGNORED]
+    # a key in parentheses is no address (NOVATEL): it stays ignored
+    tally[IGNORED] = {a: n for a, n in skipped.items() if a[:1] == "(" or skipped_outcome(a) == IGNORED}
+    tally[UNKNOWN] = {a: n for a, n in skipped.items() if a[:1] != "(" and skipped_outcome(a) == UNKNOWN}
+    if blank:
+        tally[IGNORED][BLANK] = blank
+    for outcome, table in tally.items():
+        counts.merge(outcome, table)
 
 
 class HostPrefixes:
@@ -497,17 +544,40 @@ class HostPrefixes:
         return s, host
 
 
-def _scan_general(raw: str, line_start: int, number: int, prefix: str) -> Iterator[Scanned | Reject]:
-    """A line off the fast path: prefixes, noise, missing checksums, glued sentences, garbage."""
+def _scan_general(raw: str, line_start: int, number: int, prefix: str,
+                  tally: dict[str, dict[str, int]] | None = None) -> Iterator[Scanned | Reject]:
+    """A line off the fast path: prefixes, noise, missing checksums, glued sentences, garbage; counted in `tally`."""
+    if tally is None:
+        tally = {outcome: {} for outcome in OUTCOMES}
+    found = False
     for item in iter_frames(raw.encode("latin-1"), prefix):
+        found = True
         if isinstance(item, Reject):
             where = item.where
+            address = _address_of(raw) if item.bad_checksum else NO_SENTENCE
+            outcome = BAD_CHECKSUM if item.bad_checksum else REJECTED
+            tally[outcome][address] = tally[outcome].get(address, 0) + 1
             yield Reject(Where(line_start, number, where.host_time_ns), item.reason, item.bad_checksum)
             continue
         address, fields, where = item
         result = _frame_values((address, fields, Where(line_start, number, where.host_time_ns)))
+        outcome = IGNORED if result is None else REJECTED if isinstance(result, Reject) else USED
+        key = address[:16]  # an address is any run of capitals and digits: a key of bounded size
+        tally[outcome][key] = tally[outcome].get(key, 0) + 1
         if result is not None:
             yield result
+    if not found:  # a NovAtel log among the sentences: another decoder's
+        tally[IGNORED][NOVATEL] = tally[IGNORED].get(NOVATEL, 0) + 1
+
+
+def _address_of(text: str) -> str:
+    """The address of a framed sentence in a line with a bad checksum (after its '$', up to ',' or '*'), or
+    NO_SENTENCE when that is no address."""
+    start = text.find("$")
+    end = min((i for i in (text.find(",", start), text.find("*", start)) if i >= 0), default=len(text))
+    address = text[start + 1 : end]
+    ok = len(address) >= 3 and address.isascii() and address.isalnum() and address.isupper()
+    return address[:16] if ok else NO_SENTENCE
 
 
 def decode(data: LogText, prefix: str = "auto") -> Iterator[NmeaRecord | Reject]:

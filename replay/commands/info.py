@@ -7,6 +7,7 @@ import json
 from typing import Any
 
 from formats.mcap_reader import ArchiveReader
+from formats.nmea.counts import describe as describe_counts
 from recorders.clock import iso_utc as iso
 from replay.errors import warn_damage
 
@@ -47,7 +48,7 @@ def describe(path: str) -> dict[str, Any]:
         "diagnostics": {
             f["path"]: {k: f.get(k) for k in ("vehicle", "sensor", "format", "parsed", "skipped", "bad_checksum",
                                                "out_of_order", "duplicates", "start", "end", "ignored",
-                                               "ignored_reasons", "parts", "notes")}
+                                               "ignored_reasons", "parts", "notes", "sentences")}
             for f in files
         },
         "metadata": summary.metadata_names,
@@ -71,6 +72,12 @@ def _files(value: Any) -> tuple[list[dict[str, Any]], int]:
     entries = _list(value)
     good = [f for f in entries if isinstance(f, dict) and isinstance(f.get("path"), str)]
     return good, len(entries) - len(good) + (1 if value is not None and not isinstance(value, list) else 0)
+
+
+def _counts_shape(value: Any) -> bool:
+    """Whether a log's `sentences` entry is {address: {outcome: count}} (metadata from someone else's file)."""
+    return isinstance(value, dict) and bool(value) and all(
+        isinstance(per, dict) and all(isinstance(n, int) for n in per.values()) for per in value.values())
 
 
 def _count(value: Any) -> str:
@@ -98,6 +105,9 @@ def _print_text(info: dict[str, Any]) -> None:
         for path, d in info["diagnostics"].items():
             print(f"  {path:<34} {_count(d['parsed']):>7}  {_count(d['skipped']):>7}  {_count(d['bad_checksum']):>12}"
                   f"  {_count(d['ignored'] or 0):>7}")
+        for path, d in info["diagnostics"].items():
+            if _counts_shape(d.get("sentences")):
+                print(f"  {path}: {describe_counts(d['sentences'])}")
     warn_damage("info", info["warning"])
 
 

@@ -7,6 +7,7 @@ import sys
 import time
 from typing import TextIO
 
+from formats.nmea.counts import describe as describe_counts
 from recorders.clock import iso_utc
 from recorders.manifest import ManifestError, load_manifest
 from recorders.record import RecordingSummary, record
@@ -75,6 +76,8 @@ def print_summary(summary: RecordingSummary, out: TextIO | None = None) -> None:
                   file=out)
         for note in f.notes:
             print(f"note: {note}", file=out)
+        if f.sentences:
+            print(f"note: {f.path}: {describe_counts(f.sentences)}", file=out)
         if f.out_of_order or f.duplicates:
             print(f"note: {f.path}: {f.out_of_order} out-of-order and {f.duplicates} duplicated times kept as logged",
                   file=out)

@@ -18,10 +18,13 @@ from typing import Any
 
 import numpy as np
 
+from formats.mcap_blocks import MessageBlock
 from formats.units import NS
+from replay.engine.blocks import push_block
 from replay.engine.config import RunConfig
 from replay.engine.follower import FollowerPipeline, VehicleTracks
 from replay.engine.layout import TrialLayout
+from replay.engine.tracks import Horizon
 from replay.engine.usbl import positioning
 from replay.engine.usbl.epochs import UsblEpochBuilder
 from replay.events import EpochResult, ErrorSample, Fix, FollowerScores, Listener, RunResults, RunScores, UsblEpoch
@@ -47,9 +50,15 @@ class Engine:
         self._hear_position = _overriding(self.listeners, "position")
         self._hear_estimates = _overriding(self.listeners, "estimates")
         self._hear_errors = _overriding(self.listeners, "errors")
+        # a block's positions go to the listeners that hear positions one by one or as columns
+        self._hear_positions = [lis for lis in self.listeners
+                                if lis in self._hear_position or lis in _overriding(self.listeners, "positions")]
         self.notes: list[str] = list(layout.notes)
         self.counts: Counter = Counter()
         self.tracks: dict[str, VehicleTracks] = {v: VehicleTracks() for v in layout.roles}
+        self.horizon = Horizon()      # how far a block's rows in the tracks are visible (push_block)
+        for vt in self.tracks.values():
+            vt.gps.horizon = vt.ins.horizon = self.horizon
         self.training_end_s = config.stack.training_window_s
         self.followers: dict[str, FollowerPipeline] = {}
         self._scores: dict[str, FollowerScores] = {}
@@ -73,6 +82,7 @@ class Engine:
         self._lag_s = config.engine.lag_s
         self._feeding = bool(config.engine.usbl_update)     # USBL fixes go to the followers' filters
         self._pipes = list(self.followers.items())
+        self._pipes_only = [pipe for _, pipe in self._pipes]
 
     # -- intake ----------------------------------------------------------------
     def push(self, topic: str, log_time_ns: int, msg: Any) -> None:
@@ -94,6 +104,11 @@ class Engine:
             return
         handler(self, vehicle, t_s, msg)
         self._release(self.last_s - self._lag_s)
+
+    def push_block(self, block: MessageBlock) -> None:
+        """Feed a block of messages (log time order) with its INS, DVL and GPS topics as columns: what `push`
+        would do message by message, with numpy (replay.engine.blocks)."""
+        push_block(self, block)
 
     def _route(self, topic: str) -> tuple[str | None, Callable[[Engine, str, float, Any], None] | None]:
         """(vehicle, handler) of a topic, parsed once per topic: (None, None) for one to skip."""
@@ -120,9 +135,13 @@ class Engine:
     def _first_position(self, fix: Fix) -> None:
         """The local frame's origin from the first position of any kind, in a trial without GPS."""
         if self._origin is None and not self._has_gps:
-            self._origin = (fix.lat_rad, fix.lon_rad)
-            for listener in self.listeners:
-                listener.origin(*self._origin)
+            self._set_origin(fix.lat_rad, fix.lon_rad)
+
+    def _set_origin(self, lat_rad: float, lon_rad: float) -> None:
+        """The local frame's origin, said to every listener."""
+        self._origin = (lat_rad, lon_rad)
+        for listener in self.listeners:
+            listener.origin(lat_rad, lon_rad)
 
     def _gps(self, vehicle: str, t_s: float, msg: Any) -> None:
         if not (math.isfinite(msg.latitude) and math.isfinite(msg.longitude)):
@@ -133,9 +152,7 @@ class Engine:
         for listener in self._hear_position:
             listener.position(vehicle, "gps", fix)
         if self._origin is None:
-            self._origin = (fix.lat_rad, fix.lon_rad)
-            for listener in self.listeners:
-                listener.origin(*self._origin)
+            self._set_origin(fix.lat_rad, fix.lon_rad)
         if vehicle in self.followers:
             self.followers[vehicle].on_gps(t_s, fix)
 

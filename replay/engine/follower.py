@@ -64,6 +64,14 @@ class FollowerPipeline:
         self._last_output_s = -math.inf
 
     # -- intake ----------------------------------------------------------------
+    def push_event(self, t_s: float, kind: str, payload: tuple[Any, ...]) -> None:
+        """Queue one event ("dr", "range", "fix" or "gps") for release in time order."""
+        self._push(t_s, kind, payload)
+
+    def queue_head_s(self) -> float:
+        """The time of the earliest queued event (inf when none)."""
+        return self._queue[0][0] if self._queue else math.inf
+
     def _push(self, t_s: float, kind: str, payload: tuple[Any, ...]) -> None:
         self._seq += 1
         heapq.heappush(self._queue, (t_s, self._seq, kind, payload))
@@ -77,24 +85,34 @@ class FollowerPipeline:
 
     def on_dvl(self, t_s: float, msg: Any) -> None:
         """A DVL sample becomes a DR event (body-frame forward/lateral speed, heading, depth)."""
-        if not msg.valid or not (math.isfinite(msg.velocity_x_mps) and math.isfinite(msg.velocity_y_mps)):
+        payload = self.dr_payload(t_s, msg.valid, msg.velocity_x_mps, msg.velocity_y_mps, msg.frame, self._heading,
+                                  self._depth)
+        if payload is not None:
+            self._push(t_s, "dr", payload)
+
+    def dr_payload(self, t_s: float, valid: Any, vx: float, vy: float, frame: Any,
+                   last_heading: tuple[float, float] | None, depth: float
+                   ) -> tuple[float, float, float, float] | None:
+        """A DVL sample's DR event (forward, lateral, heading rad, depth) with the INS heading and depth before it;
+        None (counted) when it cannot be used. The rule of `on_dvl`, for a block's columns too."""
+        if not valid or not (math.isfinite(vx) and math.isfinite(vy)):
             self.counts["dvl_invalid"] += 1
-            return
-        last = self._heading
+            return None
+        last = last_heading
         heading = last[1] if last is not None and t_s - last[0] <= self.config.engine.max_gap_s else None
-        if msg.frame == EARTH_NED:
+        if frame == EARTH_NED:
             theta = heading * DEG if heading is not None else 0.0
-            vn, ve = msg.velocity_x_mps, msg.velocity_y_mps
+            vn, ve = vx, vy
             fwd, lat = vn * math.cos(theta) + ve * math.sin(theta), -vn * math.sin(theta) + ve * math.cos(theta)
-        elif msg.frame == BODY_FRD:
+        elif frame == BODY_FRD:
             if heading is None:
                 self.counts["dvl_without_heading"] += 1
-                return
-            theta, fwd, lat = heading * DEG, msg.velocity_x_mps, msg.velocity_y_mps
+                return None
+            theta, fwd, lat = heading * DEG, vx, vy
         else:
             self.counts["dvl_frame_unusable"] += 1
-            return
-        self._push(t_s, "dr", (fwd, lat, theta, self._depth))
+            return None
+        return (fwd, lat, theta, depth)
 
     def on_range(self, t_s: float, msg: Any) -> None:
         """An acoustic range from a leader becomes a range event."""

@@ -12,12 +12,14 @@ from __future__ import annotations
 
 import math
 from array import array
+from bisect import bisect_left
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from formats.mcap_blocks import MessageBlock
 from formats.mcap_reader import ArchiveReader
 from formats.units import NS
 
@@ -224,6 +226,95 @@ class ColumnCollector:
                 self._append(vehicle, "ins", (held_ns - self.start_ns) / NS, held_msg, f"/{vehicle}/ins")
             self._held[vehicle].clear()
         self._append(vehicle, kind, t, msg, topic)
+
+    def add_block(self, block: MessageBlock) -> None:
+        """A block of messages (formats.mcap_blocks): what `add` would gather of each, the INS sample rule run
+        over the block's times; only the rows kept are decoded."""
+        where_of = {topic: np.flatnonzero(block.topic_index == i) for i, topic in enumerate(block.topics)
+                    if topic in self.topics}
+        if not where_of:
+            return
+        t_all = (block.log_ns - self.start_ns) / NS
+        for topic, where in where_of.items():
+            vehicle, kind = self.topics[topic]
+            if kind == "gps":
+                self._ins_and_fixes(vehicle, block, where_of.get(f"/{vehicle}/ins"), where, t_all)
+            elif kind == "ins":
+                if f"/{vehicle}/gps" not in where_of:
+                    self._ins_and_fixes(vehicle, block, where, None, t_all)
+            elif kind == "dvl" and block.schemas[block.topics.index(topic)] == "auvreplay.DvlVelocity" \
+                    and topic in block.columns:
+                self._dvl_columns(vehicle, t_all[where], block.columns[topic])
+            else:
+                for at, t in zip(where.tolist(), t_all[where].tolist()):
+                    self._append(vehicle, kind, t, block.message(topic, int(block.row[at])), topic)
+
+    def _dvl_columns(self, vehicle: str, t: np.ndarray, cols: dict[str, np.ndarray]) -> None:
+        """A block's DVL samples from its columns: the rows `_append` makes of each message."""
+        c = self._cols[vehicle]["dvl"]
+        for col, values in zip(c, (t, cols["velocity_x_mps"], cols["velocity_y_mps"], cols["altitude_m"])):
+            col.frombytes(np.ascontiguousarray(values, dtype=float).tobytes())
+        frame = cols["frame"]
+        c[4].frombytes((cols["valid"] != 0).astype(np.int8).tobytes())
+        c[5].frombytes(np.where((frame >= 0) & (frame <= 3), frame, 0).astype(np.int8).tobytes())
+
+    def _ins_and_fixes(self, vehicle: str, block: MessageBlock, ins_at: np.ndarray | None,
+                       gps_at: np.ndarray | None, t_all: np.ndarray) -> None:
+        """One vehicle's INS samples and GPS fixes of a block, by the rule of `add`: the samples kept are found
+        by bisection (times are in stream order), the two held before each fix by position."""
+        ins_topic, gps_topic = f"/{vehicle}/ins", f"/{vehicle}/gps"
+        pos = ins_at.tolist() if ins_at is not None else []
+        ts = t_all[ins_at].tolist() if ins_at is not None else []
+        fixes = gps_at.tolist() if gps_at is not None else []
+        last = self._last_ins[vehicle]
+        gap = self.ins_min_dt_s - 1e-6
+        kept: list[int] = []
+        i = 0
+        while i < len(ts):
+            ref = last
+            i = bisect_left(ts, gap, i, key=lambda x: x - ref)     # the first with t - last >= gap
+            if i == len(ts):
+                break
+            kept.append(i)
+            last = ts[i]
+            i += 1
+        # what is appended, in stream order: (position, 0 INS kept | 1 INS held | 2 fix, index)
+        out: list[tuple[int, int, int]] = [(pos[k], 0, k) for k in kept]
+        carried: list[tuple[int, Any]] = list(self._held[vehicle])
+        floor = 0        # INS samples before this index are kept, flushed or passed over
+        for f in fixes:
+            j = bisect_left(pos, f)
+            k = bisect_left(kept, j) - 1      # the last kept sample before the fix
+            lo = max(floor, kept[k] + 1 if k >= 0 else 0)
+            if k >= 0:
+                carried = []      # a kept sample let go of what was held
+            held = list(range(max(lo, j - 2), j))
+            if len(held) < 2 and carried:
+                out.extend((f, 1, -1 - c) for c in range(len(carried))[-(2 - len(held)):])
+            out.extend((f, 1, h) for h in held)
+            out.append((f, 2, f))
+            carried = []
+            floor = j
+        out.sort(key=lambda e: e[0])      # stable: a fix's held samples stay before it
+        for at, kind, k in out:
+            if kind == 2:
+                self._append(vehicle, "gps", float(t_all[at]), block.message(gps_topic, int(block.row[at])),
+                             gps_topic)
+            elif k < 0:
+                held_ns, msg = self._held[vehicle][-1 - k]
+                self._append(vehicle, "ins", (held_ns - self.start_ns) / NS, msg, ins_topic)
+            else:
+                self._append(vehicle, "ins", ts[k], block.message(ins_topic, int(block.row[pos[k]])), ins_topic)
+        # the samples held at the end of the block: after the last kept one and the last fix, the last two
+        k = len(kept) - 1
+        lo = max(floor, kept[k] + 1 if k >= 0 else 0)
+        if kept or fixes:
+            carried = []
+        tail = list(range(max(lo, len(ts) - 2), len(ts)))
+        keep_carried = carried[len(carried) - (2 - len(tail)):] if len(tail) < 2 and carried else []
+        self._held[vehicle] = keep_carried + [
+            (int(block.log_ns[pos[h]]), block.message(ins_topic, int(block.row[pos[h]]))) for h in tail]
+        self._last_ins[vehicle] = last
 
     def _append(self, vehicle: str, kind: str, t: float, msg: Any, topic: str) -> None:
         c = self._cols[vehicle][kind]

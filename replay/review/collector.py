@@ -87,6 +87,25 @@ class ReviewCollector(Listener):
             self._last_drawn[key] = fix.t_s
         self._track_row(fix.t_s, vehicle, source, fix.lat_rad, fix.lon_rad)
 
+    def positions(self, vehicle: str, source: str, t_s: Any, lat_rad: Any, lon_rad: Any, depth_m: Any) -> None:
+        """A block's positions: the rows `position` would keep of each (one a second but GPS), east/north at once."""
+        ts = t_s.tolist()
+        if source == "gps":
+            keep = list(range(len(ts)))
+        else:
+            key = (vehicle, source)
+            last = self._last_drawn.get(key, -math.inf)
+            keep = []
+            gap = INS_DECIMATE_S - DECIMATE_SLACK_S
+            for i, t in enumerate(ts):
+                if not t - last < gap:
+                    keep.append(i)
+                    last = t
+            if keep:
+                self._last_drawn[key] = last
+        for i in keep:
+            self._track_row(ts[i], vehicle, source, float(lat_rad[i]), float(lon_rad[i]))
+
     def estimates(self, follower: str, t_s: float, est: Mapping[str, tuple[float, ...]]) -> None:
         for method, (lat, lon, nn, _ne, ee) in est.items():
             self._track_row(t_s, follower, method, lat, lon, math.sqrt(max(ee, 0.0)), math.sqrt(max(nn, 0.0)))

@@ -93,14 +93,16 @@ def cdf_figure(errors: dict[str, np.ndarray], labels: dict[str, str], window: st
 
 def series_figure(series: dict[str, tuple[np.ndarray, np.ndarray]], titles: dict[str, str], t_a: float,
                   end_s: float) -> Figure:
-    """Horizontal error over mission time, one small panel per method (titles' order), t_a dashed."""
+    """Horizontal error over mission time, one small panel per method (titles' order), t_a dashed; every panel
+    labels its time axis in mission seconds."""
     methods = [m for m in titles if m in series]
     cols = 2
     rows = max(1, -(-len(methods) // cols))
-    height = 1.9 * rows + 0.6
+    height = 2.1 * rows + 0.6
     fig = Figure(figsize=(12, height))
     # a fixed layout: tight_layout over a dozen log axes costs seconds and finds the same margins
-    fig.subplots_adjust(left=0.06, right=0.99, top=1 - 0.3 / height, bottom=0.5 / height, hspace=0.5, wspace=0.12)
+    # hspace leaves room under each row for its own time labels (a shared axis would label the bottom row only)
+    fig.subplots_adjust(left=0.06, right=0.99, top=1 - 0.3 / height, bottom=0.5 / height, hspace=0.75, wspace=0.12)
     axes = fig.subplots(rows, cols, sharex=True, sharey=True, squeeze=False)
     top = max([float(np.nanmax(e)) for _, e in series.values() if len(e) and np.isfinite(e).any()] + [1.0])
     decades = 10.0 ** np.arange(-1, math.ceil(math.log10(top * 1.5)))
@@ -116,11 +118,10 @@ def series_figure(series: dict[str, tuple[np.ndarray, np.ndarray]], titles: dict
         ax.grid(True, which="major", color="#eeeeee", lw=0.6)
         ax.set_title(titles[method], fontsize=9, loc="left")
         ax.set_ylabel("m", fontsize=8)
-        ax.tick_params(labelsize=8)
+        ax.tick_params(labelsize=8, labelbottom=True)      # every row reads its time, not only the bottom one
+        ax.set_xlabel("mission time (s)", fontsize=8, labelpad=1)
     for ax in axes.ravel()[len(methods):]:
         ax.set_visible(False)
-    for ax in axes[-1]:
-        ax.set_xlabel("mission time (s from the trial start)", fontsize=8)
     return fig
 
 

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from formats import schemas as S
+from formats.mcap_blocks import COLUMN_FIELDS
 from formats.mcap_reader import ArchiveReader
 from formats.mcap_writer import ArchiveWriter
 from formats.units import NS
@@ -107,7 +108,7 @@ def _readable_topics(summary: Any, reader: ArchiveReader) -> dict[str, int]:
 def replay_archive(archive: str | Path, config: RunConfig | None = None, output: str | Path | None = None,
                    write_output: bool = True, review: bool = False, force: bool = False,
                    listeners: Sequence[Listener] = (), training_set: TrainingSet | None = None,
-                   require_work: bool = False) -> RunOutcome:
+                   require_work: bool = False, blocks: bool = True) -> RunOutcome:
     """Replay an archive with a configuration; see the module docstring for what comes out.
 
     The results archive and its metrics files are claimed (replay.run.outputs) before the run:
@@ -115,7 +116,8 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
     collector and the results writer; `training_set` (another run's `RunResults.training_set`) is
     what `stack.training_source` "given" or "both" trains on. With `require_work`, a trial that
     holds no position of any kind is a UserError naming why, and writes nothing; any other trial
-    runs what its inputs allow (metrics["skipped"] names the rest).
+    runs what its inputs allow (metrics["skipped"] names the rest). `blocks=False` feeds the engine message by
+    message (as `--rate` pacing does), the reference the block path is tested against.
     """
     config = config or RunConfig()
     sha = file_sha256(archive)
@@ -161,11 +163,19 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
             nav_columns = ColumnCollector([v for v in layout.roles if layout.has(v, "dvl") or layout.has(v, "ins")],
                                           t0_ns)
             topics += [t for t in nav_columns.topics if t in readable and t not in topics]
-            for m in reader.messages(topics, start_ns, end_ns):
-                engine.push(m.topic, m.log_time_ns, m.message)
-                nav_columns.add(m.topic, m.log_time_ns, m.message)
-                if config.engine.rate > 0:
-                    pace(config.engine.rate, wall0, engine.last_s)
+            if config.engine.rate > 0 or not blocks:
+                # message by message: --rate paces each one (and the block path's reference)
+                for m in reader.messages(topics, start_ns, end_ns):
+                    engine.push(m.topic, m.log_time_ns, m.message)
+                    nav_columns.add(m.topic, m.log_time_ns, m.message)
+                    if config.engine.rate > 0:
+                        pace(config.engine.rate, wall0, engine.last_s)
+            else:
+                # a time window at a time, INS, DVL and GPS as columns (replay.engine.blocks: the same results)
+                columnar = [t for t in topics if summary.topics[t]["schema"] in COLUMN_FIELDS]
+                for block in reader.blocks(topics, start_ns, end_ns, columnar):
+                    engine.push_block(block)
+                    nav_columns.add_block(block)
             results = engine.finish()
             end_s = max(engine.last_s, 0.0)
             metrics = run_metrics(engine.scores(), results, rid, end_s)

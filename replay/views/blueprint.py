@@ -19,9 +19,9 @@ With two runs, the scoreboards sit side by side with what changed, and the other
 both runs (every name tagged with the run's letter, A the first run given; what differs is said once, in
 the event log's title and in "What changed") instead of repeating per run; the epochs they decided
 differently are a table beside the scoreboards.
-The recording opens on the `mission_s` timeline with the cursor on the mission's last sample (Rerun
-0.41's blueprint cannot place it; "following" does, for a loaded file) and every time series and
-lane on the whole mission.
+The recording opens paused on the `mission_s` timeline (whole seconds, the axes read "#620") with the
+cursor at the mission's start (Rerun 0.41's blueprint cannot place it elsewhere; "following" would put
+it on the last sample), and every time series and lane on the whole mission.
 """
 
 from __future__ import annotations
@@ -36,13 +36,14 @@ from rerun.blueprint.api import VisualizerLike
 from rerun.encodings import EntityPathLike
 
 from replay.review.data import ReviewData
-from replay.stack.methods import METHOD_TABLE, anfis_family
+from replay.stack.methods import METHOD_TABLE
 from replay.views.anfis import input_short, input_title, model_inputs, model_order, model_parts, model_path
 from replay.views.cdf import HEIGHT, WIDTH
-from replay.views.common import Run, floats
+from replay.views.common import MISSION, Run, floats
 from replay.views.features import (
     FEATURE_GROUPS,
     feature_note,
+    feature_words,
     group_title,
     present_features,
     score_top,
@@ -51,10 +52,11 @@ from replay.views.features import (
 from replay.views.focus import focus_note, hide
 from replay.views.lanes import LANES_ROOT, training_end_s
 from replay.views.positioning import fix_methods, kmcdf_half_width
-from replay.views.tracks import KEY, KEY_STEP, geo_bounds, key_rows, track_bounds
+from replay.views.series import SPAN, anfis_top, truth_range
+from replay.views.tracks import KEY, KEY_STEP, geo_bounds, key_rows, local_frame
 from replay.views.vehicle import PANELS
 
-TIMELINES = ("time", "mission_s")
+TIMELINES = ("time", MISSION)
 
 
 def _contents(runs: list[Run], *parts: str) -> list[str]:
@@ -72,7 +74,7 @@ def _series(name: str, contents: list[str], y_max: float | None = None, legend: 
             overrides: dict[EntityPathLike, VisualizerLike] | None = None) -> rrb.TimeSeriesView:
     """A time series over the whole mission; y from 0 to `y_max`, or over `y_range`, else fitted to the data."""
     y = y_range if y_range is not None else (0.0, y_max) if y_max else None
-    return rrb.TimeSeriesView(name=name, contents=contents, axis_x=_whole_mission(),
+    return rrb.TimeSeriesView(name=name, contents=[*contents, f"+ {SPAN}"], axis_x=_whole_mission(),
                               axis_y=rrb.ScalarAxis(range=y, zoom_lock=False) if y else None,
                               plot_legend=rrb.PlotLegend(corner="RightTop", visible=legend), overrides=overrides)
 
@@ -114,13 +116,8 @@ def _merge(*parts: dict[EntityPathLike, VisualizerLike]) -> dict[EntityPathLike,
 
 
 def _local_bounds(reviews: list[ReviewData]) -> rrb.VisualBounds2D | None:
-    found = track_bounds(reviews)
-    if found is None:
-        return None
-    lo, hi = found
-    pad = 0.08 * max(float(np.max(hi - lo)), 50.0)
-    return rrb.VisualBounds2D(x_range=[float(lo[0] - pad), float(hi[0] + pad)],
-                              y_range=[float(-hi[1] - pad), float(-lo[1] + pad)])
+    frame = local_frame(reviews)         # the scale bar sits in its corner (tracks.log_local_scale)
+    return rrb.VisualBounds2D(x_range=list(frame[0]), y_range=list(frame[1])) if frame else None
 
 
 def map_zoom(reviews: list[ReviewData], width_px: float = 450.0) -> float | None:
@@ -140,7 +137,7 @@ def _navigation(runs: list[Run], focus: Sequence[str] | None) -> rrb.Container:
         rrb.MapView(name="Map: GPS truth and the focus tracks" + (f"; {note}" if note else ""),
                     contents=_contents(runs, "map"), zoom=map_zoom(reviews),
                     overrides=_merge(_trail_overrides(runs, "map"), hide(runs, focus, "map"))),
-        rrb.Spatial2DView(name="Local east/north (m), range circles", contents=_contents(runs, "local"),
+        rrb.Spatial2DView(name="Local east/north (m), range circles, scale bar", contents=_contents(runs, "local"),
                           overrides=_merge(_trail_overrides(runs, "local"), hide(runs, focus, "local")),
                           visual_bounds=_local_bounds(reviews)),
         rrb.Spatial2DView(name="Colour key", contents=[f"+ {KEY}/**"], visual_bounds=rrb.VisualBounds2D(
@@ -210,7 +207,7 @@ def _detection(runs: list[Run]) -> rrb.Container:
     """The lanes over the whole mission, and beside them why each detector did (not) flag at the cursor."""
     t_a = ", ".join(f"{training_end_s(r):.0f} s" for r in runs)
     lanes = rrb.StateTimelineView(
-        name=f"Detection lanes: truth, then hit / false alarm / miss / quiet per detector (t_a = {t_a})",
+        name=f"Detection lanes: truth, then the detectors best first (t_a = {t_a}); top lane: the colours",
         contents=[f"+ {LANES_ROOT}/**"], time_view=_whole_mission())
     pairs = _pairs(runs)
     many = len({f for f, _ in pairs}) > 1
@@ -224,14 +221,17 @@ def _detection(runs: list[Run]) -> rrb.Container:
 def _scores(runs: list[Run]) -> rrb.Container:
     """Every detector's statistic against its threshold over the whole mission, the residual, and a colour key."""
     methods = {str(m) for r in runs if "method" in r.review.detections for m in r.review.detections["method"].unique()}
+    leaders = len(_pairs(runs))         # the truth marks' rows below zero (series.log_truth_marks)
     plots: list[rrb.View] = [_series(f"{ld}: ANFIS vs T2 (m)", [f"+ {r.path('series', 'anfis', f, ld)}/**"
-                                                               for r in runs], anfis_top(runs), legend=False)
+                                                               for r in runs], y_range=truth_range(anfis_top(runs), 1),
+                                     legend=False)
                              for f, ld in _pairs(runs)]
-    plots += [_series(title, _contents(runs, "scores", m), score_top(runs, m), legend=False)
-              for m, title in scored().items() if m in methods]
+    plots += [_series(title, _contents(runs, "scores", m), y_range=truth_range(score_top(runs, m), leaders),
+                      legend=False) for m, title in scored().items() if m in methods]
     plots.append(_series("Range residual (m)", _contents(runs, "series", "residual"), legend=False))
     plots.append(rrb.TextDocumentView(name="Colours", contents=[f"+ {runs[0].path('scores', 'key')}"]))
-    return rrb.Grid(*plots, grid_columns=4, name="Scores")
+    # three columns: the titles fit, and the default eight detectors make a 3 x 3 grid with the residual and key
+    return rrb.Grid(*plots, grid_columns=3, name="Scores")
 
 
 def _features(runs: list[Run]) -> rrb.Container:
@@ -242,7 +242,7 @@ def _features(runs: list[Run]) -> rrb.Container:
     many = len({f for f, _ in pairs}) > 1
     tabs = []
     for f, ld in pairs:
-        plots = [_series(f"{ld}: {name}", [f"+ {r.path('series', name, f, ld)}" for r in runs])
+        plots = [_series(f"{ld}: {feature_words(name)}", [f"+ {r.path('series', name, f, ld)}" for r in runs])
                  for name in ("f1_innovation_m", "f2_mahalanobis2", "f3_r_adapted_m2")]
         plots.append(_series(f"{ld}: range measured / true (m)", [f"+ {r.path('series', 'range', f, ld)}/**"
                                                                    for r in runs]))
@@ -262,15 +262,6 @@ def _features(runs: list[Run]) -> rrb.Container:
             row_shares=[12, 1.3 if have else 6], name=f"{f + '/' if many else ''}{ld}") if notes else
             rrb.Vertical(grid, name=f"{f + '/' if many else ''}{ld}"))
     return rrb.Tabs(*tabs, name="Features")
-
-
-def anfis_top(runs: list[Run]) -> float | None:
-    """The ANFIS plot's y extent: four times the largest T2 (outputs reach 1000 m where T2 is a few)."""
-    thr = [floats(r.review.detections[r.review.detections["method"].astype(str).isin(anfis_family())],
-                  "threshold") for r in runs if "method" in r.review.detections]
-    v = np.concatenate(thr) if thr else np.zeros(0)
-    v = v[np.isfinite(v)]
-    return float(4.0 * v.max()) if v.size else None
 
 
 def short_name(method: str) -> str:
@@ -361,7 +352,7 @@ def events_title(runs: list[Run]) -> str:
     "Events; chi_square_alpha: A 0.01, B 0.05", or "Events of A and B (What changed says which)" if that is too long."""
     if len(runs) < 2:
         return "Events"
-    pairs = [[part.split("=", 1) for part in r.label.split(", ")] for r in runs]
+    pairs = [[kv.split("=", 1) for kv in r.label.split(", ")] for r in runs]
     keys = [[p[0] for p in ps] for ps in pairs]
     if all(len(p) == 2 for ps in pairs for p in ps) and keys[0] == keys[1]:
         title = f"Events; {', '.join(keys[0])}: " + ", ".join(
@@ -383,14 +374,14 @@ def build_blueprint(runs: list[Run], error_top: float, active_tab: int | str = 0
     main = rrb.Tabs(*(t for t in tabs if t is not None), active_tab=active_tab)
     log = rrb.TextLogView(name=events_title(runs), contents=_contents(runs, "events"),
                           columns=rrb.archetypes.TextLogColumns(
-                              timeline_columns=[rrb.encodings.TimelineColumn("mission_s")],
+                              timeline_columns=[rrb.encodings.TimelineColumn(MISSION)],
                               text_log_columns=[rrb.encodings.TextLogColumn("LogLevel"),
                                                 rrb.encodings.TextLogColumn("Body")]))
     return rrb.Blueprint(
         rrb.Horizontal(main, log, column_shares=[3, 1.3]),
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
-        # Rerun 0.41's blueprint cannot place the cursor; "following" puts it on the last sample of a
-        # loaded file, where it stays: every view opens on the whole mission (CDFs = metrics.json)
-        rrb.TimePanel(timeline="mission_s", state="collapsed", play_state="following"),
+        # Rerun 0.41's blueprint cannot place the cursor: paused, it opens at the mission's start (the time
+        # series and lanes still show the whole mission); "following" would open on the last sample
+        rrb.TimePanel(timeline=MISSION, state="collapsed", play_state="paused"),
     )

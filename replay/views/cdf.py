@@ -11,8 +11,9 @@ Entities under a run prefix P, for each follower F:
   `CDF_SNAPSHOTS` instants from t_a; ``.../percentiles`` Points2D marking p50, p90, p95;
   ``.../final`` static and faint: the whole window's CDF (what the curve grows into);
 - ``P/cdf/F/table`` TextDocument: p50/p90/p95 of each method from t_a up to the instant;
-- ``P/cdf/F/axes`` and ``P/cdf/F/legend`` static (shared by both runs of a comparison, under the
-  first run's prefix).
+- ``P/cdf/F/axes`` static, and ``P/cdf/F/legend`` (its labels on `time`/`mission_s`: each method's
+  p50 from t_a to the cursor, as the curves grow), shared by both runs of a comparison, under the first
+  run's prefix.
 """
 
 from __future__ import annotations
@@ -114,10 +115,16 @@ def snapshot_times(t_s: np.ndarray) -> np.ndarray:
     return uniq[np.unique(np.linspace(0, uniq.size - 1, CDF_SNAPSHOTS).round().astype(np.int64))]
 
 
-def log_cdfs(rec: rr.RecordingStream, run: Run, axes: dict[str, LogAxis]) -> None:
-    """The growing CDF of every method and the percentile table, per follower; axes and legend once."""
+Growth = dict[str, tuple[np.ndarray, dict[str, np.ndarray]]]
+"""Per follower: the snapshot instants and each method's p50 at them (what the legend shows over time)."""
+
+
+def log_cdfs(rec: rr.RecordingStream, run: Run, axes: dict[str, LogAxis]) -> Growth:
+    """The growing CDF of every method and the percentile table, per follower; each method's p50 at each snapshot
+    (for `log_cdf_legend`)."""
     probs = np.linspace(0.0, 1.0, CDF_POINTS)
     marks = np.array(PERCENTILES)
+    growth: Growth = {}
     for (follower,), f_rows in run.groups(run.review.errors, ["follower"]):
         f, axis = str(follower), axes.get(str(follower))
         if axis is None:
@@ -131,16 +138,24 @@ def log_cdfs(rec: rr.RecordingStream, run: Run, axes: dict[str, LogAxis]) -> Non
             _log_curve(rec, run, f, m, at, q, axis)
             table[m] = q[:, CDF_POINTS:]
         _log_table(rec, run, f, at, table)
+        growth[f] = (at, {m: v[:, 0] for m, v in table.items()})
+    return growth
 
 
-def log_cdf_frame(rec: rr.RecordingStream, runs: list[Run], axes: dict[str, LogAxis],
-                  hidden: frozenset[str] = frozenset()) -> None:
-    """Axes, ticks, gridlines and the legend of each follower's CDF plot (static, under the first run); the
-    legend leaves out the `hidden` methods (out of focus, replay.views.focus)."""
-    first = runs[0]
+def log_cdf_frame(rec: rr.RecordingStream, runs: list[Run], axes: dict[str, LogAxis]) -> None:
+    """Axes, ticks and gridlines of each follower's CDF plot (static, under the first run)."""
     for follower, axis in axes.items():
-        _log_axes(rec, first.path("cdf", follower, "axes"), axis)
-        _log_legend(rec, runs, follower, first.path("cdf", follower, "legend"), hidden)
+        _log_axes(rec, runs[0].path("cdf", follower, "axes"), axis)
+
+
+def log_cdf_legend(rec: rr.RecordingStream, runs: list[Run], growth: list[Growth],
+                   hidden: frozenset[str] = frozenset()) -> None:
+    """Each follower's legend (under the first run): the methods in their colours, best first, each with its p50
+    from t_a up to the cursor, as the curves grow; the `hidden` methods (out of focus, replay.views.focus) left
+    out."""
+    for follower in {f for g in growth for f in g}:
+        _log_legend(rec, runs, follower, runs[0].path("cdf", follower, "legend"),
+                    [g.get(follower, (np.zeros(0), {})) for g in growth], hidden)
 
 
 def _log_curve(rec: rr.RecordingStream, run: Run, follower: str, method: str, at: np.ndarray,
@@ -189,30 +204,50 @@ def _log_axes(rec: rr.RecordingStream, path: str, axis: LogAxis) -> None:
                                           colors=[TEXT_RGB], radii=rr.Radius.ui_points(0.1)), static=True)
 
 
+def legend_p50(growth: list[tuple[np.ndarray, dict[str, np.ndarray]]], method: str,
+               at: np.ndarray) -> np.ndarray:
+    """(len(at), runs) p50 of a method in each run at each instant: its latest snapshot at or before the
+    instant (NaN before the first)."""
+    out = np.full((at.size, len(growth)), np.nan)
+    for i, (t, p50) in enumerate(growth):
+        v = p50.get(method)
+        if v is None or t.size == 0:
+            continue
+        k = np.searchsorted(t, at, side="right") - 1
+        out[k >= 0, i] = v[k[k >= 0]]
+    return out
+
+
 def _log_legend(rec: rr.RecordingStream, runs: list[Run], follower: str, path: str,
-                hidden: frozenset[str] = frozenset()) -> None:
-    """One entry per method, its name and p50 in its colour, best first (the first run's scoreboard order)."""
-    entries: list[tuple[str, tuple[int, int, int]]] = []
+                growth: list[tuple[np.ndarray, dict[str, np.ndarray]]], hidden: frozenset[str] = frozenset()) -> None:
+    """One entry per method, its name and p50 so far in its colour, best first (the first run's scoreboard order).
+
+    The names and positions are static; the labels are sent once per snapshot instant (and once at t = 0,
+    before t_a, with no figure), so the legend reads the same p50 as the curve at the cursor.
+    """
     present = [{str(k[1]) for k, _ in r.groups(r.review.errors, ["follower", "method"]) if str(k[0]) == follower}
                for r in runs]
-    first = runs[0]
-    ranked = [r.method for r in scoreboard(first.review.metrics) if r.method in present[0]]
-    for m in ranked + sorted(set().union(*present) - set(ranked)):
-        if m in hidden:
-            continue
-        p50 = [r.review.metrics.get("methods", {}).get(m, {}).get("error_p50_m") for r in runs]
-        figures = " / ".join(f"{v:.2f}" if isinstance(v, float) else "-" for v in p50)
-        entries.append((f"{m}  p50 {figures} m", method_rgb(m, 0)))
-    if len(runs) == 2:       # one line per method, both runs' p50 (A / B); B's curves are the shade
-        entries.insert(0, ("A / B: B's curves lighter or darker", (128, 128, 128)))
-    if not entries:
+    ranked = [r.method for r in scoreboard(runs[0].review.metrics) if r.method in present[0]]
+    methods = [m for m in ranked + sorted(set().union(*present) - set(ranked)) if m not in hidden]
+    if not methods:
         return
-    step = min(4.5, 0.6 * HEIGHT / len(entries))
-    y = -step * np.arange(len(entries))[::-1] - step
+    at = np.unique(np.concatenate([np.zeros(1), *(t for t, _ in growth)]))
+    figures = np.stack([legend_p50(growth, m, at) for m in methods], axis=1)        # (instants, methods, runs)
+    text = np.where(np.isfinite(figures), np.char.mod("%.2f", np.nan_to_num(figures)), "-")
+    joined = text[..., 0] if len(runs) == 1 else np.char.add(np.char.add(text[..., 0], " / "), text[..., 1])
+    labels = np.char.add(np.char.add(np.array([f"{m}  p50 " for m in methods])[None, :], joined), " m")
+    colours = [method_rgb(m, 0) for m in methods]
+    if len(runs) == 2:       # one line per method, both runs' p50 (A / B); B's curves are the shade
+        labels = np.concatenate([np.full((at.size, 1), "A / B: B's curves lighter or darker"), labels], axis=1)
+        colours.insert(0, (128, 128, 128))
+    n = labels.shape[1]
+    step = min(8.0, 0.6 * HEIGHT / n)     # a line of text apart at the sizes the tab gives the plot
+    y = -step * np.arange(n)[::-1] - step
     x0 = 0.64 * WIDTH
-    rec.log(path + "/names", rr.Points2D(np.column_stack([np.full(y.size, x0 + 17.0), y]),
-                                         labels=[t for t, _ in entries], colors=[c for _, c in entries],
+    rec.log(path + "/names", rr.Points2D(np.column_stack([np.full(n, x0 + 17.0), y]), colors=colours,
                                          radii=rr.Radius.ui_points(0.1)), static=True)
+    rec.send_columns(path + "/names", indexes=runs[0].times(at),
+                     columns=rr.Points2D.columns(labels=labels.ravel().tolist()).partition(np.full(at.size, n)))
 
 
 def _log_table(rec: rr.RecordingStream, run: Run, follower: str, at: np.ndarray,
@@ -230,5 +265,9 @@ def _log_table(rec: rr.RecordingStream, run: Run, follower: str, at: np.ndarray,
     docs = [f"**Errors of {follower}{tag} from t_a = {t_a:.0f} s to {t:.0f} s** (mission seconds; the metrics "
             f"window, so at the end these are the scoreboard's p50/p90)\n\n" + head + "\n".join(rows[i])
             for i, t in enumerate(at)]
+    if at[0] > 0:            # before the first scored error the view would say "(empty)": say why instead
+        at = np.r_[0.0, at]
+        docs.insert(0, f"**Errors of {follower}{tag}**: none is counted before t_a = {t_a:.0f} s (the metrics "
+                       "window); move the cursor past it to see the percentiles grow.")
     rec.send_columns(run.path("cdf", follower, "table"), indexes=run.times(at),
                      columns=rr.TextDocument.columns(text=docs, media_type=["text/markdown"] * at.size))

@@ -55,6 +55,25 @@ def part(name: str) -> str:
     return _SAFE.sub("_", str(name)).strip("_") or "_"
 
 
+MISSION = "mission_s"
+"""The timeline every view's axis and the time panel use: whole seconds from the trial start."""
+
+
+def mission_seconds(t_s: np.ndarray | pd.Series) -> np.ndarray:
+    """Mission seconds as the `mission_s` timeline holds them: rounded to whole seconds (int64)."""
+    return np.round(np.asarray(t_s, dtype=float)).astype(np.int64)
+
+
+def mission_column(t_s: np.ndarray | pd.Series) -> rr.TimeColumn:
+    """The `mission_s` timeline of rows at `t_s` seconds from the trial start.
+
+    A sequence of whole seconds, not a duration: Rerun 0.41 writes a duration axis as "+10m", a
+    sequence as plain numbers, so every plot's time axis reads in the seconds the events and the
+    CLI use. Rows within one second share a tick (a view shows the later one at that second).
+    """
+    return rr.TimeColumn(MISSION, sequence=mission_seconds(t_s))
+
+
 @dataclass(frozen=True)
 class Run:
     """One ReviewData in a recording: its entity-path prefix, label and index (0 or 1)."""
@@ -87,8 +106,7 @@ class Run:
         """The two timelines of every logged row: `time` (UTC, trial_start_ns + t_s) and `mission_s`."""
         t = np.asarray(t_s, dtype=float)
         ns = self.review.trial_start_ns + np.round(t * 1e9).astype(np.int64)
-        return [rr.TimeColumn("time", timestamp=ns.astype("datetime64[ns]")),
-                rr.TimeColumn("mission_s", duration=np.round(t * 1e9).astype(np.int64).astype("timedelta64[ns]"))]
+        return [rr.TimeColumn("time", timestamp=ns.astype("datetime64[ns]")), mission_column(t)]
 
     @property
     def tag(self) -> str:

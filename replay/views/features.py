@@ -12,8 +12,10 @@ Entities under a run prefix P, on `time` and `mission_s`:
 - ``P/scores/<method>/<follower>/<leader>/{score,threshold}`` for every detector outside the ANFIS
   family (that one is `replay.views.series`' ``P/series/anfis``): chi_square's f2 against its gate,
   dual_threshold's max(f2/gate, S/h) against 1, cusum_drift's max(S+, S-) against h,
-  anfis_hybrid's output against its false-alarm-rate threshold;
-- ``P/why/<follower>/<leader>``: a TextDocument per epoch after t_a, one line per detector with
+  anfis_hybrid's output against its false-alarm-rate threshold; ``.../truth``: triangles below zero at
+  the truth's anomalous epochs (`replay.views.series.log_truth_marks`);
+- ``P/why/<follower>/<leader>``: a TextDocument per epoch after t_a, headed by the truth label and
+  the epoch's true range error (measured - GPS-true range), one line per detector with
   its outcome ("hit", "false alarm", "miss", "quiet") and what it compared (`replay.review.why`),
   and one at t = 0 saying that nothing is judged before t_a.
 """
@@ -28,16 +30,17 @@ from replay.stack.features import EXTRA_FEATURES
 from replay.stack.methods import methods
 from replay.views.common import Run, floats
 from replay.views.lanes import epoch_states, training_end_s
-from replay.views.series import LEADER_RGB
+from replay.views.series import LEADER_RGB, log_truth_marks
 
 # (key, title, features): one plot per group and leader; units never mix within a group; "{}" in a title
 # takes the names of the group's features a run computed (REFERENCE_NAMES), so a short title fits
+# titles of at most about 20 characters: "leader1: " and the title fit a third of the tab at 1400 x 875
 FEATURE_GROUPS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
-    ("dr", "range - dead-reckoned range (m)", ("dr_residual_m", "leader_consistency_m")),
+    ("dr", "range - DR range (m)", ("dr_residual_m", "leader_consistency_m")),
     ("anchored", "vs {} (m)", ("usbl_residual_m", "lag_residual_m", "exclusion_residual_m")),
-    ("drift", "DR model residual, CUSUM (m)", ("drift_residual_m", "drift_cusum_m")),
-    ("z", "standardized residuals (sd)", ("drift_z", "exclusion_z")),
-    ("repeats", "identical ranges in a row (count)", ("repeat_count",)),
+    ("drift", "DR model, CUSUM (m)", ("drift_residual_m", "drift_cusum_m")),
+    ("z", "standardized (sd)", ("drift_z", "exclusion_z")),
+    ("repeats", "same range (count)", ("repeat_count",)),
 )
 FEATURE_RGB: dict[str, tuple[int, int, int]] = {
     "dr_residual_m": (90, 160, 255), "leader_consistency_m": (250, 170, 60),
@@ -51,8 +54,25 @@ def scored() -> dict[str, str]:
     """The detectors whose score is drawn against its threshold here, with the plot's title (the method table)."""
     return {m.name: m.score_plot[0] for m in methods("detector") if m.score_plot is not None}
 
-REFERENCE_NAMES: dict[str, str] = {"usbl_residual_m": "USBL fix", "lag_residual_m": "lagged ACKF",
-                                   "exclusion_residual_m": "other leaders"}
+FEATURE_WORDS: dict[str, str] = {
+    # paper A's three, short enough for a plot title in a third of the tab at 1400 x 875
+    "f1_innovation_m": "f1, innovation (m)", "f2_mahalanobis2": "f2, Mahalanobis²",
+    "f3_r_adapted_m2": "f3, adaptive R (m²)",
+    "dr_residual_m": "range - dead-reckoned range", "leader_consistency_m": "leader consistency",
+    "usbl_residual_m": "vs USBL fix", "lag_residual_m": "vs lagged ACKF", "exclusion_residual_m": "vs other leaders",
+    "drift_residual_m": "DR model residual", "drift_cusum_m": "its CUSUM", "drift_z": "drift, standardized",
+    "exclusion_z": "exclusion, standardized", "repeat_count": "identical ranges in a row",
+}
+"""Each feature in words, for plot titles and legends (the field names stay in the entity paths)."""
+
+
+def feature_words(name: str) -> str:
+    """A feature's name in words ("f1, innovation (m)"); an unknown name as it is."""
+    return FEATURE_WORDS.get(name, name)
+
+
+REFERENCE_NAMES: dict[str, str] = {"usbl_residual_m": "USBL", "lag_residual_m": "lagged",
+                                   "exclusion_residual_m": "others"}
 
 
 def group_title(title: str, shown: list[str]) -> str:
@@ -113,23 +133,32 @@ def log_features(rec: rr.RecordingStream, run: Run) -> None:
             for f in names:
                 if f in have:
                     _finite_series(rec, run, run.path("features", str(follower), str(leader), key, f), t,
-                                   floats(epochs, f), run.name(f), FEATURE_RGB[f])
+                                   floats(epochs, f), run.name(feature_words(f)), FEATURE_RGB[f])
 
 
 LEADER_COLOUR_NAMES = ("orange", "blue", "violet", "green")     # of LEADER_RGB, for the colour key
 
 
+def scores_key(leaders: list[str]) -> str:
+    """The Scores tab's colour note, short enough for its grid cell with every detector plotted: the leaders'
+    colours, the threshold and the truth marks (each plot's title says what it compares; the Detection tab's
+    why lines spell out each statistic)."""
+    colours = ", ".join(f"{LEADER_COLOUR_NAMES[k % len(LEADER_RGB)]} {leader}" for k, leader in enumerate(leaders))
+    return (f"**Lines**: {colours}; grey: the threshold (above it: flagged). ANFIS plots: each method in its "
+            "Scoreboard colour, its T2 a step line alike.\n\n**Triangles below 0**: the truth's anomalous epochs, "
+            "in the leader's colour.\n\nWhat each statistic is: the why lines of the Detection tab.")
+
+
 def log_detector_scores(rec: rr.RecordingStream, run: Run) -> None:
-    """Each detector with a score plot (the method table): per leader its statistic, its threshold in grey; a key."""
+    """Each detector with a score plot (the method table): per leader its statistic, its threshold in grey and the
+    truth marks; a key."""
     pairs = run.groups(run.review.detections, ["follower", "leader"])
-    key = [f"- {LEADER_COLOUR_NAMES[k % len(LEADER_RGB)]}: {leader}" for k, ((_, leader), _) in enumerate(pairs)]
-    titles = "".join(f"\n- {m.name}: {m.score_plot[1]}" for m in methods("detector") if m.score_plot is not None)
-    rec.log(run.path("scores", "key"), rr.TextDocument(
-        "Detector plots, one line per leader:\n\n" + "\n".join(key) + "\n- grey: the detector's threshold\n\n"
-        "ANFIS plots: each method in its Scoreboard colour, its T2 as a step line of the same colour; "
-        "above the threshold = flagged. Hover a line for its name and value.\n" + titles, media_type="text/markdown"),
-        static=True)
     plotted = scored()
+    shown = {str(m) for m in run.review.detections["method"].unique()} & set(plotted) \
+        if "method" in run.review.detections else set()
+    rec.log(run.path("scores", "key"), rr.TextDocument(scores_key([str(ld) for (_, ld), _ in pairs]),
+                                                       media_type="text/markdown"), static=True)
+    tops = {m: score_top([run], m) for m in shown}
     for k, ((follower, leader), rows) in enumerate(pairs):
         rgb = LEADER_RGB[k % len(LEADER_RGB)]
         for (method,), m_rows in run.groups(rows, ["method"]):
@@ -141,6 +170,7 @@ def log_detector_scores(rec: rr.RecordingStream, run: Run) -> None:
             _line(rec, run, base + "/score", t, floats(m_rows, "score"), run.name(f"{leader} {m}"), rgb, False)
             _line(rec, run, base + "/threshold", t, floats(m_rows, "threshold"), run.name(f"{leader} threshold"),
                   (150, 150, 150), True)
+            log_truth_marks(rec, run, base + "/truth", m_rows, k, tops[m])
 
 
 def score_top(runs: list[Run], method: str) -> float | None:
@@ -151,8 +181,21 @@ def score_top(runs: list[Run], method: str) -> float | None:
     return float(4.0 * v.max()) if v.size and v.max() > 0 else None
 
 
-def why_documents(rows: pd.DataFrame, t_a: float) -> tuple[np.ndarray, list[str]]:
-    """Per epoch after t_a of one follower and leader: its time and a markdown list, one line per detector.
+def range_error_at(ranges: pd.DataFrame | None, t_s: np.ndarray) -> np.ndarray:
+    """The true range error (measured - GPS-true range, m) of one follower and leader's ranging epoch at each
+    instant (`ranges` in time order); NaN where no epoch is at that instant or its truth is unknown."""
+    out = np.full(t_s.size, np.nan)
+    if ranges is None or ranges.empty or "residual_m" not in ranges:
+        return out
+    rt, err = floats(ranges, "t_s"), floats(ranges, "residual_m")
+    k = np.clip(np.searchsorted(rt, t_s), 0, max(rt.size - 1, 0))
+    same = np.abs(rt[k] - t_s) < 1e-6
+    return np.where(same, err[k], np.nan)
+
+
+def why_documents(rows: pd.DataFrame, t_a: float, ranges: pd.DataFrame | None = None) -> tuple[np.ndarray, list[str]]:
+    """Per epoch after t_a of one follower and leader: its time and a markdown list, one line per detector, under
+    a heading with the truth label and the epoch's true range error (from `ranges`, that pair's ranging epochs).
 
     `rows` in time order (as `groups` gives them); one join per epoch over contiguous slices.
     """
@@ -169,16 +212,19 @@ def why_documents(rows: pd.DataFrame, t_a: float) -> tuple[np.ndarray, list[str]
     ends = np.r_[starts[1:], t.size]
     leaders = rows["leader"].astype(str).to_numpy()
     truth = np.where(label == 1, "anomaly", np.where(label == 0, "normal", "no label"))
-    docs = [f"**{leaders[a]} at {t[a]:.1f} s: truth {truth[a]}**\n\n" + "\n".join(lines[a:b])
-            for a, b in zip(starts, ends, strict=True)]
+    err = range_error_at(ranges, t[starts])
+    said = np.where(np.isfinite(err), np.char.mod("; true range error %+.1f m", np.nan_to_num(err)), "")
+    docs = [f"**{leaders[a]} at {t[a]:.1f} s: truth {truth[a]}{e}**\n\n" + "\n".join(lines[a:b])
+            for a, b, e in zip(starts, ends, said, strict=True)]
     return t[starts], docs
 
 
 def log_why(rec: rr.RecordingStream, run: Run) -> None:
     """The "why (not) flagged" document of every follower and leader, one per epoch after t_a."""
     t_a = training_end_s(run)
+    ranges = dict(run.groups(run.review.ranges, ["follower", "leader"]))
     for (follower, leader), rows in run.groups(run.review.detections, ["follower", "leader"]):
-        t, docs = why_documents(rows, t_a)
+        t, docs = why_documents(rows, t_a, ranges.get((follower, leader)))
         if docs:
             # before t_a the view would say "(empty)": say why instead
             t = np.r_[0.0, t]

@@ -24,7 +24,7 @@ import rerun as rr
 from formats.units import NS
 from replay.events import Listener
 from replay.review.data import ReviewData
-from replay.views.common import class_id, part
+from replay.views.common import class_id, mission_column, part
 from replay.views.recording import log_runs, prepare
 
 RAD = 180.0 / math.pi
@@ -93,7 +93,7 @@ class LiveView(Listener):
         """UTC and mission seconds (from the trial start, once the engine said it) of receive-stamped rows."""
         cols = [rr.TimeColumn("time", timestamp=t_ns.astype("datetime64[ns]"))]
         if self.t0_ns is not None:
-            cols.append(rr.TimeColumn("mission_s", duration=(t_ns - self.t0_ns).astype("timedelta64[ns]")))
+            cols.append(mission_column((t_ns - self.t0_ns) / NS))
         return cols
 
     def flush(self, force: bool = False) -> None:

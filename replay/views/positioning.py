@@ -8,7 +8,8 @@ Entities under a run prefix P, on `time` and `mission_s`:
 - ``P/kmcdf/<target>/<method>/final``  Points2D, the method's final fix, offset from the truth alike;
 - ``P/kmcdf/<target>/<method>/nodes``  Points2D in east/north, the nodes named by vehicle ("buoy3"),
   red when the epoch judged that node's delay abnormal, amber when only a phase;
-- ``P/kmcdf/<target>/truth``  static: the GPS truth at (0, 0) with 5, 10 and 20 m rings;
+- ``P/kmcdf/<target>/truth``  static: the GPS truth at (0, 0) with 5, 10 and 20 m rings and a metre
+  scale bar (replay.views.scale);
 - ``P/events``  TextLog.
 Offsets and east/north metres with y = -north (see replay.views.common).
 """
@@ -20,6 +21,7 @@ import pandas as pd
 import rerun as rr
 
 from replay.views.common import CLUSTER_COLORS, Run, class_id, floats, ragged
+from replay.views.scale import log_scale_bar
 
 NODE_OK, NODE_DELAY_BAD, NODE_PHASE_BAD = (200, 200, 200), (230, 50, 40), (240, 180, 40)
 
@@ -40,6 +42,8 @@ def log_kmcdf(rec: rr.RecordingStream, run: Run) -> None:
         rec.log(run.path("kmcdf", str(target), "truth", "gps"),
                 rr.Points2D([[0.0, 0.0]], labels=[f"{target} GPS"], class_ids=[class_id("gps")],
                             radii=rr.Radius.ui_points(6.0)), static=True)
+        half = kmcdf_half_width(run, str(target))
+        log_scale_bar(rec, run.path("kmcdf", str(target), "truth", "scale"), (-half, half), (-half, half))
 
 
 def truth_at(run: Run, target: str, t_s: np.ndarray) -> np.ndarray:

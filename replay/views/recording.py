@@ -31,15 +31,15 @@ import rerun.blueprint as rrb
 from replay.review.data import ReviewData
 from replay.views.anfis import log_anfis
 from replay.views.blueprint import build_blueprint
-from replay.views.cdf import error_axis, log_cdf_frame, log_cdfs
+from replay.views.cdf import Growth, error_axis, log_cdf_frame, log_cdf_legend, log_cdfs
 from replay.views.common import Run, annotation_context, make_runs, run_names
 from replay.views.features import log_detector_scores, log_features, log_why
 from replay.views.focus import hidden_methods
-from replay.views.lanes import log_lanes
+from replay.views.lanes import detector_order, log_lanes
 from replay.views.positioning import log_events, log_kmcdf
 from replay.views.scores import log_scores
-from replay.views.series import error_ceiling, log_detections, log_errors, log_ranges
-from replay.views.tracks import log_colour_key, log_range_circles, log_tracks
+from replay.views.series import error_ceiling, log_detections, log_errors, log_mission_span, log_ranges
+from replay.views.tracks import log_colour_key, log_local_scale, log_range_circles, log_tracks
 from replay.views.vehicle import log_vehicles
 from replay.views.web import WEB_BIND, free_port, serve_file, viewer_url, web_viewer_command
 
@@ -59,24 +59,27 @@ def _summary(run: Run) -> str:
     return "\n".join(lines)
 
 
-def log_review(rec: rr.RecordingStream, run: Run, axes: dict, error_top: float) -> None:
-    """Every view's entities for one run."""
+def log_review(rec: rr.RecordingStream, run: Run, axes: dict, error_top: float,
+               lane_order: list[str] | None = None) -> Growth:
+    """Every view's entities for one run (`lane_order`: its detection lanes' order, replay.views.lanes); its
+    p50s as the CDFs grow (for the legend, shared by the runs)."""
     rec.log(run.prefix, annotation_context(run, run_names(run.review)), static=True)
     rec.log(run.path("info"), rr.TextDocument(_summary(run), media_type="text/markdown"), static=True)
     log_tracks(rec, run)
     log_range_circles(rec, run)
     log_ranges(rec, run)
     log_detections(rec, run)
-    log_lanes(rec, run)
+    log_lanes(rec, run, lane_order)
     log_features(rec, run)
     log_detector_scores(rec, run)
     log_why(rec, run)
     log_errors(rec, run, error_top)
-    log_cdfs(rec, run, axes)
+    growth = log_cdfs(rec, run, axes)
     log_anfis(rec, run)
     log_kmcdf(rec, run)
     log_vehicles(rec, run)
     log_events(rec, run)
+    return growth
 
 
 def prepare(reviews: list[ReviewData], active_tab: int | str = 0,
@@ -98,9 +101,12 @@ def log_runs(rec: rr.RecordingStream, reviews: list[ReviewData], runs: list[Run]
     rec.send_recording_start_time_nanos(int(reviews[0].trial_start_ns))
     log_scores(rec, runs)
     log_colour_key(rec, runs, focus)
-    log_cdf_frame(rec, runs, axes, frozenset(m for r in runs for m in hidden_methods(r, focus)))
-    for run in runs:
-        log_review(rec, run, axes, error_top)
+    log_local_scale(rec, runs)
+    log_mission_span(rec, runs)
+    log_cdf_frame(rec, runs, axes)
+    order = detector_order(runs[0])       # both runs of a comparison rank their lanes alike: neighbours
+    growth = [log_review(rec, run, axes, error_top, order) for run in runs]
+    log_cdf_legend(rec, runs, growth, frozenset(m for r in runs for m in hidden_methods(r, focus)))
 
 
 def build_recording(reviews: list[ReviewData], application_id: str = "auvreplay",

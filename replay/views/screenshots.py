@@ -94,7 +94,7 @@ def shoot(review: ReviewData, out_dir: Path, times_s: list[float], size: tuple[i
             client.open(str(rrd))
             _wait_loaded(client)
             for t in times_s:
-                client.set_time("mission_s", duration=t, play_state="paused")
+                client.set_time("mission_s", sequence=round(t), play_state="paused")
                 time.sleep(1.5)      # the viewer draws a few frames before the picture settles
                 path = out_dir / f"{i}-{name.lower().replace(' ', '-')}-{t:.0f}s.png"
                 client.save_screenshot(str(path))

@@ -4,7 +4,8 @@ Entities under a run prefix P, all on the `time` and `mission_s` timelines:
 - ``P/series/range/<follower>/<leader>/{measured,true}``, ``P/series/residual/<follower>/<leader>``;
 - ``P/series/<feature>/<follower>/<leader>`` for f1_innovation_m, f2_mahalanobis2, f3_r_adapted_m2;
 - ``P/series/anfis/<follower>/<leader>/<method>/{output,T2}`` for anfis, anfis_aqpso, anfis_compensation
-  (anfis_hybrid's output is drawn with the other detectors' statistics, `replay.views.features`);
+  (anfis_hybrid's output is drawn with the other detectors' statistics, `replay.views.features`), and
+  ``P/series/anfis/<follower>/<leader>/truth``: triangles below zero at the truth's anomalous epochs;
 - ``P/series/error/<follower>/<method>``: horizontal error against GPS, filters and positioning alike;
 - ``P/series/marks/t_a``: a vertical line at t_a (the start of the metrics window) in every plot
   that includes it.
@@ -23,6 +24,8 @@ from replay.views.common import Run, floats, method_rgb
 from replay.views.lanes import training_end_s
 
 FEATURES = ("f1_innovation_m", "f2_mahalanobis2", "f3_r_adapted_m2")
+FEATURE_NAMES = {"f1_innovation_m": "f1", "f2_mahalanobis2": "f2", "f3_r_adapted_m2": "f3"}
+"""How a legend names paper A's features (the plot's title says them in words, replay.views.features)."""
 
 
 def _scalars(rec: rr.RecordingStream, path: str, run: Run, t_s: pd.Series, values: np.ndarray,
@@ -37,6 +40,39 @@ def _scalars(rec: rr.RecordingStream, path: str, run: Run, t_s: pd.Series, value
 
 
 LEADER_RGB = ((235, 150, 30), (60, 150, 235), (200, 100, 240), (90, 190, 80))
+TRUTH_ROW = 0.05
+"""Truth marks sit below zero, leader k's row at -(k + 1) * TRUTH_ROW of the plot's height."""
+
+
+def anfis_top(runs: list[Run]) -> float | None:
+    """The ANFIS plot's y extent: four times the largest T2 (outputs reach 1000 m where T2 is a few)."""
+    thr = [floats(r.review.detections[r.review.detections["method"].astype(str).isin(anfis_family())],
+                  "threshold") for r in runs if "method" in r.review.detections]
+    v = np.concatenate(thr) if thr else np.zeros(0)
+    v = v[np.isfinite(v)]
+    return float(4.0 * v.max()) if v.size else None
+
+
+def truth_range(top: float | None, leaders: int) -> tuple[float, float] | None:
+    """A score plot's y range from its top down to below the truth marks of `leaders` leaders."""
+    return (-(leaders + 0.5) * TRUTH_ROW * top, top) if top else None
+
+
+def log_truth_marks(rec: rr.RecordingStream, run: Run, path: str, rows: pd.DataFrame, k: int,
+                    top: float | None, row: int | None = None) -> None:
+    """Triangles below zero at the epochs whose truth label is anomalous, in leader k's colour, on its row (k's
+    unless given): the truth windows under a detector's statistic."""
+    epochs = rows.drop_duplicates("t_s")
+    anomalous = pd.to_numeric(epochs["label"], errors="coerce").to_numpy() == 1 if "label" in epochs else []
+    t = floats(epochs, "t_s")[anomalous]
+    if t.size == 0:
+        return
+    rgb = LEADER_RGB[k % len(LEADER_RGB)]
+    leader = str(epochs["leader"].iloc[0]) if "leader" in epochs else ""
+    rec.log(path, rr.SeriesPoints(names=run.name(f"{leader} truth: anomaly"), colors=[rgb], markers="Up",
+                                  marker_sizes=2.5), static=True)
+    rec.send_columns(path, indexes=run.times(t), columns=rr.Scalars.columns(
+        scalars=np.full(t.size, -((k if row is None else row) + 1) * TRUTH_ROW * (top or 1.0))))
 
 
 def log_ranges(rec: rr.RecordingStream, run: Run) -> None:
@@ -56,12 +92,15 @@ def log_detections(rec: rr.RecordingStream, run: Run) -> None:
     """Features per leader, and each ANFIS-family detector's output against its T2."""
     det = run.review.detections
     family = anfis_family()
+    top = anfis_top([run])
     for k, ((follower, leader), rows) in enumerate(run.groups(det, ["follower", "leader"])):
         f, ld = str(follower), str(leader)
         epochs = rows.drop_duplicates("t_s")
+        if "method" in rows and family & set(rows["method"].astype(str).unique()):      # one leader a plot: row 0
+            log_truth_marks(rec, run, run.path("series", "anfis", f, ld, "truth"), rows, k, top, row=0)
         for feature in FEATURES:
             _scalars(rec, run.path("series", feature, f, ld), run, epochs["t_s"], floats(epochs, feature),
-                     run.name(f"{ld} {feature}"), LEADER_RGB[k % len(LEADER_RGB)])
+                     run.name(f"{ld} {FEATURE_NAMES[feature]}"), LEADER_RGB[k % len(LEADER_RGB)])
         for (method,), m_rows in run.groups(rows, ["method"]):
             m = str(method)
             if m in family:
@@ -90,8 +129,10 @@ def log_t_a(rec: rr.RecordingStream, run: Run, height: float) -> None:
     if t_a <= 0:
         return
     path = run.path("series", "marks", "t_a")
+    # aggregation off: zoomed out, Rerun averages the samples that share a pixel column, and the two samples of
+    # one instant would average to a point (the line would vanish)
     rec.log(path, rr.SeriesLines(names=run.name(f"t_a = {t_a:.0f} s (scoring starts)"), colors=[(128, 128, 128)],
-                                 widths=2.0), static=True)
+                                 widths=2.0, aggregation_policy="Off"), static=True)
     rec.send_columns(path, indexes=run.times(np.array([t_a, t_a])), columns=rr.Scalars.columns(
         scalars=np.array([0.0, height])))
 
@@ -101,3 +142,22 @@ def error_ceiling(reviews: list[pd.DataFrame]) -> float:
     v = np.concatenate([floats(e, "error_m") for e in reviews if not e.empty] or [np.zeros(0)])
     v = v[np.isfinite(v)]
     return float(1.2 * np.quantile(v, 0.95)) if v.size else 1.0
+
+
+SPAN = "/mission_span"
+"""An entity with no visible value at the mission's first and last second, in every time series view: each
+plot's x axis then spans the whole mission from 0 (round ticks, "#0 #1000"; plots aligned with each other),
+not from its own first sample ("#6 #1006")."""
+
+
+def log_mission_span(rec: rr.RecordingStream, runs: list[Run]) -> None:
+    """The span entity: NaN (drawn as nothing) at 0 s and at the last second any run's table reaches, a hidden
+    series whose greyed legend entry names the x axis ("x: mission s (0-1700)")."""
+    ends = [float(np.nanmax(floats(f, "t_s"))) for r in runs for f in (r.review.tracks, r.review.errors,
+                                                                       r.review.ranges) if len(f) and "t_s" in f]
+    if not ends:
+        return
+    rec.log(SPAN, rr.SeriesPoints(names=f"x: mission s (0-{max(ends):.0f})", colors=[(0, 0, 0, 0)], marker_sizes=0.0,
+                                  visible_series=[False]), static=True)
+    rec.send_columns(SPAN, indexes=runs[0].times(np.array([0.0, max(ends)])),
+                     columns=rr.Scalars.columns(scalars=np.array([np.nan, np.nan])))

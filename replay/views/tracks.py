@@ -10,7 +10,9 @@ Entities under a run prefix P:
 - ``P/local/...`` the same in east/north metres (y = -north, see replay.views.common);
 - ``P/local/ranges/<follower>/<leader>``  Ellipses2D on `time`: a circle of the
   measured horizontal range around the ranged leader at that instant, red when
-  the epoch is labelled anomalous.
+  the epoch is labelled anomalous;
+- ``P/local/scale`` static: a metre scale bar (replay.views.scale) in the lower left of the
+  default bounds (`local_frame`).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from replay.review.data import ReviewData
 from replay.review.scoreboard import method_kind
 from replay.views.common import Run, class_id, floats, method_rgb
 from replay.views.focus import hidden_methods
+from replay.views.scale import log_scale_bar
 
 MAX_STATIC_VERTICES = 4000
 GAP_S = 30.0     # a track silent for longer (a dive, a lost link) is drawn as separate strips
@@ -132,15 +135,49 @@ def _log_track(rec: rr.RecordingStream, run: Run, vehicle: str, source: str, row
                          columns=rr.Points2D.columns(positions=np.column_stack([east[trail], -north[trail]])))
 
 
+CIRCLE_SHARE = 0.98
+"""The default bounds hold this share of the range circles whole (the rest are outliers of hundreds of metres)."""
+
+
 def track_bounds(runs: list[ReviewData]) -> tuple[np.ndarray, np.ndarray] | None:
-    """(min, max) east/north over every GPS fix and buoy of the runs, for the default view bounds."""
+    """(min, max) east/north over every GPS fix and buoy of the runs and nearly every range circle (CIRCLE_SHARE
+    of their edges), for the default view bounds: no circle runs off under the colour key beside the view."""
     parts = [r.tracks[r.tracks["source"] == "gps"] for r in runs if not r.tracks.empty and "source" in r.tracks]
     frame = pd.concat(parts) if parts else pd.DataFrame()
     if frame.empty:
         return None
     en = np.column_stack([floats(frame, "east_m"), floats(frame, "north_m")])
     en = en[np.isfinite(en).all(axis=1)]
-    return (en.min(axis=0), en.max(axis=0)) if en.size else None
+    if not en.size:
+        return None
+    lo, hi = en.min(axis=0), en.max(axis=0)
+    circles = [np.column_stack([floats(r.ranges, "leader_east_m"), floats(r.ranges, "leader_north_m"),
+                                floats(r.ranges, "horizontal_m")]) for r in runs if not r.ranges.empty]
+    c = np.concatenate(circles) if circles else np.zeros((0, 3))
+    c = c[np.isfinite(c).all(axis=1)]
+    if c.size:
+        q = (1 - CIRCLE_SHARE) / 2
+        lo = np.minimum(lo, np.quantile(c[:, :2] - c[:, 2:3], q, axis=0))
+        hi = np.maximum(hi, np.quantile(c[:, :2] + c[:, 2:3], 1 - q, axis=0))
+    return lo, hi
+
+
+def local_frame(runs: list[ReviewData]) -> tuple[tuple[float, float], tuple[float, float]] | None:
+    """The local east/north view's default bounds in view units (x east, y = -north): `track_bounds` with a
+    margin of 8 % of the larger side (at least 4 m)."""
+    found = track_bounds(runs)
+    if found is None:
+        return None
+    lo, hi = found
+    pad = 0.08 * max(float(np.max(hi - lo)), 50.0)
+    return (float(lo[0] - pad), float(hi[0] + pad)), (float(-hi[1] - pad), float(-lo[1] + pad))
+
+
+def log_local_scale(rec: rr.RecordingStream, runs: list[Run]) -> None:
+    """A metre scale bar in the local east/north view (under the first run's ``local``), once per recording."""
+    frame = local_frame([r.review for r in runs])
+    if frame is not None:
+        log_scale_bar(rec, runs[0].path("local", "scale"), *frame)
 
 
 def geo_bounds(runs: list[ReviewData]) -> tuple[np.ndarray, np.ndarray] | None:

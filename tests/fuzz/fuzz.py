@@ -18,7 +18,8 @@ chunks, metadata, attachments): cuts, byte flips, and crafted records
 raise. The importer entries (record/..., tests/fuzz/importers.py) record whole
 damaged files through `record`; the live entries (capture/..., tests/fuzz/live.py)
 send hostile streams through the capture decoder and the real sources. Every
-entry counts its cases, exceptions, hangs (cases over 5 s) and its peak RSS
+entry counts its cases, exceptions, hangs (cases over 5 s of CPU, or not
+ending in 10 s: wall time on a shared machine measures the neighbours) and its peak RSS
 (each entry runs in a fresh process). Cases are reproducible from (entry,
 seed, case number).
 """
