@@ -274,7 +274,7 @@ def test_blueprint_saved_with_every_view(rrd: Rrd) -> None:
     for expected in ("Local east/north (m), range circles, scale bar", "Events",
                      "leader1: range measured / true (m)", "leader1: ANFIS vs T2 (m)", "Colours",
                      "Rule firing w", "Verdict", "Output surface, f3 at median", "Scoreboard",
-                     "Colour key", "Training RMSE (m) per epoch"):
+                     "Key", "Training RMSE (m) per epoch"):
         assert expected in names
     assert any(n.startswith("Error CDF of follower") for n in names)
     # the default focus: the best of each group, the best detector, chi_square and anfis; the others hidden, and said so

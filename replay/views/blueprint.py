@@ -140,7 +140,7 @@ def _navigation(runs: list[Run], focus: Sequence[str] | None) -> rrb.Container:
         rrb.Spatial2DView(name="Local east/north (m), range circles, scale bar", contents=_contents(runs, "local"),
                           overrides=_merge(_trail_overrides(runs, "local"), hide(runs, focus, "local")),
                           visual_bounds=_local_bounds(reviews)),
-        rrb.Spatial2DView(name="Colour key", contents=[f"+ {KEY}/**"], visual_bounds=rrb.VisualBounds2D(
+        rrb.Spatial2DView(name="Key", contents=[f"+ {KEY}/**"], visual_bounds=rrb.VisualBounds2D(
             x_range=[-0.5, 9.0], y_range=[-1.0, 1.0 + KEY_STEP * key_rows(runs, focus)])),
         column_shares=[5, 5, 1.6], name="Navigation",
     )
