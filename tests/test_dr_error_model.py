@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -227,6 +228,32 @@ def test_a_held_minute_widens_the_prediction_by_its_velocity_walk() -> None:
     for _ in range(60):
         within.step(1.0, 1.5, 0.0, 1.0)
     assert within.range(60.0, "leader1", 500.0, 500.0, 0.0, False).innovation_var_m2 == pytest.approx(10.0)
+
+
+def test_a_turn_widens_the_heading_error_by_its_walk() -> None:
+    """A quarter turn since the last range: the heading error's variance gains turn²·(pi/2), which turns the
+    whole displacement: the predicted range's variance, now and from the lagged state, gains
+    turn²·(pi/2)·(h·(-sum e, sum n))²; the mean prediction is unchanged."""
+    def run(turn: float) -> tuple[Any, float, float]:
+        m = DrErrorModel(DrErrorParams(1e-2, HEADING_WALK, 1e-4, 3.0, (1.0, 1.0), math.radians(3.0), 0.01, 30.0, 4.0,
+                                       10, 0.0, 2.0, 0.0, turn))
+        m.step(1.0, 0.0, 0.0, 0.0, 0.0)
+        m.range(1.0, "leader1", 500.0, 500.0, 0.0, False)
+        sn = se = 0.0
+        for k in range(1, 61):
+            h = min(k, 30) / 30.0 * math.pi / 2.0
+            sn, se = sn + 1.5 * math.cos(h), se + 1.5 * math.sin(h)
+            m.step(1.0, 1.5 * math.cos(h), 1.5 * math.sin(h), 0.0, h)
+        return m.range(61.0, "leader1", 500.0, 500.0 - sn, -se, False), sn, se
+    base, _, _ = run(0.0)
+    got, sn, se = run(math.radians(1.0))
+    r = math.hypot(500.0 - sn, se)
+    h0, h1 = -(500.0 - sn) / r, se / r
+    extra = math.radians(1.0) ** 2 * math.pi / 2 * (h0 * -se + h1 * sn) ** 2
+    assert extra > 1.0
+    assert got.lagged_var_m2 - base.lagged_var_m2 == pytest.approx(extra, rel=1e-9)
+    assert got.innovation_var_m2 - base.innovation_var_m2 == pytest.approx(extra, rel=1e-9)
+    assert (got.lagged_m, got.innovation_m) == pytest.approx((base.lagged_m, base.innovation_m), rel=1e-12)
 
 
 def _turning_track(duration_s: float, bias_deg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -98,7 +98,9 @@ class FeatureConfig:
     # four states, the one- and two-cycle terms' coefficients, each of this initial sigma (0: no such states)
     model_hold_q_m2_per_s3: float = 0.01
     model_hold_grace_s: float = 2.0
-    model_deviation_sigma_deg: float = 1.0
+    model_deviation_sigma_deg: float = 0.0
+    # ... or, without states, the heading error walks by this much per square root of a radian turned
+    model_turn_deg_per_sqrt_rad: float = 0.0
     # drift_z standardizes the drift residual by the model's predicted sigma before the pooled median and MAD
     # (so a held step or a turn, which the model says widens the residual, raises no alarm by itself);
     # False: the residual in metres, as before

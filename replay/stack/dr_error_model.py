@@ -74,7 +74,9 @@ class DrErrorParams:
     gate_cap: ranges beyond this many sigmas are left out, at most gate_cap in a row per leader;
     hold_q_m2_per_s3: the velocity random walk of a held DR step (no DVL sample for more than hold_grace_s, so
     the last velocity is carried on: bottom lock lost); deviation_sigma_rad: the initial sigma of each of the
-    four coefficients of a compass deviation with heading (0: no such states).
+    four coefficients of a compass deviation with heading (0: no such states); turn_sigma_rad_per_sqrt_rad: the
+    heading error's walk per square root of a radian turned (a deviation with heading, without states: after
+    a turn the heading error is less known, so the filter learns the new one from the ranges).
     """
 
     q_m2_per_s: float
@@ -90,6 +92,7 @@ class DrErrorParams:
     hold_q_m2_per_s3: float = 0.0
     hold_grace_s: float = 2.0
     deviation_sigma_rad: float = 0.0
+    turn_sigma_rad_per_sqrt_rad: float = 0.0
 
 
 class DrErrorModel:
@@ -112,6 +115,8 @@ class DrErrorModel:
                   float(c.scale_walk_per_sqrt_s) ** 2) + (0.0,) * (self.n - 4)
         self.hold_q = float(c.hold_q_m2_per_s3)
         self.hold_grace_s = float(c.hold_grace_s)
+        self.turn_q = float(c.turn_sigma_rad_per_sqrt_rad) ** 2
+        self._heading: float | None = None
         self.r_var = float(c.range_sigma_m) ** 2
         self.lag_s = float(c.lag_s)
         self.gate_sigma = float(c.gate_sigma)
@@ -120,12 +125,12 @@ class DrErrorModel:
         diag = (float(c.p0_m[0]) ** 2, float(c.p0_m[1]) ** 2, float(c.heading_sigma_rad) ** 2,
                 float(c.scale_sigma) ** 2) + (float(c.deviation_sigma_rad) ** 2,) * (self.n - 4)
         self.p = [[diag[i] if i == j else 0.0 for j in range(self.n)] for i in range(self.n)]
-        # since the last propagation: G's entries (rows 0, 1 of the columns of states 2..n-1), dt and the
-        # held position variance (m²)
+        # since the last propagation: G's entries (rows 0, 1 of the columns of states 2..n-1), dt, the
+        # held position variance (m²) and the heading turned (rad)
         self._g = [0.0] * (2 * self.n - 4)
-        self._dt = self._held = 0.0
-        # the same summed since the start (G's entries, dt, held variance), for the lagged prediction
-        self._cum: tuple[float, ...] = (0.0,) * (2 * self.n - 2)
+        self._dt = self._held = self._turned = 0.0
+        # the same summed since the start (G's entries, dt, held variance, turned), for the lagged prediction
+        self._cum: tuple[float, ...] = (0.0,) * (2 * self.n - 1)
         # t, x, P, cum: the states of the last lag_s and the newest older one
         self._snaps: deque[tuple[float, list[float], list[list[float]], tuple[float, ...]]] = deque()
         self._gated_out: dict[str, int] = {}          # gated ranges left out in a row, per leader
@@ -144,6 +149,10 @@ class DrErrorModel:
         g[1] += north_m
         g[2] += north_m
         g[3] += east_m
+        if self.turn_q > 0.0:
+            if self._heading is not None:
+                self._turned += abs(math.remainder(heading_rad - self._heading, math.tau))
+            self._heading = heading_rad
         if self.deviation:
             s1, c1 = math.sin(heading_rad), math.cos(heading_rad)
             for k, f in enumerate((s1, c1, 2.0 * s1 * c1, c1 * c1 - s1 * s1)):
@@ -157,13 +166,14 @@ class DrErrorModel:
 
     def _propagate(self) -> None:
         g, dt, held = self._g, self._dt, self._held
-        if dt == 0.0 and held == 0.0 and not any(g):
+        if dt == 0.0 and held == 0.0 and self._turned == 0.0 and not any(g):
             return
         p, q, n = self.p, self.q, self.n
         for i in range(n):
             p[i][i] += q[i] * dt
         p[0][0] += held
         p[1][1] += held
+        p[2][2] += self.turn_q * self._turned
         self.x = _moved(self.x, g)
         # F·P·Fᵀ with F = I + G: G adds rows 2..n-1 into rows 0 and 1, then the same for the columns
         row0, row1 = list(p[0]), list(p[1])
@@ -181,9 +191,9 @@ class DrErrorModel:
             row[0] += a
             row[1] += b
         c = self._cum
-        self._cum = tuple(c[i] + g[i] for i in range(len(g))) + (c[-2] + dt, c[-1] + held)
+        self._cum = tuple(c[i] + g[i] for i in range(len(g))) + (c[-3] + dt, c[-2] + held, c[-1] + self._turned)
         self._g = [0.0] * len(g)
-        self._dt = self._held = 0.0
+        self._dt = self._held = self._turned = 0.0
 
     def _forget(self, t_s: float) -> None:
         """Drop the states that a newer one at least lag_s old (at t_s) replaces."""
@@ -205,7 +215,7 @@ class DrErrorModel:
         _, x, p, cum = snaps[0]
         c, n = self._cum, self.n
         d = [c[i] - cum[i] for i in range(len(c))]
-        dt, held = d[-2], d[-1]
+        dt, held, turned = d[-3], d[-2], d[-1]
         # g = Fᵀ·hᵀ: h on d, and on each state k >= 2 the sum of h along its column of G
         g = [h0, h1] + [h0 * d[2 * k - 4] + h1 * d[2 * k - 3] for k in range(2, n)]
         hx = sum(g[i] * x[i] for i in range(n))
@@ -213,7 +223,8 @@ class DrErrorModel:
         # variance too: a bound rather than the exact sum over the steps)
         q = self.q
         var = sum(g[i] * (sum(p[i][j] * g[j] for j in range(n)) + q[i] * dt * g[i]) for i in range(n))
-        var += held * (h0 * h0 + h1 * h1)
+        # the turns' heading walk too, at the interval's start: it turns the whole displacement
+        var += held * (h0 * h0 + h1 * h1) + self.turn_q * turned * g[2] * g[2]
         return hx, var
 
     def range(self, t_s: float, leader: str, z_m: float, north_m: float, east_m: float,
