@@ -46,7 +46,12 @@ filter, and are the same for every method of a run:
   ``exclusion_residual_m`` or ``lag_residual_m`` (``drift_source``), else
   ``dr_residual_m``. What the drift CUSUM sums and ``drift_reference`` tests;
 - ``drift_z``: the drift residual standardized by the mission's own recent
-  past: (x - median) / max(1.4826 MAD, ``scale_floor_m``) over the drift
+  past. With ``scale_by_model`` (the default, drift source "model") x is
+  first scaled to the range noise by the model's predicted sigma,
+  x·r / sqrt(var), so what the model says widens the residual (a held DR
+  step without bottom lock) raises no alarm by itself (issue 26:
+  docs/detection.md section 5); then
+  (x - median) / max(1.4826 MAD, ``scale_floor_m``) over the drift
   residuals of EVERY leader (``scale_pooled``, the default) of the last
   ``scale_pooled_window_s`` (900 s) that are older than ``lag_s`` (60 s)
   and not from a repeated range, NaN with fewer than ``scale_min_samples``
