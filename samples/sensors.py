@@ -133,7 +133,8 @@ def simulate_ins(track: Track, cfg: InsConfig, frame: LocalFrame, duration_s: fl
     att = cfg.attitude_sigma_deg
     roll = _at(track, t, track.roll_deg) + rng.standard_normal(n) * att
     pitch = _at(track, t, track.pitch_deg) + rng.standard_normal(n) * att
-    head_std = cfg.leader_heading_sigma_deg if leader else cfg.follower_heading_bias_deg
+    # the unit reports the size of its heading error: a drawn bias may be negative, a std never is
+    head_std = cfg.leader_heading_sigma_deg if leader else abs(cfg.follower_heading_bias_deg)
     return InsSeries(t, lat, lon, _at(track, t, track.depth_m), roll, pitch, heading, vn + dvn,
                      ve + dve, np.zeros(n), head_std, pos_std, east, north)
 

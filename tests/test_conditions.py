@@ -156,3 +156,26 @@ def test_drawn_anomalies_and_sensor_parameters_differ_per_seed_and_are_written_b
     trial = simulate_trial(base.with_options(duration_s=SHORT), 5)
     again = simulate_trial(scenario_from_dict(__import__("tomllib").loads(scenario_to_toml(trial.scenario))), 5)
     np.testing.assert_array_equal(trial.ranges.range_m, again.ranges.range_m)
+
+
+def test_drawn_sensor_parameters_never_make_the_recorder_refuse_a_follower_ins_record(tmp_path: Path) -> None:
+    from recorders.manifest import load_manifest
+    from recorders.record import record
+    from samples.writer import write_trial
+
+    base = replace(Scenario().with_options(duration_s=60.0), conditions=Conditions(sensor_spread=0.4))
+    leaders = ["leader1", "leader2"]
+    biases = {seed: realized(base, seed, leaders).ins.follower_heading_bias_deg for seed in range(40)}
+    negative = [seed for seed, b in biases.items() if b < 0]
+    assert 10 <= len(negative) <= 30  # the bias's sign is drawn: about half of the seeds
+    for seed in range(12):
+        ins = simulate_trial(base, seed).vehicle("follower").ins
+        # the unit reports the size of its error: positive whatever the drawn bias's sign
+        assert ins.heading_std_deg == pytest.approx(abs(biases[seed])) and ins.heading_std_deg > 0
+    for seed in negative[:3]:
+        trial = simulate_trial(base, seed)
+        write_trial(trial, tmp_path / str(seed))
+        summary = record(load_manifest(tmp_path / str(seed) / "trial.toml"), tmp_path / f"{seed}.mcap", workers=1)
+        assert [(f.skipped, f.out_of_range) for f in summary.files] == [(0, 0)] * len(summary.files)
+        assert sum(f.messages for f in summary.files if (f.vehicle, f.sensor) == ("follower", "ins")) == \
+            len(trial.vehicle("follower").ins.t_s)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -44,11 +45,13 @@ class StepwiseModel:
         self.steps: list[tuple[float, float, float]] = []
         self.left_out = 0
 
-    def step(self, dt: float, n: float, e: float) -> None:
+    def step(self, dt: float, n: float, e: float, held: float = 0.0, turn: float = 0.0) -> None:
+        """One DR step; ``held`` the position variance of a held step, ``turn`` the heading variance of a turn."""
         f = transition((-e, n), (n, e))
+        noise = np.diag(self.q * dt + np.array([held, held, turn, 0.0]))
         self.x = f @ self.x
-        self.p = f @ (self.p + np.diag(self.q * dt)) @ f.T
-        self.steps.append((dt, n, e))
+        self.p = f @ (self.p + noise) @ f.T
+        self.steps.append((dt, n, e, held, turn))
 
     def range(self, t: float, z: float, north: float, east: float,
               repeated: bool) -> tuple[float, float, float, float]:
@@ -59,9 +62,9 @@ class StepwiseModel:
         old = [s for s in self.history if s[0] <= t - self.lag_s]
         if old:
             _, x, p, k = old[-1]
-            for dt, n, e in self.steps[k:]:
+            for dt, n, e, held, turn in self.steps[k:]:
                 f = transition((-e, n), (n, e))
-                x, p = f @ x, f @ (p + np.diag(self.q * dt)) @ f.T
+                x, p = f @ x, f @ (p + np.diag(self.q * dt + np.array([held, held, turn, 0.0]))) @ f.T
             vl = z - r - h @ x
             sl = h @ p @ h + 9.0
         gated = math.isfinite(vl) and abs(vl) > self.gate * math.sqrt(sl)
@@ -114,6 +117,143 @@ def test_the_lazy_model_is_the_per_step_filter(events: list[tuple[float, float, 
         if not walks:
             np.testing.assert_allclose(fast.x, slow.x, atol=1e-9)
             np.testing.assert_allclose(fast.p, slow.p, rtol=1e-9, atol=1e-12)
+
+
+HOLD_Q, GRACE = 0.01, 2.0
+
+
+def held_variance(age_s: float, dt: float) -> float:
+    """The obvious held variance of one step ending at age_s: the integral of q·(a - grace)² over the step."""
+    a = np.linspace(max(age_s - dt, GRACE), age_s, 20001)
+    if age_s <= GRACE:
+        return 0.0
+    return float(np.trapezoid(HOLD_Q * (a - GRACE) ** 2, a))
+
+
+class DeviationStepwise:
+    """The slow obvious filter with the deviation states: psi(h) = psi + a1 sin h + b1 cos h + a2 sin 2h + b2 cos 2h.
+
+    8 states (d_n, d_e, psi, s, a1, b1, a2, b2); every DR step F = I + G, G's column of a heading term being
+    that term at the step's heading times (-e, n). Held steps add their position variance at each step.
+    """
+
+    def __init__(self, q: float, sigma: float) -> None:
+        self.q = np.array([q, q, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+        self.x = np.zeros(8)
+        self.p = np.diag([1.0, 4.0, math.radians(3.0) ** 2, 1e-4] + [sigma ** 2] * 4)
+        self.history: list[tuple[float, np.ndarray, np.ndarray, int]] = []
+        self.steps: list[np.ndarray] = []
+
+    def step(self, dt: float, n: float, e: float, h: float, held: float) -> None:
+        f = np.eye(8)
+        terms = [1.0, 0.0, math.sin(h), math.cos(h), math.sin(2 * h), math.cos(2 * h)]
+        for k, c in zip((2, 4, 5, 6, 7), (terms[0], *terms[2:])):
+            f[0, k], f[1, k] = -e * c, n * c
+        f[0, 3], f[1, 3] = n, e
+        noise = np.diag(self.q * dt + np.array([held, held, 0, 0, 0, 0, 0, 0]))
+        self.x = f @ self.x
+        self.p = f @ (self.p + noise) @ f.T
+        self.steps.append(np.concatenate([f.ravel(), noise.ravel()]))
+
+    def range(self, t: float, z: float, north: float, east: float, lag_s: float) -> tuple[float, float, float, float]:
+        r = math.hypot(north, east)
+        h = np.zeros(8)
+        h[:2] = -np.array([north, east]) / r
+        v = z - r - h @ self.x
+        s = h @ self.p @ h + 9.0
+        vl = sl = math.nan
+        old = [st_ for st_ in self.history if st_[0] <= t - lag_s]
+        if old:
+            _, x, p, k = old[-1]
+            for packed in self.steps[k:]:
+                f, noise = packed[:64].reshape(8, 8), packed[64:].reshape(8, 8)
+                x, p = f @ x, f @ (p + noise) @ f.T
+            vl, sl = z - r - h @ x, h @ p @ h + 9.0
+        k = self.p @ h / s
+        self.x = self.x + k * v
+        self.p = (np.eye(8) - np.outer(k, h)) @ self.p
+        self.history.append((t, self.x.copy(), self.p.copy(), len(self.steps)))
+        return float(v), float(s), float(vl), float(sl)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.tuples(st.floats(0.2, 3.0), st.floats(-2.0, 2.0), st.floats(-2.0, 2.0), st.integers(0, 3),
+                          st.booleans(), st.floats(-math.pi, math.pi), st.floats(-300, 300), st.floats(-300, 300),
+                          st.floats(-30, 30)),
+                min_size=1, max_size=60))
+def test_held_steps_and_the_deviation_states_are_the_per_step_filter(
+        events: list[tuple[float, float, float, int, bool, float, float, float, float]]) -> None:
+    """Without bottom lock the DVL's last velocity is carried on (a held step): the position variance grows as
+    q·(age - grace)³/3. The compass deviation's states turn each step by the deviation at its heading. Both
+    as the per-step 8-state filter gives them, exactly: a position variance and constant states commute with
+    the lazy propagation (no gate: the errors stay within 30 m of a far leader)."""
+    sigma = math.radians(1.5)
+    fast = DrErrorModel(DrErrorParams(1e-2, 0.0, 0.0, 3.0, (1.0, 2.0), math.radians(3.0), 0.01, 10.0, 1e9, 0,
+                                      HOLD_Q, GRACE, sigma))
+    slow = DeviationStepwise(1e-2, sigma)
+    t, age = 0.0, 0.0
+    for dt, vn, ve, nsteps, hold, heading, north, east, err in events:
+        for _ in range(nsteps):
+            t += dt
+            age = age + dt if hold else 0.0
+            fast.step(dt, vn * dt, ve * dt, age, heading)
+            slow.step(dt, vn * dt, ve * dt, heading, held_variance(age, dt))
+        if math.hypot(north, east) < 1.0:
+            continue
+        z = math.hypot(north, east) + err
+        got = fast.range(t, "leader1", z, north, east, False)
+        want = slow.range(t, z, north, east, 10.0)
+        tol = dict(rel=1e-6, abs=1e-6)
+        assert got.innovation_m == pytest.approx(want[0], **tol)
+        assert got.innovation_var_m2 == pytest.approx(want[1], **tol)
+        if math.isnan(want[2]):
+            assert math.isnan(got.lagged_m)
+        else:
+            assert got.lagged_m == pytest.approx(want[2], **tol)
+            assert got.lagged_var_m2 == pytest.approx(want[3], **tol)
+    fast._propagate()   # the steps after the last range are still pending (lazy)
+    np.testing.assert_allclose(fast.x, slow.x, atol=1e-6)
+    np.testing.assert_allclose(fast.p, slow.p, rtol=1e-6, atol=1e-9)
+
+
+def test_a_held_minute_widens_the_prediction_by_its_velocity_walk() -> None:
+    """60 s without a DVL sample: the predicted range variance grows by q·(60 - grace)³/3 (about 650 m² at the
+    default 0.01 m²/s³), none of it within the grace."""
+    fast = DrErrorModel(DrErrorParams(0.0, 0.0, 0.0, 3.0, (1.0, 1.0), 0.0, 0.0, 60.0, 4.0, 10, HOLD_Q, GRACE))
+    for k in range(60):
+        fast.step(1.0, 1.5, 0.0, float(k + 1))
+    got = fast.range(60.0, "leader1", 500.0, 500.0, 0.0, False)
+    assert got.innovation_var_m2 == pytest.approx(1.0 + 9.0 + HOLD_Q * 58.0 ** 3 / 3.0, rel=1e-9)
+    within = DrErrorModel(DrErrorParams(0.0, 0.0, 0.0, 3.0, (1.0, 1.0), 0.0, 0.0, 60.0, 4.0, 10, HOLD_Q, GRACE))
+    for _ in range(60):
+        within.step(1.0, 1.5, 0.0, 1.0)
+    assert within.range(60.0, "leader1", 500.0, 500.0, 0.0, False).innovation_var_m2 == pytest.approx(10.0)
+
+
+def test_a_turn_widens_the_heading_error_by_its_walk() -> None:
+    """A quarter turn since the last range: the heading error's variance gains turn²·(pi/2), which turns the
+    whole displacement: the predicted range's variance, now and from the lagged state, gains
+    turn²·(pi/2)·(h·(-sum e, sum n))²; the mean prediction is unchanged."""
+    def run(turn: float) -> tuple[Any, float, float]:
+        m = DrErrorModel(DrErrorParams(1e-2, HEADING_WALK, 1e-4, 3.0, (1.0, 1.0), math.radians(3.0), 0.01, 30.0, 4.0,
+                                       10, 0.0, 2.0, 0.0, turn))
+        m.step(1.0, 0.0, 0.0, 0.0, 0.0)
+        m.range(1.0, "leader1", 500.0, 500.0, 0.0, False)
+        sn = se = 0.0
+        for k in range(1, 61):
+            h = min(k, 30) / 30.0 * math.pi / 2.0
+            sn, se = sn + 1.5 * math.cos(h), se + 1.5 * math.sin(h)
+            m.step(1.0, 1.5 * math.cos(h), 1.5 * math.sin(h), 0.0, h)
+        return m.range(61.0, "leader1", 500.0, 500.0 - sn, -se, False), sn, se
+    base, _, _ = run(0.0)
+    got, sn, se = run(math.radians(1.0))
+    r = math.hypot(500.0 - sn, se)
+    h0, h1 = -(500.0 - sn) / r, se / r
+    extra = math.radians(1.0) ** 2 * math.pi / 2 * (h0 * -se + h1 * sn) ** 2
+    assert extra > 1.0
+    assert got.lagged_var_m2 - base.lagged_var_m2 == pytest.approx(extra, rel=1e-9)
+    assert got.innovation_var_m2 - base.innovation_var_m2 == pytest.approx(extra, rel=1e-9)
+    assert (got.lagged_m, got.innovation_m) == pytest.approx((base.lagged_m, base.innovation_m), rel=1e-12)
 
 
 def _turning_track(duration_s: float, bias_deg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

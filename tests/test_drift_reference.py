@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -131,17 +132,29 @@ def _rows(residual: np.ndarray, z: np.ndarray | None = None) -> np.ndarray:
     return x
 
 
-@pytest.mark.parametrize("pooled", [True, False])
-def test_drift_z_is_the_residual_against_both_leaders_recent_non_repeated_residuals(pooled: bool) -> None:
+@pytest.mark.parametrize(("pooled", "by_model"), [(True, True), (True, False), (False, False)])
+def test_drift_z_is_the_residual_against_both_leaders_recent_non_repeated_residuals(pooled: bool,
+                                                                                     by_model: bool) -> None:
     """drift_z against a slow reference: (x - median) / max(1.4826 MAD, floor) of the pooled drift residuals.
 
     Pooled (the default): the epochs aged lag_s..scale_pooled_window_s of both
     leaders with a finite residual and no repeated range; per leader
     (``scale_pooled`` False): that leader's aged lag_s..scale_window_s, repeated or not. NaN with fewer
-    than scale_min_samples of them. Ranges are noisy, a fifth repeated.
+    than scale_min_samples of them. Ranges are noisy, a fifth repeated. With ``scale_by_model`` (the
+    default) x is first scaled to the range noise by the model's predicted sigma: x·r / sqrt(var).
     """
-    cfg = replace(FeatureConfig(), scale_pooled=pooled)
+    cfg = replace(FeatureConfig(), scale_pooled=pooled, scale_by_model=by_model)
     tracker = FeatureTracker(cfg, ("leader1", "leader2"), (LAT, LON))
+    assert tracker.model is not None
+    model_range = tracker.model.range
+    var: list[float] = []
+
+    def spied(*args: Any, **kwargs: Any) -> Any:
+        res = model_range(*args, **kwargs)
+        var.append(res.lagged_var_m2 if math.isfinite(res.lagged_m) else res.innovation_var_m2)
+        return res
+
+    tracker.model.range = spied  # type: ignore[method-assign]
     rng = np.random.default_rng(5)
     geos = {"leader1": (LAT + 4e-5, LON, 0.0), "leader2": (LAT, LON + 6e-5, 0.0)}
     ix, iz, irep = (EXTRA_FEATURES.index(n) for n in ("drift_residual_m", "drift_z", "repeat_count"))
@@ -155,6 +168,7 @@ def test_drift_z_is_the_residual_against_both_leaders_recent_non_repeated_residu
         slant = last[leader] if leader in last and rng.random() < 0.2 else 250.0 + float(rng.normal(0, 3.0))
         last[leader] = slant
         out = tracker.epoch(t, leader, slant, slant, 0.0, geos[leader])
+        x = out[ix] * 3.0 / math.sqrt(var[-1]) if by_model else out[ix]
         window = cfg.scale_pooled_window_s if pooled else cfg.scale_window_s
         old = [x for s, ld, x, rep in seen if t - window <= s <= t - cfg.lag_s
                and (not rep if pooled else ld == leader)]
@@ -163,9 +177,9 @@ def test_drift_z_is_the_residual_against_both_leaders_recent_non_repeated_residu
         else:
             med = float(np.median(old))
             scale = max(1.4826 * float(np.median(np.abs(np.array(old) - med))), cfg.scale_floor_m)
-            assert out[iz] == pytest.approx((out[ix] - med) / scale, rel=1e-9, abs=1e-9)
+            assert out[iz] == pytest.approx((x - med) / scale, rel=1e-9, abs=1e-9)
             checked += 1
-        seen.append((t, leader, out[ix], out[irep] > 0))
+        seen.append((t, leader, x, out[irep] > 0))
     assert checked > 400 and sum(rep for *_, rep in seen) > 50
 
 

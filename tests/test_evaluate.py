@@ -162,6 +162,31 @@ def test_bad_arguments_are_one_line_errors() -> None:
         assert code == 1 and err.count("\n") == 1 and "Traceback" not in err, argv
 
 
+def test_a_trial_whose_record_refused_records_is_not_scored() -> None:
+    """A simulator bug that makes `record` refuse records (a negative heading std once took every follower INS
+    record out) stops `evaluate` with one line naming the count, before any replay."""
+    refused = {}
+
+    def broken(scenario: Scenario, seed: int) -> Any:
+        trial = simulate_trial(scenario, seed)
+        vehicles = tuple(replace(v, ins=replace(v.ins, heading_std_deg=-1.0)) if v.role == "follower" else v
+                         for v in trial.vehicles)
+        refused[seed] = sum(len(v.ins.t_s) for v in vehicles if v.role == "follower")
+        return replace(trial, vehicles=vehicles)
+
+    def replay(*args: Any, **kwargs: Any) -> Any:
+        raise AssertionError("a trial with refused records was replayed")
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(ev, "simulate_trial", broken)
+        mp.setattr(ev, "replay_archive", replay)
+        code, out, err = _cli(["evaluate", "--seeds", "1-2", "--train-seed", "0", "--workers", "1",
+                               "--duration", "60", "--set", "training_window_s=30"])
+    assert code == 1 and out == "" and err.count("\n") == 1 and "Traceback" not in err
+    assert f"seed 0: record refused {refused[0]} simulated records" in err and refused[0] > 50
+    assert "not scored" in err
+
+
 def _slow_recall(flagged: np.ndarray, labels: np.ndarray, kinds: np.ndarray, kind: str) -> float | None:
     """Recall of one kind by walking the epochs one at a time."""
     if kind == "dropout":

@@ -60,7 +60,7 @@ import numpy as np
 from formats.mcap_reader import ArchiveReader
 from formats.units import NS
 from recorders.manifest import load_manifest
-from recorders.record import record
+from recorders.record import RecordingSummary, record
 from replay.engine.config import RunConfig
 from replay.errors import UserError
 from replay.events import EpochResult, ErrorSample, Fix, Listener
@@ -173,6 +173,11 @@ def _archive_offset_s(archive: Path, trial: SimulatedTrial) -> float:
     return 0.0 if start is None else (start - trial.start_ns) / NS
 
 
+def refused_records(summary: RecordingSummary) -> int:
+    """The records `record` did not archive over every log: unparsed, bad checksums and values out of range."""
+    return summary.skipped  # the recorder counts every refusal, value checks included, as skipped
+
+
 def _closed_loop(spec: TrialSpec, config: RunConfig, listeners: Sequence[Listener] = (),
                  training_set: TrainingSet | None = None) -> tuple[SimulatedTrial, RunOutcome, float]:
     """Simulate, write, record and replay one trial in a temporary directory: the trial, the run, the offset."""
@@ -181,7 +186,13 @@ def _closed_loop(spec: TrialSpec, config: RunConfig, listeners: Sequence[Listene
         write_trial(trial, Path(tmp) / "trial")
         archive = Path(tmp) / "trial.mcap"
         # one process per trial: the harness runs trials side by side instead
-        record(load_manifest(Path(tmp) / "trial" / "trial.toml"), archive, workers=1)
+        summary = record(load_manifest(Path(tmp) / "trial" / "trial.toml"), archive, workers=1)
+        refused = refused_records(summary)
+        if refused:
+            # a simulated log is valid by construction: a refused record is a simulator bug that would
+            # silently take a sensor out of the filters (a negative heading std once took every follower INS)
+            raise UserError(f"seed {spec.seed}: record refused {refused} simulated records (unparsed, bad "
+                            "checksum or out of range); a trial with refused records is not scored")
         offset_s = _archive_offset_s(archive, trial)
         outcome = replay_archive(archive, config, write_output=False, listeners=listeners,
                                  training_set=training_set)
@@ -421,4 +432,4 @@ def evaluate(seeds: Sequence[int], config: RunConfig, train_seed: int | None = N
 
 __all__ = ["DEFAULT_DRIFT_RATES", "FPR_TARGETS", "TRAINING_MODES", "Evaluation", "TrialScores", "TrialSpec",
            "closed_loop_fpr", "drift_sweep", "epoch_kinds", "evaluate", "evaluate_trial", "method_figures",
-           "recall_by_kind", "split_seeds", "training_set_of"]
+           "recall_by_kind", "refused_records", "split_seeds", "training_set_of"]

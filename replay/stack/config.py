@@ -91,6 +91,20 @@ class FeatureConfig:
     model_scale_sigma: float = 0.01         # initial DVL scale-factor error sigma
     model_gate_sigma: float = 4.0           # its update leaves out ranges whose lagged residual is beyond this
     model_gate_cap: int = 10                # ... at most this many in a row per leader (repeated ranges: always)
+    # what the sensors' specifications say of two errors the model's states do not hold (issue 26, docs/detection.md
+    # section 5): without bottom lock the last DVL velocity is carried on, its error a random walk of this
+    # intensity (a vehicle turning at 3 deg/s at 1.5 m/s changes velocity by ~0.08 m/s each second) after
+    # model_hold_grace_s without a DVL sample; a compass's deviation with heading (1-3 deg after calibration):
+    # four states, the one- and two-cycle terms' coefficients, each of this initial sigma (0: no such states)
+    model_hold_q_m2_per_s3: float = 0.01
+    model_hold_grace_s: float = 2.0
+    model_deviation_sigma_deg: float = 0.0
+    # ... or, without states, the heading error walks by this much per square root of a radian turned
+    model_turn_deg_per_sqrt_rad: float = 0.0
+    # drift_z standardizes the drift residual by the model's predicted sigma before the pooled median and MAD
+    # (so a held step or a turn, which the model says widens the residual, raises no alarm by itself);
+    # False: the residual in metres, as before
+    scale_by_model: bool = True
     # the stiff reference (features.StiffReference): DR error as a 2-D random walk of this intensity (m²/s),
     # about the follower's DR error growth over minutes (0.05 m/s Gauss-Markov, tau 300 s, plus heading bias)
     stiff_q_m2_per_s: float = 3e-4

@@ -55,9 +55,13 @@ class LaggedResidual(NamedTuple):
     lagged_var_m2: float
 
 
-def _moved(x: list[float], a0: float, a1: float, b0: float, b1: float) -> list[float]:
-    """F·x for the F of an interval whose DR steps sum to (n, e): (a0, a1) = (-e, n), (b0, b1) = (n, e)."""
-    return [x[0] + a0 * x[2] + b0 * x[3], x[1] + a1 * x[2] + b1 * x[3], x[2], x[3]]
+def _moved(x: list[float], g: list[float]) -> list[float]:
+    """F·x for the F of an interval: d gains the sum over states k >= 2 of (g[2k-4], g[2k-3])·x[k]."""
+    out = list(x)
+    for k in range(2, len(x)):
+        out[0] += g[2 * k - 4] * x[k]
+        out[1] += g[2 * k - 3] * x[k]
+    return out
 
 
 @dataclass(frozen=True)
@@ -67,7 +71,12 @@ class DrErrorParams:
     q_m2_per_s: the DR position random walk (m²/s); heading_walk_rad_per_sqrt_s and scale_walk_per_sqrt_s:
     the heading and DVL scale error walks; range_sigma_m: ranging sigma; p0_m: initial position sigmas north,
     east; heading_sigma_rad, scale_sigma: initial sigmas; lag_s: age of the lagged state; gate_sigma and
-    gate_cap: ranges beyond this many sigmas are left out, at most gate_cap in a row per leader.
+    gate_cap: ranges beyond this many sigmas are left out, at most gate_cap in a row per leader;
+    hold_q_m2_per_s3: the velocity random walk of a held DR step (no DVL sample for more than hold_grace_s, so
+    the last velocity is carried on: bottom lock lost); deviation_sigma_rad: the initial sigma of each of the
+    four coefficients of a compass deviation with heading (0: no such states); turn_sigma_rad_per_sqrt_rad: the
+    heading error's walk per square root of a radian turned (a deviation with heading, without states: after
+    a turn the heading error is less known, so the filter learns the new one from the ranges).
     """
 
     q_m2_per_s: float
@@ -80,60 +89,111 @@ class DrErrorParams:
     lag_s: float
     gate_sigma: float
     gate_cap: int
+    hold_q_m2_per_s3: float = 0.0
+    hold_grace_s: float = 2.0
+    deviation_sigma_rad: float = 0.0
+    turn_sigma_rad_per_sqrt_rad: float = 0.0
 
 
 class DrErrorModel:
-    """The DR error (d_n, d_e, heading error, scale error) of one follower, updated by ranges and fixes.
+    """The DR error (d_n, d_e, heading error, scale error[, deviation]) of one follower, updated by ranges and fixes.
 
-    Plain floats rather than numpy matrices: it runs once per range epoch, where
-    a 4x4 numpy product costs more in call overhead than in arithmetic
+    With ``deviation_sigma_rad`` > 0 the heading error is psi + a1·sin h + b1·cos h + a2·sin 2h + b2·cos 2h
+    at heading h: a compass's deviation, one- and two-cycle with heading, whose constant coefficients are
+    four more states (so the filter learns the deviation over the turns instead of taking each turn's change
+    of heading error as a new error). Plain floats rather than numpy matrices: it runs once per range epoch,
+    where a small numpy product costs more in call overhead than in arithmetic
     (tests/test_dr_error_model.py checks it against the matrix filter).
     """
 
     def __init__(self, params: DrErrorParams) -> None:
-        """Start at x = 0 with P = diag(p0_m², heading_sigma², scale_sigma²); no lagged state yet."""
+        """Start at x = 0 with P = diag(p0_m², heading_sigma², scale_sigma²[, deviation_sigma² x 4])."""
         c = params
+        self.deviation = float(c.deviation_sigma_rad) > 0.0
+        self.n = 8 if self.deviation else 4
         self.q = (float(c.q_m2_per_s), float(c.q_m2_per_s), float(c.heading_walk_rad_per_sqrt_s) ** 2,
-                  float(c.scale_walk_per_sqrt_s) ** 2)
+                  float(c.scale_walk_per_sqrt_s) ** 2) + (0.0,) * (self.n - 4)
+        self.hold_q = float(c.hold_q_m2_per_s3)
+        self.hold_grace_s = float(c.hold_grace_s)
+        self.turn_q = float(c.turn_sigma_rad_per_sqrt_rad) ** 2
+        self._heading: float | None = None
         self.r_var = float(c.range_sigma_m) ** 2
         self.lag_s = float(c.lag_s)
         self.gate_sigma = float(c.gate_sigma)
         self.gate_cap = int(c.gate_cap)
-        self.x = [0.0, 0.0, 0.0, 0.0]
+        self.x = [0.0] * self.n
         diag = (float(c.p0_m[0]) ** 2, float(c.p0_m[1]) ** 2, float(c.heading_sigma_rad) ** 2,
-                float(c.scale_sigma) ** 2)
-        self.p = [[diag[i] if i == j else 0.0 for j in range(4)] for i in range(4)]
-        self._pending = [0.0, 0.0, 0.0]                 # n, e, dt since the last propagation
-        self._cum = (0.0, 0.0, 0.0, 0.0, 0.0)           # sums of (-e, n), (n, e) and dt since the start
+                float(c.scale_sigma) ** 2) + (float(c.deviation_sigma_rad) ** 2,) * (self.n - 4)
+        self.p = [[diag[i] if i == j else 0.0 for j in range(self.n)] for i in range(self.n)]
+        # since the last propagation: G's entries (rows 0, 1 of the columns of states 2..n-1), dt, the
+        # held position variance (m²) and the heading turned (rad)
+        self._g = [0.0] * (2 * self.n - 4)
+        self._dt = self._held = self._turned = 0.0
+        # the same summed since the start (G's entries, dt, held variance, turned), for the lagged prediction
+        self._cum: tuple[float, ...] = (0.0,) * (2 * self.n - 1)
         # t, x, P, cum: the states of the last lag_s and the newest older one
         self._snaps: deque[tuple[float, list[float], list[list[float]], tuple[float, ...]]] = deque()
         self._gated_out: dict[str, int] = {}          # gated ranges left out in a row, per leader
         self.last_fix_s = -math.inf                     # time of the last position fix taken
 
-    def step(self, dt_s: float, north_m: float, east_m: float) -> None:
-        """One DR step of dt_s seconds that moved the DR position by (north_m, east_m)."""
-        self._pending[0] += north_m
-        self._pending[1] += east_m
-        self._pending[2] += dt_s
+    def step(self, dt_s: float, north_m: float, east_m: float, age_s: float = 0.0, heading_rad: float = 0.0) -> None:
+        """One DR step of dt_s seconds that moved the DR position by (north_m, east_m).
+
+        ``age_s``: the age, at the step's end, of the DR sample whose velocity it carried (beyond
+        ``hold_grace_s`` the step is held: the velocity error walks, its position variance grows as age³);
+        ``heading_rad``: the step's heading (the deviation states' sines and cosines).
+        """
+        g = self._g
+        # a heading error psi turns the step (n, e) by psi: psi·(-e, n); a scale error s stretches it: s·(n, e)
+        g[0] -= east_m
+        g[1] += north_m
+        g[2] += north_m
+        g[3] += east_m
+        if self.turn_q > 0.0:
+            if self._heading is not None:
+                self._turned += abs(math.remainder(heading_rad - self._heading, math.tau))
+            self._heading = heading_rad
+        if self.deviation:
+            s1, c1 = math.sin(heading_rad), math.cos(heading_rad)
+            for k, f in enumerate((s1, c1, 2.0 * s1 * c1, c1 * c1 - s1 * s1)):
+                g[4 + 2 * k] -= f * east_m
+                g[5 + 2 * k] += f * north_m
+        self._dt += dt_s
+        if self.hold_q > 0.0 and age_s > self.hold_grace_s:
+            a1 = age_s - self.hold_grace_s
+            a0 = max(a1 - dt_s, 0.0)
+            self._held += self.hold_q * (a1 ** 3 - a0 ** 3) / 3.0
 
     def _propagate(self) -> None:
-        n, e, dt = self._pending
-        if dt == 0.0 and n == 0.0 and e == 0.0:
+        g, dt, held = self._g, self._dt, self._held
+        if dt == 0.0 and held == 0.0 and self._turned == 0.0 and not any(g):
             return
-        p, q = self.p, self.q
-        for i in range(4):
+        p, q, n = self.p, self.q, self.n
+        for i in range(n):
             p[i][i] += q[i] * dt
-        a0, a1, b0, b1 = -e, n, n, e
-        self.x = _moved(self.x, a0, a1, b0, b1)
-        # F·P·Fᵀ with F = I + G: G adds rows 2 and 3 into rows 0 and 1, then the same for the columns
-        r2, r3 = p[2], p[3]
-        p[0] = [p[0][j] + a0 * r2[j] + b0 * r3[j] for j in range(4)]
-        p[1] = [p[1][j] + a1 * r2[j] + b1 * r3[j] for j in range(4)]
+        p[0][0] += held
+        p[1][1] += held
+        p[2][2] += self.turn_q * self._turned
+        self.x = _moved(self.x, g)
+        # F·P·Fᵀ with F = I + G: G adds rows 2..n-1 into rows 0 and 1, then the same for the columns
+        row0, row1 = list(p[0]), list(p[1])
+        for k in range(2, n):
+            rk, g0, g1 = p[k], g[2 * k - 4], g[2 * k - 3]
+            for j in range(n):
+                row0[j] += g0 * rk[j]
+                row1[j] += g1 * rk[j]
+        p[0], p[1] = row0, row1
         for row in p:
-            row[0], row[1] = row[0] + a0 * row[2] + b0 * row[3], row[1] + a1 * row[2] + b1 * row[3]
+            a = b = 0.0
+            for k in range(2, n):
+                a += g[2 * k - 4] * row[k]
+                b += g[2 * k - 3] * row[k]
+            row[0] += a
+            row[1] += b
         c = self._cum
-        self._cum = (c[0] + a0, c[1] + a1, c[2] + b0, c[3] + b1, c[4] + dt)
-        self._pending = [0.0, 0.0, 0.0]
+        self._cum = tuple(c[i] + g[i] for i in range(len(g))) + (c[-3] + dt, c[-2] + held, c[-1] + self._turned)
+        self._g = [0.0] * len(g)
+        self._dt = self._held = self._turned = 0.0
 
     def _forget(self, t_s: float) -> None:
         """Drop the states that a newer one at least lag_s old (at t_s) replaces."""
@@ -153,13 +213,18 @@ class DrErrorModel:
         if not snaps or snaps[0][0] > t_s - self.lag_s:
             return None
         _, x, p, cum = snaps[0]
-        c = self._cum
-        a0, a1, b0, b1, dt = (c[k] - cum[k] for k in range(5))
-        hx = h0 * (x[0] + a0 * x[2] + b0 * x[3]) + h1 * (x[1] + a1 * x[2] + b1 * x[3])
-        # h·F·(P + Q dt)·Fᵀ·hᵀ = g·(P + Q dt)·gᵀ with g = Fᵀ·hᵀ
-        g = (h0, h1, a0 * h0 + a1 * h1, b0 * h0 + b1 * h1)
+        c, n = self._cum, self.n
+        d = [c[i] - cum[i] for i in range(len(c))]
+        dt, held, turned = d[-3], d[-2], d[-1]
+        # g = Fᵀ·hᵀ: h on d, and on each state k >= 2 the sum of h along its column of G
+        g = [h0, h1] + [h0 * d[2 * k - 4] + h1 * d[2 * k - 3] for k in range(2, n)]
+        hx = sum(g[i] * x[i] for i in range(n))
+        # h·F·(P + Q dt)·Fᵀ·hᵀ = g·(P + Q dt)·gᵀ (the noise of the whole interval put at its start, the held
+        # variance too: a bound rather than the exact sum over the steps)
         q = self.q
-        var = sum(g[i] * (sum(p[i][j] * g[j] for j in range(4)) + q[i] * dt * g[i]) for i in range(4))
+        var = sum(g[i] * (sum(p[i][j] * g[j] for j in range(n)) + q[i] * dt * g[i]) for i in range(n))
+        # the turns' heading walk too, at the interval's start: it turns the whole displacement
+        var += held * (h0 * h0 + h1 * h1) + self.turn_q * turned * g[2] * g[2]
         return hx, var
 
     def range(self, t_s: float, leader: str, z_m: float, north_m: float, east_m: float,
@@ -170,8 +235,8 @@ class DrErrorModel:
         if not r > 0.0 or not math.isfinite(z_m):
             return LaggedResidual(NAN, NAN, NAN, NAN)
         h0, h1 = -north_m / r, -east_m / r
-        x, p = self.x, self.p
-        ph = [p[i][0] * h0 + p[i][1] * h1 for i in range(4)]
+        x, p, n = self.x, self.p, self.n
+        ph = [p[i][0] * h0 + p[i][1] * h1 for i in range(n)]
         s = h0 * ph[0] + h1 * ph[1] + self.r_var
         v = z_m - r - (h0 * x[0] + h1 * x[1])
         lagged = self._lagged(t_s, h0, h1)
@@ -187,26 +252,26 @@ class DrErrorModel:
             self._gated_out[leader] = gated_out + 1
         elif not repeated:
             self._gated_out[leader] = 0
-            k = [ph[i] / s for i in range(4)]
-            self.x = [x[i] + k[i] * v for i in range(4)]
-            self.p = [[p[i][j] - k[i] * ph[j] for j in range(4)] for i in range(4)]
+            k = [ph[i] / s for i in range(n)]
+            self.x = [x[i] + k[i] * v for i in range(n)]
+            self.p = [[p[i][j] - k[i] * ph[j] for j in range(n)] for i in range(n)]
         self._remember(t_s)
         return out
 
     def fix(self, t_s: float, north_m: float, east_m: float, cov_m2: tuple[float, float, float]) -> None:
         """A position fix: d measured as (north_m, east_m), DR minus the fix, with covariance (nn, ne, ee) m²."""
         self._propagate()
-        p, x = self.p, self.x
+        p, x, n = self.p, self.x, self.n
         snn, sne, see = p[0][0] + cov_m2[0], p[0][1] + cov_m2[1], p[1][1] + cov_m2[2]
         det = snn * see - sne * sne
         if not det > 0.0:
             return
         inn, ine, iee = see / det, -sne / det, snn / det
-        # K = P[:, :2]·S⁻¹ (4 x 2); x += K·(fix - d); P -= K·P[:2, :]
-        k = [(p[i][0] * inn + p[i][1] * ine, p[i][0] * ine + p[i][1] * iee) for i in range(4)]
+        # K = P[:, :2]·S⁻¹ (n x 2); x += K·(fix - d); P -= K·P[:2, :]
+        k = [(p[i][0] * inn + p[i][1] * ine, p[i][0] * ine + p[i][1] * iee) for i in range(n)]
         rn, re = north_m - x[0], east_m - x[1]
-        self.x = [x[i] + k[i][0] * rn + k[i][1] * re for i in range(4)]
-        new = [[p[i][j] - k[i][0] * p[0][j] - k[i][1] * p[1][j] for j in range(4)] for i in range(4)]
-        self.p = [[0.5 * (new[i][j] + new[j][i]) for j in range(4)] for i in range(4)]
+        self.x = [x[i] + k[i][0] * rn + k[i][1] * re for i in range(n)]
+        new = [[p[i][j] - k[i][0] * p[0][j] - k[i][1] * p[1][j] for j in range(n)] for i in range(n)]
+        self.p = [[0.5 * (new[i][j] + new[j][i]) for j in range(n)] for i in range(n)]
         self.last_fix_s = float(t_s)
         self._remember(t_s)

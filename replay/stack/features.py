@@ -46,7 +46,12 @@ filter, and are the same for every method of a run:
   ``exclusion_residual_m`` or ``lag_residual_m`` (``drift_source``), else
   ``dr_residual_m``. What the drift CUSUM sums and ``drift_reference`` tests;
 - ``drift_z``: the drift residual standardized by the mission's own recent
-  past: (x - median) / max(1.4826 MAD, ``scale_floor_m``) over the drift
+  past. With ``scale_by_model`` (the default, drift source "model") x is
+  first scaled to the range noise by the model's predicted sigma,
+  x·r / sqrt(var), so what the model says widens the residual (a held DR
+  step without bottom lock) raises no alarm by itself (issue 26:
+  docs/detection.md section 5); then
+  (x - median) / max(1.4826 MAD, ``scale_floor_m``) over the drift
   residuals of EVERY leader (``scale_pooled``, the default) of the last
   ``scale_pooled_window_s`` (900 s) that are older than ``lag_s`` (60 s)
   and not from a repeated range, NaN with fewer than ``scale_min_samples``
@@ -201,7 +206,10 @@ class FeatureTracker:
             config.model_q_m2_per_s, math.radians(config.model_heading_walk_deg_per_sqrt_s),
             config.model_scale_walk_per_sqrt_s, range_sigma_m, p0_m, math.radians(config.model_heading_sigma_deg),
             config.model_scale_sigma, config.lag_s, config.model_gate_sigma, config.model_gate_cap,
+            config.model_hold_q_m2_per_s3, config.model_hold_grace_s,
+            math.radians(config.model_deviation_sigma_deg), math.radians(config.model_turn_deg_per_sqrt_rad),
         )) if config.drift_source == "model" else None
+        self._range_sigma_m = float(range_sigma_m)
         self.dr = [float(position[0]), float(position[1])]
         self.anchor: list[float] | None = None
         self.anchor_t = -math.inf
@@ -214,8 +222,12 @@ class FeatureTracker:
         self._lagged: deque[tuple[float, float, float, float, float]] = deque()   # t, reference, dr at t
 
     def propagate(self, dt_s: float, forward_mps: float, lateral_mps: float, heading_rad: float,
-                  depth_m: float) -> None:
-        """Carry dead reckoning and the anchor forward by one DR step (A.1, radii at the start of the step)."""
+                  depth_m: float, age_s: float = 0.0) -> None:
+        """Carry dead reckoning and the anchor forward by one DR step (A.1, radii at the start of the step).
+
+        ``age_s``: the age at the step's end of the DR sample whose velocity it carries (the DR error model's
+        held steps).
+        """
         if self.exclusion is not None:
             self.exclusion.propagate(dt_s, forward_mps, lateral_mps, heading_rad, depth_m)
         if self.stiff is not None:
@@ -224,7 +236,7 @@ class FeatureTracker:
         north = dt_s * (forward_mps * c - lateral_mps * s)
         east = dt_s * (forward_mps * s + lateral_mps * c)
         if self.model is not None:
-            self.model.step(dt_s, north, east)
+            self.model.step(dt_s, north, east, age_s, heading_rad)
         for p in (self.dr, self.anchor):
             if p is not None:
                 b, a = metric_scales_scalar(p[0], depth_m)
@@ -264,6 +276,7 @@ class FeatureTracker:
         """
         cfg = self.config
         lag = self._lag_residual(t_s, z_m, depth_m, geo, reference)
+        scaled = NAN
         self._repeats[leader] = self._repeats[leader] + 1 if self._last_slant.get(leader) == slant_m else 0
         self._last_slant[leader] = slant_m
         e = z_m - range_to(self.dr[0], self.dr[1], depth_m, *geo)
@@ -290,7 +303,12 @@ class FeatureTracker:
             # younger than lag_s holds the filter: the lagged state has not seen that fix, and fixes keep the
             # filter off a drift (dev seeds 1-9 with fixes: FNR at 2 % 0.051 against the lagged one's 0.071)
             fresh_fix = t_s - self.model.last_fix_s <= cfg.lag_s
-            drift = res.lagged_m if math.isfinite(res.lagged_m) and not fresh_fix else res.innovation_m
+            lagged = math.isfinite(res.lagged_m) and not fresh_fix
+            drift = res.lagged_m if lagged else res.innovation_m
+            var = res.lagged_var_m2 if lagged else res.innovation_var_m2
+            if cfg.scale_by_model and var > 0.0:
+                # in metres at the range noise alone: the pooled median and MAD then see one spread
+                scaled = drift * self._range_sigma_m / math.sqrt(var)
         elif self.stiff is not None:
             drift = self.stiff.range(leader, z_m, *rel, self._repeats[leader] > 0)
         else:
@@ -299,7 +317,8 @@ class FeatureTracker:
         up, down, _ = self._cusum[leader].step(drift)
         pool = ("drift", "*") if cfg.scale_pooled else ("drift", leader)
         return (float(self._repeats[leader]), d, consistency, usbl, lag, drift, max(up, down), excl,
-                self._standardized(t_s, pool, drift, keep=not (cfg.scale_pooled and self._repeats[leader] > 0),
+                self._standardized(t_s, pool, scaled if math.isfinite(scaled) else drift,
+                                   keep=not (cfg.scale_pooled and self._repeats[leader] > 0),
                                    window_s=cfg.scale_pooled_window_s if cfg.scale_pooled else None),
                 self._standardized(t_s, ("excl", leader), excl) if self.exclusion is not None else NAN)
 

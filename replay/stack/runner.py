@@ -350,7 +350,8 @@ class CooperativeRunner:
                 nxt = done[m.state] = dr_predict(m.state, dt, fwd, lat_v, hdg, self._depth, q)
             m.state = nxt
         if self.parts.features is not None:
-            self.parts.features.propagate(dt, fwd, lat_v, hdg, self._depth)
+            # the age of the DR sample carried: beyond a few seconds the DVL has lost bottom lock (model)
+            self.parts.features.propagate(dt, fwd, lat_v, hdg, self._depth, t_s - self._t_dr)
         self._t = t_s
 
     def _record(self) -> None:

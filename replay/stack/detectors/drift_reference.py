@@ -21,7 +21,11 @@ quantile of drift_z did not predict the same trial's after t_a (r = 0.01,
 measured on the stiff reference), so a trained h_z carried no information
 about the test. 2.5 flags about 2 % of the normal epochs after t_a of
 seeds 0-19 closed loop (2.4: 2.1 % on 0-9 and on 10-19; 2.6: 1.9 % and
-1.5 %; with |residual| > T1 beside it).
+1.5 %; with |residual| > T1 beside it). With drift_z scaled by the DR error
+model's predicted sigma (issue 26) it was kept: on seeds 1-4 trained on 0
+it flagged 1.4 % (default scenario) and 1.6 % (bottom-lock loss), against
+1.6 % and 8.0 % unscaled without the held-step term; the held-out figures
+are in docs/detection.md section 5.
 Where drift_z is NaN (the first ~70 s of a run) the metres threshold h_m
 decides: the (1 - ``detection_fpr_target``) quantile of |drift_residual_m|
 over the training rows labelled normal, never below ``t1_m``. The runner
