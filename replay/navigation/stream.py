@@ -304,7 +304,6 @@ class NavigationStream:
 
     def _dvl_rows(self, dvl: np.ndarray, settled: float) -> None:
         """Settled DVL rows: series, counts, bottom lock, the velocity model, then the fixes settled with them."""
-        c = self.config
         t, vx, vy, alt = dvl[:, 0], dvl[:, 1], dvl[:, 2], dvl[:, 3]
         valid, frame = dvl[:, 4] != 0, dvl[:, 5].astype(np.int64)
         fin = np.isfinite(vx) & np.isfinite(vy)
