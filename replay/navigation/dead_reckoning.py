@@ -36,7 +36,8 @@ from replay.stack.model import horizontal_distance_m, metric_scales
 
 from .columns import BODY_FRD, EARTH_NED, DvlColumns, FixColumns, InsColumns
 
-__all__ = ["DeadReckoning", "VelocityModel", "dead_reckon", "heading_at", "heading_between", "offset_to_latlon", "velocity_model"]
+__all__ = ["DeadReckoning", "VelocityModel", "dead_reckon", "heading_at", "heading_between", "offset_to_latlon",
+           "velocity_model"]
 
 _CHANNELS = 4  # north, east, speed (path length) and "carried" (seconds on a held velocity)
 

@@ -23,8 +23,8 @@ from .dead_reckoning import DeadReckoning, dead_reckon
 from .drift import Dives, FixErrors, dives, fix_errors
 from .series import NavigationSeries, navigation_series
 
-__all__ = ["DR_METHOD", "INS_METHOD", "NavigationConfig", "NavigationReview", "NavigationScore", "SensorCounts", "notes",
-           "review_metrics", "review_vehicle", "scores"]
+__all__ = ["DR_METHOD", "INS_METHOD", "NavigationConfig", "NavigationReview", "NavigationScore", "SensorCounts",
+           "notes", "review_metrics", "review_vehicle", "scores"]
 
 DR_METHOD = "dead_reckoning (DVL)"
 INS_METHOD = "ins"
