@@ -82,7 +82,8 @@ class NavigationReview:
     figures (dives found, DR unknown or carried, rows dropped). `columns`
     holds the samples when the review was computed on whole-mission columns;
     the streamed review (`stream.NavigationStream`) keeps none, its DR track
-    one point a second and its series at most a bounded number of points.
+    one point a second (no DR position at the fixes) and its series at most a
+    bounded number of points.
     """
 
     vehicle: str

@@ -14,7 +14,9 @@ the same order as the whole-mission cumulative sums, so the figures are the
 same to the bit (tests/test_navigation_stream.py holds them to it).
 
 What it keeps grows with what the review outputs, not with the samples: per
-fix its errors, per bottom-lock gap and per `lock_bin_s` bin a few numbers,
+fix its time, errors, DR path and carried seconds and the INS path length
+(the DR positions at the fixes are not kept: `DeadReckoning.fix_lat_deg`
+and `fix_lon_deg` are empty), per bottom-lock gap and per `lock_bin_s` bin a few numbers,
 the DR track one point a second (what the views draw of it), and each series
 at most `series_cap` points (every sample while fewer, then every 2nd, 4th,
 ... one).
@@ -135,10 +137,13 @@ class NavigationStream:
         self._keep_s = max(c.heading_max_gap_s, c.ins_max_age_s) + 1.0  # INS kept behind what is settled
         self._rows: dict[str, list[tuple[float, ...]]] = {"gps": [], "dvl": [], "ins": [], "depth": []}
         self.pending = 0
-        # fixes: all of them (the review outputs a row per fix); figures filled as they settle
-        self._fix = [array("d") for _ in range(3)]
+        # fixes: the time of each (the review outputs a row per fix), figures filled as they settle; the
+        # positions only of those not settled yet and of the last settled one (the next one's DR starts there)
+        self._fix_t = array("d")
+        self._fix_ll: list[tuple[float, float]] = []
+        self._anchor_ll = (math.nan, math.nan)
         self._fix_bad = 0
-        self._out = {k: array("d") for k in ("lat", "lon", "err", "path", "held", "ins_err")}
+        self._out = {k: array("d") for k in ("err", "path", "held", "ins_err")}
         self._path_at = array("d")
         self._path_queue = 0        # first fix whose INS path length is not known yet
         self._anchor: _State | None = None   # the last settled fix's DVL state (its interval)
@@ -195,8 +200,8 @@ class NavigationStream:
         fixes = self._take("gps", 3, math.inf)
         keep = np.isfinite(fixes).all(axis=1)
         self._fix_bad += int((~keep).sum())
-        for col, values in zip(self._fix, fixes[keep].T, strict=True):
-            col.extend(values.tolist())
+        self._fix_t.extend(fixes[keep, 0].tolist())
+        self._fix_ll.extend(zip(fixes[keep, 1].tolist(), fixes[keep, 2].tolist(), strict=True))
         self._path_at.extend([math.nan] * int(keep.sum()))
         depth = self._take("depth", 2, math.inf)
         self._series["depth_sensor"].add(depth[:, 0], depth[:, 1])
@@ -260,7 +265,7 @@ class NavigationStream:
             self._p_count += int(fp.sum())
             self._p_last = (float(tp[-1]), float(la[-1]), float(lo[-1]), float(c[-1]))
             # fixes waiting for an INS solution after them: np.interp between the two around them
-            ft = np.frombuffer(self._fix[0], dtype=np.float64)
+            ft = np.frombuffer(self._fix_t, dtype=np.float64)
             q = self._path_queue
             done = q + int(np.searchsorted(ft[q:], ext_t[-1], side="left"))
             if done > q:
@@ -274,7 +279,7 @@ class NavigationStream:
 
     def _finish_path(self) -> None:
         """The fixes no INS solution came after: the path at the last one (np.interp's end), else unknown."""
-        ft = np.frombuffer(self._fix[0], dtype=np.float64)
+        ft = np.frombuffer(self._fix_t, dtype=np.float64)
         q = self._path_queue
         if self._p_last is not None and q < ft.size:
             pt, _, _, pc = self._p_last
@@ -283,7 +288,7 @@ class NavigationStream:
             out[at < self._p_first_t] = np.nan
             self._path_at[q:] = array("d", out.tolist())
         del ft
-        self._path_queue = len(self._fix[0])
+        self._path_queue = len(self._fix_t)
 
     def _trim_ins(self, cutoff: float) -> None:
         """Keep the INS rows from `cutoff` on, and before it the last with a heading and the last two with a
@@ -404,14 +409,14 @@ class NavigationStream:
 
     def _fixes_and_track(self, ext: _State, g0: int, settled: float) -> None:
         """DR and INS errors at the fixes settled now, and the DR track (one point a second) of the new samples."""
-        ft_all = np.frombuffer(self._fix[0], dtype=np.float64)
+        ft_all = np.frombuffer(self._fix_t, dtype=np.float64)
         i0 = len(self._out["err"])
         i1 = int(np.searchsorted(ft_all, settled, side="left"))
         ft = ft_all[i0:i1].copy()
         del ft_all
-        lat = np.frombuffer(self._fix[1], dtype=np.float64)[i0:i1].copy()
-        lon = np.frombuffer(self._fix[2], dtype=np.float64)[i0:i1].copy()
-        flat, flon = np.radians(lat), np.radians(lon)
+        ll = np.array(self._fix_ll[: i1 - i0], dtype=np.float64).reshape(-1, 2)
+        del self._fix_ll[: i1 - i0]
+        flat, flon = np.radians(ll[:, 0]), np.radians(ll[:, 1])
         m = ft.size
         n_prev = int(ext.g.size)
         # each fix's interval: the last sample at or before it (a); the last one before it (b)
@@ -422,8 +427,8 @@ class NavigationStream:
         b_lt = _State.pick(none, ext.take(np.maximum(kb, 0)), kb >= 0) if n_prev else none
         if i0 > 0 and self._anchor is not None:
             anchor_prev = self._anchor
-            prev_t = np.array([self._fix[0][i0 - 1]])
-            prev_lat, prev_lon = np.radians([self._fix[1][i0 - 1]]), np.radians([self._fix[2][i0 - 1]])
+            prev_t = np.array([self._fix_t[i0 - 1]])
+            prev_lat, prev_lon = np.radians([self._anchor_ll[0]]), np.radians([self._anchor_ll[1]])
         else:
             anchor_prev = _none(1)      # before the first fix: no anchor (a time before any sample)
             prev_t, prev_lat, prev_lon = np.full(1, -np.inf), np.full(1, np.nan), np.full(1, np.nan)
@@ -436,15 +441,13 @@ class NavigationStream:
                                       np.concatenate([prev_lon, flon[:-1]]))
             err = horizontal_distance_m(la, lo, flat, flon)
             path, held = d[:, 2].copy(), d[:, 3].copy()
-            dlat, dlon = np.degrees(la), np.degrees(lo)
             if i0 == 0:    # the first fix: nothing ran to it
-                dlat[0] = dlon[0] = err[0] = path[0] = held[0] = np.nan
+                err[0] = path[0] = held[0] = np.nan
             w = self._ins
             ins = InsColumns(*(w[:, j] for j in range(7)))
             ilat, ilon = ins_before(ins, ft, self.config.ins_max_age_s)
             ins_err = horizontal_distance_m(np.radians(ilat), np.radians(ilon), flat, flon)
-            for key, values in (("lat", dlat), ("lon", dlon), ("err", err), ("path", path), ("held", held),
-                                ("ins_err", ins_err)):
+            for key, values in (("err", err), ("path", path), ("held", held), ("ins_err", ins_err)):
                 self._out[key].extend(values.tolist())
         # the track of the new samples: each anchored at the last fix at or before it
         new = ext.take(np.flatnonzero(ext.g >= g0))
@@ -453,6 +456,7 @@ class NavigationStream:
         alat, alon = np.concatenate([prev_lat, flat]), np.concatenate([prev_lon, flon])
         if m:
             self._anchor = a.take(np.array([m - 1]))
+            self._anchor_ll = (float(ll[-1, 0]), float(ll[-1, 1]))
         if new.g.size:
             k = np.searchsorted(at, new.t, side="right") - 1
             on = (k >= 0) & (anchors.g[np.maximum(k, 0)] >= 0)
@@ -478,13 +482,15 @@ class NavigationStream:
         """Settle everything and return the review (the same figures as `review_vehicle` on the whole columns)."""
         self._step(math.inf)
         c = self.config
-        ft, flat, flon = (np.frombuffer(a, dtype=np.float64).copy() for a in self._fix)
-        o = {k: np.frombuffer(v, dtype=np.float64).copy() for k, v in self._out.items()}
-        path_at = np.frombuffer(self._path_at, dtype=np.float64).copy()
+        # views of the stored figures, not copies (a day of fixes every second is 86,400 rows)
+        ft = np.frombuffer(self._fix_t, dtype=np.float64)
+        o = {k: np.frombuffer(v, dtype=np.float64) for k, v in self._out.items()}
+        path_at = np.frombuffer(self._path_at, dtype=np.float64)
         if self._p_count < 2:
-            path_at[:] = np.nan
+            path_at = np.full(ft.shape, np.nan)
         track = np.concatenate(self._track) if self._track else np.empty((0, 3))
-        dr = DeadReckoning(track[:, 0], track[:, 1], track[:, 2], ft, o["lat"], o["lon"], o["err"], o["path"],
+        self._track = []
+        dr = DeadReckoning(track[:, 0], track[:, 1], track[:, 2], ft, np.empty(0), np.empty(0), o["err"], o["path"],
                            o["held"], c.dvl_hold_s)
         errors = fix_table(ft, o["err"], o["path"], o["held"], o["ins_err"], path_at, c.dive_gap_s)
         dv = dives(errors)
