@@ -17,7 +17,7 @@ What it keeps grows with what the review outputs, not with the samples: per
 fix its time, errors, DR path and carried seconds and the INS path length
 (the DR positions at the fixes are not kept: `DeadReckoning.fix_lat_deg`
 and `fix_lon_deg` are empty), per bottom-lock gap and per `lock_bin_s` bin a few numbers,
-the DR track one point a second (what the views draw of it), and each series
+the DR track one point a second (what the views draw of it) and each series,
 at most `series_cap` points (every sample while fewer, then every 2nd, 4th,
 ... one).
 """
@@ -151,8 +151,10 @@ class NavigationStream:
         self._prev: _State | None = None     # the last settled velocity sample
         self._prev_usable = (-1, math.nan, math.nan, 0, math.nan)    # (g, x, y, frame, t) of the last usable one
         self._n_vel = 0
-        self._track: list[np.ndarray] = []
+        self._track = (_Decimated(series_cap), _Decimated(series_cap))   # DR latitude and longitude
         self._track_second = -math.inf
+        self._settled_fixes = 0
+        self._dr_from = -1     # the first settled fix whose DR figures are stored (before any DVL sample: NaN)
         # INS carried: unwrapped heading's last value and running correction, path length, the recent rows
         self._h_last: float | None = None
         self._h_corr: float | None = None
@@ -410,7 +412,7 @@ class NavigationStream:
     def _fixes_and_track(self, ext: _State, g0: int, settled: float) -> None:
         """DR and INS errors at the fixes settled now, and the DR track (one point a second) of the new samples."""
         ft_all = np.frombuffer(self._fix_t, dtype=np.float64)
-        i0 = len(self._out["err"])
+        i0 = self._settled_fixes
         i1 = int(np.searchsorted(ft_all, settled, side="left"))
         ft = ft_all[i0:i1].copy()
         del ft_all
@@ -447,8 +449,13 @@ class NavigationStream:
             ins = InsColumns(*(w[:, j] for j in range(7)))
             ilat, ilon = ins_before(ins, ft, self.config.ins_max_age_s)
             ins_err = horizontal_distance_m(np.radians(ilat), np.radians(ilon), flat, flon)
-            for key, values in (("err", err), ("path", path), ("held", held), ("ins_err", ins_err)):
-                self._out[key].extend(values.tolist())
+            self._out["ins_err"].extend(ins_err.tolist())
+            self._settled_fixes = i1
+            if self._n_vel:       # no DVL sample yet: every DR figure is unknown, none is stored
+                if self._dr_from < 0:
+                    self._dr_from = i0
+                for key, values in (("err", err), ("path", path), ("held", held)):
+                    self._out[key].extend(values.tolist())
         # the track of the new samples: each anchored at the last fix at or before it
         new = ext.take(np.flatnonzero(ext.g >= g0))
         anchors = _State.cat(anchor_prev, a) if m else anchor_prev
@@ -475,7 +482,8 @@ class NavigationStream:
                 first = np.diff(sec, prepend=self._track_second) > 0
                 if tt.size:
                     self._track_second = float(sec[-1])
-                self._track.append(np.column_stack([tt[first], la[first], lo[first]]))
+                self._track[0].add(tt[first], la[first])
+                self._track[1].add(tt[first], lo[first])
 
     # -- the end ----------------------------------------------------------------------------------------------------
     def finish(self, dropped: dict[str, int] | None = None) -> NavigationReview:
@@ -485,12 +493,15 @@ class NavigationStream:
         # views of the stored figures, not copies (a day of fixes every second is 86,400 rows)
         ft = np.frombuffer(self._fix_t, dtype=np.float64)
         o = {k: np.frombuffer(v, dtype=np.float64) for k, v in self._out.items()}
+        if self._dr_from != 0:        # the fixes before the first DVL sample: NaN
+            before = self._dr_from if self._dr_from > 0 else ft.size
+            for k in ("err", "path", "held"):
+                o[k] = np.concatenate([np.full(before, np.nan), o[k]])
         path_at = np.frombuffer(self._path_at, dtype=np.float64)
         if self._p_count < 2:
             path_at = np.full(ft.shape, np.nan)
-        track = np.concatenate(self._track) if self._track else np.empty((0, 3))
-        self._track = []
-        dr = DeadReckoning(track[:, 0], track[:, 1], track[:, 2], ft, np.empty(0), np.empty(0), o["err"], o["path"],
+        (track_t, lat), (_, lon) = self._track[0].arrays(), self._track[1].arrays()
+        dr = DeadReckoning(track_t, lat, lon, ft, np.empty(0), np.empty(0), o["err"], o["path"],
                            o["held"], c.dvl_hold_s)
         errors = fix_table(ft, o["err"], o["path"], o["held"], o["ins_err"], path_at, c.dive_gap_s)
         dv = dives(errors)
