@@ -317,7 +317,6 @@ class ColumnCollector:
         self._last_ins[vehicle] = last
 
     def _append(self, vehicle: str, kind: str, t: float, msg: Any, topic: str) -> None:
-        c = self._cols[vehicle][kind]
         try:
             if kind == "gps":
                 row: tuple[float, ...] = (t, msg.latitude, msg.longitude)
@@ -325,15 +324,18 @@ class ColumnCollector:
                 row = (t, msg.latitude, msg.longitude, msg.heading_deg, msg.depth_m, msg.velocity_north_mps,
                        msg.velocity_east_mps)
             elif kind == "dvl":
-                row = (t, msg.velocity_x_mps, msg.velocity_y_mps, msg.altitude_m)
-                c[4].append(1 if msg.valid else 0)
-                c[5].append(int(msg.frame) if 0 <= int(msg.frame) <= 3 else 0)
+                row = (t, msg.velocity_x_mps, msg.velocity_y_mps, msg.altitude_m, 1 if msg.valid else 0,
+                       int(msg.frame) if 0 <= int(msg.frame) <= 3 else 0)
             else:
                 row = (t, _depth_value(msg))
         except AttributeError:  # a topic of that name holding another schema
             self.dropped[vehicle][f"{topic}: not a {kind} message"] += 1
             return
-        for col, value in zip(c, row):
+        self._store(vehicle, kind, row)
+
+    def _store(self, vehicle: str, kind: str, row: tuple[float, ...]) -> None:
+        """Keep one row (time first; a DVL row ends with its valid flag and frame): here, in whole-mission columns."""
+        for col, value in zip(self._cols[vehicle][kind], row):
             col.append(value)
 
     def columns(self, vehicle: str) -> VehicleColumns:

@@ -36,7 +36,8 @@ from replay.stack.model import horizontal_distance_m, metric_scales
 
 from .columns import BODY_FRD, EARTH_NED, DvlColumns, FixColumns, InsColumns
 
-__all__ = ["DeadReckoning", "VelocityModel", "dead_reckon", "heading_at", "offset_to_latlon", "velocity_model"]
+__all__ = ["DeadReckoning", "VelocityModel", "dead_reckon", "heading_at", "heading_between", "offset_to_latlon",
+           "velocity_model"]
 
 _CHANNELS = 4  # north, east, speed (path length) and "carried" (seconds on a held velocity)
 
@@ -51,10 +52,14 @@ def heading_at(t_s: np.ndarray, heading_t_s: np.ndarray, heading_deg: np.ndarray
     t_s = np.asarray(t_s, dtype=np.float64)
     keep = np.isfinite(heading_t_s) & np.isfinite(heading_deg)
     ht, hd = heading_t_s[keep], heading_deg[keep]
+    return heading_between(t_s, ht, np.unwrap(np.radians(hd)) if ht.size else hd, max_gap_s)
+
+
+def heading_between(t_s: np.ndarray, ht: np.ndarray, unwrapped: np.ndarray, max_gap_s: float) -> np.ndarray:
+    """Heading (rad, [0, 2π)) at `t_s` from finite heading samples already unwrapped (`heading_at`'s rule)."""
     out = np.full(t_s.shape, np.nan)
     if ht.size == 0:
         return out
-    unwrapped = np.unwrap(np.radians(hd))
     after = np.searchsorted(ht, t_s, side="left")          # first sample at or after t
     before = np.searchsorted(ht, t_s, side="right") - 1    # last sample at or before t
     ok = (before >= 0) & (after < ht.size)

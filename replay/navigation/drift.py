@@ -24,7 +24,7 @@ from replay.stack.model import horizontal_distance_m, horizontal_offset_m
 from .columns import FixColumns, InsColumns
 from .dead_reckoning import DeadReckoning, offset_to_latlon
 
-__all__ = ["Dives", "FixErrors", "dives", "fix_errors", "ins_before"]
+__all__ = ["Dives", "FixErrors", "dives", "fix_errors", "fix_table", "ins_before", "ins_error_at"]
 
 
 def ins_before(ins: InsColumns, t_s: np.ndarray, max_age_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -90,17 +90,28 @@ def fix_errors(fixes: FixColumns, dr: DeadReckoning, ins: InsColumns, dive_gap_s
                ins_max_age_s: float = 5.0) -> FixErrors:
     """DR and INS errors against every GPS fix, with the dive-ending fixes marked."""
     t = fixes.t_s
+    path = _path_at(ins.t_s, ins.lat_deg, ins.lon_deg, t)
+    return fix_table(t, dr.fix_error_m, dr.fix_path_m, dr.fix_held_s, ins_error_at(fixes, ins, ins_max_age_s),
+                     path, dive_gap_s)
+
+
+def ins_error_at(fixes: FixColumns, ins: InsColumns, ins_max_age_s: float) -> np.ndarray:
+    """Distance (m) from the INS just before each fix (`ins_before`) to the fix; NaN where there is none."""
+    ilat, ilon = ins_before(ins, fixes.t_s, ins_max_age_s)
+    return horizontal_distance_m(np.radians(ilat), np.radians(ilon), np.radians(fixes.lat_deg),
+                                 np.radians(fixes.lon_deg))
+
+
+def fix_table(t: np.ndarray, dr_error_m: np.ndarray, dr_path_m: np.ndarray, dr_held_s: np.ndarray,
+              ins_error_m: np.ndarray, ins_path_at_m: np.ndarray, dive_gap_s: float) -> FixErrors:
+    """The fix-error table from per-fix figures (`ins_path_at_m`: the INS path length from its start to each fix)."""
     since = np.full(t.shape, np.nan)
     since[1:] = np.diff(t)
-    ilat, ilon = ins_before(ins, t, ins_max_age_s)
-    ins_err = horizontal_distance_m(np.radians(ilat), np.radians(ilon), np.radians(fixes.lat_deg),
-                                    np.radians(fixes.lon_deg))
-    path = _path_at(ins.t_s, ins.lat_deg, ins.lon_deg, t)
     ins_path = np.full(t.shape, np.nan)
-    ins_path[1:] = np.diff(path)
+    ins_path[1:] = np.diff(ins_path_at_m)
     dive_end = np.zeros(t.shape, dtype=bool)
     dive_end[1:] = since[1:] > dive_gap_s
-    return FixErrors(t, since, dr.fix_error_m, dr.fix_path_m, dr.fix_held_s, ins_err, ins_path, dive_end)
+    return FixErrors(t, since, dr_error_m, dr_path_m, dr_held_s, ins_error_m, ins_path, dive_end)
 
 
 @dataclass(frozen=True)

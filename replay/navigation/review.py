@@ -23,8 +23,8 @@ from .dead_reckoning import DeadReckoning, dead_reckon
 from .drift import Dives, FixErrors, dives, fix_errors
 from .series import NavigationSeries, navigation_series
 
-__all__ = ["DR_METHOD", "INS_METHOD", "NavigationConfig", "NavigationReview", "NavigationScore", "review_metrics",
-           "review_vehicle", "scores"]
+__all__ = ["DR_METHOD", "INS_METHOD", "NavigationConfig", "NavigationReview", "NavigationScore", "SensorCounts",
+           "notes", "review_metrics", "review_vehicle", "scores"]
 
 DR_METHOD = "dead_reckoning (DVL)"
 INS_METHOD = "ins"
@@ -56,17 +56,41 @@ class NavigationConfig:
 
 
 @dataclass(frozen=True)
+class SensorCounts:
+    """What the notes and the scoreboard need to know of the samples: DVL samples measuring velocity, those of
+    them without bottom lock or a usable frame, altitude-only (rangefinder) samples, and whether the INS ever
+    gave a latitude."""
+
+    dvl_velocity: int
+    dvl_unusable: int
+    dvl_ranging: int
+    ins_positions: bool
+
+    @classmethod
+    def of(cls, cols: VehicleColumns) -> SensorCounts:
+        """The counts of whole-mission columns."""
+        velocity = cols.dvl.velocities()
+        return cls(int(velocity.t_s.size), int((~velocity.usable).sum()), int(cols.dvl.ranging.sum()),
+                   bool(np.isfinite(cols.ins.lat_deg).any()))
+
+
+@dataclass(frozen=True)
 class NavigationReview:
     """Everything the review computed for one vehicle; times in mission seconds from `start_ns` (UTC ns).
 
     `notes` says in plain lines what a reviewer should know about the
-    figures (dives found, DR unknown or carried, rows dropped).
+    figures (dives found, DR unknown or carried, rows dropped). `columns`
+    holds the samples when the review was computed on whole-mission columns;
+    the streamed review (`stream.NavigationStream`) keeps none, its DR track
+    one point a second (no DR position at the fixes) and its series at most a
+    bounded number of points.
     """
 
     vehicle: str
     start_ns: int
     config: NavigationConfig
-    columns: VehicleColumns
+    columns: VehicleColumns | None
+    counts: SensorCounts
     dead_reckoning: DeadReckoning
     fix_errors: FixErrors
     dives: Dives
@@ -75,20 +99,20 @@ class NavigationReview:
     notes: tuple[str, ...] = field(default=())
 
 
-def _notes(cols: VehicleColumns, dr: DeadReckoning, errors: FixErrors, dv: Dives,
-           config: NavigationConfig) -> tuple[str, ...]:
+def notes(counts: SensorCounts, dropped: dict[str, int], errors: FixErrors, dv: Dives,
+          config: NavigationConfig) -> tuple[str, ...]:
+    """What a reviewer should know about the figures, in plain lines (the review's `notes`)."""
     out: list[str] = []
     n_fix = errors.t_s.size
     if n_fix < 2:
         out.append(f"{n_fix} GPS fix(es): no error at a fix can be measured")
     out.append(f"{len(dv)} dive(s) (GPS gaps longer than {config.dive_gap_s:g} s)")
-    velocity = cols.dvl.velocities()
-    if int(cols.dvl.ranging.sum()):
-        out.append(f"{int(cols.dvl.ranging.sum())} altitude-only samples (a rangefinder): altitude, not bottom lock")
-    if velocity.t_s.size:
-        unusable = int((~velocity.usable).sum())
+    if counts.dvl_ranging:
+        out.append(f"{counts.dvl_ranging} altitude-only samples (a rangefinder): altitude, not bottom lock")
+    if counts.dvl_velocity:
+        unusable = counts.dvl_unusable
         if unusable:
-            out.append(f"{unusable} of {velocity.t_s.size} DVL samples without bottom lock or a usable frame")
+            out.append(f"{unusable} of {counts.dvl_velocity} DVL samples without bottom lock or a usable frame")
         measured = np.isfinite(errors.dr_error_m[1:])
         unknown = int((~measured).sum())
         if unknown:
@@ -100,7 +124,7 @@ def _notes(cols: VehicleColumns, dr: DeadReckoning, errors: FixErrors, dv: Dives
                        f"{int((held > 0).sum())} fix interval(s) (at most {config.dvl_hold_s:g} s each time)")
     else:
         out.append("no DVL: no dead reckoning")
-    out.extend(f"{n} row(s) dropped: {why}" for why, n in sorted(cols.dropped.items()))
+    out.extend(f"{n} row(s) dropped: {why}" for why, n in sorted(dropped.items()))
     return tuple(out)
 
 
@@ -127,17 +151,19 @@ def review_vehicle(source: ArchiveReader | VehicleColumns, vehicle: str,
     dr = dead_reckon(cols.fixes, velocity, cols.ins, config.dvl_hold_s, config.heading_max_gap_s)
     errors = fix_errors(cols.fixes, dr, cols.ins, config.dive_gap_s, config.ins_max_age_s)
     dv = dives(errors)
+    counts = SensorCounts.of(cols)
     return NavigationReview(
         vehicle=vehicle,
         start_ns=cols.start_ns,
         config=config,
         columns=cols,
+        counts=counts,
         dead_reckoning=dr,
         fix_errors=errors,
         dives=dv,
         bottom_lock=bottom_lock(velocity, config.lock_min_gap_s, config.lock_bin_s),
         series=navigation_series(cols.dvl, cols.ins, cols.depth),
-        notes=_notes(cols, dr, errors, dv, config) + ((f"archive: {damage}",) if damage else ()),
+        notes=notes(counts, cols.dropped, errors, dv, config) + ((f"archive: {damage}",) if damage else ()),
     )
 
 
@@ -181,12 +207,11 @@ def scores(review: NavigationReview) -> list[NavigationScore]:
     scored_at = "dive ends" if len(dv) else "every fix"
     last = -1 if len(dv) else None
     out: list[NavigationScore] = []
-    cols = review.columns
-    if cols.dvl.velocities().t_s.size:
+    if review.counts.dvl_velocity:
         pct = float(dv.dr_pct[last]) if last is not None else math.nan
         out.append(NavigationScore(DR_METHOD, review.vehicle, _figures(fe.t_s[rows], fe.dr_error_m[rows], pct,
                                                                         scored_at)))
-    if np.isfinite(cols.ins.lat_deg).any():
+    if review.counts.ins_positions:
         pct = float(dv.ins_pct[last]) if last is not None else math.nan
         out.append(NavigationScore(INS_METHOD, review.vehicle, _figures(fe.t_s[rows], fe.ins_error_m[rows], pct,
                                                                          scored_at)))

@@ -23,8 +23,8 @@ from replay.engine.core import Engine, pace
 from replay.engine.layout import TrialLayout, plan_trial
 from replay.errors import UserError
 from replay.events import Listener, RunResults
-from replay.navigation.columns import ColumnCollector
-from replay.navigation.review import NavigationReview, review_metrics, review_vehicle
+from replay.navigation.review import NavigationReview, review_metrics
+from replay.navigation.stream import StreamCollector
 from replay.review.collector import ReviewCollector
 from replay.run.config import canonical_json, run_id, to_dict
 from replay.run.metrics import format_table, metrics_table, run_metrics
@@ -159,8 +159,8 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
             if writer is not None:
                 heard.append(ResultsWriter(writer, rid, t0_ns))
             engine = Engine(layout, config, t0_ns, [*heard, *listeners], training_set)
-            # each vehicle's own navigation review gathers its columns in the same pass (no second read)
-            nav_columns = ColumnCollector([v for v in layout.roles if layout.has(v, "dvl") or layout.has(v, "ins")],
+            # each vehicle's own navigation review is computed in the same pass, stretch by stretch (bounded memory)
+            nav_columns = StreamCollector([v for v in layout.roles if layout.has(v, "dvl") or layout.has(v, "ins")],
                                           t0_ns)
             topics += [t for t in nav_columns.topics if t in readable and t not in topics]
             if config.engine.rate > 0 or not blocks:
@@ -179,11 +179,11 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
             results = engine.finish()
             end_s = max(engine.last_s, 0.0)
             metrics = run_metrics(engine.scores(), results, rid, end_s)
-            # one vehicle at a time; the reviews are kept only for the views (a day's review is large)
+            # the reviews are kept only for the views
             navigation: dict[str, NavigationReview] = {}
             metrics["navigation"] = {}
             for v in nav_columns.vehicles:
-                nav = review_vehicle(nav_columns.columns(v), v)
+                nav = nav_columns.review(v)
                 metrics["navigation"][v] = review_metrics(nav)
                 if collector is not None:
                     navigation[v] = nav
