@@ -251,12 +251,16 @@ class ColumnCollector:
 
     def _dvl_columns(self, vehicle: str, t: np.ndarray, cols: dict[str, np.ndarray]) -> None:
         """A block's DVL samples from its columns: the rows `_append` makes of each message."""
-        c = self._cols[vehicle]["dvl"]
-        for col, values in zip(c, (t, cols["velocity_x_mps"], cols["velocity_y_mps"], cols["altitude_m"])):
-            col.frombytes(np.ascontiguousarray(values, dtype=float).tobytes())
         frame = cols["frame"]
-        c[4].frombytes((cols["valid"] != 0).astype(np.int8).tobytes())
-        c[5].frombytes(np.where((frame >= 0) & (frame <= 3), frame, 0).astype(np.int8).tobytes())
+        self._store_dvl_block(vehicle, (t, cols["velocity_x_mps"], cols["velocity_y_mps"], cols["altitude_m"],
+                                        (cols["valid"] != 0).astype(np.int8),
+                                        np.where((frame >= 0) & (frame <= 3), frame, 0).astype(np.int8)))
+
+    def _store_dvl_block(self, vehicle: str, cols: tuple[np.ndarray, ...]) -> None:
+        """Keep a block's DVL rows, given as the six columns `_store` keeps of one (the last two int8)."""
+        c = self._cols[vehicle]["dvl"]
+        for k, (col, values) in enumerate(zip(c, cols)):
+            col.frombytes(np.ascontiguousarray(values, dtype=np.int8 if k >= 4 else float).tobytes())
 
     def _ins_and_fixes(self, vehicle: str, block: MessageBlock, ins_at: np.ndarray | None,
                        gps_at: np.ndarray | None, t_all: np.ndarray) -> None:

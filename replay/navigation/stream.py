@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from formats.mcap_blocks import MessageBlock
 from formats.units import NS
 from replay.stack.model import horizontal_distance_m
 
@@ -582,8 +583,26 @@ class StreamCollector(ColumnCollector):
             until = min(log_time_ns, held[0][0]) if held else log_time_ns   # an INS held back may still come
             stream.settle((until - self.start_ns) / NS)
 
+    def add_block(self, block: MessageBlock) -> None:
+        """A block of messages (the replay's block path): its rows as `add` would keep them, then what every row
+        up to the block's last message settles."""
+        super().add_block(block)
+        if len(block.log_ns) == 0:
+            return
+        last_ns = int(block.log_ns[-1])
+        for vehicle, stream in self.streams.items():
+            if stream.pending >= stream.block_rows:
+                held = self._held[vehicle]
+                until = min(last_ns, held[0][0]) if held else last_ns   # an INS held back may still come
+                stream.settle((until - self.start_ns) / NS)
+
     def _store(self, vehicle: str, kind: str, row: tuple[float, ...]) -> None:
         self.streams[vehicle].add(kind, row)
+
+    def _store_dvl_block(self, vehicle: str, cols: tuple[np.ndarray, ...]) -> None:
+        stream = self.streams[vehicle]
+        for row in zip(*(c.tolist() for c in cols)):
+            stream.add("dvl", row)
 
     def review(self, vehicle: str) -> NavigationReview:
         """The review of one vehicle, once: its stream is let go of."""
