@@ -282,13 +282,10 @@ class ArchiveReader:
             return None, f"of an unreadable schema {schema.name[:60]!r}"
         return fn, ""
 
-    def messages(
-        self, topics: Iterable[str] | None = None, start_ns: int | None = None, end_ns: int | None = None,
-    ) -> Iterator[ArchiveMessage]:
-        """Decoded messages in log-time order over the chosen topics and window [start, end).
-
-        What cannot be decoded is skipped and counted in `damage`.
-        """
+    def _selection(self, topics: Iterable[str] | None, start_ns: int | None, end_ns: int | None,
+                   ) -> tuple[dict[int, tuple[str, str, Callable[[bytes], Any] | None, str]], list[Any]]:
+        """The chosen channels (id -> topic, schema name, decoder or None, why not) and the loose messages
+        (outside chunks) of the window."""
         s = self._index
         wanted = set(topics) if topics is not None else None
         info: dict[int, tuple[str, str, Callable[[bytes], Any] | None, str]] = {}
@@ -298,6 +295,17 @@ class ArchiveReader:
                 info[cid] = (ch.topic, schema.name if schema else "", *self._decoder(ch, schema))
         loose = [m for m in self._loose if m[2] in info and (start_ns is None or m[0] >= start_ns)
                  and (end_ns is None or m[0] < end_ns)]
+        return info, loose
+
+    def messages(
+        self, topics: Iterable[str] | None = None, start_ns: int | None = None, end_ns: int | None = None,
+    ) -> Iterator[ArchiveMessage]:
+        """Decoded messages in log-time order over the chosen topics and window [start, end).
+
+        What cannot be decoded is skipped and counted in `damage`.
+        """
+        s = self._index
+        info, loose = self._selection(topics, start_ns, end_ns)
         skip = self.damage.skip_message
         for log_time, publish_time, cid, data in ordered_messages(
                 self._file, s.chunk_indexes, set(info), self.validate_crcs, start_ns, end_ns,
@@ -320,14 +328,7 @@ class ArchiveReader:
         """The messages of `messages(topics, start_ns, end_ns)`, in the same order, as blocks of one time window
         each (formats.mcap_blocks): the topics in `columns` decoded into numpy columns, the others as objects."""
         s = self._index
-        wanted = set(topics) if topics is not None else None
-        info: dict[int, tuple[str, str, Callable[[bytes], Any] | None, str]] = {}
-        for cid, ch in s.channels.items():
-            if wanted is None or ch.topic in wanted:
-                schema = s.schemas.get(ch.schema_id)
-                info[cid] = (ch.topic, schema.name if schema else "", *self._decoder(ch, schema))
-        loose = [m for m in self._loose if m[2] in info and (start_ns is None or m[0] >= start_ns)
-                 and (end_ns is None or m[0] < end_ns)]
+        info, loose = self._selection(topics, start_ns, end_ns)
         yield from read_blocks(self._file, s.chunk_indexes, info, set(columns), self.validate_crcs, start_ns, end_ns,
                                self.damage.bad_chunk, self.damage.skip_message, self.max_chunk_bytes, loose,
                                _DECODE_ERRORS)

@@ -126,6 +126,17 @@ class VelocityModel:
         return out
 
 
+
+def ned_velocity(x: np.ndarray, y: np.ndarray, frame: np.ndarray, heading_rad: np.ndarray,
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """North and east velocity (m/s) of DVL samples: a body-frame (FRD) sample turned by the heading, an
+    earth-frame (NED) one as it is, any other frame NaN."""
+    c, s = np.cos(heading_rad), np.sin(heading_rad)
+    body = frame == BODY_FRD
+    vn = np.where(body, x * c - y * s, np.where(frame == EARTH_NED, x, np.nan))
+    ve = np.where(body, x * s + y * c, np.where(frame == EARTH_NED, y, np.nan))
+    return vn, ve
+
 def velocity_model(dvl: DvlColumns, ins: InsColumns, hold_s: float, heading_max_gap_s: float) -> VelocityModel:
     """The DVL velocity on its own grid in north/east, with carrying and its limits (see the module text)."""
     t = dvl.t_s
@@ -137,10 +148,7 @@ def velocity_model(dvl: DvlColumns, ins: InsColumns, hold_s: float, heading_max_
     src = np.where(has, last, 0)
     heading = heading_at(t, ins.t_s, ins.heading_deg, heading_max_gap_s)
     x, y, frame = dvl.vx_mps[src], dvl.vy_mps[src], dvl.frame[src]
-    c, s = np.cos(heading), np.sin(heading)
-    body = frame == BODY_FRD
-    vn = np.where(body, x * c - y * s, np.where(frame == EARTH_NED, x, np.nan))
-    ve = np.where(body, x * s + y * c, np.where(frame == EARTH_NED, y, np.nan))
+    vn, ve = ned_velocity(x, y, frame, heading)
     vn[~has], ve[~has] = np.nan, np.nan
     speed = np.hypot(vn, ve)
     carried = np.where(np.isfinite(vn), (~usable).astype(np.float64), np.nan)

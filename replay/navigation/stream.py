@@ -38,7 +38,7 @@ from replay.stack.model import horizontal_distance_m
 
 from .bottom_lock import BottomLock
 from .columns import BODY_FRD, EARTH_NED, INS_MIN_DT_S, ColumnCollector, InsColumns, VehicleColumns
-from .dead_reckoning import DeadReckoning, heading_between, offset_to_latlon
+from .dead_reckoning import DeadReckoning, heading_between, ned_velocity, offset_to_latlon
 from .drift import dives, fix_table, ins_before
 from .review import NavigationConfig, NavigationReview, SensorCounts, notes
 from .series import NavigationSeries, Series
@@ -379,10 +379,7 @@ class NavigationStream:
         ext = lambda a, v: np.concatenate([[v], a])  # noqa: E731
         x, y, fr, ts = ext(vx, px)[src], ext(vy, py)[src], ext(frame, pf)[src], ext(t, pt)[src]
         heading = self._heading(t)
-        cs, sn = np.cos(heading), np.sin(heading)
-        body = fr == BODY_FRD
-        vn = np.where(body, x * cs - y * sn, np.where(fr == EARTH_NED, x, np.nan))
-        ve = np.where(body, x * sn + y * cs, np.where(fr == EARTH_NED, y, np.nan))
+        vn, ve = ned_velocity(x, y, fr, heading)
         vn[~has], ve[~has] = np.nan, np.nan
         speed = np.hypot(vn, ve)
         carried = np.where(np.isfinite(vn), (~usable).astype(np.float64), np.nan)
