@@ -21,13 +21,19 @@ Tail: a file of --tail-mb MB of GGA sentences, written whole before the
 capture starts (a writer faster than any reader), captured through `tail:`
 until every byte is archived and decoded: wall and CPU MB/s, bytes lost.
 
+UDP burst: another process sends --udp-mbps MB/s of GGA sentences for
+--udp-seconds in 1,400-byte datagrams to one `udp://` source: bytes sent
+against bytes archived, and how long after the first datagram its bytes were
+in the part file (read back with `ArchiveReader`, as `recover` would).
+
 Run: .venv/bin/python bench/bench_capture.py [--rate 400] [--latency-rates 1,20] [--latency-seconds 10]
-     [--tail-mb 30]
+     [--tail-mb 30] [--udp-mbps 7] [--udp-seconds 5]
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import random
 import socket
@@ -35,6 +41,7 @@ import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -173,6 +180,72 @@ def tail(tmp: Path, megabytes: float) -> None:
                   f"{mb / cpu:.1f}", len(data) - st.bytes, st.records]])
 
 
+SENDER = """
+import socket, sys, time
+port, mbps, seconds, path = int(sys.argv[1]), float(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
+data = open(path, "rb").read()
+s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+step, sent, t0 = 1400, 0, time.monotonic()
+print(time.time_ns(), flush=True)
+while sent < len(data):
+    ahead = sent - (time.monotonic() - t0) * mbps * 1e6      # paced: never more than the rate asks
+    if ahead > 0:
+        time.sleep(min(ahead / (mbps * 1e6), 0.01))
+        continue
+    s.sendto(data[sent:sent + step], ("127.0.0.1", port))
+    sent += step
+print(time.monotonic() - t0, flush=True)
+"""
+
+
+def udp_burst(tmp: Path, mbps: float, seconds: float) -> None:
+    one = len(_gga_lines(1))
+    data = _gga_lines(int(mbps * seconds * 1e6 / one))
+    (tmp / "burst.bin").write_bytes(data)
+    port = _free_ports(1)
+    manifest = parse_manifest('[trial]\nname = "t"\ndate = "2016-10-12"\n[[vehicles]]\nname = "a"\n'
+                              'role = "leader"\n[[vehicles.logs]]\nsensor = "gps"\nformat = "nmea"\n'
+                              f'source = "udp://127.0.0.1:{port}"\n', tmp / "burst.toml")
+    out = tmp / "burst.mcap"
+    session = CaptureSession(manifest, out, CaptureOptions(flush_s=1.0))
+    sender = subprocess.Popen([sys.executable, "-c", SENDER, str(port), str(mbps), str(seconds),
+                               str(tmp / "burst.bin")], stdout=subprocess.PIPE, text=True)
+    assert sender.stdout is not None
+    first_ns = int(sender.stdout.readline())
+    seen: list[float] = []
+
+    def look() -> None:    # in its own thread: reading the part file must not hold up the capture's reads
+        while not seen and sender_end[0] == math.inf:
+            try:
+                with ArchiveReader(session.part) as r:
+                    if any(t.startswith("/raw/") and v["count"] for t, v in r.summary().topics.items()):
+                        seen.append((time.time_ns() - first_ns) / 1e9)
+            except Exception:  # noqa: BLE001 - no part file yet, or one mid-write: looked at again shortly
+                pass
+            time.sleep(0.05)
+
+    sender_end = [math.inf]
+
+    def stop() -> bool:
+        if sender.poll() is None:
+            return False
+        if sender_end[0] == math.inf:
+            sender_end[0] = time.monotonic()
+        return session.statuses()[0].bytes >= len(data) or time.monotonic() - sender_end[0] > 2.0
+
+    looker = threading.Thread(target=look, daemon=True)
+    looker.start()
+    session.run(stop)
+    looker.join(timeout=5)
+    send_s = float(sender.stdout.readline() or "nan")
+    got = session.statuses()[0].bytes
+    print_table(f"capture of a UDP burst: {len(data) / 1e6:.1f} MB of GGA sentences at {mbps:g} MB/s asked",
+                ["run", "MB sent", "send wall s", "MB/s sent", "bytes archived", "bytes lost",
+                 "first data in the part file"],
+                [["udp", f"{len(data) / 1e6:.1f}", f"{send_s:.2f}", f"{len(data) / 1e6 / send_s:.1f}", got,
+                  len(data) - got, f"{seen[0]:.2f} s" if seen else "not seen"]])
+
+
 def latency(tmp: Path, rates: list[float], seconds: float) -> None:
     rows = []
     for rate in rates:
@@ -206,10 +279,13 @@ def main() -> None:
     parser.add_argument("--latency-rates", default="1,20")
     parser.add_argument("--latency-seconds", type=float, default=8.0, help="wall seconds per latency run")
     parser.add_argument("--tail-mb", type=float, default=30.0, help="size of the file captured through tail:")
+    parser.add_argument("--udp-mbps", type=float, default=7.0, help="rate of the UDP burst (MB/s)")
+    parser.add_argument("--udp-seconds", type=float, default=5.0, help="length of the UDP burst (s)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         throughput(Path(tmp), args.rate)
         tail(Path(tmp), args.tail_mb)
+        udp_burst(Path(tmp), args.udp_mbps, args.udp_seconds)
         latency(Path(tmp), [float(r) for r in args.latency_rates.split(",")], args.latency_seconds)
 
 
