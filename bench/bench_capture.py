@@ -208,6 +208,7 @@ def udp_burst(tmp: Path, mbps: float, seconds: float) -> None:
                               f'source = "udp://127.0.0.1:{port}"\n', tmp / "burst.toml")
     out = tmp / "burst.mcap"
     session = CaptureSession(manifest, out, CaptureOptions(flush_s=1.0))
+    session.step(time.monotonic())    # the socket bound before the first datagram is sent
     sender = subprocess.Popen([sys.executable, "-c", SENDER, str(port), str(mbps), str(seconds),
                                str(tmp / "burst.bin")], stdout=subprocess.PIPE, text=True)
     assert sender.stdout is not None

@@ -6,8 +6,10 @@ import socket
 
 from .base import READ_SIZE, SocketSource
 
-# datagrams drained per read: one archive message for a burst, without starving the other sources
-MAX_DATAGRAMS = 64
+# datagrams drained per read: one archive message for a burst, without starving the other sources. A turn of
+# the capture loop may decode for ~0.2 s (DECODE_TURN_S plus a slice): at 7 MB/s that is ~1.4 MB of datagrams,
+# which one read must take, or the socket's buffer overflows and the kernel drops the rest
+MAX_DATAGRAMS = 2048
 
 
 class UdpSource(SocketSource):
