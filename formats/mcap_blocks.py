@@ -30,13 +30,20 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
-from .mcap_chunks import MAX_CHUNK_BYTES, OP_MESSAGE, ChunkError, OnDamage, read_chunk
+from .mcap_chunks import (
+    _MESSAGE_HEAD,
+    _RECORD_HEAD,
+    MAX_CHUNK_BYTES,
+    OP_MESSAGE,
+    ChunkError,
+    OnDamage,
+    chunk_records,
+    read_chunk,
+)
 from .proto_columns import decode_columns
 from .schemas import MESSAGE_CLASSES
 
 BLOCK_MESSAGES = 1 << 16     # messages in hand before a block is cut: numpy steps per block are amortized
-_RECORD_HEAD = struct.Struct("<BQ")
-_MESSAGE_HEAD = struct.Struct("<HIQQ")
 
 # the fields a columnar consumer reads of each schema (float64 columns; booleans and enums as 0/1, ints)
 COLUMN_FIELDS: dict[str, tuple[str, ...]] = {
@@ -88,34 +95,12 @@ def _chunk_run(f: BinaryIO, ci: Any, channels: set[int], validate_crc: bool, sta
     found = _indexed(f, ci, data, file_size)
     if found is not None:
         return _indexed_run(offset, data, *found, channels, start_ns, end_ns)
-    log: list[int] = []
-    cids: list[int] = []
-    datas: list[bytes] = []
-    pos, end = 0, len(data)
-    head, msg_head = _RECORD_HEAD.unpack_from, _MESSAGE_HEAD.unpack_from
-    lo = -1 if start_ns is None else start_ns
-    hi = 1 << 64 if end_ns is None else end_ns
-    while pos < end:
-        if pos + 9 > end:
-            _overrun(offset, on_damage, "the chunk ends inside a record header")
-            break
-        op, rlen = head(data, pos)
-        pos += 9
-        if rlen > end - pos or (op == OP_MESSAGE and rlen < _MESSAGE_HEAD.size):
-            _overrun(offset, on_damage, f"a record of {rlen} bytes does not fit its chunk")
-            break
-        if op == OP_MESSAGE:
-            channel, _, log_time, _ = msg_head(data, pos)
-            if channel in channels and lo <= log_time < hi:
-                log.append(log_time)
-                cids.append(channel)
-                datas.append(data[pos + 22:pos + rlen])
-        pos += rlen
-    if not log:
+    records = chunk_records(data, offset, channels, start_ns, end_ns, on_damage)   # sorted by log time
+    if not records:
         return None
-    if any(a > b for a, b in zip(log, log[1:])):     # a chunk out of log-time order: sorted stably
-        idx = sorted(range(len(log)), key=log.__getitem__)
-        log, cids, datas = [log[i] for i in idx], [cids[i] for i in idx], [datas[i] for i in idx]
+    log = [r[0] for r in records]
+    cids = [r[2] for r in records]
+    datas = [r[3] for r in records]
     return _Run(offset, log, cids, datas)
 
 
@@ -202,12 +187,6 @@ def _indexed_run(offset: int, data: bytes, at: np.ndarray, rlen: np.ndarray, cha
     a = (at + 31).tolist()
     b = (at + 9 + rlen).tolist()
     return _Run(offset, log.tolist(), channel.tolist(), [data[x:y] for x, y in zip(a, b)])
-
-
-def _overrun(offset: int, on_damage: OnDamage | None, what: str) -> None:
-    if on_damage is None:
-        raise ChunkError(f"byte {offset}: {what}")
-    on_damage(offset, f"byte {offset}: {what}; the rest of the chunk skipped")
 
 
 def read_blocks(f: BinaryIO, chunk_indexes: Iterable[Any], info: Mapping[int, tuple[str, str, Any, str]],

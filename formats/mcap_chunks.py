@@ -154,6 +154,13 @@ def chunk_messages(f: BinaryIO, offset: int, length: int, channels: set[int] | N
         f.seek(0, 2)
         file_size = f.tell()
     _, _, data = read_chunk(f, offset, length, file_size, validate_crc, limit)
+    return chunk_records(data, offset, channels, start_ns, end_ns, on_damage)
+
+
+def chunk_records(data: bytes, offset: int, channels: set[int] | None, start_ns: int | None, end_ns: int | None,
+                  on_damage: OnDamage | None = None) -> list[RawMessage]:
+    """The message records of an inflated chunk (the one at `offset`), filtered by channel and window, sorted
+    by log time (stable); a record that overruns the chunk as `chunk_messages` says."""
     out: list[RawMessage] = []
     pos, end = 0, len(data)
     head, msg_head = _RECORD_HEAD.unpack_from, _MESSAGE_HEAD.unpack_from
