@@ -183,6 +183,11 @@ class NavigationStream:
         self._rows[kind].append(row)
         self.pending += 1
 
+    def add_rows(self, kind: str, rows: list[tuple[float, ...]]) -> None:
+        """Several rows of one kind, in time order (a block's)."""
+        self._rows[kind].extend(rows)
+        self.pending += len(rows)
+
     def settle(self, final_until: float) -> None:
         """Settle what no later row can change, knowing that every row before `final_until` (s) has been added."""
         self._step(final_until - self._lag)
@@ -597,9 +602,7 @@ class StreamCollector(ColumnCollector):
         self.streams[vehicle].add(kind, row)
 
     def _store_dvl_block(self, vehicle: str, cols: tuple[np.ndarray, ...]) -> None:
-        stream = self.streams[vehicle]
-        for row in zip(*(c.tolist() for c in cols)):
-            stream.add("dvl", row)
+        self.streams[vehicle].add_rows("dvl", list(zip(*(c.tolist() for c in cols))))
 
     def review(self, vehicle: str) -> NavigationReview:
         """The review of one vehicle, once: its stream is let go of."""
