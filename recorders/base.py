@@ -67,6 +67,35 @@ class Output:
     where: Where | None = None
 
 
+@dataclass(slots=True)
+class Columns:
+    """One topic's messages of a `Batch`: their fields as columns (`formats.proto_encode.encode_columns`), times."""
+
+    topic: str
+    message_class: Any
+    columns: dict[str, Any]  # field name -> a value per message (array or list), or one value for all
+    log_times_ns: Any        # int64 array, one per message
+    publish_times_ns: Any    # int64 array, one per message
+
+
+@dataclass(slots=True)
+class Batch:
+    """A block of a converter's archive messages given as columns, not built one by one.
+
+    The recorder checks the columns (`recorders.value_checks.ValueChecks.refused_rows`), encodes them
+    (`formats.proto_encode`) and writes them in `order`; where a message would be refused, or anything the
+    block does not carry must happen between its messages, it takes `outputs()` instead: the very same items
+    one at a time, which decide. A batch holds no Reject: a block with one is given as items.
+    """
+
+    parts: list[Columns]
+    order: Any               # per message, in write order: its part's number (int array)
+    keys: Any                # per message, in write order: its record's byte offset (int array)
+    where: Where             # the last message's record (for progress)
+    outputs: Callable[[], Iterable[Output | Ignored]]
+    ignored: dict[str, int] = field(default_factory=dict)  # records read and not archived, by reason
+
+
 @dataclass(frozen=True, slots=True)
 class Ignored:
     """A record read whole and deliberately not archived (a topic nobody mapped, say): counted by reason.
@@ -89,7 +118,7 @@ class Note(Ignored):
 # Water Linked DVL's time_of_validity, then kept beside it)
 CONTAINER_TIME = "container_time"
 
-Converter = Callable[[bytes, LogContext], Iterator["Output | Reject | Ignored"]]
+Converter = Callable[[bytes, LogContext], Iterator["Output | Reject | Ignored"]]  # and Batch items
 # the same conversion over the log read in blocks (`formats.log_blocks`), for formats whose family module lists
 # it in BLOCK_CONVERTERS: the recording then holds one block of the log, not all of it
 BlockConverter = Callable[[Iterable[Block], LogContext], Iterator["Output | Reject | Ignored"]]

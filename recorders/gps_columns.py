@@ -11,7 +11,7 @@ time at all, get None, and the per-line path.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from itertools import repeat
 
 import numpy as np
@@ -22,7 +22,7 @@ from formats.nmea.sentences import KNOT_MPS
 from formats.records import Reject, Where
 from formats.units import DAY_NS, NS
 
-from .base import Ignored, LogContext, Output
+from .base import Batch, Columns, Ignored, LogContext, Output
 from .clock import DayClock, date_to_ns
 from .gnss_covariance import fix_covariance
 from .gnss_velocity import NO_VELOCITY, SUFFIX, components_column
@@ -131,7 +131,7 @@ def last_epoch_start(cols: NmeaColumns) -> int | None:
 
 
 def convert_columns(cols: NmeaColumns, ctx: LogContext, no_date: str, clock: DayClock | None = None,
-                    base: int = 0, lines: int = 0) -> Iterator[Output | Reject | Ignored] | None:
+                    base: int = 0, lines: int = 0) -> Iterator[Output | Reject | Ignored | Batch] | None:
     """The outputs of `convert_nmea` for a clean log's columns; None when the per-line path must run.
 
     `clock` carries the date from earlier blocks of the log (default: a new one) and is left for the next;
@@ -170,14 +170,67 @@ def convert_columns(cols: NmeaColumns, ctx: LogContext, no_date: str, clock: Day
     speed, course, heading = _motion(v, m, valid)
     satellites = np.where(has_g, _pick(gv["satellites"], g, 0), -1).astype(np.int64)
     sources = _sources(cols.kind, starts)
-    status = zip(quality.tolist(), satellites.tolist(), hdop.tolist(),
-                 sources, speed.tolist(), course.tolist(), heading.tolist())
-    velocity = zip(*_velocity(speed, course, (m["VTG"] >= 0) | (r >= 0)))
-    fix = zip((gga_pos | gll_pos | rmc_pos).tolist(), lat.tolist(), lon.tolist(), alt.tolist(), cov, cov_kind)
+    has_pos = gga_pos | gll_pos | rmc_pos
+    north, east, moving = _velocity(speed, course, (m["VTG"] >= 0) | (r >= 0))
     offsets, numbers = (cols.offsets + base, cols.numbers + lines) if base or lines else (cols.offsets, cols.numbers)
-    where = zip(offsets[source].tolist(), numbers[source].tolist())
-    first = zip(offsets[first_timed].tolist(), numbers[first_timed].tolist(), cols.tod[first_timed].tolist())
-    return _emit(ctx, times, silent, fix, status, velocity, where, first, no_date)
+
+    def outputs() -> Iterator[Output | Reject | Ignored]:
+        status = zip(quality.tolist(), satellites.tolist(), hdop.tolist(),
+                     sources, speed.tolist(), course.tolist(), heading.tolist())
+        velocity = zip(moving, north.tolist(), east.tolist())
+        fix = zip(has_pos.tolist(), lat.tolist(), lon.tolist(), alt.tolist(), cov, cov_kind)
+        where = zip(offsets[source].tolist(), numbers[source].tolist())
+        first = zip(offsets[first_timed].tolist(), numbers[first_timed].tolist(), cols.tod[first_timed].tolist())
+        return _emit(ctx, times, silent, fix, status, velocity, where, first, no_date)
+
+    if any(t is None and not quiet for t, quiet in zip(times, silent)):
+        return outputs()  # a Reject among them: message by message
+    columns = {"frame_id": ctx.vehicle, "fix_quality": quality, "satellites": satellites, "hdop": hdop,
+               "speed_over_ground_mps": speed, "course_over_ground_deg": course, "heading_deg": heading}
+    covariance = [c if c is not None else _NAN9 for c in cov]
+    if any(len(c) != 9 for c in covariance):
+        return outputs()
+    batch = _batch(ctx, times, silent, has_pos, moving, columns, sources, (lat, lon, alt, covariance, cov_kind),
+                   (north, east), offsets[source], outputs)
+    return iter((batch,))
+
+
+_NAN9 = (NAN,) * 9
+
+
+def _batch(ctx: LogContext, times: list, silent: list[bool], has_pos: np.ndarray, moving: list, status: dict,
+           sources: list[str], fix: tuple, velocity: tuple, keys: np.ndarray,
+           outputs: Callable[[], Iterator[Output | Reject | Ignored]]) -> Batch:
+    """The epochs' messages as one Batch: per emitted epoch its fix (with a position), status and velocity (when
+    moving), in that order, as `_emit` yields them."""
+    rows = ~np.asarray(silent, dtype=bool)
+    t = np.array([x for x, quiet in zip(times, silent) if not quiet], dtype=np.int64)
+    moves = np.array([x is True for x in moving], dtype=bool)[rows]
+    pos = has_pos[rows]
+    given = np.stack([pos, np.ones(len(t), dtype=bool), moves], axis=1)
+    order = np.broadcast_to(np.arange(3), given.shape)[given]
+    keys = np.broadcast_to(keys[rows][:, None], given.shape)[given]
+    src = [s for s, quiet in zip(sources, silent) if not quiet]
+    lat, lon, alt, cov, kind = fix
+    vehicle = ctx.vehicle
+    fix_cols = {"timestamp": t[pos], "frame_id": vehicle, "latitude": lat[rows][pos], "longitude": lon[rows][pos],
+                "altitude": alt[rows][pos],
+                "position_covariance": np.array(cov, dtype=np.float64).reshape(-1, 9)[rows][pos],
+                "position_covariance_type": np.array(kind, dtype=np.int64)[rows][pos]}
+    status_cols = {k: (v[rows] if isinstance(v, np.ndarray) else v) for k, v in status.items()}
+    status_cols.update(timestamp=t, source_format=src)
+    north, east = velocity
+    velocity_cols = {"timestamp": t[moves], "frame_id": vehicle, "velocity_north_mps": north[rows][moves],
+                     "velocity_east_mps": east[rows][moves], "velocity_up_mps": NAN,
+                     "speed_over_ground_mps": status_cols["speed_over_ground_mps"][moves],
+                     "course_over_ground_deg": status_cols["course_over_ground_deg"][moves], "speed_std_mps": NAN,
+                     "source_format": [s for s, mv in zip(src, moves.tolist()) if mv]}
+    parts = [Columns(topic, cls, cols, cols["timestamp"], cols["timestamp"]) for topic, cls, cols in (
+        (f"/{vehicle}/gps", S.LocationFix, fix_cols), (f"/{vehicle}/gps/status", S.GnssStatus, status_cols),
+        (f"/{vehicle}/{SUFFIX}", S.GnssVelocity, velocity_cols))]
+    no_velocity = sum(1 for x, quiet in zip(moving, silent) if x is False and not quiet)
+    last = Where(int(keys[-1])) if len(keys) else Where(0)
+    return Batch(parts, order, keys, last, outputs, {NO_VELOCITY: no_velocity} if no_velocity else {})
 
 
 def _dates(cols: NmeaColumns, z: np.ndarray, r: np.ndarray, valid: np.ndarray) -> tuple[list, list[float]]:
@@ -225,15 +278,15 @@ def _motion(v: dict, m: dict, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return speed, course, heading
 
 
-def _velocity(speed: np.ndarray, course: np.ndarray, motion: np.ndarray) -> tuple[list, list, list]:
-    """Per epoch: whether it has a velocity (True), gives none though it has a VTG/RMC (False) or has neither
-    (None); its north and east components (NaN where none)."""
+def _velocity(speed: np.ndarray, course: np.ndarray, motion: np.ndarray) -> tuple[np.ndarray, np.ndarray, list]:
+    """Per epoch: its north and east components (NaN where none); whether it has a velocity (True), gives none
+    though it has a VTG/RMC (False) or has neither (None)."""
     finite = np.isfinite(speed) & np.isfinite(course)
     north, east = np.full(len(speed), NAN), np.full(len(speed), NAN)
     at = np.flatnonzero(finite)
     north[at], east[at] = components_column(speed[at], course[at].tolist())
     given = np.where(finite, 1, np.where(motion, 0, -1)).tolist()
-    return [(None, False, True)[g + 1] for g in given], north.tolist(), east.tolist()
+    return north, east, [(None, False, True)[g + 1] for g in given]
 
 
 def _clock(ctx: LogContext) -> DayClock:

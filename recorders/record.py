@@ -7,21 +7,23 @@ import hashlib
 import mimetypes
 import re
 from collections import Counter, deque
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from functools import partial
 from pathlib import Path
 from typing import Any, Protocol
 
+import numpy as np
 import formats.log_blocks as log_blocks
 from formats import schemas as S
 from formats.log_blocks import ChangedWhileRead, LogFiles, blocks_of
 from formats.mcap_writer import ArchiveWriter
+from formats.proto_encode import encode_columns, split
 from formats.records import FormatError, Reject, Where
 from formats.units import NS, archivable_ns
 
-from .base import BlockConverter, Converter, Ignored, LogContext, Note, Output
+from .base import Batch, BlockConverter, Converter, Ignored, LogContext, Note, Output
 from .clock import date_to_ns, iso_utc, log_offset_ns, offset_problem, shift_text
 from .manifest import LogSpec, Manifest, ManifestError
 from .output_checks import OutputProblem, check_output
@@ -39,7 +41,7 @@ from .registry import block_converters, converters
 from .value_checks import MAX_RANGE_M, ValueChecks
 
 # a log's converter as the recorder calls it: whole bytes, blocks or text in, outputs, rejects and skips out
-AnyConverter = Callable[..., Iterator[Output | Reject | Ignored]]
+AnyConverter = Callable[..., Iterator[Output | Reject | Ignored | Batch]]
 
 Progress = Callable[[str, int, int], None]  # (file, bytes done, bytes total)
 # automatic mode decodes in-process below this much input: forking workers and
@@ -63,6 +65,13 @@ class MessageSink(Protocol):
 
     def write(self, topic: str, message: Any, log_time_ns: int, publish_time_ns: int | None = None) -> None:
         """Append one message."""
+
+    def channel(self, topic: str, message_class: Any) -> int:
+        """Register a topic of protobuf messages of `message_class` (once)."""
+
+    def write_serialized_batch(self, topic: str, payloads: Sequence[bytes], log_times_ns: Sequence[int],
+                               publish_times_ns: Sequence[int] | None = None) -> None:
+        """Append serialized messages of a registered topic, in order."""
 
 
 @dataclass
@@ -288,9 +297,11 @@ class LogRecorder:
         self.offset_ns = log_offset_ns(log.time_base, log.start_ns, log.clock_offset_s)
         self.unchecked = bool(shift_text(log.time_base, self.offset_ns))
 
-    def add(self, item: Output | Reject | Ignored) -> None:
+    def add(self, item: Output | Reject | Ignored | Batch) -> None:
         if type(item) is not Output:
-            if type(item) is Ignored:
+            if type(item) is Batch:
+                self._add_batch(item)
+            elif type(item) is Ignored:
                 self.ignored[item.reason] += 1
             elif type(item) is Note:
                 self.stats.notes.append(item.reason)
@@ -335,6 +346,71 @@ class LogRecorder:
             span[0], span[1] = min(span[0], t), max(span[1], t)
         if self.pending:
             self.flush(t)
+
+    def _add_batch(self, batch: Batch) -> None:
+        """A block given as columns: checked, encoded and written as its items one by one would be, or those items
+        where one of its messages would be refused (or diagnostics wait for a time)."""
+        parts, checks = batch.parts, self.checks
+        if self.pending or any(checks.refused_rows(p.message_class, len(p.log_times_ns), p.columns,
+                                                   p.log_times_ns).any() for p in parts):
+            for item in batch.outputs():
+                self.add(item)
+            return
+        for reason, count in batch.ignored.items():
+            self.ignored[reason] += count
+        order = np.asarray(batch.order, dtype=np.int64)
+        n = len(order)
+        if not n:
+            return
+        log_all = np.empty(n, dtype=np.int64)
+        for j, p in enumerate(parts):
+            log_all[order == j] = p.log_times_ns
+        if self.unchecked:
+            self._check_shift(int(log_all[0]))
+        payloads = [split(*encode_columns(p.message_class, len(p.log_times_ns), p.columns)) for p in parts]
+        times = [(np.asarray(p.log_times_ns).tolist(), np.asarray(p.publish_times_ns).tolist()) for p in parts]
+        writer, taken = self.writer, [0] * len(parts)
+        starts = [0, *(np.flatnonzero(np.diff(order)) + 1).tolist(), n]
+        for start, end, j in zip(starts, starts[1:], order[starts[:-1]].tolist()):
+            p, k = parts[j], taken[j]
+            writer.channel(p.topic, p.message_class)
+            k2 = taken[j] = k + end - start
+            writer.write_serialized_batch(p.topic, payloads[j][k:k2], times[j][0][k:k2], times[j][1][k:k2])
+        self._batch_stats(batch, log_all)
+
+    def _batch_stats(self, batch: Batch, log_all: np.ndarray) -> None:
+        """The statistics `add` keeps, for a batch's messages (`log_all`: their log times in write order)."""
+        st = self.stats
+        st.messages += len(log_all)
+        keys = np.asarray(batch.keys, dtype=np.int64)
+        records = self.records
+        last = records.last
+        for key in keys[np.flatnonzero(np.diff(keys, prepend=keys[0] - 1))].tolist():
+            if key != last:  # not a record's second message: one count
+                records.add(key)
+                last = key
+        for p in batch.parts:
+            t = np.asarray(p.log_times_ns, dtype=np.int64)
+            if not len(t):
+                continue
+            prev = self.last_ns.get(p.topic)
+            steps = np.diff(t) if prev is None else np.diff(t, prepend=prev)
+            st.out_of_order += int((steps < 0).sum())
+            st.duplicates += int((steps == 0).sum())
+            self.last_ns[p.topic] = int(t[-1])
+        low, high = int(log_all.min()), int(log_all.max())
+        if st.start_ns is None or low < st.start_ns:
+            st.start_ns = low
+        if st.end_ns is None or high > st.end_ns:
+            st.end_ns = high
+        if self.part_starts:
+            which = np.searchsorted(np.asarray(self.part_starts), keys, side="right") - 1
+            for i in np.unique(which).tolist():
+                mine = log_all[which == i]
+                span = self.part_spans[i]
+                if not span:
+                    span += [int(mine[0]), int(mine[0])]
+                span[0], span[1] = min(span[0], int(mine.min())), max(span[1], int(mine.max()))
 
     def _check_shift(self, t_ns: int) -> None:
         """The log's first message time, its offset or start applied, in 1980-2100; else a ManifestError."""

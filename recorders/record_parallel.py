@@ -35,7 +35,7 @@ import tempfile
 import threading
 import traceback
 from array import array
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from multiprocessing.connection import Connection, wait
 from multiprocessing.process import BaseProcess
@@ -90,6 +90,7 @@ class Capture:
 
     def __init__(self) -> None:
         self._numbers: dict[tuple[str, type[Message]], int] = {}
+        self._by_topic: dict[str, int] = {}  # a topic's number, as `channel` last registered it
         self._parts: list[bytes] = []
         self._size = 0
         self.captured = Captured()
@@ -105,6 +106,26 @@ class Capture:
         self._size += len(data)
         self.captured.index.extend(
             (number, self._size, log_time_ns, log_time_ns if publish_time_ns is None else publish_time_ns))
+
+    def channel(self, topic: str, message_class: type[Message]) -> int:
+        """Register a topic of protobuf messages for `write_serialized_batch`, as ArchiveWriter.channel does."""
+        number = self._numbers.get((topic, message_class))
+        if number is None:
+            number = self._register(topic, message_class, None)
+        self._by_topic[topic] = number
+        return number
+
+    def write_serialized_batch(self, topic: str, payloads: Sequence[bytes], log_times_ns: Sequence[int],
+                               publish_times_ns: Sequence[int] | None = None) -> None:
+        """Keep serialized messages of a topic registered with `channel`, as ArchiveWriter's method would write."""
+        number = self._by_topic[topic]
+        index, parts, size = self.captured.index, self._parts, self._size
+        for data, log_time, publish_time in zip(payloads, log_times_ns,
+                                                log_times_ns if publish_times_ns is None else publish_times_ns):
+            parts.append(data)
+            size += len(data)
+            index.extend((number, size, log_time, publish_time))
+        self._size = size
 
     def _register(self, topic: str, cls: type[Message], message: Any) -> int:
         if cls in SOURCE_CLASSES:  # its schema travels with it: source topics have no class to find again

@@ -15,9 +15,13 @@ the field, the value and the limit. NaN stays allowed where a field means
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
+from operator import attrgetter
 from typing import Any
 
-from formats.units import archivable_ns
+import numpy as np
+
+from formats.units import TIME_MAX_NS, TIME_MIN_NS, archivable_ns
 
 MAX_RANGE_M = 20_000.0
 RANGE_FIELDS = frozenset({"range_m"})
@@ -65,11 +69,10 @@ _RULES: dict[str, tuple[tuple[str, float, float, bool], ...]] = {
 _RANGE_NAN_OK = {"auvreplay.AcousticRange": False, "auvreplay.UsblObservation": True}
 
 
-def _covariance(message: Any) -> str | None:
+def _covariance(kind: int, cov: Any) -> str | None:
     """A LocationFix's covariance: finite (or NaN where not given), variances not negative."""
-    if not message.position_covariance_type:
+    if not kind:
         return None
-    cov = message.position_covariance
     if len(cov) == 9 and cov[0] >= 0.0 and cov[4] >= 0.0 and cov[8] >= 0.0 and -math.inf < sum(cov) < math.inf:
         return None  # the usual case in one look: no infinity among them, variances not negative
     for i, v in enumerate(cov):
@@ -78,14 +81,19 @@ def _covariance(message: Any) -> str | None:
     return None
 
 
-def _position_pair(message: Any) -> str | None:
+def _position_pair(latitude: float, longitude: float) -> str | None:
     """An INS position is both coordinates or neither: one NaN beside a number is a field that did not parse."""
-    if (message.latitude != message.latitude) != (message.longitude != message.longitude):
-        return f"latitude {message.latitude:g} with longitude {message.longitude:g}"
+    if (latitude != latitude) != (longitude != longitude):
+        return f"latitude {latitude:g} with longitude {longitude:g}"
     return None
 
 
-_EXTRA = {"foxglove.LocationFix": _covariance, "auvreplay.InsState": _position_pair}
+# schema name -> (the fields it reads, a rule over their values): rules across fields, for a message and for columns
+_EXTRA: dict[str, tuple[tuple[str, ...], Callable[..., str | None]]] = {
+    "foxglove.LocationFix": (("position_covariance_type", "position_covariance"), _covariance),
+    "auvreplay.InsState": (("latitude", "longitude"), _position_pair),
+}
+Extra = tuple[Callable[[Any], Any], tuple[str, ...], Callable[..., str | None]] | None
 
 
 class ValueChecks:
@@ -95,14 +103,18 @@ class ValueChecks:
         self.max_range_m = max_range_m
         self.bad_ranges = 0
         self.out_of_range = 0
-        self._by_class: dict[type, tuple[tuple[tuple[str, float, float, bool], ...], Any]] = {}
+        self._by_class: dict[type, tuple[tuple[tuple[str, float, float, bool], ...], Extra]] = {}
 
-    def _rules(self, cls: type) -> tuple[tuple[tuple[str, float, float, bool], ...], Any]:
+    def _rules(self, cls: type) -> tuple[tuple[tuple[str, float, float, bool], ...], Extra]:
         name = getattr(getattr(cls, "DESCRIPTOR", None), "full_name", "")  # JSON messages have no rules
         rules = _RULES.get(name, ())
         if name in _RANGE_NAN_OK:
             rules = (("range_m", _ABOVE_ZERO, self.max_range_m, _RANGE_NAN_OK[name]), *rules)
-        self._by_class[cls] = found = (rules, _EXTRA.get(name))
+        extra: Extra = None
+        if name in _EXTRA:
+            fields, rule = _EXTRA[name]
+            extra = (attrgetter(*fields), fields, rule)
+        self._by_class[cls] = found = (rules, extra)
         return found
 
     def problem(self, message: Any, log_time_ns: int) -> str | None:
@@ -128,8 +140,37 @@ class ValueChecks:
                     return f"range {v:g} m is beyond max_range_m = {high:g}"
             return f"{name} = {v:g} is outside [{low:g}, {high:g}]" if v == v else f"{name} is NaN"
         if extra is not None:
-            why = extra(message)
+            why = extra[2](*extra[0](message))
             if why is not None:
                 self.out_of_range += 1
                 return why
         return None
+
+    def refused_rows(self, cls: type, n: int, columns: Mapping[str, Any], log_times_ns: np.ndarray) -> np.ndarray:
+        """Per row of a block given as columns (`formats.proto_encode.encode_columns`' columns), whether `problem`
+        would refuse its message: the same table and rules, over columns. A field not given is its default 0.
+
+        Nothing is counted here: a refused row's message goes through `problem`, which counts it and says why.
+        """
+        t = np.asarray(log_times_ns, dtype=np.int64)
+        bad = (t < TIME_MIN_NS) | (t >= TIME_MAX_NS)
+        found = self._by_class.get(cls)
+        rules, extra = found if found is not None else self._rules(cls)
+        with np.errstate(invalid="ignore"):
+            for name, low, high, nan_ok in rules:
+                v = np.broadcast_to(np.asarray(columns.get(name, 0.0), dtype=np.float64), (n,))
+                inside = (v >= low) & (v <= high)
+                bad |= ~(inside | np.isnan(v)) if nan_ok else ~inside
+        if extra is not None:
+            _, fields, rule = extra
+            values = [_rows(columns.get(f, 0), n) for f in fields]
+            bad |= np.fromiter((rule(*row) is not None for row in zip(*values)), dtype=bool, count=n)
+        return bad
+
+
+def _rows(values: Any, n: int) -> list:
+    """A column's values row by row as Python values (an (n, k) array's rows as lists), for a rule over fields:
+    an array or a list is a value per row, anything else one value for every row."""
+    if isinstance(values, np.ndarray) and values.ndim:
+        return values.tolist()
+    return values if isinstance(values, list) else [values] * n

@@ -1,0 +1,192 @@
+"""Protobuf messages of one type encoded from numpy columns, many at a time: the reverse of `formats.proto_columns`.
+
+Building a protobuf object per archive message, then serializing it, costs a
+few microseconds a message on the recording hot path. Here a block of
+messages is encoded at once: per field one numpy step makes its bytes for
+every message (tag, then the value), and one boolean mask cuts the rows'
+fields together into one blob, message after message.
+
+The bytes are those of upb's ``SerializeToString`` of the same message
+(tests/test_proto_encode.py checks with hypothesis): fields in field-number
+order; a proto3 scalar equal to its default is left out, a double only when
+its bits are zero (so -0.0 is written, NaN too); a negative int32 or int64 is
+a ten-byte varint; a string as UTF-8 after its length, left out when empty; a
+packed repeated double as one length-delimited run, left out when empty; a
+`google.protobuf.Timestamp` is present where the time is archivable
+(`formats.units.archivable_ns`, as `formats.schemas.set_timestamp` sets it),
+its seconds and nanos left out when zero. Tags are read from the message's
+descriptor, never written by hand. Fields not given stay unset.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from .units import NS, TIME_MAX_NS, TIME_MIN_NS
+from .wire import varint
+
+# descriptor field types (google.protobuf.descriptor.FieldDescriptor.TYPE_*)
+_T_DOUBLE, _T_INT64, _T_INT32, _T_BOOL, _T_STRING, _T_MESSAGE, _T_ENUM = 1, 3, 5, 8, 9, 11, 14
+_INTS = (_T_INT64, _T_INT32, _T_ENUM)  # varints of a signed value: a negative one takes ten bytes
+_SHIFTS = np.arange(0, 70, 7, dtype=np.uint64)  # the ten 7-bit groups of a 64-bit varint
+
+Segment = tuple[np.ndarray, np.ndarray]  # (uint8 matrix: a row's bytes left-aligned, byte count per row)
+
+
+@lru_cache(maxsize=32)
+def _fields(cls: Any) -> tuple[tuple[str, int, int, bool, bytes], ...]:
+    """Per field, in number order: (name, number, descriptor type, repeated, tag bytes by wire type)."""
+    out = []
+    for f in sorted(cls.DESCRIPTOR.fields, key=lambda f: f.number):
+        repeated = getattr(f, "is_repeated", None)
+        repeated = repeated if repeated is not None else f.label == 3
+        if f.type == _T_DOUBLE and not repeated:
+            wire = 1
+        elif f.type in (*_INTS, _T_BOOL) and not repeated:
+            wire = 0
+        else:
+            wire = 2  # strings, sub-messages, packed repeated doubles
+        out.append((f.name, f.number, f.type, bool(repeated), varint(f.number << 3 | wire)))
+    return tuple(out)
+
+
+def _const(n: int, data: bytes, present: np.ndarray | None = None) -> Segment:
+    """The same bytes in every row (none where `present` is False)."""
+    mat = np.broadcast_to(np.frombuffer(data, dtype=np.uint8), (n, len(data)))
+    lens = np.full(n, len(data), dtype=np.int64)
+    return mat, lens if present is None else np.where(present, lens, 0)
+
+
+def varints(values: np.ndarray) -> Segment:
+    """Base-128 varints of uint64 values (a negative int64 as its two's complement: ten bytes)."""
+    v = np.asarray(values).astype(np.uint64, copy=False)[:, None]
+    groups = (v >> _SHIFTS) & np.uint64(0x7F)
+    higher = (v >> _SHIFTS) > np.uint64(0x7F)  # another group follows this one
+    lens = 1 + higher.sum(axis=1, dtype=np.int64)
+    return (groups | np.where(higher, np.uint64(0x80), np.uint64(0))).astype(np.uint8), lens
+
+
+def _strings(n: int, tag: bytes, values: str | Sequence[str]) -> Segment:
+    """Tag, length and UTF-8 bytes per row; nothing for an empty string. One encoding per distinct value."""
+    if isinstance(values, str):
+        text = values.encode("utf-8")
+        return _const(n, tag + varint(len(text)) + text, None if text else np.zeros(n, dtype=bool))
+    codes: dict[str, int] = {}
+    index = np.fromiter((codes.setdefault(s, len(codes)) for s in values), dtype=np.int64, count=n)
+    pieces = []
+    for s in codes:
+        text = s.encode("utf-8")
+        pieces.append(tag + varint(len(text)) + text if text else b"")
+    width = max(map(len, pieces), default=0)
+    table = np.zeros((len(pieces), width), dtype=np.uint8)
+    for i, piece in enumerate(pieces):
+        table[i, : len(piece)] = np.frombuffer(piece, dtype=np.uint8)
+    lens = np.array([len(p) for p in pieces], dtype=np.int64)
+    return table[index], lens[index]
+
+
+def _doubles(n: int, tag: bytes, values: Any) -> Segment:
+    """Tag and 8 little-endian bytes per row; nothing where the bits are zero (0.0, not -0.0)."""
+    v = np.ascontiguousarray(np.broadcast_to(np.asarray(values, dtype="<f8"), (n,)))
+    raw = v.view(np.uint8).reshape(n, 8)
+    tags = np.broadcast_to(np.frombuffer(tag, dtype=np.uint8), (n, len(tag)))
+    present = v.view(np.uint64) != 0
+    return np.concatenate([tags, raw], axis=1), np.where(present, len(tag) + 8, 0)
+
+
+def _ints(n: int, tag: bytes, values: Any) -> Segment:
+    """Tag and varint per row; nothing where the value is 0."""
+    v = np.broadcast_to(np.asarray(values, dtype=np.int64), (n,))
+    mat, lens = varints(v)
+    tags = np.broadcast_to(np.frombuffer(tag, dtype=np.uint8), (n, len(tag)))
+    return _join([(tags, np.full(n, len(tag))), (mat, lens)], v != 0)
+
+
+def _packed(n: int, tag: bytes, values: Any) -> Segment:
+    """A packed repeated double: tag, byte length and the values per row (an (n, k) array); nothing when k = 0."""
+    v = np.ascontiguousarray(np.asarray(values, dtype="<f8").reshape(n, -1))
+    k = v.shape[1]
+    if not k:
+        return np.zeros((n, 0), dtype=np.uint8), np.zeros(n, dtype=np.int64)
+    head = tag + varint(8 * k)
+    tags = np.broadcast_to(np.frombuffer(head, dtype=np.uint8), (n, len(head)))
+    return np.concatenate([tags, v.view(np.uint8).reshape(n, 8 * k)], axis=1), np.full(n, len(head) + 8 * k)
+
+
+def _timestamps(n: int, tag: bytes, values: Any) -> Segment:
+    """A Timestamp sub-message of integer ns per row, where archivable; seconds and nanos left out when 0."""
+    t = np.broadcast_to(np.asarray(values, dtype=np.int64), (n,))
+    present = (t >= TIME_MIN_NS) & (t < TIME_MAX_NS)
+    sec, nanos = np.divmod(np.where(present, t, 0), NS)
+    inner = [_ints(n, b"\x08", sec), _ints(n, b"\x10", nanos)]
+    size = inner[0][1] + inner[1][1]  # at most 6 + 5 bytes: the length is one varint byte
+    tags = np.broadcast_to(np.frombuffer(tag, dtype=np.uint8), (n, len(tag)))
+    head = np.concatenate([tags, size.astype(np.uint8)[:, None]], axis=1)
+    return _join([(head, np.full(n, len(tag) + 1)), *inner], present)
+
+
+def _join(segments: list[Segment], present: np.ndarray | None = None) -> Segment:
+    """Segments side by side, each row's bytes packed to the left; a row is empty where `present` is False."""
+    n = len(segments[0][1])
+    lens = [np.asarray(seg[1], dtype=np.int64) for seg in segments]
+    if present is not None:
+        lens = [np.where(present, seg_lens, 0) for seg_lens in lens]
+    total = np.sum(lens, axis=0) if lens else np.zeros(n, dtype=np.int64)
+    width = int(total.max()) if n else 0
+    out = np.zeros((n, width), dtype=np.uint8)
+    keep = np.concatenate([np.arange(seg[0].shape[1])[None, :] < seg_lens[:, None]
+                           for seg, seg_lens in zip(segments, lens)], axis=1)
+    out[np.arange(width)[None, :] < total[:, None]] = np.concatenate([seg[0] for seg in segments], axis=1)[keep]
+    return out, total
+
+
+def encode_columns(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[bytes, np.ndarray]:
+    """`n` messages of `cls` from columns: (their bytes one after the other, each one's end offset in them).
+
+    `columns` maps field names to a value per row (a numpy array or sequence of
+    length n) or one value for every row: doubles, ints and bools; str or str
+    sequences; int ns for a Timestamp; an (n, k) array for a packed repeated
+    double. Fields not named stay unset. Raises TypeError for a field this
+    encoder does not write (another sub-message, bytes, a repeated non-double).
+    """
+    segments: list[Segment] = []
+    for name, _number, kind, repeated, tag in _fields(cls):
+        if name not in columns:
+            continue
+        values = columns[name]
+        if repeated:
+            if kind != _T_DOUBLE:
+                raise TypeError(f"{cls.DESCRIPTOR.full_name}.{name}: only packed repeated doubles are encoded")
+            segments.append(_packed(n, tag, values))
+        elif kind == _T_DOUBLE:
+            segments.append(_doubles(n, tag, values))
+        elif kind in _INTS or kind == _T_BOOL:
+            segments.append(_ints(n, tag, values))
+        elif kind == _T_STRING:
+            segments.append(_strings(n, tag, values))
+        elif kind == _T_MESSAGE and _is_timestamp(cls, name):
+            segments.append(_timestamps(n, tag, values))
+        else:
+            raise TypeError(f"{cls.DESCRIPTOR.full_name}.{name}: type {kind} is not encoded from columns")
+    if not segments or not n:
+        return b"", np.zeros(n, dtype=np.int64)
+    out, lens = _join(segments)
+    ends = np.cumsum(lens)
+    return out[np.arange(out.shape[1])[None, :] < lens[:, None]].tobytes(), ends
+
+
+def _is_timestamp(cls: Any, name: str) -> bool:
+    return bool(cls.DESCRIPTOR.fields_by_name[name].message_type.full_name == "google.protobuf.Timestamp")
+
+
+def split(blob: bytes, ends: np.ndarray) -> list[bytes]:
+    """The messages of `encode_columns`' blob, each its own bytes."""
+    out, start = [], 0
+    for end in ends.tolist():
+        out.append(blob[start:end])
+        start = end
+    return out
