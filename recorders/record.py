@@ -69,6 +69,9 @@ class MessageSink(Protocol):
     def channel(self, topic: str, message_class: Any) -> int:
         """Register a topic of protobuf messages of `message_class` (once)."""
 
+    def write_serialized(self, topic: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None) -> None:
+        """Append one serialized message of a registered topic."""
+
     def write_serialized_batch(self, topic: str, payloads: Sequence[bytes], log_times_ns: Sequence[int],
                                publish_times_ns: Sequence[int] | None = None) -> None:
         """Append serialized messages of a registered topic, in order."""
@@ -369,13 +372,19 @@ class LogRecorder:
             self._check_shift(int(log_all[0]))
         payloads = [split(*encode_columns(p.message_class, len(p.log_times_ns), p.columns)) for p in parts]
         times = [(np.asarray(p.log_times_ns).tolist(), np.asarray(p.publish_times_ns).tolist()) for p in parts]
-        writer, taken = self.writer, [0] * len(parts)
+        writer, taken, seen = self.writer, [0] * len(parts), [False] * len(parts)
         starts = [0, *(np.flatnonzero(np.diff(order)) + 1).tolist(), n]
         for start, end, j in zip(starts, starts[1:], order[starts[:-1]].tolist()):
             p, k = parts[j], taken[j]
-            writer.channel(p.topic, p.message_class)
-            k2 = taken[j] = k + end - start
-            writer.write_serialized_batch(p.topic, payloads[j][k:k2], times[j][0][k:k2], times[j][1][k:k2])
+            if not seen[j]:  # registered at its first message, as write() registers it
+                writer.channel(p.topic, p.message_class)
+                seen[j] = True
+            if end - start == 1:  # topics taking turns (a fix, its status): one message, the lighter call
+                writer.write_serialized(p.topic, payloads[j][k], times[j][0][k], times[j][1][k])
+                taken[j] = k + 1
+            else:
+                k2 = taken[j] = k + end - start
+                writer.write_serialized_batch(p.topic, payloads[j][k:k2], times[j][0][k:k2], times[j][1][k:k2])
         self._batch_stats(batch, log_all)
 
     def _batch_stats(self, batch: Batch, log_all: np.ndarray) -> None:

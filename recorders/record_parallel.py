@@ -115,6 +115,13 @@ class Capture:
         self._by_topic[topic] = number
         return number
 
+    def write_serialized(self, topic: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None) -> None:
+        """Keep one serialized message of a topic registered with `channel`."""
+        self._parts.append(data)
+        self._size += len(data)
+        self.captured.index.extend((self._by_topic[topic], self._size, log_time_ns,
+                                    log_time_ns if publish_time_ns is None else publish_time_ns))
+
     def write_serialized_batch(self, topic: str, payloads: Sequence[bytes], log_times_ns: Sequence[int],
                                publish_times_ns: Sequence[int] | None = None) -> None:
         """Keep serialized messages of a topic registered with `channel`, as ArchiveWriter's method would write."""
