@@ -16,11 +16,13 @@ block of the log at a time, not the whole log.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import date
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from formats.log_blocks import Block, LogBlocks, LogText
 from formats.nmea.counts import SentenceCounts
@@ -94,6 +96,20 @@ class Batch:
     where: Where             # the last message's record (for progress)
     outputs: Callable[[], Iterable[Output | Ignored]]
     ignored: dict[str, int] = field(default_factory=dict)  # records read and not archived, by reason
+
+
+_INT64 = (-(1 << 63), (1 << 63) - 1)
+
+
+def int64_times(times: Sequence[int | None], offset_ns: int = 0) -> np.ndarray | None:
+    """Times plus an offset as an int64 column for a Batch; None when one is missing, or beyond int64 (the
+    message-by-message path then keeps its own rules for it), or there are none."""
+    if not len(times) or None in times:
+        return None
+    values = [t + offset_ns for t in times] if offset_ns else times  # type: ignore[operator]
+    if min(values) < _INT64[0] or max(values) > _INT64[1]:  # type: ignore[type-var, operator]
+        return None
+    return np.array(values, dtype=np.int64)
 
 
 @dataclass(frozen=True, slots=True)

@@ -40,7 +40,7 @@ from formats.records import FormatError, Reject, Where
 from formats.schemas import DvlVelocity, set_timestamp, timestamp
 from formats.wire import DVL_VELOCITY
 
-from .base import CONTAINER_TIME, BlockConverter, Converter, LogContext, Output, blockwise, output
+from .base import CONTAINER_TIME, Batch, BlockConverter, Columns, Converter, LogContext, Output, blockwise, int64_times, output
 from .clock import DayClock
 
 NAN = math.nan
@@ -157,12 +157,12 @@ def _pd0_motion(block: pd0_blocks.Block, fixed: pd0.FixedLeader, ctx: LogContext
         alt = np.where(count > 0, (((w[:, 0] + w[:, 1]) + w[:, 2]) + w[:, 3]) / count, NAN)
     slant = vertical / math.cos(math.radians(angle))
     valid = np.isfinite(x) & np.isfinite(y) & np.isfinite(z)
-    return frame, x.tolist(), y.tolist(), z.tolist(), err.tolist(), slant.tolist(), alt.tolist(), valid.tolist()
+    return frame, x, y, z, err, slant, alt, valid
 
 
 def _pd0_block_outputs(block: pd0_blocks.Block, fixed: pd0.FixedLeader | None, ctx: LogContext
-                       ) -> Iterator[Output | Reject]:
-    """`convert_pd0_reference`'s items for the ensembles of one block."""
+                       ) -> Iterator[Output | Reject | Batch]:
+    """`convert_pd0_reference`'s items for the ensembles of one block: one Batch when every ensemble has a time."""
     offsets, times, numbers = block.offsets, block.time_ns, block.numbers
     sounds, temps = block.sound_speed_mps, block.temperature_c  # None only with `times` (no variable leader)
     if (times is None or numbers is None or sounds is None or temps is None or block.velocity_mps is None
@@ -176,14 +176,35 @@ def _pd0_block_outputs(block: pd0_blocks.Block, fixed: pd0.FixedLeader | None, c
             else:
                 yield Reject(Where(off), f"ensemble {number}: no fixed leader yet (coordinates unknown)")
         return
-    frame, xs, ys, zs, errs, slants, alts, valids = _pd0_motion(block, fixed, ctx)
+    motion = _pd0_motion(block, fixed, ctx)
+    frame, x, y, z, err, slant, alt, valid = motion
+    t = int64_times(times, ctx.clock_offset_ns)
+    if t is None:
+        yield from _pd0_messages(block, ctx, motion)
+        return
+    columns = {"timestamp": t, "frame_id": ctx.vehicle, "frame": FRAMES[frame], "velocity_x_mps": x,
+               "velocity_y_mps": y, "velocity_z_mps": z, "error_velocity_mps": err, "beam_range_m": slant,
+               "altitude_m": alt, "valid": valid, "figure_of_merit": NAN,
+               "sound_speed_mps": np.asarray(sounds, dtype=np.float64), "source_format": "pd0",
+               "temperature_c": np.asarray(temps, dtype=np.float64)}
+    yield Batch([Columns(f"/{ctx.vehicle}/dvl", DvlVelocity, columns, t, t)], np.zeros(len(t), dtype=np.int64),
+                np.asarray(offsets, dtype=np.int64), Where(int(offsets[-1])),
+                lambda: _pd0_messages(block, ctx, motion))
+
+
+def _pd0_messages(block: pd0_blocks.Block, ctx: LogContext, motion: tuple) -> Iterator[Output | Reject]:
+    """A block's DvlVelocity messages one by one (a Reject for an ensemble without a time)."""
+    frame, *columns = motion
+    xs, ys, zs, errs, slants, alts, valids = (c.tolist() for c in columns)
     head = DvlVelocity(frame_id=ctx.vehicle, frame=FRAMES[frame], figure_of_merit=NAN,
                        source_format="pd0").SerializeToString()
     pack, parse = DVL_VELOCITY.struct.pack, DvlVelocity.FromString
     topic, offset_ns = f"/{ctx.vehicle}/dvl", ctx.clock_offset_ns
     k0, k1, k2, k3, k4, k5, k6, k7, k8 = DVL_VELOCITY.keys
+    assert block.time_ns is not None and block.numbers is not None  # as `_pd0_block_outputs` checked
     for off, t, number, x, y, z, err, r, alt, valid, sound, temp in zip(
-            offsets, times, numbers, xs, ys, zs, errs, slants, alts, valids, sounds, temps):
+            block.offsets, block.time_ns, block.numbers, xs, ys, zs, errs, slants, alts, valids,
+            block.sound_speed_mps, block.temperature_c):
         if t is None:
             yield Reject(Where(off), f"ensemble {number}: no variable leader or invalid RTC time")
             continue
@@ -193,7 +214,7 @@ def _pd0_block_outputs(block: pd0_blocks.Block, fixed: pd0.FixedLeader | None, c
         yield Output(topic, msg, t, t, Where(off))
 
 
-def convert_pd0(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_pd0(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Batch]:
     """Teledyne RDI PD0 ensembles (bottom track); frame from the EX coordinate bits."""
     fixed: pd0.FixedLeader | None = None
     for item in pd0_blocks.scan(data):
