@@ -96,6 +96,7 @@ class Batch:
     where: Where             # the last message's record (for progress)
     outputs: Callable[[], Iterable[Output | Ignored]]
     ignored: dict[str, int] = field(default_factory=dict)  # records read and not archived, by reason
+    one_by_one: bool = False  # the items must go one by one (the block's columns could not be made)
 
 
 _INT64 = (-(1 << 63), (1 << 63) - 1)
@@ -159,3 +160,65 @@ def output(ctx: LogContext, suffix: str, message: Any, t_ns: int, where: Where |
     host = where.host_time_ns if where is not None else None
     publish = host + ctx.clock_offset_ns if host is not None else t_ns
     return Output(f"/{ctx.vehicle}/{suffix}", message, t_ns, publish, where)
+
+
+ROWS_PER_BATCH = 1024  # messages a `Rows` holds before it is taken: bounded memory, numpy steps long enough
+
+
+class Rows:
+    """One topic's messages gathered as rows of their builder's arguments, taken as a Batch.
+
+    A converter adds a row where it would build an Output, takes the Batch when
+    `full` and before anything else it yields (a Reject), so the order of the
+    log's items is kept. `build(t_ns, *values)` makes the message of a row: the
+    Batch's message-by-message items are built by it, and its columns are the
+    rows' values under `names` (the message's field names), plus `constants`.
+    """
+
+    __slots__ = ("topic", "message_class", "names", "build", "constants", "times", "publish", "offsets",
+                 "values", "wheres")
+
+    def __init__(self, topic: str, message_class: Any, names: tuple[str, ...], build: Callable[..., Any],
+                 constants: Mapping[str, Any]):
+        self.topic, self.message_class, self.names, self.build = topic, message_class, names, build
+        self.constants = dict(constants)
+        self.times: list[int] = []
+        self.publish: list[int] = []
+        self.wheres: list[Where] = []
+        self.values: list[tuple] = []
+
+    @property
+    def full(self) -> bool:
+        """Whether the rows should be taken now."""
+        return len(self.times) >= ROWS_PER_BATCH
+
+    def add(self, t_ns: int, publish_ns: int, where: Where, values: tuple) -> None:
+        """One message: its log and publish times, its record and its builder's arguments after the time."""
+        self.times.append(t_ns)
+        self.publish.append(publish_ns)
+        self.wheres.append(where)
+        self.values.append(values)
+
+    def take(self) -> Batch | None:
+        """The rows so far as one Batch (None without any), and a fresh start."""
+        if not self.times:
+            return None
+        times, publish, wheres, values = self.times, self.publish, self.wheres, self.values
+        self.times, self.publish, self.wheres, self.values = [], [], [], []
+        topic, build = self.topic, self.build
+
+        def outputs() -> Iterator[Output]:
+            for t, p, w, v in zip(times, publish, wheres, values):
+                yield Output(topic, build(t, *v), t, p, w)
+
+        log_ns, publish_ns = int64_times(times), int64_times(publish)
+        if log_ns is None or publish_ns is None:  # a time beyond int64: the messages one by one
+            return Batch([], np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), wheres[-1], outputs,
+                         one_by_one=True)
+        columns: dict[str, Any] = dict(self.constants)
+        for name, column in zip(self.names, zip(*values)):
+            columns[name] = list(column) if isinstance(column[0], str) else np.array(column, dtype=np.float64)
+        columns["timestamp"] = log_ns
+        return Batch([Columns(topic, self.message_class, columns, log_ns, publish_ns)],
+                     np.zeros(len(times), dtype=np.int64), np.array([w.offset for w in wheres], dtype=np.int64),
+                     wheres[-1], outputs)

@@ -35,7 +35,7 @@ from formats.nmea import sentences as nmea
 from formats.novatel import scan as novatel_scan
 from formats.records import Reject, Where
 
-from .base import BlockConverter, Converter, LogContext, Output, blockwise, output
+from .base import Batch, BlockConverter, Converter, LogContext, Output, Rows, blockwise, output
 from .clock import DayClock
 from .epochs import host_time_ns
 from .gnss_velocity import components
@@ -123,41 +123,65 @@ def _phins_scan_fields(burst: dict[str, phins.Scanned]) -> tuple:
     return " ".join(words), lat, lon, depth, roll, pitch, heading, vn, ve, vd, hstd, pn, pe, rstd, pstd, alt
 
 
-def _phins_scan_outputs(burst: dict[str, phins.Scanned], ctx: LogContext, clock: DayClock) -> Iterator[Output | Reject]:
-    """`_phins_outputs` on scanned values."""
+def _phins_scan_outputs(burst: dict[str, phins.Scanned], ctx: LogContext, clock: DayClock, rows: Rows
+                        ) -> Reject | None:
+    """`_phins_outputs` on scanned values: the burst's InsState added to `rows`, or a Reject."""
     if not any(k in burst for k in _NAV_KEYS):
-        return
+        return None
     first = next(iter(burst.values()))
     stamp = burst.get("Time")
     if stamp is not None and not math.isnan(stamp[1][0]):  # TIME__'s only value: time_s
         t = clock.resolve(stamp[1][0])
         if t is None:
-            yield Reject(Where(*stamp[2:]), "no date for PHINS TIME__: set the [trial] date in the manifest")
-            return
+            return Reject(Where(*stamp[2:]), "no date for PHINS TIME__: set the [trial] date in the manifest")
     else:
         t = next((item[4] + ctx.clock_offset_ns for item in burst.values() if item[4] is not None), None)
         if t is None:
-            yield Reject(Where(*first[2:]), "no time: PHINS burst without TIME__ and without a host timestamp")
-            return
-    state = S.ins_state(t, ctx.vehicle, "phins", *_phins_scan_fields(burst))
+            return Reject(Where(*first[2:]), "no time: PHINS burst without TIME__ and without a host timestamp")
     publish = t if first[4] is None else first[4] + ctx.clock_offset_ns
-    yield Output(f"/{ctx.vehicle}/ins", state, t, publish, Where(*first[2:]))
+    rows.add(t, publish, Where(*first[2:]), ("phins", *_phins_scan_fields(burst)))
+    return None
 
 
-def convert_phins(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
+# InsState's fields in `S.ins_state`'s order after frame_id: the columns of a Rows of INS messages
+INS_FIELDS = ("source_format", "status", "latitude", "longitude", "depth_m", "roll_deg", "pitch_deg", "heading_deg",
+              "velocity_north_mps", "velocity_east_mps", "velocity_down_mps", "heading_std_deg",
+              "position_std_north_m", "position_std_east_m", "roll_std_deg", "pitch_std_deg", "altitude_m")
+
+
+def ins_rows(ctx: LogContext) -> Rows:
+    """A Rows of the log's InsState messages: rows of `S.ins_state`'s arguments after the time and frame."""
+    vehicle = ctx.vehicle
+    return Rows(f"/{vehicle}/ins", S.InsState, INS_FIELDS,
+                lambda t, *values: S.ins_state(t, vehicle, *values), {"frame_id": vehicle})
+
+
+def convert_phins(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | Batch]:
     """iXblue/Exail PHINS standard ASCII ($HEHDT, $PIXSE ..., $PHTRO), one InsState per burst."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     burst: dict[str, phins.Scanned] = {}
+    rows = ins_rows(ctx)
     for item in phins.scan(data, ctx.prefix):
         if isinstance(item, Reject):
-            yield item
+            yield from _taken(rows, item)
             continue
         if item[0] in burst:  # a repeated sentence starts the next burst (`group_epochs` with no times)
-            yield from _phins_scan_outputs(burst, ctx, clock)
+            reject = _phins_scan_outputs(burst, ctx, clock, rows)
+            if reject is not None or rows.full:
+                yield from _taken(rows, reject)
             burst = {}
         burst[item[0]] = item
-    if burst:
-        yield from _phins_scan_outputs(burst, ctx, clock)
+    reject = _phins_scan_outputs(burst, ctx, clock, rows) if burst else None
+    yield from _taken(rows, reject)
+
+
+def _taken(rows: Rows, then: Reject | None = None) -> Iterator[Batch | Reject]:
+    """The rows gathered so far as a Batch, then `then`: the log's items in their order."""
+    batch = rows.take()
+    if batch is not None:
+        yield batch
+    if then is not None:
+        yield then
 
 
 # ---------------------------------------------------------------- $PASHR
@@ -220,22 +244,25 @@ def _span_scan_fields(epoch: dict[str, novatel_scan.Scanned]) -> tuple:
             hstd, pn, pe, rstd, pstd, alt)
 
 
-def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Batch]:
     """NovAtel SPAN INSPVA / INSPVAS / INSPVAX logs (ASCII or binary), merged per GPS time."""
-    topic = f"/{ctx.vehicle}/ins"
+    rows = ins_rows(ctx)
     for epoch in novatel_scan_epochs(data, ctx, _SPAN_KINDS):
         if isinstance(epoch, Reject):
-            yield epoch
+            yield from _taken(rows, epoch)
             continue
         t = novatel_scan_time(epoch, ctx)
         if isinstance(t, Reject):
-            yield t
+            yield from _taken(rows, t)
             continue
         items = list(epoch.values())
         source = "novatel:" + ",".join([item[1] for item in items])
-        state = S.ins_state(t, ctx.vehicle, source, *_span_scan_fields(epoch))
         first = items[0]
-        yield Output(topic, state, t, novatel_publish_ns(first, t, ctx), novatel_scan.where_of(first))
+        rows.add(t, novatel_publish_ns(first, t, ctx), novatel_scan.where_of(first),
+                 (source, *_span_scan_fields(epoch)))
+        if rows.full:
+            yield from _taken(rows)
+    yield from _taken(rows)
 
 
 # ---------------------------------------------------------------- NMEA heading / INS-as-NMEA

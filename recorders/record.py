@@ -354,7 +354,7 @@ class LogRecorder:
         """A block given as columns: checked, encoded and written as its items one by one would be, or those items
         where one of its messages would be refused (or diagnostics wait for a time)."""
         parts, checks = batch.parts, self.checks
-        if self.pending or any(checks.refused_rows(p.message_class, len(p.log_times_ns), p.columns,
+        if batch.one_by_one or self.pending or any(checks.refused_rows(p.message_class, len(p.log_times_ns), p.columns,
                                                    p.log_times_ns).any() for p in parts):
             for item in batch.outputs():
                 self.add(item)
