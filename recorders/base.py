@@ -50,6 +50,9 @@ class LogContext:
     # what the converter read, counted by kind and outcome (NMEA: every line by sentence address), for the
     # recording's statistics; a new one per context, shared by the contexts `replace` makes of it
     counts: SentenceCounts = field(default_factory=SentenceCounts, compare=False, repr=False)
+    # the consumer takes `Batch` items (the recording step): a converter may then give a block of messages as
+    # columns; everyone else gets the same messages as Outputs, one by one
+    batches: bool = False
 
     def vehicle_for_address(self, address: int | None) -> str:
         """The vehicle name for a modem address, or 'addr<N>' when the manifest has none."""
@@ -97,6 +100,13 @@ class Batch:
     outputs: Callable[[], Iterable[Output | Ignored]]
     ignored: dict[str, int] = field(default_factory=dict)  # records read and not archived, by reason
     one_by_one: bool = False  # the items must go one by one (the block's columns could not be made)
+
+
+def batched(ctx: LogContext, batch: Batch | None) -> Iterator[Output | Ignored | Batch]:
+    """`batch` itself for a consumer that takes batches (`LogContext.batches`), else its items one by one."""
+    if batch is None:
+        return iter(())
+    return iter((batch,)) if ctx.batches else iter(batch.outputs())
 
 
 _INT64 = (-(1 << 63), (1 << 63) - 1)

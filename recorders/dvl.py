@@ -177,6 +177,9 @@ def _pd0_block_outputs(block: pd0_blocks.Block, fixed: pd0.FixedLeader | None, c
                 yield Reject(Where(off), f"ensemble {number}: no fixed leader yet (coordinates unknown)")
         return
     motion = _pd0_motion(block, fixed, ctx)
+    if not ctx.batches:
+        yield from _pd0_messages(block, ctx, motion)
+        return
     frame, x, y, z, err, slant, alt, valid = motion
     t = int64_times(times, ctx.clock_offset_ns)
     if t is None:
@@ -189,7 +192,7 @@ def _pd0_block_outputs(block: pd0_blocks.Block, fixed: pd0.FixedLeader | None, c
                "temperature_c": np.asarray(temps, dtype=np.float64)}
     yield Batch([Columns(f"/{ctx.vehicle}/dvl", DvlVelocity, columns, t, t)], np.zeros(len(t), dtype=np.int64),
                 np.asarray(offsets, dtype=np.int64), Where(int(offsets[-1])),
-                lambda: _pd0_messages(block, ctx, motion))
+                lambda: _pd0_messages(block, ctx, motion))  # type: ignore[arg-type]
 
 
 def _pd0_messages(block: pd0_blocks.Block, ctx: LogContext, motion: tuple) -> Iterator[Output | Reject]:

@@ -22,7 +22,7 @@ from formats.nmea.sentences import KNOT_MPS
 from formats.records import Reject, Where
 from formats.units import DAY_NS, NS
 
-from .base import Batch, Columns, Ignored, LogContext, Output
+from .base import Batch, Columns, Ignored, LogContext, Output, batched
 from .clock import DayClock, date_to_ns
 from .gnss_covariance import fix_covariance
 from .gnss_velocity import NO_VELOCITY, SUFFIX, components_column
@@ -183,7 +183,7 @@ def convert_columns(cols: NmeaColumns, ctx: LogContext, no_date: str, clock: Day
         first = zip(offsets[first_timed].tolist(), numbers[first_timed].tolist(), cols.tod[first_timed].tolist())
         return _emit(ctx, times, silent, fix, status, velocity, where, first, no_date)
 
-    if any(t is None and not quiet for t, quiet in zip(times, silent)):
+    if not ctx.batches or any(t is None and not quiet for t, quiet in zip(times, silent)):
         return outputs()  # a Reject among them: message by message
     columns = {"frame_id": ctx.vehicle, "fix_quality": quality, "satellites": satellites, "hdop": hdop,
                "speed_over_ground_mps": speed, "course_over_ground_deg": course, "heading_deg": heading}
@@ -192,7 +192,7 @@ def convert_columns(cols: NmeaColumns, ctx: LogContext, no_date: str, clock: Day
         return outputs()
     batch = _batch(ctx, times, silent, has_pos, moving, columns, sources, (lat, lon, alt, covariance, cov_kind),
                    (north, east), offsets[source], outputs)
-    return iter((batch,))
+    return batched(ctx, batch)
 
 
 _NAN9 = (NAN,) * 9

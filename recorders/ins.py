@@ -35,7 +35,7 @@ from formats.nmea import sentences as nmea
 from formats.novatel import scan as novatel_scan
 from formats.records import Reject, Where
 
-from .base import Batch, BlockConverter, Converter, LogContext, Output, Rows, blockwise, output
+from .base import Batch, BlockConverter, Converter, LogContext, Output, Rows, batched, blockwise, output
 from .clock import DayClock
 from .epochs import host_time_ns
 from .gnss_velocity import components
@@ -163,23 +163,21 @@ def convert_phins(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | 
     rows = ins_rows(ctx)
     for item in phins.scan(data, ctx.prefix):
         if isinstance(item, Reject):
-            yield from _taken(rows, item)
+            yield from _taken(rows, ctx, item)
             continue
         if item[0] in burst:  # a repeated sentence starts the next burst (`group_epochs` with no times)
             reject = _phins_scan_outputs(burst, ctx, clock, rows)
             if reject is not None or rows.full:
-                yield from _taken(rows, reject)
+                yield from _taken(rows, ctx, reject)
             burst = {}
         burst[item[0]] = item
     reject = _phins_scan_outputs(burst, ctx, clock, rows) if burst else None
-    yield from _taken(rows, reject)
+    yield from _taken(rows, ctx, reject)
 
 
-def _taken(rows: Rows, then: Reject | None = None) -> Iterator[Batch | Reject]:
-    """The rows gathered so far as a Batch, then `then`: the log's items in their order."""
-    batch = rows.take()
-    if batch is not None:
-        yield batch
+def _taken(rows: Rows, ctx: LogContext, then: Reject | None = None) -> Iterator[Output | Batch | Reject]:
+    """The rows gathered so far (a Batch, or its Outputs: `batched`), then `then`: the log's items in order."""
+    yield from batched(ctx, rows.take())  # type: ignore[misc]
     if then is not None:
         yield then
 
@@ -249,11 +247,11 @@ def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Bat
     rows = ins_rows(ctx)
     for epoch in novatel_scan_epochs(data, ctx, _SPAN_KINDS):
         if isinstance(epoch, Reject):
-            yield from _taken(rows, epoch)
+            yield from _taken(rows, ctx, epoch)
             continue
         t = novatel_scan_time(epoch, ctx)
         if isinstance(t, Reject):
-            yield from _taken(rows, t)
+            yield from _taken(rows, ctx, t)
             continue
         items = list(epoch.values())
         source = "novatel:" + ",".join([item[1] for item in items])
@@ -261,8 +259,8 @@ def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Bat
         rows.add(t, novatel_publish_ns(first, t, ctx), novatel_scan.where_of(first),
                  (source, *_span_scan_fields(epoch)))
         if rows.full:
-            yield from _taken(rows)
-    yield from _taken(rows)
+            yield from _taken(rows, ctx)
+    yield from _taken(rows, ctx)
 
 
 # ---------------------------------------------------------------- NMEA heading / INS-as-NMEA

@@ -129,8 +129,10 @@ class RecordingSummary:
         return sum(f.skipped for f in self.files)
 
 
-def log_context(manifest: Manifest, log: LogSpec, files: tuple[str, ...] | None = None) -> LogContext:
-    """What a converter knows of one log: its vehicle, clock offset, options and files (default: all of them)."""
+def log_context(manifest: Manifest, log: LogSpec, files: tuple[str, ...] | None = None,
+                batches: bool = False) -> LogContext:
+    """What a converter knows of one log: its vehicle, clock offset, options and files (default: all of them);
+    with `batches`, the converter may give `Batch` items (the recording step takes them)."""
     options = dict(log.options)
     if isinstance(options.get("msg_paths"), list):   # relative to the manifest, like the log's own paths
         options["msg_paths"] = [str(manifest.root / p) for p in options["msg_paths"]]
@@ -141,6 +143,7 @@ def log_context(manifest: Manifest, log: LogSpec, files: tuple[str, ...] | None 
         address_book=manifest.address_book(),
         sound_speed_mps=float(options.get("sound_speed_mps", manifest.sound_speed_mps)),
         files=tuple(manifest.root / name for name in (log.files() if files is None else files)),
+        batches=batches,
     )
 
 
@@ -559,7 +562,7 @@ def _decode_log(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]]
     rec = LogRecorder(sink, log, stats, fallback, starts)
     step = max(len(data) // 50, 1 << 16)
     next_report = step
-    ctx = log_context(manifest, log, tuple(n for n, _ in parts))
+    ctx = log_context(manifest, log, tuple(n for n, _ in parts), batches=True)
     for item in _iter_outputs(convert, data, ctx, log):
         rec.add(item)
         if progress is not None and item.where is not None and item.where.offset >= next_report:
@@ -584,7 +587,7 @@ def _decode_streamed(manifest: Manifest, log: LogSpec, names: list[str], convert
     rec = LogRecorder(sink, log, stats, fallback, starts)
     step = max(files.size // 50, 1 << 16)
     next_report = step
-    ctx = log_context(manifest, log, tuple(names))
+    ctx = log_context(manifest, log, tuple(names), batches=True)
     try:
         for item in _iter_outputs(convert, files.blocks(), ctx, log):
             rec.add(item)
