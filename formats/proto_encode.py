@@ -39,11 +39,15 @@ Segment = tuple[np.ndarray, np.ndarray]  # (uint8 matrix: a row's bytes left-ali
 
 @lru_cache(maxsize=32)
 def _fields(cls: Any) -> tuple[tuple[str, int, int, bool, bytes], ...]:
-    """Per field, in number order: (name, number, descriptor type, repeated, tag bytes by wire type)."""
+    """Per field, in number order: (name, number, descriptor type, repeated, tag bytes by wire type); a scalar
+    with explicit presence (proto3 `optional`: written when set, even at 0) has type -1, not encoded."""
     out = []
     for f in sorted(cls.DESCRIPTOR.fields, key=lambda f: f.number):
         repeated = getattr(f, "is_repeated", None)
         repeated = repeated if repeated is not None else f.label == 3
+        if not repeated and f.type != _T_MESSAGE and f.has_presence:
+            out.append((f.name, f.number, -1, False, b""))
+            continue
         if f.type == _T_DOUBLE and not repeated:
             wire = 1
         elif f.type in (*_INTS, _T_BOOL) and not repeated:
