@@ -97,16 +97,25 @@ class Batch:
     order: Any               # per message, in write order: its part's number (int array)
     keys: Any                # per message, in write order: its record's byte offset (int array)
     where: Where             # the last message's record (for progress)
-    outputs: Callable[[], Iterable[Output | Ignored]]
+    outputs: Callable[[], Iterable[Output | Reject | Ignored]]  # never a Reject in practice (see above)
     ignored: dict[str, int] = field(default_factory=dict)  # records read and not archived, by reason
     one_by_one: bool = False  # the items must go one by one (the block's columns could not be made)
 
 
-def batched(ctx: LogContext, batch: Batch | None) -> Iterator[Output | Ignored | Batch]:
+def batched(ctx: LogContext, batch: Batch | None) -> Iterator[Output | Reject | Ignored | Batch]:
     """`batch` itself for a consumer that takes batches (`LogContext.batches`), else its items one by one."""
     if batch is None:
         return iter(())
     return iter((batch,)) if ctx.batches else iter(batch.outputs())
+
+
+def one_by_one(items: Iterable[Output | Reject | Ignored | Batch]) -> Iterator[Output | Reject | Ignored]:
+    """A converter's items with any Batch given as its items one by one (for consumers typed without batches)."""
+    for item in items:
+        if type(item) is Batch:
+            yield from item.outputs()
+        else:
+            yield item  # type: ignore[misc]
 
 
 _INT64 = (-(1 << 63), (1 << 63) - 1)
@@ -145,18 +154,19 @@ class Note(Ignored):
 # Water Linked DVL's time_of_validity, then kept beside it)
 CONTAINER_TIME = "container_time"
 
-Converter = Callable[[bytes, LogContext], Iterator["Output | Reject | Ignored"]]  # and Batch items
+# (a Batch only for a consumer that takes them: `LogContext.batches`)
+Converter = Callable[[bytes, LogContext], Iterator["Output | Reject | Ignored | Batch"]]
 # the same conversion over the log read in blocks (`formats.log_blocks`), for formats whose family module lists
 # it in BLOCK_CONVERTERS: the recording then holds one block of the log, not all of it
-BlockConverter = Callable[[Iterable[Block], LogContext], Iterator["Output | Reject | Ignored"]]
+BlockConverter = Callable[[Iterable[Block], LogContext], Iterator["Output | Reject | Ignored | Batch"]]
 # a converter whose decoder reads lines of a `formats.log_blocks.LogText`: it takes the log in blocks as it is
-TextConverter = Callable[[LogText, LogContext], Iterator["Output | Reject | Ignored"]]
+TextConverter = Callable[[LogText, LogContext], Iterator["Output | Reject | Ignored | Batch"]]
 
 
 def blockwise(convert: TextConverter) -> BlockConverter:
     """`convert` over the log's blocks: one loop over its lines, so whatever it carries from line to line
     (a burst, an ensemble, a day clock) goes on across blocks, and the outputs are the whole log's."""
-    def over_blocks(blocks: Iterable[Block], ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+    def over_blocks(blocks: Iterable[Block], ctx: LogContext) -> Iterator[Output | Reject | Ignored | Batch]:
         return convert(LogBlocks(blocks), ctx)
     over_blocks.__doc__ = convert.__doc__
     return over_blocks

@@ -40,7 +40,18 @@ from formats.records import FormatError, Reject, Where
 from formats.schemas import DvlVelocity, set_timestamp, timestamp
 from formats.wire import DVL_VELOCITY
 
-from .base import CONTAINER_TIME, Batch, BlockConverter, Columns, Converter, LogContext, Output, blockwise, int64_times, output
+from .base import (
+    CONTAINER_TIME,
+    Batch,
+    BlockConverter,
+    Columns,
+    Converter,
+    LogContext,
+    Output,
+    blockwise,
+    int64_times,
+    output,
+)
 from .clock import DayClock
 
 NAN = math.nan
@@ -192,7 +203,7 @@ def _pd0_block_outputs(block: pd0_blocks.Block, fixed: pd0.FixedLeader | None, c
                "temperature_c": np.asarray(temps, dtype=np.float64)}
     yield Batch([Columns(f"/{ctx.vehicle}/dvl", DvlVelocity, columns, t, t)], np.zeros(len(t), dtype=np.int64),
                 np.asarray(offsets, dtype=np.int64), Where(int(offsets[-1])),
-                lambda: _pd0_messages(block, ctx, motion))  # type: ignore[arg-type]
+                lambda: _pd0_messages(block, ctx, motion))
 
 
 def _pd0_messages(block: pd0_blocks.Block, ctx: LogContext, motion: tuple) -> Iterator[Output | Reject]:
@@ -207,7 +218,7 @@ def _pd0_messages(block: pd0_blocks.Block, ctx: LogContext, motion: tuple) -> It
     assert block.time_ns is not None and block.numbers is not None  # as `_pd0_block_outputs` checked
     for off, t, number, x, y, z, err, r, alt, valid, sound, temp in zip(
             block.offsets, block.time_ns, block.numbers, xs, ys, zs, errs, slants, alts, valids,
-            block.sound_speed_mps, block.temperature_c):
+            block.sound_speed_mps or (), block.temperature_c or ()):
         if t is None:
             yield Reject(Where(off), f"ensemble {number}: no variable leader or invalid RTC time")
             continue

@@ -47,7 +47,7 @@ from formats.novatel import scan as novatel_scan
 from formats.records import Reject, Where
 
 from . import gps_columns
-from .base import BlockConverter, Converter, Ignored, LogContext, Output
+from .base import Batch, BlockConverter, Converter, Ignored, LogContext, Output
 from .clock import DayClock
 from .gnss_covariance import Covariance, fix_covariance, sigma_covariance
 from .gnss_velocity import NO_VELOCITY, components, gnss_velocity
@@ -206,7 +206,7 @@ def _scan_outputs(
     return out
 
 
-def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+def convert_nmea(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored | Batch]:
     """NMEA 0183 GNSS sentences (GGA, RMC, GLL, GST, VTG, ZDA, HDT, THS; any talker)."""
     return convert_nmea_blocks(blocks_of(data), ctx)
 
@@ -223,7 +223,7 @@ class _NmeaState:
         self.epoch_time: int | None = None
 
 
-def convert_nmea_blocks(blocks: Iterable[Block], ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+def convert_nmea_blocks(blocks: Iterable[Block], ctx: LogContext) -> Iterator[Output | Reject | Ignored | Batch]:
     """`convert_nmea` over a log read in blocks (`formats.log_blocks`): the same outputs, one block in memory.
 
     A clean block takes the whole-block columns (`gps_columns`), any other the
@@ -244,7 +244,7 @@ def convert_nmea_blocks(blocks: Iterable[Block], ctx: LogContext) -> Iterator[Ou
 
 
 def _nmea_block(block: Block, last: bool, ctx: LogContext, state: _NmeaState, columns: bool
-                ) -> Iterator[Output | Reject | Ignored]:
+                ) -> Iterator[Output | Reject | Ignored | Batch]:
     """One block's outputs; the epoch still open at its end (unless `last`) is left in `state`."""
     data, base, lines = block.data, block.offset, block.lines
     counts = ctx.counts

@@ -35,7 +35,7 @@ from formats.nmea import sentences as nmea
 from formats.novatel import scan as novatel_scan
 from formats.records import Reject, Where
 
-from .base import Batch, BlockConverter, Converter, LogContext, Output, Rows, batched, blockwise, output
+from .base import Batch, BlockConverter, Converter, Ignored, LogContext, Output, Rows, batched, blockwise, output
 from .clock import DayClock
 from .epochs import host_time_ns
 from .gnss_velocity import components
@@ -156,7 +156,7 @@ def ins_rows(ctx: LogContext) -> Rows:
                 lambda t, *values: S.ins_state(t, vehicle, *values), {"frame_id": vehicle})
 
 
-def convert_phins(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | Batch]:
+def convert_phins(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | Ignored | Batch]:
     """iXblue/Exail PHINS standard ASCII ($HEHDT, $PIXSE ..., $PHTRO), one InsState per burst."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     burst: dict[str, phins.Scanned] = {}
@@ -175,9 +175,9 @@ def convert_phins(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | 
     yield from _taken(rows, ctx, reject)
 
 
-def _taken(rows: Rows, ctx: LogContext, then: Reject | None = None) -> Iterator[Output | Batch | Reject]:
+def _taken(rows: Rows, ctx: LogContext, then: Reject | None = None) -> Iterator[Output | Reject | Ignored | Batch]:
     """The rows gathered so far (a Batch, or its Outputs: `batched`), then `then`: the log's items in order."""
-    yield from batched(ctx, rows.take())  # type: ignore[misc]
+    yield from batched(ctx, rows.take())
     if then is not None:
         yield then
 
@@ -242,7 +242,7 @@ def _span_scan_fields(epoch: dict[str, novatel_scan.Scanned]) -> tuple:
             hstd, pn, pe, rstd, pstd, alt)
 
 
-def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Batch]:
+def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored | Batch]:
     """NovAtel SPAN INSPVA / INSPVAS / INSPVAX logs (ASCII or binary), merged per GPS time."""
     rows = ins_rows(ctx)
     for epoch in novatel_scan_epochs(data, ctx, _SPAN_KINDS):

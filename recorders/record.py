@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
+
 import formats.log_blocks as log_blocks
 from formats import schemas as S
 from formats.log_blocks import ChangedWhileRead, LogFiles, blocks_of
@@ -187,7 +188,8 @@ def _log_files(manifest: Manifest, names: list[str] | tuple[str, ...]) -> LogFil
     return LogFiles(paths, [path.stat().st_size for path in paths])
 
 
-def _over_one_block(convert: BlockConverter, data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+def _over_one_block(convert: BlockConverter, data: bytes, ctx: LogContext
+                    ) -> Iterator[Output | Reject | Ignored | Batch]:
     """A block converter over a log held in memory: the log is its one block (`blocks_of`, no copy)."""
     return convert(blocks_of(data), ctx)
 
@@ -502,7 +504,7 @@ def trial_metadata(manifest: Manifest) -> dict:
 
 
 def _iter_outputs(convert: AnyConverter, data: Any, ctx: LogContext,
-                  log: LogSpec) -> Iterator[Output | Reject | Ignored]:
+                  log: LogSpec) -> Iterator[Output | Reject | Ignored | Batch]:
     try:
         yield from convert(data, ctx)
     except FormatError as exc:

@@ -44,7 +44,7 @@ from formats.lines import strip_prefix
 from formats.records import Reject, Where
 from formats.units import NS
 
-from ..base import Converter, Ignored, LogContext, Output
+from ..base import Converter, Ignored, LogContext, Output, one_by_one
 from ..registry import is_binary
 
 MIN_WARMUP = 256
@@ -232,7 +232,7 @@ class StreamDecoder:
         lines = self._lines_before
         with memoryview(self._buf) as view:   # released here: `_advance` resizes the buffer
             data = bytes(view[:end])
-        return [_rebase(item, self._base, lines) for item in self.convert(data, self.ctx)]
+        return [_rebase(item, self._base, lines) for item in one_by_one(self.convert(data, self.ctx))]
 
     def _cut(self, items: list[Item], window: int) -> int:
         """Where the unsettled tail starts: the trailing epoch's first output, or HOLD_BYTES from the end."""
