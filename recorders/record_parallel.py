@@ -42,6 +42,7 @@ from multiprocessing.process import BaseProcess
 from multiprocessing.reduction import recv_handle, send_handle
 from typing import Any, Generic, TypeVar, cast
 
+import numpy as np
 from google.protobuf.message import Message
 
 from formats.json_messages import JsonMessage
@@ -157,21 +158,26 @@ class Capture:
 
 
 def write_captured(writer: ArchiveWriter, captured: Captured) -> None:
-    """Write one log's captured messages, registering each channel at its first message as write() does."""
+    """Write one log's captured messages, registering each channel at its first message as write() does: a run
+    of messages of one topic in one `write_serialized_batch`."""
     ids: list[int | None] = [None] * len(captured.topics)
-    index, blob = captured.index, memoryview(captured.blob)
-    write = writer.write_serialized
-    start = 0
-    fields = [iter(index)] * _FIELDS  # one iterator zipped with itself: the index read _FIELDS at a time
-    for number, end, log_time, publish_time in zip(*fields):
-        cid = ids[number]
-        if cid is None:
-            topic, name = captured.topics[number]
+    table = np.frombuffer(captured.index, dtype=np.int64).reshape(-1, _FIELDS)
+    if not len(table):
+        return
+    numbers, ends = table[:, 0], table[:, 1].tolist()
+    log_times, publish_times = table[:, 2].tolist(), table[:, 3].tolist()
+    blob = memoryview(captured.blob)
+    cuts = [0, *(np.flatnonzero(numbers[1:] != numbers[:-1]) + 1).tolist(), len(table)]
+    for first, stop, number in zip(cuts, cuts[1:], numbers[cuts[:-1]].tolist()):
+        topic, name = captured.topics[number]
+        if ids[number] is None:
             source = captured.sources.get(number)
-            cid = ids[number] = writer.channel(topic, MESSAGE_CLASSES[name]) if source is None \
+            ids[number] = writer.channel(topic, MESSAGE_CLASSES[name]) if source is None \
                 else writer.source_channel(topic, source)
-        write(cid, blob[start:end], log_time, publish_time)
-        start = end
+        starts = ends[first - 1: stop - 1] if first else [0, *ends[: stop - 1]]
+        payloads = [blob[a:b] for a, b in zip(starts, ends[first:stop])]
+        writer.write_serialized_batch(topic, payloads, log_times[first:stop],  # type: ignore[arg-type]
+                                      publish_times[first:stop])
 
 
 class WorkerDied(RuntimeError):

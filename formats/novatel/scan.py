@@ -84,8 +84,18 @@ def _inspvax(f: list[str]) -> tuple:
     if len(f) < 21:
         raise IndexError("short")
     opt = f + [""] * (23 - len(f))
-    return (_enum(f[0], N.INS_STATUS), _enum(f[1], N.POSITION_TYPE), *map(_f, f[2:21]),
+    return (_enum(f[0], N.INS_STATUS), _enum(f[1], N.POSITION_TYPE), *_numbers(f[2:21]),
             _hex(opt[21]), optional_integer(opt[22]))
+
+
+def _numbers(texts: list[str]) -> tuple[float, ...] | map[float]:
+    """`_f` of each text: with every one given and their sum finite, one float() each and no call per field."""
+    try:
+        values = tuple(map(float, texts))
+    except ValueError:  # an empty field (NaN) or no number: the number rule, field by field
+        return map(_f, texts)
+    total = sum(values)
+    return values if total - total == 0.0 else map(_f, texts)  # NaN or an infinity among them: named there
 
 
 VALUES: dict[str, Callable[[list[str]], tuple]] = {
