@@ -176,6 +176,8 @@ def _three(f: list[str], n: int = 3) -> tuple[float, ...]:
             if total - total == 0.0:
                 return x, y, z
         return _f(a), _f(b), _f(c)  # the number rule names the field (an overflowing sum passes it)
+    if n == 2:  # ATITUD, once a burst: no generator either
+        return _f(f[0]), _f(f[1])
     return tuple(_f(x) for x in f[:n])
 
 
