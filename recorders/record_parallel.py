@@ -7,7 +7,7 @@ every write the serial recorder would have made, already serialized (one
 bytes blob, one int64 array of (topic, end offset, log time, publish time)),
 plus the log's statistics and its bytes (for the attachment: the main process
 then never reads the file again). The main process replays it with
-`ArchiveWriter.write_serialized`, registering each channel at its first
+`ArchiveWriter.write_serialized_batch` (a run of one topic a call), registering each channel at its first
 message exactly as `ArchiveWriter.write` would.
 
 `WorkerPool` is a small fork pool of our own rather than multiprocessing.Pool
