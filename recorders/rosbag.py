@@ -51,7 +51,7 @@ from typing import Any
 
 import numpy as np
 
-from formats import ros_imu
+from formats import ros_imu, ros_standard
 from formats import rosbag as rb
 from formats import schemas as S
 from formats.records import FormatError, Reject, Where
@@ -80,6 +80,7 @@ from .manifest import SENSORS
 from .ros_raw import RosTopics
 
 NAN = math.nan
+IMU, ODOMETRY, NAVSATFIX = "sensor_msgs/Imu", "nav_msgs/Odometry", "sensor_msgs/NavSatFix"
 RAW_TYPES = ("nmea_msgs/Sentence", "std_msgs/String")
 INS_TYPES = ("sensor_msgs/Imu", "nav_msgs/Odometry")
 TWIST_TYPES = ("geometry_msgs/TwistWithCovarianceStamped", "geometry_msgs/TwistStamped")
@@ -167,6 +168,12 @@ def _cov(values: Any, n: int) -> list[float]:
     return out + [NAN] * (n - len(out))
 
 
+def _finite(values: tuple[float, ...]) -> list[float]:
+    """Floats read from bytes with the non-finite ones NaN, as `_cov` gives a typed field's array."""
+    out = list(values)
+    return out if all(map(math.isfinite, out)) else [v if math.isfinite(v) else NAN for v in out]
+
+
 def _first(values: Any) -> float:
     """A covariance's first element (NaN when it has none or it is not a number)."""
     if type(values) is np.ndarray and values.ndim == 1 and len(values):
@@ -251,11 +258,10 @@ class _Bag:
             found = self.targets[key] = _target(topic, msgtype, self.ctx) is not None
         return found
 
-    def item(self, m: rb.BagMessage, where: Where, head: tuple[int, bytes] | None = None,
-             ) -> Iterator[Output | Reject | Ignored]:
-        """The archive messages of one bag message (raw text kept for `finish`, an undecoded Imu, whose `head`
-        `ros_imu.header` read, for its topic's batch), each on its topic's source."""
-        for item in self._item(m, where, head):
+    def item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored]:
+        """The archive messages of one bag message (raw text kept for `finish`; an Imu read from its bytes, `OWN`,
+        for its topic's batch), each on its topic's source."""
+        for item in self._item(m, where):
             if type(item) is Output:
                 self.sources.place(item, m.topic)
             yield item
@@ -273,8 +279,7 @@ class _Bag:
                     self.sources.place(item, topic)
                 yield item
 
-    def _item(self, m: rb.BagMessage, where: Where,
-              head: tuple[int, bytes] | None) -> Iterator[Output | Reject | Ignored]:
+    def _item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored]:
         label = f"{m.topic} ({m.msgtype})"
         target = _target(m.topic, m.msgtype, self.ctx)
         if target is None:   # archived as itself alone (`recorders.ros_raw`)
@@ -285,7 +290,8 @@ class _Bag:
             return
         ctx = self.ctx if vehicle == self.ctx.vehicle else _with_vehicle(self.ctx, vehicle)
         publish = m.bag_time_ns + ctx.clock_offset_ns
-        if head is not None:   # an Imu read from its bytes: converted with its topic's batch
+        head = m.message if m.undecoded else None   # what `OWN`'s reader read of it
+        if head is not None and m.msgtype == IMU:   # an Imu read from its bytes: converted with its topic's batch
             batch = self.imus.get(m.topic)
             if batch is None:
                 batch = self.imus[m.topic] = _ImuBatch(ctx)
@@ -294,6 +300,19 @@ class _Bag:
             stamp = head[0] if head[0] > 0 else m.bag_time_ns
             if batch.add(stamp + ctx.clock_offset_ns, publish, where, head[1], m.data):
                 yield from batch.flush()
+            return
+        if head is not None and m.msgtype in (ODOMETRY, NAVSATFIX):   # read from its bytes (`formats.ros_standard`)
+            t = (head[0] if head[0] > 0 else m.bag_time_ns) + ctx.clock_offset_ns
+            if m.msgtype == ODOMETRY:
+                _, frame, child, v = head
+                x, y, z, qx, qy, qz, qw = map(_num, v[:7])   # position, orientation (`ros_standard.ODOMETRY_DOUBLES`)
+                vx, vy, vz = map(_num, v[ros_standard.LINEAR])
+                yield from _odometry_state(ctx, frame, child, (x, y, z), (qx, qy, qz, qw), (vx, vy, vz),
+                                           _finite(v[ros_standard.POSE_COV]), t, publish, where, self.origin)
+            else:
+                _, _, status, v, kind = head
+                yield from _navsatfix_fix(ctx, status, _num(v[0]), _num(v[1]), _num(v[2]), _finite(v[3:]), kind, t,
+                                          publish, where)
             return
         t = _stamp_ns(m.message, m.bag_time_ns) + ctx.clock_offset_ns
         msg = m.message
@@ -342,16 +361,21 @@ def _out(ctx: LogContext, suffix: str, message: Any, t: int, publish: int, where
 
 
 def _navsatfix(ctx: LogContext, msg: Any, t: int, publish: int, where: Where) -> Iterator[Output | Reject]:
-    status = getattr(getattr(msg, "status", None), "status", -1)
+    lat, lon = finite_or_nan(getattr(msg, "latitude", NAN)), finite_or_nan(getattr(msg, "longitude", NAN))
+    yield from _navsatfix_fix(ctx, getattr(getattr(msg, "status", None), "status", -1), lat, lon,
+                              finite_or_nan(getattr(msg, "altitude", NAN)),
+                              _cov(getattr(msg, "position_covariance", ()), 9),
+                              getattr(msg, "position_covariance_type", 0), t, publish, where)
+
+
+def _navsatfix_fix(ctx: LogContext, status: Any, lat: float, lon: float, alt: float, cov: list[float], kind: Any,
+                   t: int, publish: int, where: Where) -> Iterator[Output]:
+    """A NavSatFix's LocationFix (when it has a fix) and status, from its fields (non-finite numbers NaN)."""
     try:
         quality = NAVSAT_QUALITY.get(int(status), 0)
     except (TypeError, ValueError):
         quality = 0
-    lat, lon = finite_or_nan(getattr(msg, "latitude", NAN)), finite_or_nan(getattr(msg, "longitude", NAN))
-    alt = finite_or_nan(getattr(msg, "altitude", NAN))
     if quality > 0 and math.isfinite(lat) and math.isfinite(lon) and -90 <= lat <= 90:
-        cov = _cov(getattr(msg, "position_covariance", ()), 9)
-        kind = getattr(msg, "position_covariance_type", 0)
         kind = int(kind) if isinstance(kind, int) and 0 <= kind <= 3 and all(map(math.isfinite, cov)) else 0
         fix = S.location_fix(t, ctx.vehicle, lat, (lon + 180.0) % 360.0 - 180.0, alt,
                              tuple(cov) if kind else None, kind)
@@ -466,20 +490,28 @@ def _ned_bytes(frame: bytes) -> bool:
 def _odometry(ctx: LogContext, msg: Any, t: int, publish: int, where: Where,
               origin: tuple[float, float] | None) -> Iterator[Output | Reject]:
     pose = getattr(getattr(msg, "pose", None), "pose", None)
-    ned = _ned(_frame(msg))
-    position = _vec(getattr(pose, "position", None))
+    yield from _odometry_state(ctx, _frame(msg), str(getattr(msg, "child_frame_id", "") or ""),
+                               _vec(getattr(pose, "position", None)), _quat(getattr(pose, "orientation", None)),
+                               _vec(getattr(getattr(getattr(msg, "twist", None), "twist", None), "linear", None)),
+                               _cov(getattr(getattr(msg, "pose", None), "covariance", ()), 36), t, publish, where,
+                               origin)
+
+
+def _odometry_state(ctx: LogContext, frame: str, child: str, position: tuple[float, float, float],
+                    quaternion: tuple[float, float, float, float], linear: tuple[float, float, float],
+                    pcov: list[float], t: int, publish: int, where: Where,
+                    origin: tuple[float, float] | None) -> Iterator[Output | Reject]:
+    """An Odometry's InsState from its fields (non-finite numbers NaN), or why it gives none."""
+    ned = _ned(frame)
     north, east, down = position if ned else enu_to_ned(position)
-    roll, pitch, heading = attitude_deg(_quat(getattr(pose, "orientation", None)), ned)
+    roll, pitch, heading = attitude_deg(quaternion, ned)
     lat, lon = local_to_geodetic(north, east, origin)
-    linear = _vec(getattr(getattr(getattr(msg, "twist", None), "twist", None), "linear", None))
-    child = str(getattr(msg, "child_frame_id", "") or "")
     if is_world(child):  # a twist given in a world frame, against REP-103's child frame
         vn, ve, vd = linear if is_ned(child) else enu_to_ned(linear)
     elif math.isfinite(heading):
         vn, ve, vd = body_to_ned(linear if is_ned(child) else flu_to_frd(linear), roll, pitch, heading)
     else:
         vn = ve = vd = NAN
-    pcov = _cov(getattr(getattr(msg, "pose", None), "covariance", ()), 36)
     sn, se = (pcov[0], pcov[7]) if ned else (pcov[7], pcov[0])
     if not any(map(math.isfinite, (north, east, down, heading, vn))):
         yield Reject(where, "nav_msgs/Odometry with neither position, orientation nor velocity")
@@ -557,7 +589,7 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
     files = [p for p in ctx.files if p.name == "metadata.yaml" or p.parent not in folders]
     bag = _Bag(ctx, [t for path in files for t in _topics(path)])
     raw = RosTopics(ctx)
-    own = {ros_imu.MSGTYPE: ros_imu.STANDARD}   # Imu read from its bytes, a batch at a time
+    own = OWN
     msg_paths = ctx.options.get("msg_paths")
     types = rb.definitions([Path(p) for p in msg_paths]) if isinstance(msg_paths, list) else {}
     start, number = 0, 0
@@ -571,11 +603,6 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
         for m in rb.read_bag(path, types, own):
             number += 1
             where = Where(start + min(m.index, max(size - 1, 0)), None, m.bag_time_ns, number)
-            head = None
-            if m.undecoded:   # its bytes checked here, as rosbags' decoding checks the others'
-                head = ros_imu.header(m.data, m.schema is not None and m.schema.message_encoding == "ros1")
-                if head is None:
-                    m.problem = f"does not decode as sensor_msgs/Imu ({len(m.data)} bytes)"
             if not m.topic:
                 yield Reject(where, m.problem)
             elif m.problem:   # neither itself nor ours: refused, with the reason
@@ -583,7 +610,7 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
             else:
                 yield raw.output(m, where)
                 if bag.maps(m.topic, m.msgtype):
-                    yield from bag.item(m, where, head)
+                    yield from bag.item(m, where)
             if bag.due(number):
                 yield from bag.flush()
         start += size
@@ -591,6 +618,16 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
     note = raw.note(ctx.path or files[0].name, Where(0))
     if note is not None:
         yield note
+
+
+# types read from their bytes (rosbags decodes a bag whose definition differs, or bytes these do not read): the Imu
+# converted a batch at a time, Odometry and NavSatFix one by one from their numbers, TFMessage only checked
+OWN: dict[str, rb.OwnReader] = {
+    ros_imu.MSGTYPE: (ros_imu.STANDARD, ros_imu.header),
+    ros_standard.ODOMETRY: (ros_standard.STANDARD[ros_standard.ODOMETRY], ros_standard.odometry),
+    ros_standard.NAVSATFIX: (ros_standard.STANDARD[ros_standard.NAVSATFIX], ros_standard.navsatfix),
+    ros_standard.TF: (ros_standard.STANDARD[ros_standard.TF], ros_standard.transforms),
+}
 
 
 def _topics(path: Path) -> list[tuple[str, str]]:
