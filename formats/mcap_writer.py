@@ -39,7 +39,7 @@ import json
 import os
 import struct
 import zlib
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from itertools import chain
 from pathlib import Path
 from typing import Any
@@ -262,6 +262,27 @@ class ArchiveWriter:
         ch.index.append((log_time_ns, offset))
         if len(buf) >= self._chunk_size:
             self._finish_chunk()
+
+    def write_serialized_batch(self, topic: str, payloads: Sequence[bytes], log_times_ns: Sequence[int],
+                               publish_times_ns: Sequence[int] | None = None) -> None:
+        """Append already-serialized messages of one registered topic, in order: as `write_serialized` each, in
+        one loop (the same records and chunks)."""
+        ch = self._topics.get(topic)
+        if ch is None or self._closed:
+            raise KeyError(f"{topic!r} is not a registered channel of {self.path}"
+                           + (" (closed)" if self._closed else "; call channel(topic, message_class) first"))
+        cid, count, size = ch.id, ch.count, self._chunk_size
+        buf, index = self._chunk, ch.index
+        for data, t, p in zip(payloads, log_times_ns, log_times_ns if publish_times_ns is None else publish_times_ns):
+            index.append((t, len(buf)))
+            buf += _MESSAGE.pack(OP_MESSAGE, _MESSAGE_FIXED + len(data), cid, count & _SEQUENCE_MASK, t, p)
+            buf += data
+            count += 1
+            if len(buf) >= size:
+                ch.count = count
+                self._finish_chunk()
+                buf, index = self._chunk, ch.index
+        ch.count = count
 
     def _finish_chunk(self) -> None:
         """Compress the open chunk into a Chunk record, its Message Indexes and a Chunk Index."""

@@ -48,6 +48,8 @@ class LogContext:
     # what the converter read, counted by kind and outcome (NMEA: every line by sentence address), for the
     # recording's statistics; a new one per context, shared by the contexts `replace` makes of it
     counts: SentenceCounts = field(default_factory=SentenceCounts, compare=False, repr=False)
+    # set by the recording, which writes `SourceBatch` items: a converter may then give its source messages so
+    source_batches: bool = False
 
     def vehicle_for_address(self, address: int | None) -> str:
         """The vehicle name for a modem address, or 'addr<N>' when the manifest has none."""
@@ -84,12 +86,28 @@ class Note(Ignored):
     notes and printed after the recording's table, once per log (an Ignored to whatever does not know it)."""
 
 
+@dataclass(slots=True)
+class SourceBatch:
+    """Source messages of one archive topic, in order (a bag's messages as themselves, `recorders.ros_raw`): they
+    carry no values to check, only their bytes, so the recording writes them in one call
+    (`ArchiveWriter.write_serialized_batch`) and counts them as one Output each. `message` is one of them (its
+    schema names the channel); `where` is the last one's, for progress."""
+
+    topic: str
+    message: Any
+    payloads: list[bytes]
+    log_times_ns: list[int]
+    publish_times_ns: list[int]
+    wheres: list[Where]
+    where: Where | None = None
+
+
 # a LogContext option set for text carried in a container (a ROS string topic): each line's host prefix is the
 # container's stamp of its message, and is its time even where the vendor's record has a clock of its own (a
 # Water Linked DVL's time_of_validity, then kept beside it)
 CONTAINER_TIME = "container_time"
 
-Converter = Callable[[bytes, LogContext], Iterator["Output | Reject | Ignored"]]
+Converter = Callable[[bytes, LogContext], Iterator["Output | Reject | Ignored | SourceBatch"]]
 # the same conversion over the log read in blocks (`formats.log_blocks`), for formats whose family module lists
 # it in BLOCK_CONVERTERS: the recording then holds one block of the log, not all of it
 BlockConverter = Callable[[Iterable[Block], LogContext], Iterator["Output | Reject | Ignored"]]

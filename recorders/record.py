@@ -10,6 +10,7 @@ from collections import Counter, deque
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
+from dataclasses import replace as replaced
 from functools import partial
 from pathlib import Path
 from typing import Any, Protocol
@@ -21,7 +22,7 @@ from formats.mcap_writer import ArchiveWriter
 from formats.records import FormatError, Reject, Where
 from formats.units import NS, archivable_ns
 
-from .base import BlockConverter, Converter, Ignored, LogContext, Note, Output
+from .base import BlockConverter, Converter, Ignored, LogContext, Note, Output, SourceBatch
 from .clock import date_to_ns, iso_utc, log_offset_ns, offset_problem, shift_text
 from .manifest import LogSpec, Manifest, ManifestError
 from .output_checks import OutputProblem, check_output
@@ -39,7 +40,7 @@ from .registry import block_converters, converters
 from .value_checks import MAX_RANGE_M, ValueChecks
 
 # a log's converter as the recorder calls it: whole bytes, blocks or text in, outputs, rejects and skips out
-AnyConverter = Callable[..., Iterator[Output | Reject | Ignored]]
+AnyConverter = Callable[..., Iterator[Output | Reject | Ignored | SourceBatch]]
 
 Progress = Callable[[str, int, int], None]  # (file, bytes done, bytes total)
 # automatic mode decodes in-process below this much input: forking workers and
@@ -288,12 +289,14 @@ class LogRecorder:
         self.offset_ns = log_offset_ns(log.time_base, log.start_ns, log.clock_offset_s)
         self.unchecked = bool(shift_text(log.time_base, self.offset_ns))
 
-    def add(self, item: Output | Reject | Ignored) -> None:
+    def add(self, item: Output | Reject | Ignored | SourceBatch) -> None:
         if type(item) is not Output:
             if type(item) is Ignored:
                 self.ignored[item.reason] += 1
             elif type(item) is Note:
                 self.stats.notes.append(item.reason)
+            elif type(item) is SourceBatch:
+                self._add_batch(item)
             else:
                 self._reject(item)  # type: ignore[arg-type]
             return
@@ -335,6 +338,48 @@ class LogRecorder:
             span[0], span[1] = min(span[0], t), max(span[1], t)
         if self.pending:
             self.flush(t)
+
+    def _add_batch(self, batch: SourceBatch) -> None:
+        """Source messages of one topic, counted as `add` counts each; written in one call. They carry no values
+        to check: only their times (what `ValueChecks.problem` checks of them), message by message when one is
+        outside."""
+        times = batch.log_times_ns
+        write = getattr(self.writer, "write_serialized_batch", None)
+        if not times or write is None or self.unchecked or self.pending or not (
+                archivable_ns(min(times)) and archivable_ns(max(times))):
+            for data, t, publish, where in zip(batch.payloads, times, batch.publish_times_ns, batch.wheres):
+                self.add(Output(batch.topic, replaced(batch.message, data=data), t, publish, where))
+            return
+        self.writer.source_channel(batch.topic, batch.message)   # type: ignore[attr-defined]
+        write(batch.topic, batch.payloads, times, batch.publish_times_ns)
+        st = self.stats
+        st.messages += len(times)
+        records = self.records
+        for where in batch.wheres:
+            if where.offset != records.last:
+                records.add(where.offset)
+        topic = batch.topic
+        prev = self.last_ns.get(topic)
+        for t in times:
+            if prev is None or t > prev:
+                pass
+            elif t < prev:
+                st.out_of_order += 1
+            else:
+                st.duplicates += 1
+            prev = t
+        self.last_ns[topic] = prev   # type: ignore[assignment]
+        first, last = min(times), max(times)
+        if st.start_ns is None or first < st.start_ns:
+            st.start_ns = first
+        if st.end_ns is None or last > st.end_ns:
+            st.end_ns = last
+        if self.part_starts:
+            for t, where in zip(times, batch.wheres):
+                span = self.part_spans[bisect.bisect_right(self.part_starts, where.offset) - 1]
+                if not span:
+                    span += [t, t]
+                span[0], span[1] = min(span[0], t), max(span[1], t)
 
     def _check_shift(self, t_ns: int) -> None:
         """The log's first message time, its offset or start applied, in 1980-2100; else a ManifestError."""
@@ -414,7 +459,7 @@ def trial_metadata(manifest: Manifest) -> dict:
 
 
 def _iter_outputs(convert: AnyConverter, data: Any, ctx: LogContext,
-                  log: LogSpec) -> Iterator[Output | Reject | Ignored]:
+                  log: LogSpec) -> Iterator[Output | Reject | Ignored | SourceBatch]:
     try:
         yield from convert(data, ctx)
     except FormatError as exc:
@@ -474,7 +519,7 @@ def _decode_log(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]]
     rec = LogRecorder(sink, log, stats, fallback, starts)
     step = max(len(data) // 50, 1 << 16)
     next_report = step
-    ctx = log_context(manifest, log, tuple(n for n, _ in parts))
+    ctx = replaced(log_context(manifest, log, tuple(n for n, _ in parts)), source_batches=True)
     for item in _iter_outputs(convert, data, ctx, log):
         rec.add(item)
         if progress is not None and item.where is not None and item.where.offset >= next_report:

@@ -19,12 +19,13 @@ channel, one schema.
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Iterable, Iterator
 
-from formats.records import Where
+from formats.records import Reject, Where
 from formats.ros_messages import TOPIC, RosMessage, RosSchema, topic_path
 from formats.rosbag import BagMessage
 
-from .base import LogContext, Note, Output
+from .base import Ignored, LogContext, Note, Output, SourceBatch
 
 # topics named with their counts in the recording's note; the rest are summed (the archive's info lists them all)
 NOTE_TOPICS = 12
@@ -70,3 +71,55 @@ class RosTopics:
         more = f", and {sum(n for _, n in rest)} on {len(rest)} more topics" if rest else ""
         return Note(where, f"{name}: {sum(self.counts.values())} messages archived as themselves on {self.prefix}...: "
                     f"{shown}{more}")
+
+
+# a source message waits in its topic's batch at most RAW_SPAN bag messages (well inside the window the recording
+# counts distinct records in, record.RECORDS_WINDOW, with an Imu batch's IMU_SPAN), and the batches hold at most
+# RAW_BYTES of messages
+RAW_SPAN = 1024
+RAW_BYTES = 8 << 20
+
+
+def batched(items: Iterable[Output | Reject | Ignored]) -> Iterator[Output | Reject | Ignored | SourceBatch]:
+    """The items, with the bag's messages as themselves (`RosTopics.output`) gathered into one `SourceBatch` per
+    topic, which the recording writes in one call. A topic's first message goes alone (its channel is registered
+    where it was), and every batch is given out before anything that is not an Output (a Reject's diagnostic is
+    stamped with the latest time archived), so the archive holds what it held message by message: each topic's
+    messages in the same order, the same counts."""
+    batches: dict[str, SourceBatch] = {}
+    seen: set[str] = set()
+    oldest, held = 0, 0
+    for item in items:
+        if type(item) is Output and type(item.message) is RosMessage and item.where is not None:
+            topic = item.topic
+            batch = batches.get(topic)
+            if batch is None:
+                if topic not in seen:
+                    seen.add(topic)
+                    yield item
+                    continue
+                batch = batches[topic] = SourceBatch(topic, item.message, [], [], [], [])
+                if len(batches) == 1:
+                    oldest = item.where.message or 0
+            data = item.message.data
+            batch.payloads.append(data)
+            batch.log_times_ns.append(item.log_time_ns)
+            batch.publish_times_ns.append(item.publish_time_ns)
+            batch.wheres.append(item.where)
+            held += len(data)
+            if (item.where.message or 0) - oldest >= RAW_SPAN or held >= RAW_BYTES:
+                yield from _given_out(batches)
+                held = 0
+            continue
+        if batches and type(item) is not Output:
+            yield from _given_out(batches)
+            held = 0
+        yield item
+    yield from _given_out(batches)
+
+
+def _given_out(batches: dict[str, SourceBatch]) -> Iterator[SourceBatch]:
+    for batch in batches.values():
+        batch.where = batch.wheres[-1]
+        yield batch
+    batches.clear()

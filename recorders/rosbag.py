@@ -58,7 +58,7 @@ from formats.records import FormatError, Reject, Where
 from formats.units import NS
 
 from . import dvl
-from .base import Converter, Ignored, LogContext, Output, output
+from .base import Converter, Ignored, LogContext, Output, SourceBatch, output
 from .containers import (
     TextStream,
     attitude_deg,
@@ -77,7 +77,7 @@ from .gnss_velocity import SUFFIX as VELOCITY
 from .gnss_velocity import gnss_velocity
 from .gps import gnss_status
 from .manifest import SENSORS
-from .ros_raw import RosTopics
+from .ros_raw import RosTopics, batched
 
 NAN = math.nan
 IMU, ODOMETRY, NAVSATFIX = "sensor_msgs/Imu", "nav_msgs/Odometry", "sensor_msgs/NavSatFix"
@@ -576,9 +576,10 @@ def _velocity(ctx: LogContext, msgtype: str, msg: Any, t: int, publish: int,
                                        source=source), t, publish, where)
 
 
-def convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+def convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored | SourceBatch]:
     """ROS 1 .bag, ROS 2 .mcap/.db3 (rosbags): NavSatFix, NMEA/text sentences, Imu, Odometry, Twist, DVL."""
-    return checked_times(_convert_rosbag(data, ctx), ctx)
+    items = checked_times(_convert_rosbag(data, ctx), ctx)
+    return batched(items) if ctx.source_batches else items
 
 
 def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
