@@ -19,20 +19,32 @@ channel, one schema.
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 
 from formats.records import Reject, Where
 from formats.ros_messages import TOPIC, RosMessage, RosSchema, topic_path
 from formats.rosbag import BagMessage
 
 from .base import Ignored, LogContext, Note, Output, SourceBatch
+from .containers import EARLIEST_NS, LATEST_NS
 
 # topics named with their counts in the recording's note; the rest are summed (the archive's info lists them all)
 NOTE_TOPICS = 12
+# a message waits in its topic's batch at most RAW_SPAN bag messages (well inside the window the recording counts
+# distinct records in, record.RECORDS_WINDOW, with an Imu batch's IMU_SPAN), and the batches hold at most RAW_BYTES
+RAW_SPAN = 1024
+RAW_BYTES = 8 << 20
 
 
 class RosTopics:
-    """A bag's messages as themselves: the archive topic of each (bag topic, type), and the count of each."""
+    """A bag's messages as themselves: the archive topic of each (bag topic, type), and the count of each.
+
+    When the recording takes them (`LogContext.source_batches`), a topic's messages after its first go into one
+    `SourceBatch` per topic, which it writes in one call and counts as one by one. The converter gives the batches
+    out (`flush`) before anything the recording may refuse (a Reject, an Output outside 1980-2100: its diagnostic
+    is stamped with the latest time archived) and when `due`, so each topic holds what it held message by message,
+    in the same order, with the same counts.
+    """
 
     def __init__(self, ctx: LogContext):
         self.ctx = ctx
@@ -40,9 +52,14 @@ class RosTopics:
         self.topics: dict[tuple[str, RosSchema], str] = {}   # (bag topic, its type's schema) -> archive topic
         self.types: dict[str, str] = {}                      # archive topic -> its schema's text (one per channel)
         self.counts: Counter[str] = Counter()
+        self.batching = ctx.source_batches
+        self.batches: dict[str, SourceBatch] = {}
+        self.seen: set[str] = set()   # topics whose first message went alone (its channel registered there)
+        self.oldest = self.held = 0   # the number of the earliest bag message a batch holds; the bytes held
 
-    def output(self, m: BagMessage, where: Where) -> Output:
-        """The archive message of one bag message that decoded (its `schema` set)."""
+    def output(self, m: BagMessage, where: Where) -> Output | None:
+        """The archive message of one bag message that decoded (its `schema` set), or None when it went into its
+        topic's batch."""
         schema = m.schema
         assert schema is not None
         topic = self.topics.get((m.topic, schema))
@@ -50,7 +67,42 @@ class RosTopics:
             topic = self._topic(m.topic, schema)
         self.counts[topic] += 1
         t = m.bag_time_ns + self.ctx.clock_offset_ns
+        if self.batching and EARLIEST_NS <= t <= LATEST_NS:
+            batch = self.batches.get(topic)
+            if batch is None and topic in self.seen:
+                if not self.batches:
+                    self.oldest = where.message or 0
+                batch = self.batches[topic] = SourceBatch(topic, RosMessage(schema, b""), [], [], [], [])
+            if batch is not None:
+                batch.payloads.append(m.data)
+                batch.log_times_ns.append(t)
+                batch.publish_times_ns.append(t)
+                batch.wheres.append(where)
+                self.held += len(m.data)
+                return None
+            self.seen.add(topic)
         return Output(topic, RosMessage(schema, m.data), t, t, where)
+
+    def due(self, number: int) -> bool:
+        """Whether the batches hold a message RAW_SPAN bag messages before message `number`, or RAW_BYTES."""
+        return bool(self.batches) and (number - self.oldest >= RAW_SPAN or self.held >= RAW_BYTES)
+
+    def flush(self) -> Iterator[SourceBatch]:
+        """Every batch, each topic's messages in order."""
+        for batch in self.batches.values():
+            batch.where = batch.wheres[-1]
+            yield batch
+        self.batches = {}
+        self.held = 0
+
+    def released(self, items: Iterator[Output | Reject | Ignored]) -> Iterator[Output | Reject | Ignored | SourceBatch]:
+        """The items, with the batches given out before each that the recording may refuse (a Reject, an Output
+        outside 1980-2100 that `containers.checked_times` turns into one)."""
+        for item in items:
+            if self.batches and (type(item) is not Output or not (
+                    EARLIEST_NS <= item.log_time_ns <= LATEST_NS and EARLIEST_NS <= item.publish_time_ns <= LATEST_NS)):
+                yield from self.flush()
+            yield item
 
     def _topic(self, bag_topic: str, schema: RosSchema) -> str:
         topic = self.prefix + topic_path(bag_topic)
@@ -72,54 +124,3 @@ class RosTopics:
         return Note(where, f"{name}: {sum(self.counts.values())} messages archived as themselves on {self.prefix}...: "
                     f"{shown}{more}")
 
-
-# a source message waits in its topic's batch at most RAW_SPAN bag messages (well inside the window the recording
-# counts distinct records in, record.RECORDS_WINDOW, with an Imu batch's IMU_SPAN), and the batches hold at most
-# RAW_BYTES of messages
-RAW_SPAN = 1024
-RAW_BYTES = 8 << 20
-
-
-def batched(items: Iterable[Output | Reject | Ignored]) -> Iterator[Output | Reject | Ignored | SourceBatch]:
-    """The items, with the bag's messages as themselves (`RosTopics.output`) gathered into one `SourceBatch` per
-    topic, which the recording writes in one call. A topic's first message goes alone (its channel is registered
-    where it was), and every batch is given out before anything that is not an Output (a Reject's diagnostic is
-    stamped with the latest time archived), so the archive holds what it held message by message: each topic's
-    messages in the same order, the same counts."""
-    batches: dict[str, SourceBatch] = {}
-    seen: set[str] = set()
-    oldest, held = 0, 0
-    for item in items:
-        if type(item) is Output and type(item.message) is RosMessage and item.where is not None:
-            topic = item.topic
-            batch = batches.get(topic)
-            if batch is None:
-                if topic not in seen:
-                    seen.add(topic)
-                    yield item
-                    continue
-                batch = batches[topic] = SourceBatch(topic, item.message, [], [], [], [])
-                if len(batches) == 1:
-                    oldest = item.where.message or 0
-            data = item.message.data
-            batch.payloads.append(data)
-            batch.log_times_ns.append(item.log_time_ns)
-            batch.publish_times_ns.append(item.publish_time_ns)
-            batch.wheres.append(item.where)
-            held += len(data)
-            if (item.where.message or 0) - oldest >= RAW_SPAN or held >= RAW_BYTES:
-                yield from _given_out(batches)
-                held = 0
-            continue
-        if batches and type(item) is not Output:
-            yield from _given_out(batches)
-            held = 0
-        yield item
-    yield from _given_out(batches)
-
-
-def _given_out(batches: dict[str, SourceBatch]) -> Iterator[SourceBatch]:
-    for batch in batches.values():
-        batch.where = batch.wheres[-1]
-        yield batch
-    batches.clear()

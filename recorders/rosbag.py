@@ -77,7 +77,7 @@ from .gnss_velocity import SUFFIX as VELOCITY
 from .gnss_velocity import gnss_velocity
 from .gps import gnss_status
 from .manifest import SENSORS
-from .ros_raw import RosTopics, batched
+from .ros_raw import RosTopics
 
 NAN = math.nan
 IMU, ODOMETRY, NAVSATFIX = "sensor_msgs/Imu", "nav_msgs/Odometry", "sensor_msgs/NavSatFix"
@@ -578,11 +578,10 @@ def _velocity(ctx: LogContext, msgtype: str, msg: Any, t: int, publish: int,
 
 def convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored | SourceBatch]:
     """ROS 1 .bag, ROS 2 .mcap/.db3 (rosbags): NavSatFix, NMEA/text sentences, Imu, Odometry, Twist, DVL."""
-    items = checked_times(_convert_rosbag(data, ctx), ctx)
-    return batched(items) if ctx.source_batches else items
+    return checked_times(_convert_rosbag(data, ctx), ctx)
 
 
-def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored | SourceBatch]:
     if not ctx.files:
         raise FormatError("a bag is read from its file: no file given")
     folders = {p.parent for p in ctx.files if p.name == "metadata.yaml"}
@@ -604,18 +603,22 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
         for m in rb.read_bag(path, types, own):
             number += 1
             where = Where(start + min(m.index, max(size - 1, 0)), None, m.bag_time_ns, number)
-            if not m.topic:
-                yield Reject(where, m.problem)
-            elif m.problem:   # neither itself nor ours: refused, with the reason
-                yield Reject(where, f"{m.topic} ({m.msgtype}): {m.problem}")
+            if m.problem or not m.topic:   # neither itself nor ours: refused, with the reason
+                yield from raw.flush()
+                yield Reject(where, f"{m.topic} ({m.msgtype}): {m.problem}" if m.topic else m.problem)
             else:
-                yield raw.output(m, where)
+                item = raw.output(m, where)
+                if item is not None:   # not in its topic's batch
+                    yield from raw.released(iter((item,)))
                 if bag.maps(m.topic, m.msgtype):
-                    yield from bag.item(m, where)
+                    yield from raw.released(bag.item(m, where))
             if bag.due(number):
-                yield from bag.flush()
+                yield from raw.released(bag.flush())
+            if raw.due(number):
+                yield from raw.flush()
         start += size
-    yield from bag.finish()
+    yield from raw.released(bag.finish())
+    yield from raw.flush()
     note = raw.note(ctx.path or files[0].name, Where(0))
     if note is not None:
         yield note

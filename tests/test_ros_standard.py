@@ -241,7 +241,12 @@ def test_a_bag_read_from_its_bytes_and_batched_is_archived_as_one_by_one(tmp_pat
         'origin = [45.7, 126.6]\n')
     fast = record(load_manifest(tmp_path / "trial.toml"), tmp_path / "fast.mcap", workers=1).files[0]
     monkeypatch.setattr(RB, "OWN", {ros_imu.MSGTYPE: RB.OWN[ros_imu.MSGTYPE]})
-    monkeypatch.setattr(RB, "batched", lambda items: items)
+
+    class OneByOne(RB.RosTopics):
+        def __init__(self, ctx: Any):
+            super().__init__(ctx)
+            self.batching = False
+    monkeypatch.setattr(RB, "RosTopics", OneByOne)
     slow = record(load_manifest(tmp_path / "trial.toml"), tmp_path / "slow.mcap", workers=1).files[0]
     assert fast.as_json() == slow.as_json()
     assert fast.skipped > 20 and fast.messages > 900   # the damage refused, the rest archived
