@@ -283,6 +283,7 @@ def _messages(reader: Any, ros1: bool, types: dict[str, Any], own: dict[str, Own
     undecoded = {t: own[t][1] for t in schemas if t in own and _md5(store, t, ros1) == own[t][0].get(1 if ros1 else 2)}
     index = 0
     stream = _ros1_rows(reader) if ros1 else _ros2_rows(reader)
+    names: dict[str, str] = {}   # rosbags' type name -> ours (`ros_type`)
     while True:
         try:
             conn, t_ns, raw, problem = next(stream)
@@ -295,7 +296,7 @@ def _messages(reader: Any, ros1: bool, types: dict[str, Any], own: dict[str, Own
             yield BagMessage("", "", t_ns, index, None, problem or "a message of no connection the bag defines")
             index += 1
             continue
-        msgtype = ros_type(conn.msgtype)
+        msgtype = names.get(conn.msgtype) or names.setdefault(conn.msgtype, ros_type(conn.msgtype))
         problem = problem or broken.get(conn.msgtype, "")
         message = None
         if not problem and conn.msgtype in undecoded and getattr(conn.ext, "serialization_format", "cdr") == "cdr":
@@ -335,7 +336,8 @@ def _ros2_rows(reader: Any) -> Iterator[RawRow]:
     chunk the bounded storage refused or found damaged as one row of its own (its messages are not read)."""
     problems = storage_problems(reader)
     for row in _ros2_checked(reader):
-        yield from _storage_rows(problems)
+        if problems:   # MCAP storage only
+            yield from _storage_rows(problems)
         yield row
     yield from _storage_rows(problems)
 

@@ -35,8 +35,10 @@ header or with a zero stamp takes its bag time.
 
 Every bag message is archived as itself on ``/<v>/ros/<topic>`` (`recorders.ros_raw`), or refused with a reason
 (it does not decode by its type, or its type is defined nowhere); a mapped one gives ours as well, and says why
-when it gives none (an ignored reason, counted). A standard ``sensor_msgs/Imu`` is read from its bytes
-(`formats.ros_imu`) and converted a batch at a time (`_ImuBatch`), the others one by one from rosbags' objects.
+when it gives none (an ignored reason, counted). Standard types are read from their bytes (`OWN`): a
+``sensor_msgs/Imu`` (`formats.ros_imu`) converted a batch at a time (`_ImuBatch`), ``nav_msgs/Odometry`` and
+``sensor_msgs/NavSatFix`` (`formats.ros_standard`) one by one from their numbers, ``tf2_msgs/TFMessage`` only
+checked; rosbags decodes the others, and any message those readers do not read (it then decides and says why).
 """
 
 from __future__ import annotations
@@ -238,6 +240,7 @@ class _Bag:
         self.streams: dict[str, TextStream] = {}
         self.sources = _Sources()
         self.targets: dict[tuple[str, str], bool] = {}   # (topic, type) -> mapped to ours
+        self.found: dict[tuple[str, str], tuple[str, str, str] | None] = {}   # (topic, type) -> its `_target`
         self.imus: dict[str, _ImuBatch] = {}              # Imu topic -> its messages read from their bytes
         self.oldest: int | None = None   # the number of the earliest bag message an Imu batch holds
         # typed topics claim their archive topics first, a position (Odometry) before an attitude alone (Imu)
@@ -280,13 +283,14 @@ class _Bag:
                 yield item
 
     def _item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored]:
-        label = f"{m.topic} ({m.msgtype})"
-        target = _target(m.topic, m.msgtype, self.ctx)
+        key = (m.topic, m.msgtype)
+        target = self.found[key] if key in self.found else self.found.setdefault(key, _target(*key, self.ctx))
         if target is None:   # archived as itself alone (`recorders.ros_raw`)
             return
         family, vehicle, wanted = target
         if family and family not in SENSORS:
-            yield Reject(where, f"{label}: the manifest maps it to {family!r}, not one of {', '.join(SENSORS)}")
+            yield Reject(where, f"{m.topic} ({m.msgtype}): the manifest maps it to {family!r}, not one of "
+                                f"{', '.join(SENSORS)}")
             return
         ctx = self.ctx if vehicle == self.ctx.vehicle else _with_vehicle(self.ctx, vehicle)
         publish = m.bag_time_ns + ctx.clock_offset_ns
@@ -319,7 +323,7 @@ class _Bag:
         if m.msgtype in RAW_TYPES:
             text = getattr(msg, "sentence", None) if m.msgtype == "nmea_msgs/Sentence" else getattr(msg, "data", None)
             if not isinstance(text, str):
-                yield Reject(where, f"{label}: no text")
+                yield Reject(where, f"{m.topic} ({m.msgtype}): no text")
                 return
             stream = self.streams.get(m.topic)
             if stream is None:
@@ -337,7 +341,7 @@ class _Bag:
         elif m.msgtype in TWIST_TYPES or _is_dvl_type(m.msgtype):
             yield from _velocity(ctx, m.msgtype, msg, t, publish, where)
         else:
-            yield Reject(where, f"{label}: mapped to {family}, but we convert no {m.msgtype} message")
+            yield Reject(where, f"{m.topic} ({m.msgtype}): mapped to {family}, but we convert no {m.msgtype} message")
 
     def finish(self) -> Iterator[Output | Reject | Ignored]:
         """The Imu batches, then the raw text streams through their vendor converters, each on its topic's
