@@ -39,7 +39,7 @@ import contextlib
 import heapq
 import struct
 from collections import defaultdict
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -64,6 +64,9 @@ _TIME = struct.Struct("<II")
 OP_MSGDATA, OP_CHUNK, OP_CONNECTION = 2, 5, 7
 # (connection, bag time ns, serialized message or None, problem): one message as the storage gives it
 RawRow = tuple[Any, int, bytes | None, str]
+# a type the caller reads from the bytes itself: rosbags' MD5 of the definition it reads, by ROS version, and its
+# reader (bytes, ROS 1?) -> what it read, or None for bytes it does not read (rosbags decodes those)
+OwnReader = tuple[dict[int, str], Callable[[bytes, bool], Any]]
 
 
 @dataclass(slots=True)  # not frozen: one per bag message, and frozen's __setattr__ path costs
@@ -79,7 +82,7 @@ class BagMessage:
     problem: str = ""
     data: bytes = b""          # the serialized message (ROS 1 or CDR), when `message` decoded from it
     schema: RosSchema | None = None   # its type's schema, one object per connection type, when `message` is set
-    undecoded: bool = False    # a type the caller reads from `data` itself (read_bag's `own`): `message` is None
+    undecoded: bool = False    # a type the caller reads itself (read_bag's `own`): `message` is what its reader gave
 
 
 def ros_type(msgtype: str) -> str:
@@ -210,14 +213,15 @@ def _open(path: Path, kind: str) -> Any:
 
 
 def read_bag(path: Path, types: dict[str, Any] | None = None,
-             own: dict[str, dict[int, str]] | None = None) -> Iterator[BagMessage]:
+             own: dict[str, OwnReader] | None = None) -> Iterator[BagMessage]:
     """Every message of one bag file, in bag time order; FormatError when rosbags cannot open it.
 
     `path` may be a ROS 2 bag's ``metadata.yaml``: the whole bag folder is read then (its storage files,
     split or compressed, as the metadata lists them). `types` (from `definitions`) define custom types the
     bag does not. `own` names types (rosbags' names) the caller reads from the bytes itself, with rosbags' MD5
-    of the definition it reads by ROS version: where the bag's definition is that one, their messages come
-    `undecoded`.
+    of the definition it reads by ROS version and its reader: where the bag's definition is that one, their
+    messages come `undecoded`, with what the reader gave; a message the reader does not read (None: damaged, or
+    a layout it leaves to rosbags) is decoded by rosbags as any other, which decides and says why.
     """
     reader, kind = _opened(path)
     try:
@@ -261,7 +265,7 @@ def _opened(path: Path) -> tuple[Any, str]:
     return reader, kind
 
 
-def _messages(reader: Any, ros1: bool, types: dict[str, Any], own: dict[str, dict[int, str]]) -> Iterator[BagMessage]:
+def _messages(reader: Any, ros1: bool, types: dict[str, Any], own: dict[str, OwnReader]) -> Iterator[BagMessage]:
     connections = list(reader.connections)
     store, broken = _typestore(connections, ros1, types)
     for conn in connections:   # (a type that is not text is its rows' problem: _ros2_rows says so)
@@ -276,9 +280,10 @@ def _messages(reader: Any, ros1: bool, types: dict[str, Any], own: dict[str, dic
                                                    getattr(conn.msgdef.format, "name", "NONE"), store, ros1)
             except Exception as exc:  # noqa: BLE001 - rosbags' type errors are of many kinds: this type only
                 broken[conn.msgtype] = f"no message definition to archive it by ({library_error(exc)})"
-    undecoded = {t for t in schemas if t in own and _md5(store, t, ros1) == own[t].get(1 if ros1 else 2)}
+    undecoded = {t: own[t][1] for t in schemas if t in own and _md5(store, t, ros1) == own[t][0].get(1 if ros1 else 2)}
     index = 0
     stream = _ros1_rows(reader) if ros1 else _ros2_rows(reader)
+    names: dict[str, str] = {}   # rosbags' type name -> ours (`ros_type`)
     while True:
         try:
             conn, t_ns, raw, problem = next(stream)
@@ -291,13 +296,15 @@ def _messages(reader: Any, ros1: bool, types: dict[str, Any], own: dict[str, dic
             yield BagMessage("", "", t_ns, index, None, problem or "a message of no connection the bag defines")
             index += 1
             continue
-        msgtype = ros_type(conn.msgtype)
+        msgtype = names.get(conn.msgtype) or names.setdefault(conn.msgtype, ros_type(conn.msgtype))
         problem = problem or broken.get(conn.msgtype, "")
         message = None
         if not problem and conn.msgtype in undecoded and getattr(conn.ext, "serialization_format", "cdr") == "cdr":
-            yield BagMessage(conn.topic, msgtype, t_ns, index, None, "", raw or b"", schemas[conn.msgtype], True)
-            index += 1
-            continue
+            read = undecoded[conn.msgtype](raw or b"", ros1)
+            if read is not None:
+                yield BagMessage(conn.topic, msgtype, t_ns, index, read, "", raw or b"", schemas[conn.msgtype], True)
+                index += 1
+                continue
         if not problem:
             fmt = getattr(conn.ext, "serialization_format", "cdr")
             try:
@@ -329,7 +336,8 @@ def _ros2_rows(reader: Any) -> Iterator[RawRow]:
     chunk the bounded storage refused or found damaged as one row of its own (its messages are not read)."""
     problems = storage_problems(reader)
     for row in _ros2_checked(reader):
-        yield from _storage_rows(problems)
+        if problems:   # MCAP storage only
+            yield from _storage_rows(problems)
         yield row
     yield from _storage_rows(problems)
 

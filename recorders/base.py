@@ -17,7 +17,7 @@ block of the log at a time, not the whole log.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import date
 from pathlib import Path
 from typing import Any
@@ -53,6 +53,8 @@ class LogContext:
     # the consumer takes `Batch` items (the recording step): a converter may then give a block of messages as
     # columns; everyone else gets the same messages as Outputs, one by one
     batches: bool = False
+    # set by the recording, which writes `SourceBatch` items: a converter may then give its source messages so
+    source_batches: bool = False
 
     def vehicle_for_address(self, address: int | None) -> str:
         """The vehicle name for a modem address, or 'addr<N>' when the manifest has none."""
@@ -109,10 +111,10 @@ def batched(ctx: LogContext, batch: Batch | None) -> Iterator[Output | Reject | 
     return iter((batch,)) if ctx.batches else iter(batch.outputs())
 
 
-def one_by_one(items: Iterable[Output | Reject | Ignored | Batch]) -> Iterator[Output | Reject | Ignored]:
-    """A converter's items with any Batch given as its items one by one (for consumers typed without batches)."""
+def one_by_one(items: Iterable[Output | Reject | Ignored | Batch | SourceBatch]) -> Iterator[Output | Reject | Ignored]:
+    """A converter's items with any batch given as its items one by one (for consumers typed without batches)."""
     for item in items:
-        if type(item) is Batch:
+        if type(item) is Batch or type(item) is SourceBatch:
             yield from item.outputs()
         else:
             yield item  # type: ignore[misc]
@@ -149,13 +151,34 @@ class Note(Ignored):
     notes and printed after the recording's table, once per log (an Ignored to whatever does not know it)."""
 
 
+@dataclass(slots=True)
+class SourceBatch:
+    """Source messages of one archive topic, in order (a bag's messages as themselves, `recorders.ros_raw`): they
+    carry no values to check, only their bytes, so the recording writes them in one call
+    (`ArchiveWriter.write_serialized_batch`) and counts them as one Output each. `message` is one of them (its
+    schema names the channel); `where` is the last one's, for progress."""
+
+    topic: str
+    message: Any
+    payloads: list[bytes]
+    log_times_ns: list[int]
+    publish_times_ns: list[int]
+    wheres: list[Where]
+    where: Where | None = None
+
+    def outputs(self) -> Iterator[Output]:
+        """The same messages as one Output each (for a consumer that writes them one by one)."""
+        for data, t, publish, where in zip(self.payloads, self.log_times_ns, self.publish_times_ns, self.wheres):
+            yield Output(self.topic, replace(self.message, data=data), t, publish, where)
+
+
 # a LogContext option set for text carried in a container (a ROS string topic): each line's host prefix is the
 # container's stamp of its message, and is its time even where the vendor's record has a clock of its own (a
 # Water Linked DVL's time_of_validity, then kept beside it)
 CONTAINER_TIME = "container_time"
 
-# (a Batch only for a consumer that takes them: `LogContext.batches`)
-Converter = Callable[[bytes, LogContext], Iterator["Output | Reject | Ignored | Batch"]]
+# (a Batch or SourceBatch only for a consumer that takes them: `LogContext.batches`, `.source_batches`)
+Converter = Callable[[bytes, LogContext], Iterator["Output | Reject | Ignored | Batch | SourceBatch"]]
 # the same conversion over the log read in blocks (`formats.log_blocks`), for formats whose family module lists
 # it in BLOCK_CONVERTERS: the recording then holds one block of the log, not all of it
 BlockConverter = Callable[[Iterable[Block], LogContext], Iterator["Output | Reject | Ignored | Batch"]]

@@ -23,12 +23,13 @@ import math
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
+from typing import TypeVar, cast
 
 from formats import geodesy
 from formats.records import FormatError, Reject, Where
 from formats.units import NS
 
-from .base import CONTAINER_TIME, Ignored, LogContext, Output
+from .base import CONTAINER_TIME, Ignored, LogContext, Output, SourceBatch
 from .clock import offset_problem, shift_text
 from .registry import family_converter
 
@@ -157,7 +158,10 @@ EARLIEST_NS = 315_964_800 * NS     # 1980-01-06, the GPS epoch
 LATEST_NS = 4_102_444_800 * NS     # 2100-01-01
 
 
-def checked_times(items: Iterable[Output | Reject | Ignored], ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+_Item = TypeVar("_Item", bound="Output | Reject | Ignored | SourceBatch")
+
+
+def checked_times(items: Iterable[_Item], ctx: LogContext) -> Iterator[_Item | Reject]:
     """The items, with each Output whose log or publish time lies outside 1980-2100 turned into a Reject.
 
     A record's other outputs at such a time (a fix and its status) give no second Reject: one record, one count.
@@ -167,19 +171,22 @@ def checked_times(items: Iterable[Output | Reject | Ignored], ctx: LogContext) -
     rejected: Where | None = None
     unchecked = bool(shift_text(ctx.time_base, ctx.clock_offset_ns))
     for item in items:
-        if unchecked and type(item) is Output:
+        if type(item) is not Output:
+            yield item
+            continue
+        out = cast(Output, item)
+        if unchecked:
             unchecked = False
-            problem = offset_problem(item.log_time_ns, ctx.time_base, ctx.clock_offset_ns)
+            problem = offset_problem(out.log_time_ns, ctx.time_base, ctx.clock_offset_ns)
             if problem is not None:
                 raise FormatError(problem)
-        if type(item) is Output and not (EARLIEST_NS <= item.log_time_ns <= LATEST_NS
-                                         and EARLIEST_NS <= item.publish_time_ns <= LATEST_NS):
-            where = item.where if item.where is not None else Where(0)
+        if not (EARLIEST_NS <= out.log_time_ns <= LATEST_NS and EARLIEST_NS <= out.publish_time_ns <= LATEST_NS):
+            where = out.where if out.where is not None else Where(0)
             if where == rejected:
                 continue
             rejected = where
-            yield Reject(where, f"{item.topic}: time {item.log_time_ns / NS:.3f} s (publish "
-                                f"{item.publish_time_ns / NS:.3f} s) is not between 1980 and 2100")
+            yield Reject(where, f"{out.topic}: time {out.log_time_ns / NS:.3f} s (publish "
+                                f"{out.publish_time_ns / NS:.3f} s) is not between 1980 and 2100")
         else:
             yield item
 

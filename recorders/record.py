@@ -10,6 +10,7 @@ from collections import Counter, deque
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
+from dataclasses import replace as replaced
 from functools import partial
 from pathlib import Path
 from typing import Any, Protocol
@@ -24,7 +25,7 @@ from formats.proto_encode import encode_columns, split
 from formats.records import FormatError, Reject, Where
 from formats.units import NS, archivable_ns
 
-from .base import Batch, BlockConverter, Converter, Ignored, LogContext, Note, Output
+from .base import Batch, BlockConverter, Converter, Ignored, LogContext, Note, Output, SourceBatch
 from .clock import date_to_ns, iso_utc, log_offset_ns, offset_problem, shift_text
 from .manifest import LogSpec, Manifest, ManifestError
 from .output_checks import OutputProblem, check_output
@@ -42,7 +43,7 @@ from .registry import block_converters, converters
 from .value_checks import MAX_RANGE_M, ValueChecks
 
 # a log's converter as the recorder calls it: whole bytes, blocks or text in, outputs, rejects and skips out
-AnyConverter = Callable[..., Iterator[Output | Reject | Ignored | Batch]]
+AnyConverter = Callable[..., Iterator[Output | Reject | Ignored | Batch | SourceBatch]]
 
 Progress = Callable[[str, int, int], None]  # (file, bytes done, bytes total)
 # automatic mode decodes in-process below this much input: forking workers and
@@ -305,7 +306,7 @@ class LogRecorder:
         self.offset_ns = log_offset_ns(log.time_base, log.start_ns, log.clock_offset_s)
         self.unchecked = bool(shift_text(log.time_base, self.offset_ns))
 
-    def add(self, item: Output | Reject | Ignored | Batch) -> None:
+    def add(self, item: Output | Reject | Ignored | Batch | SourceBatch) -> None:
         if type(item) is not Output:
             if type(item) is Batch:
                 self._add_batch(item)
@@ -313,6 +314,8 @@ class LogRecorder:
                 self.ignored[item.reason] += 1
             elif type(item) is Note:
                 self.stats.notes.append(item.reason)
+            elif type(item) is SourceBatch:
+                self._add_source_batch(item)
             else:
                 self._reject(item)  # type: ignore[arg-type]
             return
@@ -426,6 +429,48 @@ class LogRecorder:
                     span += [int(mine[0]), int(mine[0])]
                 span[0], span[1] = min(span[0], int(mine.min())), max(span[1], int(mine.max()))
 
+    def _add_source_batch(self, batch: SourceBatch) -> None:
+        """Source messages of one topic, counted as `add` counts each; written in one call. They carry no values
+        to check: only their times (what `ValueChecks.problem` checks of them), message by message when one is
+        outside."""
+        times = batch.log_times_ns
+        write = getattr(self.writer, "write_serialized_batch", None)
+        if not times or write is None or self.unchecked or self.pending or not (
+                archivable_ns(min(times)) and archivable_ns(max(times))):
+            for item in batch.outputs():
+                self.add(item)
+            return
+        self.writer.source_channel(batch.topic, batch.message)   # type: ignore[attr-defined]
+        write(batch.topic, batch.payloads, times, batch.publish_times_ns)
+        st = self.stats
+        st.messages += len(times)
+        records = self.records
+        for where in batch.wheres:
+            if where.offset != records.last:
+                records.add(where.offset)
+        topic = batch.topic
+        prev = self.last_ns.get(topic)
+        for t in times:
+            if prev is None or t > prev:
+                pass
+            elif t < prev:
+                st.out_of_order += 1
+            else:
+                st.duplicates += 1
+            prev = t
+        self.last_ns[topic] = prev   # type: ignore[assignment]
+        first, last = min(times), max(times)
+        if st.start_ns is None or first < st.start_ns:
+            st.start_ns = first
+        if st.end_ns is None or last > st.end_ns:
+            st.end_ns = last
+        if self.part_starts:
+            for t, where in zip(times, batch.wheres):
+                span = self.part_spans[bisect.bisect_right(self.part_starts, where.offset) - 1]
+                if not span:
+                    span += [t, t]
+                span[0], span[1] = min(span[0], t), max(span[1], t)
+
     def _check_shift(self, t_ns: int) -> None:
         """The log's first message time, its offset or start applied, in 1980-2100; else a ManifestError."""
         self.unchecked = False
@@ -504,7 +549,7 @@ def trial_metadata(manifest: Manifest) -> dict:
 
 
 def _iter_outputs(convert: AnyConverter, data: Any, ctx: LogContext,
-                  log: LogSpec) -> Iterator[Output | Reject | Ignored | Batch]:
+                  log: LogSpec) -> Iterator[Output | Reject | Ignored | Batch | SourceBatch]:
     try:
         yield from convert(data, ctx)
     except FormatError as exc:
@@ -564,7 +609,7 @@ def _decode_log(manifest: Manifest, log: LogSpec, parts: list[tuple[str, bytes]]
     rec = LogRecorder(sink, log, stats, fallback, starts)
     step = max(len(data) // 50, 1 << 16)
     next_report = step
-    ctx = log_context(manifest, log, tuple(n for n, _ in parts), batches=True)
+    ctx = replaced(log_context(manifest, log, tuple(n for n, _ in parts), batches=True), source_batches=True)
     for item in _iter_outputs(convert, data, ctx, log):
         rec.add(item)
         if progress is not None and item.where is not None and item.where.offset >= next_report:

@@ -19,19 +19,32 @@ channel, one schema.
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Iterator
 
-from formats.records import Where
+from formats.records import Reject, Where
 from formats.ros_messages import TOPIC, RosMessage, RosSchema, topic_path
 from formats.rosbag import BagMessage
 
-from .base import LogContext, Note, Output
+from .base import Ignored, LogContext, Note, Output, SourceBatch
+from .containers import EARLIEST_NS, LATEST_NS
 
 # topics named with their counts in the recording's note; the rest are summed (the archive's info lists them all)
 NOTE_TOPICS = 12
+# a message waits in its topic's batch at most RAW_SPAN bag messages (well inside the window the recording counts
+# distinct records in, record.RECORDS_WINDOW, with an Imu batch's IMU_SPAN), and the batches hold at most RAW_BYTES
+RAW_SPAN = 1024
+RAW_BYTES = 8 << 20
 
 
 class RosTopics:
-    """A bag's messages as themselves: the archive topic of each (bag topic, type), and the count of each."""
+    """A bag's messages as themselves: the archive topic of each (bag topic, type), and the count of each.
+
+    When the recording takes them (`LogContext.source_batches`), a topic's messages after its first go into one
+    `SourceBatch` per topic, which it writes in one call and counts as one by one. The converter gives the batches
+    out (`flush`) before anything the recording may refuse (a Reject, an Output outside 1980-2100: its diagnostic
+    is stamped with the latest time archived) and when `due`, so each topic holds what it held message by message,
+    in the same order, with the same counts.
+    """
 
     def __init__(self, ctx: LogContext):
         self.ctx = ctx
@@ -39,9 +52,14 @@ class RosTopics:
         self.topics: dict[tuple[str, RosSchema], str] = {}   # (bag topic, its type's schema) -> archive topic
         self.types: dict[str, str] = {}                      # archive topic -> its schema's text (one per channel)
         self.counts: Counter[str] = Counter()
+        self.batching = ctx.source_batches
+        self.batches: dict[str, SourceBatch] = {}
+        self.seen: set[str] = set()   # topics whose first message went alone (its channel registered there)
+        self.oldest = self.held = 0   # the number of the earliest bag message a batch holds; the bytes held
 
-    def output(self, m: BagMessage, where: Where) -> Output:
-        """The archive message of one bag message that decoded (its `schema` set)."""
+    def output(self, m: BagMessage, where: Where) -> Output | None:
+        """The archive message of one bag message that decoded (its `schema` set), or None when it went into its
+        topic's batch."""
         schema = m.schema
         assert schema is not None
         topic = self.topics.get((m.topic, schema))
@@ -49,7 +67,42 @@ class RosTopics:
             topic = self._topic(m.topic, schema)
         self.counts[topic] += 1
         t = m.bag_time_ns + self.ctx.clock_offset_ns
+        if self.batching and EARLIEST_NS <= t <= LATEST_NS:
+            batch = self.batches.get(topic)
+            if batch is None and topic in self.seen:
+                if not self.batches:
+                    self.oldest = where.message or 0
+                batch = self.batches[topic] = SourceBatch(topic, RosMessage(schema, b""), [], [], [], [])
+            if batch is not None:
+                batch.payloads.append(m.data)
+                batch.log_times_ns.append(t)
+                batch.publish_times_ns.append(t)
+                batch.wheres.append(where)
+                self.held += len(m.data)
+                return None
+            self.seen.add(topic)
         return Output(topic, RosMessage(schema, m.data), t, t, where)
+
+    def due(self, number: int) -> bool:
+        """Whether the batches hold a message RAW_SPAN bag messages before message `number`, or RAW_BYTES."""
+        return bool(self.batches) and (number - self.oldest >= RAW_SPAN or self.held >= RAW_BYTES)
+
+    def flush(self) -> Iterator[SourceBatch]:
+        """Every batch, each topic's messages in order."""
+        for batch in self.batches.values():
+            batch.where = batch.wheres[-1]
+            yield batch
+        self.batches = {}
+        self.held = 0
+
+    def released(self, items: Iterator[Output | Reject | Ignored]) -> Iterator[Output | Reject | Ignored | SourceBatch]:
+        """The items, with the batches given out before each that the recording may refuse (a Reject, an Output
+        outside 1980-2100 that `containers.checked_times` turns into one)."""
+        for item in items:
+            if self.batches and (type(item) is not Output or not (
+                    EARLIEST_NS <= item.log_time_ns <= LATEST_NS and EARLIEST_NS <= item.publish_time_ns <= LATEST_NS)):
+                yield from self.flush()
+            yield item
 
     def _topic(self, bag_topic: str, schema: RosSchema) -> str:
         topic = self.prefix + topic_path(bag_topic)
@@ -70,3 +123,4 @@ class RosTopics:
         more = f", and {sum(n for _, n in rest)} on {len(rest)} more topics" if rest else ""
         return Note(where, f"{name}: {sum(self.counts.values())} messages archived as themselves on {self.prefix}...: "
                     f"{shown}{more}")
+

@@ -35,8 +35,10 @@ header or with a zero stamp takes its bag time.
 
 Every bag message is archived as itself on ``/<v>/ros/<topic>`` (`recorders.ros_raw`), or refused with a reason
 (it does not decode by its type, or its type is defined nowhere); a mapped one gives ours as well, and says why
-when it gives none (an ignored reason, counted). A standard ``sensor_msgs/Imu`` is read from its bytes
-(`formats.ros_imu`) and converted a batch at a time (`_ImuBatch`), the others one by one from rosbags' objects.
+when it gives none (an ignored reason, counted). Standard types are read from their bytes (`OWN`): a
+``sensor_msgs/Imu`` (`formats.ros_imu`) converted a batch at a time (`_ImuBatch`), ``nav_msgs/Odometry`` and
+``sensor_msgs/NavSatFix`` (`formats.ros_standard`) one by one from their numbers, ``tf2_msgs/TFMessage`` only
+checked; rosbags decodes the others, and any message those readers do not read (it then decides and says why).
 """
 
 from __future__ import annotations
@@ -51,14 +53,14 @@ from typing import Any
 
 import numpy as np
 
-from formats import ros_imu
+from formats import ros_imu, ros_standard
 from formats import rosbag as rb
 from formats import schemas as S
 from formats.records import FormatError, Reject, Where
 from formats.units import NS
 
 from . import dvl
-from .base import Converter, Ignored, LogContext, Output, output
+from .base import Converter, Ignored, LogContext, Output, SourceBatch, output
 from .containers import (
     TextStream,
     attitude_deg,
@@ -80,6 +82,7 @@ from .manifest import SENSORS
 from .ros_raw import RosTopics
 
 NAN = math.nan
+IMU, ODOMETRY, NAVSATFIX = "sensor_msgs/Imu", "nav_msgs/Odometry", "sensor_msgs/NavSatFix"
 RAW_TYPES = ("nmea_msgs/Sentence", "std_msgs/String")
 INS_TYPES = ("sensor_msgs/Imu", "nav_msgs/Odometry")
 TWIST_TYPES = ("geometry_msgs/TwistWithCovarianceStamped", "geometry_msgs/TwistStamped")
@@ -167,6 +170,12 @@ def _cov(values: Any, n: int) -> list[float]:
     return out + [NAN] * (n - len(out))
 
 
+def _finite(values: tuple[float, ...]) -> list[float]:
+    """Floats read from bytes with the non-finite ones NaN, as `_cov` gives a typed field's array."""
+    out = list(values)
+    return out if all(map(math.isfinite, out)) else [v if math.isfinite(v) else NAN for v in out]
+
+
 def _first(values: Any) -> float:
     """A covariance's first element (NaN when it has none or it is not a number)."""
     if type(values) is np.ndarray and values.ndim == 1 and len(values):
@@ -231,6 +240,7 @@ class _Bag:
         self.streams: dict[str, TextStream] = {}
         self.sources = _Sources()
         self.targets: dict[tuple[str, str], bool] = {}   # (topic, type) -> mapped to ours
+        self.found: dict[tuple[str, str], tuple[str, str, str] | None] = {}   # (topic, type) -> its `_target`
         self.imus: dict[str, _ImuBatch] = {}              # Imu topic -> its messages read from their bytes
         self.oldest: int | None = None   # the number of the earliest bag message an Imu batch holds
         # typed topics claim their archive topics first, a position (Odometry) before an attitude alone (Imu)
@@ -251,11 +261,10 @@ class _Bag:
             found = self.targets[key] = _target(topic, msgtype, self.ctx) is not None
         return found
 
-    def item(self, m: rb.BagMessage, where: Where, head: tuple[int, bytes] | None = None,
-             ) -> Iterator[Output | Reject | Ignored]:
-        """The archive messages of one bag message (raw text kept for `finish`, an undecoded Imu, whose `head`
-        `ros_imu.header` read, for its topic's batch), each on its topic's source."""
-        for item in self._item(m, where, head):
+    def item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored]:
+        """The archive messages of one bag message (raw text kept for `finish`; an Imu read from its bytes, `OWN`,
+        for its topic's batch), each on its topic's source."""
+        for item in self._item(m, where):
             if type(item) is Output:
                 self.sources.place(item, m.topic)
             yield item
@@ -273,19 +282,20 @@ class _Bag:
                     self.sources.place(item, topic)
                 yield item
 
-    def _item(self, m: rb.BagMessage, where: Where,
-              head: tuple[int, bytes] | None) -> Iterator[Output | Reject | Ignored]:
-        label = f"{m.topic} ({m.msgtype})"
-        target = _target(m.topic, m.msgtype, self.ctx)
+    def _item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored]:
+        key = (m.topic, m.msgtype)
+        target = self.found[key] if key in self.found else self.found.setdefault(key, _target(*key, self.ctx))
         if target is None:   # archived as itself alone (`recorders.ros_raw`)
             return
         family, vehicle, wanted = target
         if family and family not in SENSORS:
-            yield Reject(where, f"{label}: the manifest maps it to {family!r}, not one of {', '.join(SENSORS)}")
+            yield Reject(where, f"{m.topic} ({m.msgtype}): the manifest maps it to {family!r}, not one of "
+                                f"{', '.join(SENSORS)}")
             return
         ctx = self.ctx if vehicle == self.ctx.vehicle else _with_vehicle(self.ctx, vehicle)
         publish = m.bag_time_ns + ctx.clock_offset_ns
-        if head is not None:   # an Imu read from its bytes: converted with its topic's batch
+        head = m.message if m.undecoded else None   # what `OWN`'s reader read of it
+        if head is not None and m.msgtype == IMU:   # an Imu read from its bytes: converted with its topic's batch
             batch = self.imus.get(m.topic)
             if batch is None:
                 batch = self.imus[m.topic] = _ImuBatch(ctx)
@@ -295,12 +305,25 @@ class _Bag:
             if batch.add(stamp + ctx.clock_offset_ns, publish, where, head[1], m.data):
                 yield from batch.flush()
             return
+        if head is not None and m.msgtype in (ODOMETRY, NAVSATFIX):   # read from its bytes (`formats.ros_standard`)
+            t = (head[0] if head[0] > 0 else m.bag_time_ns) + ctx.clock_offset_ns
+            if m.msgtype == ODOMETRY:
+                _, frame, child, v = head
+                x, y, z, qx, qy, qz, qw = map(_num, v[:7])   # position, orientation (`ros_standard.ODOMETRY_DOUBLES`)
+                vx, vy, vz = map(_num, v[ros_standard.LINEAR])
+                yield from _odometry_state(ctx, frame, child, (x, y, z), (qx, qy, qz, qw), (vx, vy, vz),
+                                           _finite(v[ros_standard.POSE_COV]), t, publish, where, self.origin)
+            else:
+                _, _, status, v, kind = head
+                yield from _navsatfix_fix(ctx, status, _num(v[0]), _num(v[1]), _num(v[2]), _finite(v[3:]), kind, t,
+                                          publish, where)
+            return
         t = _stamp_ns(m.message, m.bag_time_ns) + ctx.clock_offset_ns
         msg = m.message
         if m.msgtype in RAW_TYPES:
             text = getattr(msg, "sentence", None) if m.msgtype == "nmea_msgs/Sentence" else getattr(msg, "data", None)
             if not isinstance(text, str):
-                yield Reject(where, f"{label}: no text")
+                yield Reject(where, f"{m.topic} ({m.msgtype}): no text")
                 return
             stream = self.streams.get(m.topic)
             if stream is None:
@@ -318,7 +341,7 @@ class _Bag:
         elif m.msgtype in TWIST_TYPES or _is_dvl_type(m.msgtype):
             yield from _velocity(ctx, m.msgtype, msg, t, publish, where)
         else:
-            yield Reject(where, f"{label}: mapped to {family}, but we convert no {m.msgtype} message")
+            yield Reject(where, f"{m.topic} ({m.msgtype}): mapped to {family}, but we convert no {m.msgtype} message")
 
     def finish(self) -> Iterator[Output | Reject | Ignored]:
         """The Imu batches, then the raw text streams through their vendor converters, each on its topic's
@@ -342,16 +365,21 @@ def _out(ctx: LogContext, suffix: str, message: Any, t: int, publish: int, where
 
 
 def _navsatfix(ctx: LogContext, msg: Any, t: int, publish: int, where: Where) -> Iterator[Output | Reject]:
-    status = getattr(getattr(msg, "status", None), "status", -1)
+    lat, lon = finite_or_nan(getattr(msg, "latitude", NAN)), finite_or_nan(getattr(msg, "longitude", NAN))
+    yield from _navsatfix_fix(ctx, getattr(getattr(msg, "status", None), "status", -1), lat, lon,
+                              finite_or_nan(getattr(msg, "altitude", NAN)),
+                              _cov(getattr(msg, "position_covariance", ()), 9),
+                              getattr(msg, "position_covariance_type", 0), t, publish, where)
+
+
+def _navsatfix_fix(ctx: LogContext, status: Any, lat: float, lon: float, alt: float, cov: list[float], kind: Any,
+                   t: int, publish: int, where: Where) -> Iterator[Output]:
+    """A NavSatFix's LocationFix (when it has a fix) and status, from its fields (non-finite numbers NaN)."""
     try:
         quality = NAVSAT_QUALITY.get(int(status), 0)
     except (TypeError, ValueError):
         quality = 0
-    lat, lon = finite_or_nan(getattr(msg, "latitude", NAN)), finite_or_nan(getattr(msg, "longitude", NAN))
-    alt = finite_or_nan(getattr(msg, "altitude", NAN))
     if quality > 0 and math.isfinite(lat) and math.isfinite(lon) and -90 <= lat <= 90:
-        cov = _cov(getattr(msg, "position_covariance", ()), 9)
-        kind = getattr(msg, "position_covariance_type", 0)
         kind = int(kind) if isinstance(kind, int) and 0 <= kind <= 3 and all(map(math.isfinite, cov)) else 0
         fix = S.location_fix(t, ctx.vehicle, lat, (lon + 180.0) % 360.0 - 180.0, alt,
                              tuple(cov) if kind else None, kind)
@@ -466,20 +494,28 @@ def _ned_bytes(frame: bytes) -> bool:
 def _odometry(ctx: LogContext, msg: Any, t: int, publish: int, where: Where,
               origin: tuple[float, float] | None) -> Iterator[Output | Reject]:
     pose = getattr(getattr(msg, "pose", None), "pose", None)
-    ned = _ned(_frame(msg))
-    position = _vec(getattr(pose, "position", None))
+    yield from _odometry_state(ctx, _frame(msg), str(getattr(msg, "child_frame_id", "") or ""),
+                               _vec(getattr(pose, "position", None)), _quat(getattr(pose, "orientation", None)),
+                               _vec(getattr(getattr(getattr(msg, "twist", None), "twist", None), "linear", None)),
+                               _cov(getattr(getattr(msg, "pose", None), "covariance", ()), 36), t, publish, where,
+                               origin)
+
+
+def _odometry_state(ctx: LogContext, frame: str, child: str, position: tuple[float, float, float],
+                    quaternion: tuple[float, float, float, float], linear: tuple[float, float, float],
+                    pcov: list[float], t: int, publish: int, where: Where,
+                    origin: tuple[float, float] | None) -> Iterator[Output | Reject]:
+    """An Odometry's InsState from its fields (non-finite numbers NaN), or why it gives none."""
+    ned = _ned(frame)
     north, east, down = position if ned else enu_to_ned(position)
-    roll, pitch, heading = attitude_deg(_quat(getattr(pose, "orientation", None)), ned)
+    roll, pitch, heading = attitude_deg(quaternion, ned)
     lat, lon = local_to_geodetic(north, east, origin)
-    linear = _vec(getattr(getattr(getattr(msg, "twist", None), "twist", None), "linear", None))
-    child = str(getattr(msg, "child_frame_id", "") or "")
     if is_world(child):  # a twist given in a world frame, against REP-103's child frame
         vn, ve, vd = linear if is_ned(child) else enu_to_ned(linear)
     elif math.isfinite(heading):
         vn, ve, vd = body_to_ned(linear if is_ned(child) else flu_to_frd(linear), roll, pitch, heading)
     else:
         vn = ve = vd = NAN
-    pcov = _cov(getattr(getattr(msg, "pose", None), "covariance", ()), 36)
     sn, se = (pcov[0], pcov[7]) if ned else (pcov[7], pcov[0])
     if not any(map(math.isfinite, (north, east, down, heading, vn))):
         yield Reject(where, "nav_msgs/Odometry with neither position, orientation nor velocity")
@@ -544,12 +580,12 @@ def _velocity(ctx: LogContext, msgtype: str, msg: Any, t: int, publish: int,
                                        source=source), t, publish, where)
 
 
-def convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+def convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored | SourceBatch]:
     """ROS 1 .bag, ROS 2 .mcap/.db3 (rosbags): NavSatFix, NMEA/text sentences, Imu, Odometry, Twist, DVL."""
     return checked_times(_convert_rosbag(data, ctx), ctx)
 
 
-def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored | SourceBatch]:
     if not ctx.files:
         raise FormatError("a bag is read from its file: no file given")
     folders = {p.parent for p in ctx.files if p.name == "metadata.yaml"}
@@ -557,7 +593,7 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
     files = [p for p in ctx.files if p.name == "metadata.yaml" or p.parent not in folders]
     bag = _Bag(ctx, [t for path in files for t in _topics(path)])
     raw = RosTopics(ctx)
-    own = {ros_imu.MSGTYPE: ros_imu.STANDARD}   # Imu read from its bytes, a batch at a time
+    own = OWN
     msg_paths = ctx.options.get("msg_paths")
     types = rb.definitions([Path(p) for p in msg_paths]) if isinstance(msg_paths, list) else {}
     start, number = 0, 0
@@ -571,26 +607,35 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
         for m in rb.read_bag(path, types, own):
             number += 1
             where = Where(start + min(m.index, max(size - 1, 0)), None, m.bag_time_ns, number)
-            head = None
-            if m.undecoded:   # its bytes checked here, as rosbags' decoding checks the others'
-                head = ros_imu.header(m.data, m.schema is not None and m.schema.message_encoding == "ros1")
-                if head is None:
-                    m.problem = f"does not decode as sensor_msgs/Imu ({len(m.data)} bytes)"
-            if not m.topic:
-                yield Reject(where, m.problem)
-            elif m.problem:   # neither itself nor ours: refused, with the reason
-                yield Reject(where, f"{m.topic} ({m.msgtype}): {m.problem}")
+            if m.problem or not m.topic:   # neither itself nor ours: refused, with the reason
+                yield from raw.flush()
+                yield Reject(where, f"{m.topic} ({m.msgtype}): {m.problem}" if m.topic else m.problem)
             else:
-                yield raw.output(m, where)
+                item = raw.output(m, where)
+                if item is not None:   # not in its topic's batch
+                    yield from raw.released(iter((item,)))
                 if bag.maps(m.topic, m.msgtype):
-                    yield from bag.item(m, where, head)
+                    yield from raw.released(bag.item(m, where))
             if bag.due(number):
-                yield from bag.flush()
+                yield from raw.released(bag.flush())
+            if raw.due(number):
+                yield from raw.flush()
         start += size
-    yield from bag.finish()
+    yield from raw.released(bag.finish())
+    yield from raw.flush()
     note = raw.note(ctx.path or files[0].name, Where(0))
     if note is not None:
         yield note
+
+
+# types read from their bytes (rosbags decodes a bag whose definition differs, or bytes these do not read): the Imu
+# converted a batch at a time, Odometry and NavSatFix one by one from their numbers, TFMessage only checked
+OWN: dict[str, rb.OwnReader] = {
+    ros_imu.MSGTYPE: (ros_imu.STANDARD, ros_imu.header),
+    ros_standard.ODOMETRY: (ros_standard.STANDARD[ros_standard.ODOMETRY], ros_standard.odometry),
+    ros_standard.NAVSATFIX: (ros_standard.STANDARD[ros_standard.NAVSATFIX], ros_standard.navsatfix),
+    ros_standard.TF: (ros_standard.STANDARD[ros_standard.TF], ros_standard.transforms),
+}
 
 
 def _topics(path: Path) -> list[tuple[str, str]]:

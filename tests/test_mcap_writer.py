@@ -262,6 +262,25 @@ def test_write_serialized_by_topic_or_id_matches_write(tmp_path):
     assert a.read_bytes() == b.read_bytes()  # the same bytes, message for message
 
 
+def test_write_serialized_batch_writes_the_same_file_as_one_by_one(tmp_path):
+    """A batch gives the very bytes its messages written one at a time give, chunks closed at the same places."""
+    a, b = tmp_path / "a.mcap", tmp_path / "b.mcap"
+    payloads = [fix(i).SerializeToString() for i in range(300)]
+    times = [T0 + 10 * i for i in range(300)]
+    with ArchiveWriter(a, chunk_size=2048) as w:
+        w.channel("/a/gps", type(fix(0)))
+        for data, t in zip(payloads, times):
+            w.write_serialized("/a/gps", data, t, t + 1)
+    with ArchiveWriter(b, chunk_size=2048) as w:
+        w.channel("/a/gps", type(fix(0)))
+        w.write_serialized_batch("/a/gps", payloads[:7], times[:7], [t + 1 for t in times[:7]])
+        w.write_serialized_batch("/a/gps", payloads[7:], times[7:], [t + 1 for t in times[7:]])
+        w.write_serialized_batch("/a/gps", [], [])
+        with pytest.raises(KeyError, match="not a registered channel"):
+            w.write_serialized_batch("/nope", [b""], [T0])
+    assert a.read_bytes() == b.read_bytes()
+
+
 def test_same_messages_as_the_mcap_library_writer(tmp_path):
     ours, theirs = tmp_path / "ours.mcap", tmp_path / "theirs.mcap"
     written = write_mixed(ours, 800)

@@ -52,7 +52,7 @@ MAX_WARMUP = 16 << 10
 HOLD_BYTES = 4096  # kept back while a window gives no output at all (noise, or a record still arriving)
 MAX_LINE_BYTES = 1 << 20  # an unfinished line longer than this is no record of any text format we decode
 
-Item = Output | Reject | Ignored
+Item = Output | Reject | Ignored   # batches given one by one (`one_by_one`)
 # a host-timestamp prefix starts with "[" or a digit (formats.lines); a line may start with one only then
 _MAY_HAVE_PREFIX = re.compile(rb"\n[\[0-9]")
 # a line that holds more than whitespace (str.strip's, latin-1): after a newline, or at the start
