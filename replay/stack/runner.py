@@ -160,6 +160,7 @@ class CooperativeRunner:
                                                 or "lag_residual_m" in config.hybrid_inputs):
             self._reference = _Method("reference", "reference", s0)
             self._methods.append(self._reference)
+        self._reported_methods = [m for m in self._methods if m.name in self._reported]
         self._gate_f2 = chi_square_threshold(config.chi_square_alpha)
         self._t = self._t_dr = self.start_time_s
         self._depth = float(start.depth_m)
@@ -294,12 +295,20 @@ class CooperativeRunner:
 
     def estimates(self) -> dict[str, tuple[float, float, float, float, float]]:
         """Each reported method's current estimate: lat, lon (rad), covariance nn, ne, ee (m²)."""
-        return {m.name: (m.state.lat, m.state.lon, *_cov_m2(m.state, self._depth))
-                for m in self._methods if m.name in self._reported}
+        return {m.name: (m.state.lat, m.state.lon, *_cov_m2(m.state, self._depth)) for m in self._reported_methods}
 
     def positions(self) -> dict[str, tuple[float, float]]:
         """Each reported method's current lat, lon (rad): `estimates` without the covariances."""
-        return {m.name: (m.state.lat, m.state.lon) for m in self._methods if m.name in self._reported}
+        return {m.name: (m.state.lat, m.state.lon) for m in self._reported_methods}
+
+    def reported_states(self) -> list[State2]:
+        """Each reported method's current state, in the order of `reported_names` (`positions` without a dict)."""
+        return [m.state for m in self._reported_methods]
+
+    @property
+    def reported_names(self) -> tuple[str, ...]:
+        """The reported methods in the order of `reported_states` (and of `positions`)."""
+        return tuple(m.name for m in self._reported_methods)
 
     def detectors(self, method: str) -> dict[str, Detector | None]:
         """The trained detector per leader of a detecting method ({} before t_a); for views and tests."""
