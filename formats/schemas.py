@@ -105,6 +105,29 @@ def location_fix(
     return fix
 
 
+def location_fix_tail(t_ns: int, frame_id: str) -> bytes:
+    """The wire bytes of a LocationFix's timestamp and frame_id: what follows its numeric fields when serialized
+    (fields in number order), shared by the fixes of one time and frame (`location_fix_bytes`)."""
+    fix = LocationFix(frame_id=frame_id)
+    set_timestamp(fix.timestamp, t_ns)
+    return fix.SerializeToString()
+
+
+def location_fix_bytes(
+    tail: bytes, t_ns: int, frame_id: str, latitude: float, longitude: float, altitude: float,
+    covariance_enu_m2: tuple[float, ...], covariance_type: int,
+) -> bytes:
+    """`location_fix(...).SerializeToString()`, with `tail` = `location_fix_tail(t_ns, frame_id)`, without the
+    message: the numeric fields packed (`formats.wire`) then the tail. A zero scalar, which serializing omits,
+    or a covariance or type the run cannot pack goes through the message (tests/test_wire.py compares both)."""
+    if (latitude == 0.0 or longitude == 0.0 or altitude == 0.0 or len(covariance_enu_m2) != 9
+            or not 0 < covariance_type < 128):
+        return location_fix(t_ns, frame_id, latitude, longitude, altitude, covariance_enu_m2,
+                            covariance_type).SerializeToString()
+    k0, k1, k2, k3, k4 = _FIX_KEYS
+    return _FIX_PACK(k0, latitude, k1, longitude, k2, altitude, k3, *covariance_enu_m2, k4, covariance_type) + tail
+
+
 def ins_state(
     t_ns: int, frame_id: str, source_format: str, status: str,
     latitude: float, longitude: float, depth_m: float, roll_deg: float, pitch_deg: float, heading_deg: float,

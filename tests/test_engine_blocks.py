@@ -310,3 +310,80 @@ def test_long_track_blocks_equal_fixes_one_by_one() -> None:
             if i % 97 == 0:
                 for x in (t[i] - 1.2, t[i] - 0.013, t[i], t[i] + 0.01, t[i] - 6.0):
                     assert many.at(float(x), 0.2) == one.at(float(x), 0.2)
+
+
+class _RegroupEveryStep:
+    """The runner's DR step as before its method groups were kept: the methods grouped again at every step."""
+
+    def __enter__(self) -> None:
+        from replay.stack.runner import CooperativeRunner
+
+        self.cls, self.orig = CooperativeRunner, CooperativeRunner._propagate
+
+        def propagate(runner: Any, t_s: float) -> None:
+            runner._groups = None
+            self.orig(runner, t_s)
+
+        CooperativeRunner._propagate = propagate  # type: ignore[method-assign]
+
+    def __exit__(self, *exc: object) -> None:
+        self.cls._propagate = self.orig  # type: ignore[method-assign]
+
+
+@pytest.mark.parametrize("archive_name", ["sample_archive", "mission_archive"])
+def test_kept_method_groups_equal_grouping_every_step(archive_name: str, request: pytest.FixtureRequest) -> None:
+    """The DR time update moves each group of equal states once and keeps the groups until an update: every
+    listener call, score and result equals grouping the methods again at every DR step, on both paths."""
+    archive = request.getfixturevalue(archive_name)
+    with _RegroupEveryStep():
+        ref, e_ref, res_ref = engine_run(archive, False)
+    for blocks in (False, True):
+        got, e_got, res_got = engine_run(archive, blocks)
+        assert len(got.calls) == len(ref.calls)
+        for a, b in zip(ref.calls, got.calls):
+            assert pickle.dumps(b) == pickle.dumps(a), (a[:2], b[:2])
+        assert pickle.dumps(e_got.scores()) == pickle.dumps(e_ref.scores())
+        assert pickle.dumps({k: (r.epochs, r.rejected) for k, r in res_got.items()}) == \
+            pickle.dumps({k: (r.epochs, r.rejected) for k, r in res_ref.items()})
+
+
+_STATE = st.tuples(st.floats(-1.5, 1.5), st.floats(-3.0, 3.0), st.floats(1e-16, 1e-6), st.floats(-1e-7, 1e-7),
+                   st.floats(1e-16, 1e-6))
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(_STATE, min_size=1, max_size=7), st.floats(1e-3, 30.0), st.floats(-5.0, 5.0), st.floats(-2.0, 2.0),
+       st.floats(-7.0, 7.0), st.floats(0.0, 300.0))
+def test_filters_moved_together_equal_one_at_a_time(states: list[tuple[float, ...]], dt: float, fwd: float,
+                                                    lat_v: float, hdg: float, depth: float) -> None:
+    """dr_predict_moved over several states gives each state's own dr_predict, bit for bit."""
+    from replay.stack.filters.ckf import State2, dr_displacement, dr_predict, dr_predict_moved
+
+    s2 = [State2(*s) for s in states]
+    north, east = dr_displacement(dt, fwd, lat_v, hdg)
+    together = dr_predict_moved(s2, dt, north, east, depth, (0.3, 0.4))
+    assert together == [dr_predict(s, dt, fwd, lat_v, hdg, depth, (0.3, 0.4)) for s in s2]
+
+
+def _decimated_one_at_a_time(ts: list[float], last: float, gap: float) -> tuple[list[int], float]:
+    keep = []
+    for i, t in enumerate(ts):
+        if not t - last < gap:
+            keep.append(i)
+            last = t
+    return keep, last
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.floats(0.0, 1e-3), max_size=80), st.sampled_from([0.02, 0.1, 0.2, 0.9999999999, 1.0]),
+       st.sampled_from([0.0, 1e4, 123456.789]), st.sampled_from([-math.inf, -0.5, 0.3, 0.0]), st.booleans())
+def test_block_positions_decimated_as_one_at_a_time(jitter: list[float], step: float, t0: float, last: float,
+                                                    swap: bool) -> None:
+    """The review collector's bisection over a block's times keeps the points the one-at-a-time rule keeps."""
+    from replay.review.collector import DECIMATE_SLACK_S, INS_DECIMATE_S, decimated
+
+    ts = [t0 + step * k + j for k, j in enumerate(jitter)]
+    if swap and len(ts) > 3:
+        ts[1], ts[2] = ts[2], ts[1]       # out of order: the one-at-a-time loop
+    gap = INS_DECIMATE_S - DECIMATE_SLACK_S
+    assert decimated(ts, t0 + last, gap) == _decimated_one_at_a_time(ts, t0 + last, gap)

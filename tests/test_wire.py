@@ -65,3 +65,15 @@ def test_a_field_the_run_cannot_pack_fails_at_once() -> None:
         wire.field_run(wire.pb.DvlVelocity, "source_format")
     with pytest.raises(TypeError):
         wire.field_run(wire.pb.DvlVelocity, "beam_range_m")  # a repeated field needs its count
+
+
+@settings(max_examples=150, deadline=None)
+@given(t_ns=st.one_of(st.integers(0, 1 << 64), st.integers(1_700_000_000 * 10**9, 1_700_000_100 * 10**9)),
+       frame=st.text(max_size=12), lat=_DOUBLE, lon=_DOUBLE, alt=_DOUBLE,
+       cov=st.lists(_DOUBLE, min_size=9, max_size=9), kind=st.sampled_from([0, 1, 2, 3]))
+def test_location_fix_bytes_are_the_messages(t_ns, frame, lat, lon, alt, cov, kind) -> None:
+    from formats import schemas as S
+
+    tail = S.location_fix_tail(t_ns, frame)
+    got = S.location_fix_bytes(tail, t_ns, frame, lat, lon, alt, tuple(cov), kind)
+    assert got == S.location_fix(t_ns, frame, lat, lon, alt, tuple(cov), kind).SerializeToString()

@@ -164,6 +164,9 @@ def push_block(engine: Engine, block: MessageBlock) -> None:
     d = 0            # the next static stop
     origin_done = origin_at is None
     horizon = engine.horizon
+    last_l, until_l = last.tolist(), until.tolist()     # per release: floats, not numpy scalars
+    # a follower's heading and depth matter until its runner starts (_set_state): once all have, no call
+    starting = any(pipe.runner is None for pipe in engine._pipes_only)
     try:
         while k < n:
             while d < len(stops) and stops[d] < k:
@@ -192,10 +195,13 @@ def push_block(engine: Engine, block: MessageBlock) -> None:
                 continue
             e = _queue_events(events, e, j)
             engine.messages = seq0 + j + 1
-            engine.last_s = float(last[j])
+            engine.last_s = last_l[j]
             horizon.seq = seq0 + j + 1
-            _set_state(engine, finals, j, always=False)
-            engine._release(float(until[j]))
+            if starting:
+                _set_state(engine, finals, j, always=False)
+            engine._release(until_l[j])
+            if starting:
+                starting = any(pipe.runner is None for pipe in engine._pipes_only)
             k = j + 1
     finally:
         horizon.seq = math.inf

@@ -19,6 +19,7 @@ from replay.engine.config import RunConfig
 from replay.engine.layout import FollowerPlan
 from replay.engine.tracks import Track
 from replay.events import EpochResult, ErrorSample, Fix
+from replay.stack.filters.ckf import State2
 from replay.stack.model import horizontal_distance_scalar
 from replay.stack.runner import CooperativeRunner, RunnerOptions, Start
 from replay.stack.training import TrainingSet
@@ -59,7 +60,7 @@ class FollowerPipeline:
         self._seq = 0
         self._heading: tuple[float, float] | None = None   # (t_s, heading deg)
         self._depth = 0.0
-        self._prev: tuple[float, dict[str, tuple[float, float]]] | None = None
+        self._prev: tuple[float, list[State2]] | None = None      # the last step's time and states
         self._pending_gps: list[Fix] = []
         self._last_output_s = -math.inf
 
@@ -168,7 +169,7 @@ class FollowerPipeline:
         self.runner = CooperativeRunner(
             self.config.stack, self.plan.name, self.plan.leaders, Start(0.0, fix.lat_rad, fix.lon_rad, self._depth),
             RunnerOptions(keep_history=False, training_set=self.training_set))
-        self._prev = (0.0, self.runner.positions())
+        self._prev = (0.0, self.runner.reported_states())
         return self.runner
 
     def _range(self, runner: CooperativeRunner, t_s: float, leader: str, slant_m: float) -> None:
@@ -188,26 +189,27 @@ class FollowerPipeline:
 
     def _after_step(self, runner: CooperativeRunner, t_s: float, force: bool = False) -> None:
         """Errors at GPS fixes between the last two estimates; estimates out at most once a second."""
-        now = runner.positions()
-        prev_t, prev = self._prev if self._prev is not None else (t_s, now)
-        samples: list[ErrorSample] = []
-        keep: list[Fix] = []
-        for fix in self._pending_gps:
-            if fix.t_s > t_s:
-                keep.append(fix)
-                continue
-            if fix.t_s < prev_t:
-                continue  # before the runner started
-            w = 0.0 if t_s == prev_t else (fix.t_s - prev_t) / (t_s - prev_t)
-            for method, est in now.items():
-                p = prev.get(method, est)
-                lat = p[0] + w * (est[0] - p[0])
-                lon = p[1] + w * (est[1] - p[1])
-                samples.append(ErrorSample(fix.t_s, method,
-                                           horizontal_distance_scalar(lat, lon, fix.lat_rad, fix.lon_rad)))
-        self._pending_gps = keep
-        if samples:
-            self.on_error(self.plan.name, samples)
+        now = runner.reported_states()      # per DR sample: states, not a dict of positions
+        if self._pending_gps:
+            prev_t, prev = self._prev if self._prev is not None else (t_s, now)
+            names = runner.reported_names
+            samples: list[ErrorSample] = []
+            keep: list[Fix] = []
+            for fix in self._pending_gps:
+                if fix.t_s > t_s:
+                    keep.append(fix)
+                    continue
+                if fix.t_s < prev_t:
+                    continue  # before the runner started
+                w = 0.0 if t_s == prev_t else (fix.t_s - prev_t) / (t_s - prev_t)
+                for method, est, p in zip(names, now, prev):
+                    lat = p[0] + w * (est[0] - p[0])
+                    lon = p[1] + w * (est[1] - p[1])
+                    samples.append(ErrorSample(fix.t_s, method,
+                                               horizontal_distance_scalar(lat, lon, fix.lat_rad, fix.lon_rad)))
+            self._pending_gps = keep
+            if samples:
+                self.on_error(self.plan.name, samples)
         self._prev = (t_s, now)
         if force or t_s - self._last_output_s >= 1.0:
             self._last_output_s = t_s

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from bisect import bisect_left
 from collections.abc import Mapping
 from typing import Any
 
@@ -41,6 +42,33 @@ def anfis_core(det: Any) -> Any | None:
     None for anything else or before training."""
     core = getattr(det, "anfis", det)
     return core if hasattr(core, "snapshots") and getattr(core, "trained", False) else None
+
+
+def decimated(ts: list[float], last: float, gap: float) -> tuple[list[int], float]:
+    """The indexes of the times `position` keeps (each at least `gap` after the last kept) and the last kept time.
+
+    Sorted times (a block's, as a rule) jump from kept point to kept point by bisection; the test on each
+    candidate is the one of a sample at a time (t - last < gap), so the same points are kept.
+    """
+    keep: list[int] = []
+    n = len(ts)
+    if any(b < a for a, b in zip(ts, ts[1:])):       # out of order: one at a time
+        for i, t in enumerate(ts):
+            if not t - last < gap:
+                keep.append(i)
+                last = t
+        return keep, last
+    i = 0
+    while i < n:
+        # every time below last + gap less a margin far above rounding fails the test: skip them at once
+        i = bisect_left(ts, last + gap - 1e-6 * gap, i)
+        while i < n and ts[i] - last < gap:
+            i += 1
+        if i < n:
+            keep.append(i)
+            last = ts[i]
+            i += 1
+    return keep, last
 
 
 class ReviewCollector(Listener):
@@ -94,13 +122,7 @@ class ReviewCollector(Listener):
             keep = list(range(len(ts)))
         else:
             key = (vehicle, source)
-            last = self._last_drawn.get(key, -math.inf)
-            keep = []
-            gap = INS_DECIMATE_S - DECIMATE_SLACK_S
-            for i, t in enumerate(ts):
-                if not t - last < gap:
-                    keep.append(i)
-                    last = t
+            keep, last = decimated(ts, self._last_drawn.get(key, -math.inf), INS_DECIMATE_S - DECIMATE_SLACK_S)
             if keep:
                 self._last_drawn[key] = last
         for i in keep:

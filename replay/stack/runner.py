@@ -54,7 +54,8 @@ from replay.stack.features import EXTRA_FEATURES, FEATURE_NAMES, PAPER_FEATURES,
 from replay.stack.filters.ckf import (
     RangeInnovation,
     State2,
-    dr_predict,
+    dr_displacement,
+    dr_predict_moved,
     position_update,
     range_innovation,
     range_update,
@@ -159,11 +160,13 @@ class CooperativeRunner:
                                                 or "lag_residual_m" in config.hybrid_inputs):
             self._reference = _Method("reference", "reference", s0)
             self._methods.append(self._reference)
+        self._reported_methods = [m for m in self._methods if m.name in self._reported]
         self._gate_f2 = chi_square_threshold(config.chi_square_alpha)
         self._t = self._t_dr = self.start_time_s
         self._depth = float(start.depth_m)
         self._last_dr: tuple[float, float, float] = (0.0, 0.0, 0.0)   # forward, lateral, heading
         self._updated: dict[tuple[State2, RangeInnovation, bool], State2] = {}   # this epoch's updates
+        self._groups: list[list[_Method]] | None = None    # the methods by equal state (_propagate)
         self.rejected: Counter = Counter()
         self.clamped_ranges = 0
         self.position_fixes = 0
@@ -219,6 +222,7 @@ class CooperativeRunner:
         label = label_one(z, truth, self.config.t1_m)
         extra = self._extra(ep, slant_range_m)
         out = [self._method_epoch(m, inn, ep, truth, label, extra) for m, inn in zip(self._methods, innovations)]
+        self._groups = None     # the updates set states
         self._record()
         if t_s > self.training_end_s:
             self.parts.open_loop.add(out, extra)
@@ -257,6 +261,7 @@ class CooperativeRunner:
         for m in self._methods:
             if m.kind != "dr":
                 m.state = position_update(m.state, lat_rad, lon_rad, r11, r12, r22) or m.state
+        self._groups = None
         self.position_fixes += 1
         self._record()
         return True
@@ -290,12 +295,20 @@ class CooperativeRunner:
 
     def estimates(self) -> dict[str, tuple[float, float, float, float, float]]:
         """Each reported method's current estimate: lat, lon (rad), covariance nn, ne, ee (m²)."""
-        return {m.name: (m.state.lat, m.state.lon, *_cov_m2(m.state, self._depth))
-                for m in self._methods if m.name in self._reported}
+        return {m.name: (m.state.lat, m.state.lon, *_cov_m2(m.state, self._depth)) for m in self._reported_methods}
 
     def positions(self) -> dict[str, tuple[float, float]]:
         """Each reported method's current lat, lon (rad): `estimates` without the covariances."""
-        return {m.name: (m.state.lat, m.state.lon) for m in self._methods if m.name in self._reported}
+        return {m.name: (m.state.lat, m.state.lon) for m in self._reported_methods}
+
+    def reported_states(self) -> list[State2]:
+        """Each reported method's current state, in the order of `reported_names` (`positions` without a dict)."""
+        return [m.state for m in self._reported_methods]
+
+    @property
+    def reported_names(self) -> tuple[str, ...]:
+        """The reported methods in the order of `reported_states` (and of `positions`)."""
+        return tuple(m.name for m in self._reported_methods)
 
     def detectors(self, method: str) -> dict[str, Detector | None]:
         """The trained detector per leader of a detecting method ({} before t_a); for views and tests."""
@@ -340,19 +353,27 @@ class CooperativeRunner:
         """Time update of every method from the current time to t_s with the last DR sample."""
         dt = t_s - self._t
         fwd, lat_v, hdg = self._last_dr
-        q = self.config.q_m_per_s
         # methods whose filters have not diverged (every ACKF inside the training window, a detector
-        # that has not isolated yet) hold equal states: each distinct state is predicted once
-        done: dict[State2, State2] = {}
-        for m in self._methods:
-            nxt = done.get(m.state)
-            if nxt is None:
-                nxt = done[m.state] = dr_predict(m.state, dt, fwd, lat_v, hdg, self._depth, q)
-            m.state = nxt
+        # that has not isolated yet) hold equal states: each distinct state is predicted once. The groups
+        # stay until an update sets states (range_epoch, position_fix): a prediction depends on values only
+        groups = self._groups if self._groups is not None else self._group_states()
+        north, east = dr_displacement(dt, fwd, lat_v, hdg)
+        moved = dr_predict_moved([g[0].state for g in groups], dt, north, east, self._depth, self.config.q_m_per_s)
+        for g, nxt in zip(groups, moved):
+            for m in g:
+                m.state = nxt
         if self.parts.features is not None:
             # the age of the DR sample carried: beyond a few seconds the DVL has lost bottom lock (model)
             self.parts.features.propagate(dt, fwd, lat_v, hdg, self._depth, t_s - self._t_dr)
         self._t = t_s
+
+    def _group_states(self) -> list[list[_Method]]:
+        """The methods by equal state, in method order (each group's first member first)."""
+        by_state: dict[State2, list[_Method]] = {}
+        for m in self._methods:
+            by_state.setdefault(m.state, []).append(m)
+        self._groups = list(by_state.values())
+        return self._groups
 
     def _record(self) -> None:
         """Remember every method's estimate at the current time for the tracks."""
