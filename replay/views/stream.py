@@ -23,8 +23,14 @@ tab is there, its plots on axes that span the mission.
 
 from __future__ import annotations
 
+import os
+import socket
+import subprocess
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, cast
 
 import pandas as pd
@@ -36,9 +42,10 @@ from replay.views.blueprint import build_blueprint
 from replay.views.common import METHOD_STYLE, annotation_context, make_runs
 from replay.views.features import log_detector_scores, log_features
 from replay.views.positioning import log_events
-from replay.views.recording import log_runs, prepare, recording_id
+from replay.views.recording import log_runs, prepare, recording_id, rerun_executable
 from replay.views.series import SPAN, error_ceiling, log_detections, log_errors, log_mission_span, log_ranges
 from replay.views.tracks import Trails, log_range_circles, log_tracks
+from replay.views.web import WEB_BIND, free_port
 
 FIRST_S = 60.0
 """The first stretch is sent once the engine has passed this much mission time: the first minute, at once."""
@@ -86,13 +93,16 @@ def _stretch_rows(path: str) -> bool:
 class StreamedRecording:
     """Stretches of one run sent as the replay produces them (`on_block`), and the rest at its end (`finish`).
 
-    `rec` is the recording stream, its sinks set (the viewer, the .rrd); `end_s` the mission's last second as
-    the archive says (the span of every time axis); `focus` as `view --focus`.
+    `open_stream` makes the recording stream, its sinks set (the viewer, the .rrd), given the recording id (the
+    bulk path's, `recording_id`: known once the replay has its run id); `end_s` is the mission's last second
+    as the archive says (the span of every time axis); `focus` as `view --focus`.
     """
 
-    def __init__(self, rec: rr.RecordingStream, end_s: float | None, focus: Sequence[str] | None = None,
-                 first_s: float = FIRST_S, every_wall_s: float = STRETCH_WALL_S) -> None:
-        self.rec, self.end_s, self.focus = rec, end_s, focus
+    def __init__(self, open_stream: Callable[[str], rr.RecordingStream], end_s: float | None,
+                 focus: Sequence[str] | None = None, first_s: float = FIRST_S,
+                 every_wall_s: float = STRETCH_WALL_S) -> None:
+        self.open_stream, self.end_s, self.focus = open_stream, end_s, focus
+        self.rec: rr.RecordingStream | None = None
         self.first_s, self.every_wall_s = first_s, every_wall_s
         self.collector: ReviewCollector | None = None
         self.stretches = 0
@@ -137,16 +147,17 @@ class StreamedRecording:
         if data is None:
             return
         run = make_runs([data])[0]
-        rec = cast(rr.RecordingStream, _Filter(self.rec, _stretch_static, _stretch_rows, self._sent))
+        out = self.rec = self.rec or self.open_stream(recording_id([data]))
+        rec = cast(rr.RecordingStream, _Filter(out, _stretch_static, _stretch_rows, self._sent))
         if self.stretches == 0:
-            self.rec.send_recording_name(f"{data.trial} {data.run_id}")
-            self.rec.send_recording_start_time_nanos(int(data.trial_start_ns))
-            self.rec.send_blueprint(build_blueprint([run], error_ceiling([data.errors]), 0, self.focus))
+            out.send_recording_name(f"{data.trial} {data.run_id}")
+            out.send_recording_start_time_nanos(int(data.trial_start_ns))
+            out.send_blueprint(build_blueprint([run], error_ceiling([data.errors]), 0, self.focus))
             if self.end_s is not None:
-                log_mission_span(self.rec, [run], self.end_s)
+                log_mission_span(out, [run], self.end_s)
             self.first_sent_at = time.monotonic()
         # every name the palette knows: the class ids' colours hold before the run's own names are known
-        self.rec.log(run.prefix, annotation_context(run, [n for n, _ in METHOD_STYLE]), static=True)
+        out.log(run.prefix, annotation_context(run, [n for n, _ in METHOD_STYLE]), static=True)
         log_tracks(rec, run, self._trails)
         log_range_circles(rec, run)
         log_ranges(rec, run)
@@ -164,17 +175,109 @@ class StreamedRecording:
         if self.collector is not None:
             self.send_stretch()
         runs, axes, error_top, blueprint = prepare([review], 0, self.focus)
+        out = self.rec = self.rec or self.open_stream(recording_id([review]))
         sent = self._sent
-        if self.end_s is None:
-            sent = sent - {SPAN}
-        rec = cast(rr.RecordingStream, _Filter(self.rec, lambda _: True, lambda p: p not in sent))
+        rec = cast(rr.RecordingStream, _Filter(out, lambda _: True, lambda p: p not in sent))
         log_runs(rec, [review], runs, axes, error_top, self.focus)
-        self.rec.send_blueprint(blueprint)
+        out.send_blueprint(blueprint)
 
 
-def stream_recording(application_id: str, reviews_id: str) -> rr.RecordingStream:
-    """A recording stream with the id the bulk path gives one run (`recording_id`), its sinks not yet set."""
-    return rr.RecordingStream(application_id, recording_id=reviews_id, send_properties=False)
+VIEWER_START_S = 20.0
+"""How long a viewer we start may take to listen before the replay streams anyway (the sink buffers)."""
 
 
-__all__ = ["FIRST_S", "STRETCH_WALL_S", "StreamedRecording", "recording_id", "stream_recording"]
+@dataclass
+class LiveViewer:
+    """Where the stretches go: a viewer's gRPC URL, and the viewer process we started (None for --connect)."""
+
+    url: str
+    process: subprocess.Popen[bytes] | None = None
+
+    def wait(self) -> int:
+        """Wait for the viewer we started to be closed; its exit code (0 for a viewer of someone else's)."""
+        return self.process.wait() if self.process is not None else 0
+
+
+def _listening(port: int, proc: subprocess.Popen[bytes], timeout_s: float = VIEWER_START_S) -> None:
+    """Return once something listens on 127.0.0.1:`port`, the process exits, or `timeout_s` passes."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline and proc.poll() is None:
+        with socket.socket() as s:
+            if s.connect_ex((WEB_BIND, port)) == 0:
+                return
+        time.sleep(0.05)
+
+
+@contextmanager
+def live_viewer(web: bool = False, connect: str | None = None) -> Iterator[LiveViewer]:
+    """A viewer to stream to: the gRPC URL given (`connect`), or Rerun's native viewer, or with `web` its web
+    viewer, started here on 127.0.0.1 (free ports) and left running for the reviewer when the block ends
+    normally (`LiveViewer.wait`); ended if the block fails."""
+    if connect:
+        yield LiveViewer(connect)
+        return
+    port = free_port()
+    cmd = [rerun_executable(), "--port", str(port), "--expect-data-soon"]
+    if web:
+        cmd += ["--web-viewer", "--bind", WEB_BIND, "--web-viewer-port", str(free_port())]
+    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL)
+    try:
+        _listening(port, proc)
+        yield LiveViewer(f"rerun+http://{WEB_BIND}:{port}/proxy", proc)
+    except BaseException:
+        proc.terminate()
+        proc.wait()
+        raise
+
+
+def open_stream(rid: str, path: str | os.PathLike[str], viewer_url: str | None = None,
+                application_id: str = "auvreplay") -> rr.RecordingStream:
+    """A recording stream with id `rid` into the file `path` and, when given, the viewer at `viewer_url`."""
+    rec = rr.RecordingStream(application_id, recording_id=rid, send_properties=False)
+    sinks: list[Any] = [rr.FileSink(str(path))]
+    if viewer_url:
+        sinks.append(rr.GrpcSink(viewer_url))
+    rec.set_sinks(*sinks)
+    return rec
+
+
+@dataclass
+class Streamed:
+    """What a streamed replay gave: its outcome (review data, warning), the recording saved, and when the
+    first stretch was sent (seconds from the start, None if none was)."""
+
+    outcome: Any
+    path: Path
+    first_s: float | None
+    stretches: int
+
+
+def stream_replay(archive: str | Path, out: str | Path, viewer_url: str | None,
+                  config: Any = None, focus: Sequence[str] | None = None, first_s: float = FIRST_S,
+                  every_wall_s: float = STRETCH_WALL_S) -> Streamed:
+    """Replay a trial archive in memory while its stretches go to the viewer at `viewer_url` (None: only to the
+    file) and to `out` (.rrd, written under a temporary name and renamed when complete)."""
+    from formats.mcap_reader import ArchiveReader
+    from replay.run.config import load_config
+    from replay.run.pipeline import replay_archive
+
+    start = time.monotonic()
+    with ArchiveReader(archive) as reader:
+        summary = reader.summary()
+    end_s = (summary.end_ns - summary.start_ns) / 1e9 if summary.start_ns is not None and summary.end_ns else None
+    path = Path(out)
+    tmp = path.with_name(path.name + ".partial")
+    streamer = StreamedRecording(lambda rid: open_stream(rid, tmp, viewer_url), end_s, focus, first_s,
+                                 every_wall_s)
+    try:
+        outcome = replay_archive(archive, config or load_config(), write_output=False, review=True,
+                                 require_work=True, on_block=streamer.on_block)
+        streamer.finish(outcome.review)
+        if streamer.rec is not None:
+            streamer.rec.flush()
+    finally:
+        if streamer.rec is not None:
+            streamer.rec.disconnect()
+    os.replace(tmp, path)
+    first = streamer.first_sent_at - start if streamer.first_sent_at is not None else None
+    return Streamed(outcome, path, first, streamer.stretches)
