@@ -56,6 +56,9 @@ TABLES = ("tracks", "ranges", "detections", "errors", "events")
 # entities a stretch must not send: they depend on the whole run and are sent by `finish`
 _LATER_STATIC = ("/track", "/features/note", "/scores/key")
 _LATER_ROWS = ("/truth", "/marks/t_a")
+WAITING = ("**Scoreboard**: drawn when the replay ends (it ranks the whole run). The tracks, series, errors, "
+           "features, scores and events are drawn as the replay goes; the lanes, why documents, CDFs, ANFIS, KMCDF "
+           "and each vehicle's navigation at the end.")
 
 
 class _Filter:
@@ -100,8 +103,8 @@ class StreamedRecording:
 
     def __init__(self, open_stream: Callable[[str], rr.RecordingStream], end_s: float | None,
                  focus: Sequence[str] | None = None, first_s: float = FIRST_S,
-                 every_wall_s: float = STRETCH_WALL_S) -> None:
-        self.open_stream, self.end_s, self.focus = open_stream, end_s, focus
+                 every_wall_s: float = STRETCH_WALL_S, active_tab: int | str = 0) -> None:
+        self.open_stream, self.end_s, self.focus, self.active_tab = open_stream, end_s, focus, active_tab
         self.rec: rr.RecordingStream | None = None
         self.first_s, self.every_wall_s = first_s, every_wall_s
         self.collector: ReviewCollector | None = None
@@ -152,9 +155,11 @@ class StreamedRecording:
         if self.stretches == 0:
             out.send_recording_name(f"{data.trial} {data.run_id}")
             out.send_recording_start_time_nanos(int(data.trial_start_ns))
-            out.send_blueprint(build_blueprint([run], error_ceiling([data.errors]), 0, self.focus))
+            out.send_blueprint(build_blueprint([run], error_ceiling([data.errors]), self.active_tab, self.focus))
             if self.end_s is not None:
                 log_mission_span(out, [run], self.end_s)
+            # static, as the scoreboard it stands for: the end's scoreboard replaces it
+            out.log(run.path("scoreboard"), rr.TextDocument(WAITING, media_type="text/markdown"), static=True)
             self.first_sent_at = time.monotonic()
         # every name the palette knows: the class ids' colours hold before the run's own names are known
         out.log(run.prefix, annotation_context(run, [n for n, _ in METHOD_STYLE]), static=True)
@@ -174,7 +179,7 @@ class StreamedRecording:
         run less the rows already sent, and the final blueprint."""
         if self.collector is not None:
             self.send_stretch()
-        runs, axes, error_top, blueprint = prepare([review], 0, self.focus)
+        runs, axes, error_top, blueprint = prepare([review], self.active_tab, self.focus)
         out = self.rec = self.rec or self.open_stream(recording_id([review]))
         sent = self._sent
         rec = cast(rr.RecordingStream, _Filter(out, lambda _: True, lambda p: p not in sent))
@@ -254,7 +259,7 @@ class Streamed:
 
 def stream_replay(archive: str | Path, out: str | Path, viewer_url: str | None,
                   config: Any = None, focus: Sequence[str] | None = None, first_s: float = FIRST_S,
-                  every_wall_s: float = STRETCH_WALL_S) -> Streamed:
+                  every_wall_s: float = STRETCH_WALL_S, active_tab: int | str = 0) -> Streamed:
     """Replay a trial archive in memory while its stretches go to the viewer at `viewer_url` (None: only to the
     file) and to `out` (.rrd, written under a temporary name and renamed when complete)."""
     from formats.mcap_reader import ArchiveReader
@@ -268,7 +273,7 @@ def stream_replay(archive: str | Path, out: str | Path, viewer_url: str | None,
     path = Path(out)
     tmp = path.with_name(path.name + ".partial")
     streamer = StreamedRecording(lambda rid: open_stream(rid, tmp, viewer_url), end_s, focus, first_s,
-                                 every_wall_s)
+                                 every_wall_s, active_tab)
     try:
         outcome = replay_archive(archive, config or load_config(), write_output=False, review=True,
                                  require_work=True, on_block=streamer.on_block)
