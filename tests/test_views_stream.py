@@ -8,6 +8,11 @@ last value of every static component.
 
 from __future__ import annotations
 
+import re
+import socket
+import subprocess
+import sys
+import time
 from collections import Counter, defaultdict
 from pathlib import Path
 from typing import Any
@@ -21,6 +26,7 @@ from rerun.chunk import RrdReader
 from formats.mcap_reader import ArchiveReader
 from recorders.manifest import load_manifest
 from recorders.record import record
+from replay.cli import main
 from replay.review.collector import ReviewCollector
 from replay.run.config import load_config
 from replay.run.pipeline import replay_archive
@@ -28,6 +34,7 @@ from replay.views import recording as views
 from replay.views.series import SPAN
 from replay.views.stream import StreamedRecording, open_stream
 from replay.views.tracks import TRAIL_STEP_S, trail_indices
+from tests.processes import end_group
 
 SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "lake_trial"
 EVERY = 700        # messages between two stretches: about forty stretches over the sample trial
@@ -53,10 +60,15 @@ def _contents(path: Path) -> tuple[dict[str, Counter], dict[str, dict[str, Any]]
 
 
 @pytest.fixture(scope="module")
-def recordings(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, StreamedRecording, float]:
+def archive(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("stream") / "lake.mcap"
+    record(load_manifest(SAMPLE / "trial.toml"), path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def recordings(archive: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, StreamedRecording, float]:
     tmp = tmp_path_factory.mktemp("stream")
-    archive = tmp / "lake.mcap"
-    record(load_manifest(SAMPLE / "trial.toml"), archive)
     with ArchiveReader(archive) as reader:
         summary = reader.summary()
     end_s = (summary.end_ns - summary.start_ns) / 1e9
@@ -123,3 +135,35 @@ def test_trail_in_stretches_keeps_what_the_whole_keeps(times: list[float], cuts:
         kept += (a + trail_indices(part, anchor=anchor, after=before)).tolist()
         before = float(np.floor((part[-1] - anchor) / TRAIL_STEP_S))
     assert kept == whole.tolist()
+
+
+def test_view_streams_a_trial_to_a_running_viewer(archive: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """`view TRIAL --connect URL` into a Rerun gRPC server on 127.0.0.1 (no viewer, no graphics): the recording
+    is saved complete, and the command says when the first stretch went."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    rerun = Path(sys.executable).with_name("rerun")
+    server = subprocess.Popen([str(rerun), "--serve-grpc", "--bind", "127.0.0.1", "--port", str(port)],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL,
+                              start_new_session=True)
+    try:
+        deadline = time.monotonic() + 30.0
+        while time.monotonic() < deadline:
+            with socket.socket() as s:
+                if s.connect_ex(("127.0.0.1", port)) == 0:
+                    break
+            time.sleep(0.1)
+        out = tmp_path / "live.rrd"
+        monkeypatch.delenv("DISPLAY", raising=False)        # --connect alone makes it stream
+        monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+        assert main(["view", str(archive), "--connect", f"rerun+http://127.0.0.1:{port}/proxy",
+                     "--save", str(out)]) == 0
+    finally:
+        end_group(server)
+    said = capsys.readouterr().out
+    assert re.search(r"saved .*live.rrd \(first stretch after [0-9.]+ s, [0-9]+ stretches\)", said), said
+    temporal, static = _contents(out)
+    assert len(temporal) > 100 and "/mission_span" in temporal
+    assert not out.with_name(out.name + ".partial").exists()
