@@ -13,10 +13,18 @@ every detector's score and threshold, the why-documents per epoch), logged once 
 way into an in-memory sink; the full recording (CDFs, ANFIS, KMCDF, scoreboard,
 blueprint) is timed columnar only, in memory and saved to .rrd (wall and CPU time:
 the CPU time says what the logging costs when other work shares the machine).
+
+`--first-visible` times only what `auvreplay view ARCHIVE` takes before a viewer can draw anything (default
+methods, as `view`): the bulk path (replay, then the whole .rrd: what `view` did before it streamed) against
+the streamed one (`replay.views.stream`: the first stretch sent, and the recording complete), on the sample
+trial and, with `--mission-s 3600`, a synthetic mission (bench/mission.py). A tree without the streamed path
+prints the bulk rows only (run the script from there to compare).
 """
 
 from __future__ import annotations
 
+import argparse
+import statistics
 import sys
 import tempfile
 import time
@@ -203,8 +211,54 @@ def describe(name: str, review: object) -> str:
             f"explain {len(review.anfis_explain)}, kmcdf {len(review.kmcdf)}")
 
 
+def first_visible(archive: Path, tmp: Path) -> list[object]:
+    """One row: the bulk path's time to a complete .rrd (wall, CPU), and the streamed path's first stretch and
+    complete recording (wall, CPU) with its stretches; '-' where this tree has no streamed path."""
+    c0, t0 = time.process_time(), time.perf_counter()
+    outcome = replay_archive(archive, load_config(), write_output=False, review=True, require_work=True)
+    views.save_rrd([outcome.review], tmp / "bulk.rrd")
+    bulk, bulk_cpu = time.perf_counter() - t0, time.process_time() - c0
+    try:
+        from replay.views.stream import stream_replay
+    except ImportError:
+        return [bulk, bulk_cpu, "-", "-", "-", "-", "-"]
+    c0, t0 = time.process_time(), time.perf_counter()
+    streamed = stream_replay(archive, tmp / "streamed.rrd", None)
+    whole, whole_cpu = time.perf_counter() - t0, time.process_time() - c0
+    return [bulk, bulk_cpu, streamed.first_s, whole, whole_cpu, bulk / (streamed.first_s or whole),
+            streamed.stretches]
+
+
+def main_first_visible(mission_s: float, rounds: int) -> None:
+    """Print the time-to-first-data table (median of `rounds` rounds, the two paths alternating in each)."""
+    tmp = Path(tempfile.mkdtemp(prefix="bench_views_first_"))
+    cases = {"sample trial": tmp / "lake.mcap"}
+    record(load_manifest(ROOT / "samples/lake_trial/trial.toml"), cases["sample trial"])
+    if mission_s > 0:
+        from bench.mission import write_mission
+
+        cases[f"mission {mission_s / 3600:g} h"] = tmp / "mission.mcap"
+        write_mission(cases[f"mission {mission_s / 3600:g} h"], mission_s)
+    table = []
+    for name, archive in cases.items():
+        runs = [first_visible(archive, tmp) for _ in range(rounds)]
+        table.append([name, *[statistics.median(col) if all(isinstance(v, float | int) for v in col) else "-"
+                              for col in zip(*runs, strict=True)]])
+    print_table(f"`view ARCHIVE` until a viewer can draw (median of {rounds}; default methods)",
+                ["trial", "bulk: whole .rrd (s)", "bulk CPU (s)", "streamed: first stretch (s)",
+                 "streamed: complete (s)", "streamed CPU (s)", "bulk / first stretch", "stretches"], table)
+
+
 def main() -> None:
-    """Print the table."""
+    """Print the tables (`--first-visible`: only the time to the first data a viewer can draw)."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--first-visible", action="store_true")
+    parser.add_argument("--mission-s", type=float, default=0.0)
+    parser.add_argument("--rounds", type=int, default=3)
+    args = parser.parse_args()
+    if args.first_visible:
+        main_first_visible(args.mission_s, args.rounds)
+        return
     review = synthetic_review(0, n_epochs=700, anfis_epochs=100)
     run = make_runs([review])[0]
     tmp = Path(tempfile.mkdtemp(prefix="bench_views_"))

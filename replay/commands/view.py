@@ -6,10 +6,14 @@ and without --web, the command prints the command to run elsewhere and exits 0.
 by URL from a file server on 127.0.0.1 (`replay.views.web`), so the page shows its
 loading at once. Of two results archives, the first is run A (as in `compare A B`).
 
-Archives are made into a recording first: a trial archive is replayed with
+Archives are made into a recording: a trial archive is replayed with
 the default methods (those its inputs allow), results archives are re-run
 from their input; the recording is `a.rrd` beside `a.mcap`, or `a-vs-b.rrd`
-for two. A file that is already there is never replaced (it may be
+for two. With a viewer to draw in (a display, --web or --connect), a trial
+archive is streamed: the viewer opens first and draws each stretch of the mission
+as the replay produces it (`replay.views.stream`), the recording saved as it goes,
+complete when the replay ends. Without one, and for results archives, the
+recording is made whole first (the bulk path), then opened. A file that is already there is never replaced (it may be
 someone's earlier recording): the recording takes the next free name (`a-2.rrd`)
 and says so; `--save NAME` refuses an existing NAME; `--force` replaces either.
 """
@@ -39,6 +43,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "view), or one or two replay results archives (two are compared in one recording)")
     parser.add_argument("--web", action="store_true", help="serve the web viewer on 127.0.0.1 instead (it prints "
                                                            "the page to open; the recording is served by URL)")
+    parser.add_argument("--connect", metavar="URL",
+                        help="stream to a viewer already running (its gRPC URL, rerun+http://HOST:PORT/proxy) "
+                             "instead of starting one")
     parser.add_argument("--archive", help="the input trial archive of the results, if not found by itself")
     parser.add_argument("--save", help="with archives: where to save the recording (.rrd); an existing "
                                        "file is refused unless --force")
@@ -140,11 +147,44 @@ def archive_damage(paths: list[Path]) -> str | None:
     return "; ".join(found) or None
 
 
+def _streams(args: argparse.Namespace) -> bool:
+    """Whether the file is a trial archive to stream to a viewer: one .mcap without a run, and a viewer to draw in."""
+    if len(args.file) != 1 or not (args.web or args.connect or has_display(os.environ)):
+        return False
+    path = check_file(args.file[0])
+    return path.suffix.lower() == ".mcap" and run_metadata(path) is None
+
+
+def _stream(args: argparse.Namespace) -> int:
+    """Open the viewer, replay the trial archive into it stretch by stretch (and into the .rrd), wait for the
+    viewer. The damage warning line comes once the recording is complete (the archive read through)."""
+    from replay.views.stream import live_viewer, stream_replay
+
+    paths = [check_file(args.file[0])]
+    out = recording_path(paths, args.save, args.force)
+    with live_viewer(web=args.web, connect=args.connect) as viewer:
+        print(f"replaying {paths[0]} into the viewer ({viewer.url}) and the recording {out}"
+              + ("" if args.save else " (--save chooses another file)"), flush=True)
+        streamed = stream_replay(paths[0], out, viewer.url, load_config(), args.focus)
+        default = default_recording(paths)
+        first = f"first stretch after {streamed.first_s:.1f} s, " if streamed.first_s is not None else ""
+        print(f"saved {out} ({first}{streamed.stretches} stretches)"
+              + (f"; {default} exists and was kept (--force replaces it)" if out != default and not args.save
+                 else ""), flush=True)
+        warn_damage("view", archive_damage(paths))
+        return viewer.wait()
+
+
 def run(args: argparse.Namespace) -> int:
     """Open the file in Rerun and wait for it; print the command instead when there is no display.
 
-    The damage warning line comes before the viewer opens (it runs until closed).
+    A trial archive with a viewer to draw in is streamed (`_stream`). Otherwise the damage warning line
+    comes before the viewer opens (it runs until closed).
     """
+    if _streams(args):
+        return _stream(args)
+    if args.connect:
+        raise UserError("--connect streams a trial archive (one .mcap of a trial, not of a replay's results)")
     damage = archive_damage([check_file(f) for f in args.file])
     built, inputs = _recording_of_results(args)
     path = built if built is not None else check_file(args.file[0])

@@ -7,7 +7,7 @@ import hashlib
 import json
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -108,7 +108,8 @@ def _readable_topics(summary: Any, reader: ArchiveReader) -> dict[str, int]:
 def replay_archive(archive: str | Path, config: RunConfig | None = None, output: str | Path | None = None,
                    write_output: bool = True, review: bool = False, force: bool = False,
                    listeners: Sequence[Listener] = (), training_set: TrainingSet | None = None,
-                   require_work: bool = False, blocks: bool = True) -> RunOutcome:
+                   require_work: bool = False, blocks: bool = True,
+                   on_block: Callable[[ReviewCollector | None, float], None] | None = None) -> RunOutcome:
     """Replay an archive with a configuration; see the module docstring for what comes out.
 
     The results archive and its metrics files are claimed (replay.run.outputs) before the run:
@@ -117,7 +118,9 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
     what `stack.training_source` "given" or "both" trains on. With `require_work`, a trial that
     holds no position of any kind is a UserError naming why, and writes nothing; any other trial
     runs what its inputs allow (metrics["skipped"] names the rest). `blocks=False` feeds the engine message by
-    message (as `--rate` pacing does), the reference the block path is tested against.
+    message (as `--rate` pacing does), the reference the block path is tested against. `on_block`, when given,
+    is called after each block (each message when fed message by message) with the review collector (None
+    without `review`) and the mission seconds the engine reached: `view` streams what was collected so far.
     """
     config = config or RunConfig()
     sha = file_sha256(archive)
@@ -168,6 +171,8 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
                 for m in reader.messages(topics, start_ns, end_ns):
                     engine.push(m.topic, m.log_time_ns, m.message)
                     nav_columns.add(m.topic, m.log_time_ns, m.message)
+                    if on_block is not None:
+                        on_block(collector, engine.last_s)
                     if config.engine.rate > 0:
                         pace(config.engine.rate, wall0, engine.last_s)
             else:
@@ -176,6 +181,8 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
                 for block in reader.blocks(topics, start_ns, end_ns, columnar):
                     engine.push_block(block)
                     nav_columns.add_block(block)
+                    if on_block is not None:
+                        on_block(collector, engine.last_s)
             results = engine.finish()
             end_s = max(engine.last_s, 0.0)
             metrics = run_metrics(engine.scores(), results, rid, end_s)

@@ -150,14 +150,21 @@ plot's x axis then spans the whole mission from 0 (round ticks, "#0 #1000"; plot
 not from its own first sample ("#6 #1006")."""
 
 
-def log_mission_span(rec: rr.RecordingStream, runs: list[Run]) -> None:
-    """The span entity: NaN (drawn as nothing) at 0 s and at the last second any run's table reaches, a hidden
-    series whose greyed legend entry names the x axis ("x: mission s (0-1700)")."""
+def mission_end(runs: list[Run]) -> float | None:
+    """The last second any run's tracks, errors or ranges reach (None for empty tables)."""
     ends = [float(np.nanmax(floats(f, "t_s"))) for r in runs for f in (r.review.tracks, r.review.errors,
                                                                        r.review.ranges) if len(f) and "t_s" in f]
-    if not ends:
+    return max(ends) if ends else None
+
+
+def log_mission_span(rec: rr.RecordingStream, runs: list[Run], end_s: float | None = None) -> None:
+    """The span entity: NaN (drawn as nothing) at 0 s and at the last second (`end_s`, default: the last second
+    any run's table reaches), a hidden series whose greyed legend entry names the x axis ("x: mission s
+    (0-1700)")."""
+    end = mission_end(runs) if end_s is None else end_s
+    if end is None:
         return
-    rec.log(SPAN, rr.SeriesPoints(names=f"x: mission s (0-{max(ends):.0f})", colors=[(0, 0, 0, 0)], marker_sizes=0.0,
+    rec.log(SPAN, rr.SeriesPoints(names=f"x: mission s (0-{end:.0f})", colors=[(0, 0, 0, 0)], marker_sizes=0.0,
                                   visible_series=[False]), static=True)
-    rec.send_columns(SPAN, indexes=runs[0].times(np.array([0.0, max(ends)])),
+    rec.send_columns(SPAN, indexes=runs[0].times(np.array([0.0, end])),
                      columns=rr.Scalars.columns(scalars=np.array([np.nan, np.nan])))

@@ -61,10 +61,11 @@ def strips(t_s: np.ndarray, points: np.ndarray, gap_s: float = GAP_S) -> list[np
     return [points[part] for part in np.split(idx, cuts) if part.size]
 
 
-def log_tracks(rec: rr.RecordingStream, run: Run) -> None:
-    """Map and local-plot entities for every (vehicle, source) track of a run."""
+def log_tracks(rec: rr.RecordingStream, run: Run, trails: Trails | None = None) -> None:
+    """Map and local-plot entities for every (vehicle, source) track of a run; `trails` carries the trails' bins
+    from one stretch of a run to the next (replay.views.stream), updated."""
     for (vehicle, source), rows in run.groups(run.review.tracks, ["vehicle", "source"]):
-        _log_track(rec, run, str(vehicle), str(source), rows)
+        _log_track(rec, run, str(vehicle), str(source), rows, trails)
 
 
 def mark_label(vehicle: str, source: str) -> str:
@@ -72,15 +73,25 @@ def mark_label(vehicle: str, source: str) -> str:
     return f"{vehicle} {source.upper() if source in ('gps', 'ins') else source}"
 
 
-def trail_indices(t_s: np.ndarray, step_s: float = TRAIL_STEP_S) -> np.ndarray:
-    """Indices of the first sample in every `step_s` bin of time (all samples when sparser)."""
+def trail_indices(t_s: np.ndarray, step_s: float = TRAIL_STEP_S, anchor: float | None = None,
+                  after: float | None = None) -> np.ndarray:
+    """Indices of the first sample in every `step_s` bin of time (all samples when sparser).
+
+    Bins count from `anchor` (default: the first sample); `after` is the bin of an earlier stretch's last
+    sample, not started again: a track given in stretches keeps the samples it keeps whole.
+    """
     if t_s.size == 0:
         return np.zeros(0, dtype=np.int64)
-    bins = np.floor((t_s - t_s[0]) / step_s)
-    return np.flatnonzero(np.r_[True, bins[1:] != bins[:-1]])
+    bins = np.floor((t_s - (t_s[0] if anchor is None else anchor)) / step_s)
+    return np.flatnonzero(np.r_[after is None or bins[0] != after, bins[1:] != bins[:-1]])
 
 
-def _log_track(rec: rr.RecordingStream, run: Run, vehicle: str, source: str, rows: pd.DataFrame) -> None:
+Trails = dict[tuple[str, str], tuple[float, float]]
+"""Per (vehicle, source), the anchor of its trail's bins and the bin of its last sample (tracks in stretches)."""
+
+
+def _log_track(rec: rr.RecordingStream, run: Run, vehicle: str, source: str, rows: pd.DataFrame,
+               trails: Trails | None = None) -> None:
     lat, lon = floats(rows, "lat_deg"), floats(rows, "lon_deg")
     east, north = floats(rows, "east_m"), floats(rows, "north_m")
     t = floats(rows, "t_s")
@@ -93,7 +104,11 @@ def _log_track(rec: rr.RecordingStream, run: Run, vehicle: str, source: str, row
     scatter = method_kind(source) == "positioning"
     size, trail_size = (6.0, 2.0) if truth else (4.5, 1.0)
     times = run.times(rows["t_s"])
-    trail = trail_indices(t)
+    before = trails.get((vehicle, source)) if trails is not None else None
+    anchor = before[0] if before else (float(t[0]) if t.size else 0.0)
+    trail = trail_indices(t, anchor=anchor, after=before[1] if before else None)
+    if trails is not None and t.size:
+        trails[(vehicle, source)] = (anchor, float(np.floor((t[-1] - anchor) / TRAIL_STEP_S)))
     trail_times = run.times(t[trail])
     # what is the same on every row (colour, size, name) is logged once, static; the rows carry positions
     geo_ok = np.isfinite(lat) & np.isfinite(lon)
