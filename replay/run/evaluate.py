@@ -2,11 +2,22 @@
 
 Every trial is simulated (`samples.simulator`), written as vendor logs,
 recorded into an archive and replayed (`replay_archive`), exactly as
-`auvreplay simulate`, `record` and `replay` do, in a temporary directory of
-the process that runs it (a Dask worker needs no shared file system). A
+`auvreplay simulate`, `record` and `replay` do, in a scratch directory of
+the process that runs it: in memory (/dev/shm) where the system has one,
+only the manifest and the logs (the truth CSVs are not needed: the
+simulator's arrays are at hand), removed when the trial ends; nothing is
+written anywhere else, and a Dask worker needs no shared file system. A
 listener keeps each epoch's decision per method after t_a; the simulator's
 own arrays give each epoch's injected anomaly kind. Only the test seeds are
 scored: the train seed never is.
+
+On Dask (`run_trials`) a trial is two tasks, `prepare_trial` (simulate and
+record: the archive's bytes come back) and `score_prepared` (replay), so the
+trials are prepared while the train seeds train; the train seeds go first.
+Detectors trained on the train seed's set are the same in every test
+trial, so each process trains them once and copies them
+(`replay.stack.training_window.reuse_training`): the figures are those of
+training them in every trial, which the tests check array for array.
 
 Training (`TRAINING_MODES`, the runner's `StackConfig.training_source`):
 with "given" (the default) the train seed is replayed first and every test
