@@ -21,9 +21,15 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def run_bench(tree: Path, name: str, extra: list[str]) -> str:
-    """One bench script of `tree`, with that tree first on the import path; its output."""
+    """One bench script of `tree`, with that tree first on the import path; its output.
+
+    A bench newer than the other tree runs from this tree, on the other tree's code (its PYTHONPATH).
+    """
     env = dict(os.environ, PYTHONPATH=str(tree))
-    out = subprocess.run([sys.executable, str(tree / "bench" / f"{name}.py"), *extra], cwd=tree, env=env,
+    script = tree / "bench" / f"{name}.py"
+    if not script.is_file():
+        script = ROOT / "bench" / f"{name}.py"
+    out = subprocess.run([sys.executable, str(script), *extra], cwd=tree, env=env,
                          capture_output=True, text=True)
     return out.stdout + (f"\n[exit {out.returncode}]\n{out.stderr[-2000:]}" if out.returncode else "")
 

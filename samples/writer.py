@@ -173,31 +173,35 @@ def readme(trial: SimulatedTrial) -> str:
     return "\n".join(lines) + "\n"
 
 
-def render(trial: SimulatedTrial) -> dict[str, bytes]:
-    """Every file of the trial directory: relative POSIX path -> bytes."""
-    files: dict[str, bytes] = {
-        "README.md": readme(trial).encode(),
-        "trial.toml": manifest_text(trial).encode(),
-        "scenario.toml": scenario_to_toml(trial.scenario).encode(),
-        "truth.csv": truth_csv(trial).encode(),
-        "ranges.csv": ranges_csv(trial).encode(),
-        "usbl.csv": usbl_csv(trial).encode(),
-        "anomalies.csv": anomalies_csv(trial).encode(),
-    }
+def log_files(trial: SimulatedTrial) -> dict[str, bytes]:
+    """What `record` reads of the trial: the manifest and every vendor log (relative POSIX path -> bytes)."""
+    files = {"trial.toml": manifest_text(trial).encode()}
     for name, role, _ in _roster(trial):
         for _, _, fname, write, _ in _plans(trial, name, role):
             files[f"{name}/{fname}"] = write(trial, name)
     return files
 
 
-def write_trial(trial: SimulatedTrial, out_dir: str | Path) -> list[Path]:
-    """Write the trial directory; returns the paths written (sorted)."""
+def render(trial: SimulatedTrial) -> dict[str, bytes]:
+    """Every file of the trial directory: relative POSIX path -> bytes."""
+    files: dict[str, bytes] = {
+        "README.md": readme(trial).encode(),
+        "scenario.toml": scenario_to_toml(trial.scenario).encode(),
+        "truth.csv": truth_csv(trial).encode(),
+        "ranges.csv": ranges_csv(trial).encode(),
+        "usbl.csv": usbl_csv(trial).encode(),
+        "anomalies.csv": anomalies_csv(trial).encode(),
+    }
+    return {**files, **log_files(trial)}
+
+
+def write_trial(trial: SimulatedTrial, out_dir: str | Path, logs_only: bool = False) -> list[Path]:
+    """Write the trial directory (`logs_only`: the manifest and the logs, what `record` reads); the paths (sorted)."""
     root = Path(out_dir)
     written = []
-    for rel, data in sorted(render(trial).items()):
+    for rel, data in sorted((log_files(trial) if logs_only else render(trial)).items()):
         path = root / rel
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(data)
         written.append(path)
     return written
-

@@ -2,11 +2,22 @@
 
 Every trial is simulated (`samples.simulator`), written as vendor logs,
 recorded into an archive and replayed (`replay_archive`), exactly as
-`auvreplay simulate`, `record` and `replay` do, in a temporary directory of
-the process that runs it (a Dask worker needs no shared file system). A
+`auvreplay simulate`, `record` and `replay` do, in a scratch directory of
+the process that runs it: in memory (/dev/shm) where the system has one,
+only the manifest and the logs (the truth CSVs are not needed: the
+simulator's arrays are at hand), removed when the trial ends; nothing is
+written anywhere else, and a Dask worker needs no shared file system. A
 listener keeps each epoch's decision per method after t_a; the simulator's
 own arrays give each epoch's injected anomaly kind. Only the test seeds are
 scored: the train seed never is.
+
+On Dask (`run_trials`) a trial is two tasks, `prepare_trial` (simulate and
+record: the archive's bytes come back) and `score_prepared` (replay), so the
+trials are prepared while the train seeds train; the train seeds go first.
+Detectors trained on the train seed's set are the same in every test
+trial, so each process trains them once and copies them
+(`replay.stack.training_window.reuse_training`): the figures are those of
+training them in every trial, which the tests check array for array.
 
 Training (`TRAINING_MODES`, the runner's `StackConfig.training_source`):
 with "given" (the default) the train seed is replayed first and every test
@@ -47,7 +58,9 @@ behind it.
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
 import tempfile
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -67,6 +80,7 @@ from replay.events import EpochResult, ErrorSample, Fix, Listener
 from replay.run.pipeline import RunOutcome, replay_archive
 from replay.stack.scoring import error_stats, recall_at_fpr, roc_auc, roc_curve
 from replay.stack.training import TRAINING_SOURCES, TrainingSet
+from replay.stack.training_window import TrainedCache, reuse_training
 from samples.anomalies import KIND_CODES
 from samples.scenario import ANOMALY_KINDS, Scenario, ScenarioError
 from samples.simulator import SimulatedTrial, simulate_trial
@@ -85,6 +99,10 @@ MATCH_TOLERANCE_S = 0.5
 """A replayed epoch is the simulator's epoch of the same link within this time (pings 2.4 s apart)."""
 NO_KIND = -1
 """Kind code of a replayed epoch the simulator has no epoch for (never counted in a kind)."""
+SCRATCH_IN_MEMORY = "/dev/shm"
+"""Where a trial's logs and archive go while it runs, when the system has it: a memory file system."""
+_TRAINED_HERE = TrainedCache()
+"""The detectors this process trained on a given set (a Dask worker keeps them from one trial to the next)."""
 
 
 @dataclass(frozen=True)
@@ -178,24 +196,42 @@ def refused_records(summary: RecordingSummary) -> int:
     return summary.skipped  # the recorder counts every refusal, value checks included, as skipped
 
 
+def _scratch(seed: int) -> tempfile.TemporaryDirectory[str]:
+    """A temporary directory for one trial's logs and archive: in memory (/dev/shm) where the system has one."""
+    memory = SCRATCH_IN_MEMORY if os.path.isdir(SCRATCH_IN_MEMORY) and os.access(SCRATCH_IN_MEMORY, os.W_OK) else None
+    return tempfile.TemporaryDirectory(prefix=f"auvreplay-evaluate-{seed}-", dir=memory)
+
+
+def _record_trial(spec: TrialSpec, root: Path) -> tuple[SimulatedTrial, Path, float]:
+    """Simulate one trial, write its manifest and logs under `root` and record them: the trial, archive, offset."""
+    trial = simulate_trial(spec.scenario(), spec.seed)
+    write_trial(trial, root / "trial", logs_only=True)    # the truth CSVs come from the arrays, not from files
+    archive = root / "trial.mcap"
+    # one process per trial: the harness runs trials side by side instead
+    summary = record(load_manifest(root / "trial" / "trial.toml"), archive, workers=1)
+    refused = refused_records(summary)
+    if refused:
+        # a simulated log is valid by construction: a refused record is a simulator bug that would
+        # silently take a sensor out of the filters (a negative heading std once took every follower INS)
+        raise UserError(f"seed {spec.seed}: record refused {refused} simulated records (unparsed, bad "
+                        "checksum or out of range); a trial with refused records is not scored")
+    return trial, archive, _archive_offset_s(archive, trial)
+
+
+def _replay(archive: Path, config: RunConfig, listeners: Sequence[Listener],
+            training_set: TrainingSet | None) -> RunOutcome:
+    """Replay one trial's archive, nothing written; detectors trained on a given set are trained once per process."""
+    given = training_set is not None and config.stack.training_source == "given"
+    with reuse_training(_TRAINED_HERE) if given else contextlib.nullcontext():
+        return replay_archive(archive, config, write_output=False, listeners=listeners, training_set=training_set)
+
+
 def _closed_loop(spec: TrialSpec, config: RunConfig, listeners: Sequence[Listener] = (),
                  training_set: TrainingSet | None = None) -> tuple[SimulatedTrial, RunOutcome, float]:
-    """Simulate, write, record and replay one trial in a temporary directory: the trial, the run, the offset."""
-    trial = simulate_trial(spec.scenario(), spec.seed)
-    with tempfile.TemporaryDirectory(prefix=f"auvreplay-evaluate-{spec.seed}-") as tmp:
-        write_trial(trial, Path(tmp) / "trial")
-        archive = Path(tmp) / "trial.mcap"
-        # one process per trial: the harness runs trials side by side instead
-        summary = record(load_manifest(Path(tmp) / "trial" / "trial.toml"), archive, workers=1)
-        refused = refused_records(summary)
-        if refused:
-            # a simulated log is valid by construction: a refused record is a simulator bug that would
-            # silently take a sensor out of the filters (a negative heading std once took every follower INS)
-            raise UserError(f"seed {spec.seed}: record refused {refused} simulated records (unparsed, bad "
-                            "checksum or out of range); a trial with refused records is not scored")
-        offset_s = _archive_offset_s(archive, trial)
-        outcome = replay_archive(archive, config, write_output=False, listeners=listeners,
-                                 training_set=training_set)
+    """Simulate, write, record and replay one trial in a scratch directory: the trial, the run, the offset."""
+    with _scratch(spec.seed) as tmp:
+        trial, archive, offset_s = _record_trial(spec, Path(tmp))
+        outcome = _replay(archive, config, listeners, training_set)
     return trial, outcome, offset_s
 
 
@@ -214,12 +250,59 @@ def training_set_of(spec: TrialSpec, config: RunConfig) -> TrainingSet:
     return out
 
 
+@dataclass
+class PreparedTrial:
+    """A trial simulated and recorded, not yet replayed: its archive's bytes and the simulator's epochs."""
+
+    spec: TrialSpec
+    archive: bytes
+    offset_s: float
+    epochs: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]   # follower, leader, t_s, injected kind code
+    wall_s: float
+    cpu_s: float
+
+
+def _epochs(trial: SimulatedTrial) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    r = trial.ranges
+    return r.follower, r.leader, r.t_s, r.injected
+
+
+def prepare_trial(spec: TrialSpec) -> PreparedTrial:
+    """Simulate and record one trial (what needs no training set): a task that runs while the train seed trains."""
+    wall0, cpu0 = time.monotonic(), time.process_time()
+    with _scratch(spec.seed) as tmp:
+        trial, archive, offset_s = _record_trial(spec, Path(tmp))
+        data = archive.read_bytes()
+    return PreparedTrial(spec, data, offset_s, _epochs(trial), time.monotonic() - wall0, time.process_time() - cpu0)
+
+
+def score_prepared(prepared: PreparedTrial, config: RunConfig,
+                   training_set: TrainingSet | None = None) -> TrialScores:
+    """Replay a prepared trial (trained as `config.stack.training_source` says); its scores after t_a."""
+    wall0, cpu0 = time.monotonic(), time.process_time()
+    log = _EpochLog(config.stack.training_window_s)
+    with _scratch(prepared.spec.seed) as tmp:
+        archive = Path(tmp) / "trial.mcap"
+        archive.write_bytes(prepared.archive)
+        outcome = _replay(archive, config, [log], training_set)
+    return _scores(prepared.spec, config, outcome, log, prepared.epochs, prepared.offset_s,
+                   prepared.wall_s + time.monotonic() - wall0, prepared.cpu_s + time.process_time() - cpu0)
+
+
 def evaluate_trial(spec: TrialSpec, config: RunConfig, training_set: TrainingSet | None = None) -> TrialScores:
     """One trial through the real pipeline (trained as `config.stack.training_source` says); its scores after t_a."""
     wall0, cpu0 = time.monotonic(), time.process_time()
     log = _EpochLog(config.stack.training_window_s)
     trial, outcome, offset_s = _closed_loop(spec, config, [log], training_set)
-    r = trial.ranges
+    return _scores(spec, config, outcome, log, _epochs(trial), offset_s, time.monotonic() - wall0,
+                   time.process_time() - cpu0)
+
+
+def _scores(spec: TrialSpec, config: RunConfig, outcome: RunOutcome, log: _EpochLog,
+            epochs: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], offset_s: float, wall_s: float,
+            cpu_s: float) -> TrialScores:
+    """A replayed trial's decisions, labels, kinds, open-loop scores and errors after t_a, per method."""
+    sim_follower, sim_leader, sim_t, sim_kind = epochs
     methods = tuple(config.stack.methods)
     detecting = tuple(m for m in methods if any(m in res.open_loop for res in outcome.results.values()))
     flagged, labels, kinds = {}, {}, {}
@@ -231,7 +314,7 @@ def evaluate_trial(spec: TrialSpec, config: RunConfig, training_set: TrainingSet
         t = np.array([x[2] for x in rows], dtype=float) + offset_s
         flagged[m] = np.array([x[3] for x in rows], dtype=bool)
         labels[m] = np.array([x[4] for x in rows], dtype=np.int8)
-        kinds[m] = epoch_kinds(r.follower, r.leader, r.t_s, r.injected, fol, led, t)
+        kinds[m] = epoch_kinds(sim_follower, sim_leader, sim_t, sim_kind, fol, led, t)
         unmatched = max(unmatched, int(np.sum(kinds[m] == NO_KIND)))
     open_labels, open_scores = {}, {}
     for m in detecting:
@@ -240,7 +323,7 @@ def evaluate_trial(spec: TrialSpec, config: RunConfig, training_set: TrainingSet
         open_scores[m] = np.concatenate([o["score"].astype(float) for o in ol])
     errors = {m: np.asarray(log.error_m.get(m, []), dtype=float) for m in methods}
     return TrialScores(spec, methods, detecting, flagged, labels, kinds, open_labels, open_scores, errors,
-                       unmatched, time.monotonic() - wall0, time.process_time() - cpu0)
+                       unmatched, wall_s, cpu_s)
 
 
 # ---------------------------------------------------------------------------- figures
@@ -360,34 +443,65 @@ def split_seeds(seeds: Sequence[int], train_seed: int | None) -> tuple[int, list
 Progress = Callable[[int, int], None]      # (done, total)
 
 
-def _run_specs(specs: Sequence[TrialSpec], config: RunConfig, train: TrialSpec | None, client: Client | None,
-               progress: Progress | None) -> list[TrialScores]:
-    """Every trial, in order (after the train seed's, when given): on the Dask client, else one by one here."""
-    out: list[TrialScores | None] = [None] * len(specs)
-    total = len(specs) + (train is not None)
-    if client is None:
-        given = training_set_of(train, config) if train is not None else None
-        if progress is not None and train is not None:
-            progress(1, total)
-        for i, spec in enumerate(specs):
-            out[i] = evaluate_trial(spec, config, given)
-            if progress is not None:
-                progress(i + 1 + (train is not None), total)
-    else:
-        # dask only when a client is used (a heavy optional import)
-        from distributed import as_completed
+@dataclass(frozen=True)
+class TrialGroup:
+    """Trials replayed under one configuration: the train seed's (None: each trains on its own), then the tests."""
 
-        # the test trials wait for the train seed's set on the workers (one transfer each)
-        trained: Future | None = client.submit(training_set_of, train, config, pure=False) \
-            if train is not None else None
-        futures = [client.submit(evaluate_trial, spec, config, trained, pure=False) for spec in specs]
-        index = {f.key: i for i, f in enumerate(futures)}
-        for done, fut in enumerate(as_completed(futures), 1 + (train is not None)):
-            out[index[fut.key]] = fut.result()
+    config: RunConfig
+    train: TrialSpec | None
+    specs: tuple[TrialSpec, ...]
+
+
+def run_trials(groups: Sequence[TrialGroup], client: Client | None = None,
+               progress: Progress | None = None) -> list[list[TrialScores]]:
+    """Every group's test trials scored, in order: on the Dask client, else one by one here.
+
+    On Dask a trial is two tasks: `prepare_trial` (simulate and record, no training needed) and
+    `score_prepared` (replay, once its group's training set is there). Every train seed is submitted
+    first, then each trial's two tasks: the workers start on the train seeds, and while one trains the
+    other prepares trials, so no worker waits for a training set. Dask runs the ready task submitted
+    first, so a prepared trial is replayed before another is prepared (memory: a few archives).
+    """
+    total = sum(len(g.specs) + (g.train is not None) for g in groups)
+    done = 0
+    if client is None:
+        out: list[list[TrialScores]] = []
+        for g in groups:
+            given = training_set_of(g.train, g.config) if g.train is not None else None
+            if g.train is not None:
+                done += 1
+                if progress is not None:
+                    progress(done, total)
+            scored = []
+            for spec in g.specs:
+                scored.append(evaluate_trial(spec, g.config, given))
+                done += 1
+                if progress is not None:
+                    progress(done, total)
+            out.append(scored)
+        return out
+    # dask only when a client is used (a heavy optional import)
+    from distributed import as_completed
+
+    trained: list[Future | None] = [client.submit(training_set_of, g.train, g.config, pure=False)
+                                    if g.train is not None else None for g in groups]
+    futures: list[list[Future]] = []
+    for g, train_future in zip(groups, trained):
+        futures.append([client.submit(score_prepared, client.submit(prepare_trial, spec, pure=False), g.config,
+                                      train_future, pure=False) for spec in g.specs])
+    where = {f.key: (k, i) for k, group in enumerate(futures) for i, f in enumerate(group)}
+    results: list[list[TrialScores | None]] = [[None] * len(group) for group in futures]
+    watched = [f for f in trained if f is not None] + [f for group in futures for f in group]
+    for done, fut in enumerate(as_completed(watched), 1):
+        if fut.key in where:
+            k, i = where[fut.key]
+            results[k][i] = fut.result()
             fut.release()
-            if progress is not None:
-                progress(done, total)
-    return [t for t in out if t is not None]
+        elif fut.status == "error":
+            fut.result()      # raises the train seed's error here, as the in-process loop does
+        if progress is not None:
+            progress(done, total)
+    return [[t for t in group if t is not None] for group in results]
 
 
 def evaluate(seeds: Sequence[int], config: RunConfig, train_seed: int | None = None,
@@ -413,7 +527,7 @@ def evaluate(seeds: Sequence[int], config: RunConfig, train_seed: int | None = N
     config = replace(config, stack=replace(config.stack, training_source=training))
     train_spec = TrialSpec(train, None, duration_s, base) if training != "own" else None
     try:
-        trials = _run_specs(specs, config, train_spec, client, progress)
+        trials = run_trials([TrialGroup(config, train_spec, tuple(specs))], client, progress)[0]
     except ScenarioError as exc:
         raise UserError(f"scenario: {exc}") from None
     main = trials[:len(test)]
@@ -430,6 +544,7 @@ def evaluate(seeds: Sequence[int], config: RunConfig, train_seed: int | None = N
                       {m: closed_loop_fpr(main, m) for m in config.stack.methods})
 
 
-__all__ = ["DEFAULT_DRIFT_RATES", "FPR_TARGETS", "TRAINING_MODES", "Evaluation", "TrialScores", "TrialSpec",
-           "closed_loop_fpr", "drift_sweep", "epoch_kinds", "evaluate", "evaluate_trial", "method_figures",
-           "recall_by_kind", "refused_records", "split_seeds", "training_set_of"]
+__all__ = ["DEFAULT_DRIFT_RATES", "FPR_TARGETS", "TRAINING_MODES", "Evaluation", "PreparedTrial", "TrialGroup",
+           "TrialScores", "TrialSpec", "closed_loop_fpr", "drift_sweep", "epoch_kinds", "evaluate", "evaluate_trial",
+           "method_figures", "prepare_trial", "recall_by_kind", "refused_records", "run_trials", "score_prepared",
+           "split_seeds", "training_set_of"]

@@ -45,14 +45,14 @@ import numpy as np
 from replay.engine.config import RunConfig
 from replay.errors import UserError
 from replay.run.evaluate import (
+    TrialGroup,
     TrialScores,
     TrialSpec,
     _clean,
     closed_loop_fpr,
-    evaluate_trial,
     method_figures,
+    run_trials,
     split_seeds,
-    training_set_of,
 )
 from samples.anomalies import KIND_CODES
 from samples.scenario import Scenario, ScenarioError, scenario_from_dict, scenario_to_toml
@@ -203,39 +203,6 @@ class Matrix:
                        "operating_point": OPERATING_POINT, "conditions": self.conditions})
 
 
-def _run(jobs: list[tuple[Condition, RunConfig, TrialSpec, list[TrialSpec]]], client: Client | None,
-         progress: Progress | None) -> list[list[TrialScores]]:
-    """Every condition's test trials (after its train seed's set): on the Dask client, else one by one here."""
-    total = sum(1 + len(specs) for *_, specs in jobs)
-    done = 0
-    if client is None:
-        out = []
-        for _, config, train, specs in jobs:
-            given = training_set_of(train, config)
-            done += 1
-            if progress is not None:
-                progress(done, total)
-            scored = []
-            for spec in specs:
-                scored.append(evaluate_trial(spec, config, given))
-                done += 1
-                if progress is not None:
-                    progress(done, total)
-            out.append(scored)
-        return out
-    from distributed import as_completed
-
-    futures = []
-    for _, config, train, specs in jobs:
-        trained = client.submit(training_set_of, train, config, pure=False)
-        futures.append([client.submit(evaluate_trial, spec, config, trained, pure=False) for spec in specs])
-    flat = [f for group in futures for f in group]
-    for done, _ in enumerate(as_completed(flat), 1 + len(jobs)):
-        if progress is not None:
-            progress(done, total)
-    return [[f.result() for f in group] for group in futures]
-
-
 def evaluate_matrix(seeds: Sequence[int], config: RunConfig, conditions_spec: str, train_seed: int | None = None,
                     drift_rates: Sequence[float] = (0.2, 0.3, 0.5), duration_s: float | None = None,
                     client: Client | None = None, progress: Progress | None = None,
@@ -255,7 +222,8 @@ def evaluate_matrix(seeds: Sequence[int], config: RunConfig, conditions_spec: st
                  for i, s in enumerate(test)]
         jobs.append((cond, cfg, TrialSpec(train, None, duration_s, cond.scenario), specs))
     try:
-        results = _run(jobs, client, progress)
+        results = run_trials([TrialGroup(cfg, train_spec, tuple(specs)) for _, cfg, train_spec, specs in jobs],
+                             client, progress)
     except ScenarioError as exc:
         raise UserError(f"scenario: {exc}") from None
     methods = tuple(config.stack.methods)

@@ -20,7 +20,10 @@ rows, or its training fails) is left out (None) and reported in
 from __future__ import annotations
 
 import copy
-from collections.abc import Sequence
+import threading
+from collections import OrderedDict
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 
 from replay.stack.config import ConfigError, StackConfig
 from replay.stack.detectors.base import Detector
@@ -34,6 +37,58 @@ from replay.stack.training import RECORDED, TRAINING_SOURCES, TrainingSet
 Trained = dict[str, dict[str, Detector | None]]
 """Method name -> leader -> its trained detector (None: it could not be trained)."""
 _Job = tuple[Method, str, TrainingSet]     # a method, the leader it trains for (or "all"), its rows
+_Trained = tuple[Detector | None, str]     # a detector (None: not trained) and why not
+
+
+class TrainedCache:
+    """Detectors trained before, by (method, configuration, rows' digest); the least recently used go first."""
+
+    def __init__(self, max_entries: int = 128) -> None:
+        self.max_entries = max(1, max_entries)
+        self._kept: OrderedDict[tuple[str, str, str], _Trained] = OrderedDict()
+        self._lock = threading.Lock()     # heavy jobs train on threads (`TrainingWindow._run`)
+        self.hits = 0
+
+    def __len__(self) -> int:
+        return len(self._kept)
+
+    def get(self, key: tuple[str, str, str]) -> _Trained | None:
+        """A copy of the detector kept under `key`, or None."""
+        with self._lock:
+            found = self._kept.get(key)
+            if found is None:
+                return None
+            self._kept.move_to_end(key)
+            self.hits += 1
+        return copy.deepcopy(found[0]), found[1]
+
+    def put(self, key: tuple[str, str, str], trained: _Trained) -> None:
+        """Keep a copy of a newly trained detector (the run scores with its own, which changes its memory)."""
+        kept = (copy.deepcopy(trained[0]), trained[1])
+        with self._lock:
+            self._kept[key] = kept
+            while len(self._kept) > self.max_entries:
+                self._kept.popitem(last=False)
+
+
+_REUSE = threading.local()     # .cache: the TrainedCache of `reuse_training` in this thread
+
+
+@contextmanager
+def reuse_training(cache: TrainedCache) -> Iterator[None]:
+    """Within it, a detector trained on the same rows under the same configuration is trained once per cache.
+
+    Training is deterministic (each job has its own data and seed), so a copy of the detector trained
+    before is the detector a new training would give. `evaluate` trains every test trial's detectors
+    on the train seed's set: without this, each trial (and each follower) trained the same models again.
+    It holds for the training windows made in this thread while it is open.
+    """
+    outer = getattr(_REUSE, "cache", None)
+    _REUSE.cache = cache
+    try:
+        yield
+    finally:
+        _REUSE.cache = outer
 
 
 def threshold_report(det: Detector | None) -> dict[str, float]:
@@ -65,6 +120,7 @@ class TrainingWindow:
         self.keeps_window = needs_features(config)     # the hybrid database replays the window
         self._given = given
         self._factories = dict(options.factories)      # overrides of the method table's factories (tests)
+        self._reused: TrainedCache | None = getattr(_REUSE, "cache", None)
         self._database = HybridDatabase(config, leaders, start)
         self.rows: list[tuple] = []            # (t, leader, features..., Z - Z_gps, label) of ackf in the window
         self.window: list[WindowInput] = []    # the window's inputs in push order
@@ -158,7 +214,20 @@ class TrainingWindow:
         return [(ld, sub.for_leader(ld)) for ld in self.leaders]
 
     def _train_one(self, entry: Method, ts: TrainingSet) -> tuple[Detector | None, str]:
-        """One detector trained on the given rows (the method's feature columns), or (None, why not)."""
+        """One detector trained on the given rows (the method's feature columns), or (None, why not); a copy of
+        the one trained before on the same rows and configuration within `reuse_training`."""
+        cache = self._reused
+        if cache is None or entry.name in self._factories:
+            return self._train_new(entry, ts)
+        key = (entry.name, repr(self.config), ts.digest())
+        found = cache.get(key)
+        if found is None:
+            found = self._train_new(entry, ts)
+            cache.put(key, found)
+        return found
+
+    def _train_new(self, entry: Method, ts: TrainingSet) -> tuple[Detector | None, str]:
+        """One detector trained on the given rows, or (None, why not)."""
         if len(ts) == 0:
             return None, "no labelled epochs in the training window"
         factory = self._factories.get(entry.name) or method(entry.name).factory
