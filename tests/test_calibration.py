@@ -104,7 +104,7 @@ def test_a_threshold_calibrated_on_one_simulated_trial_holds_on_another() -> Non
 
     1000 s trials with a 400 s window: about 230 normal epochs on each side, so the band is wide.
     """
-    cfg = load_config(None, ["methods=chi_square,drift_reference", "calibrate_thresholds=true"])
+    cfg = load_config(None, ["methods=chi_square,drift_reference"])          # calibrated: the default
     cfg = replace(cfg, stack=replace(cfg.stack, training_window_s=400.0, training_source="given"))
     ts = training_set_of(TrialSpec(41, None, 1000.0), cfg)
     assert ts.calibration.shape[0] >= MIN_ROWS

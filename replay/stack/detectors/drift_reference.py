@@ -28,9 +28,9 @@ it flagged 1.4 % (default scenario) and 1.6 % (bottom-lock loss), against
 are in docs/detection.md section 5.
 With ``calibrate_thresholds`` and a training set carrying its trial's
 normal epochs after t_a, h_z is instead their 2 % quantile (`calibrate`,
-`replay.stack.calibration`); off by default: one training trial's
-quantile is decided by whether it had a burst of false alarms
-(docs/detection.md section 5).
+`replay.stack.calibration`; the default). One training trial's quantile
+is decided by whether it had a burst of false alarms (docs/detection.md
+section 5).
 Where drift_z is NaN (the first ~70 s of a run) the metres threshold h_m
 decides: the (1 - ``detection_fpr_target``) quantile of |drift_residual_m|
 over the training rows labelled normal, never below ``t1_m``. The runner
