@@ -385,7 +385,7 @@ def test_with_a_fresh_usbl_fix_the_drift_residual_is_the_current_innovation(monk
     fix_until = 400.0
     for k in range(1, 300):
         t = 2.4 * k
-        tracker.propagate(2.4, 1.5, 0.0, 0.3, depth)
+        tracker.propagate(2.4, 0.0, 0.0, 0.3, depth)      # at rest, where the fixes put it (none is gated)
         if t <= fix_until:
             tracker.fix(t, lat0, lon0, (1e-12, 0.0, 1e-12))
         geo = leaders[k % 2]
@@ -448,3 +448,23 @@ def test_the_gate_cap_still_caps_gated_ranges() -> None:
     moved = [abs(states[j][0] - states[j - 1][0]) + abs(states[j][1] - states[j - 1][1]) for j in range(1, 5)]
     assert max(moved) < 1e-3
     assert abs(states[5][0] - states[4][0]) + abs(states[5][1] - states[4][1]) > 1.0
+
+
+def test_a_fix_beyond_the_gate_is_left_out_until_the_cap() -> None:
+    """A USBL fix 200 m off the settled model (issue 26: one moved the state 200 m) is left out, gate_cap in a row.
+
+    A fix agreeing with the model is taken; after gate_cap fixes 200 m off the next is taken (a real jump).
+    """
+    m, _ = _settled(gate_cap=3)
+    for k in range(3):
+        before = list(m.x)
+        m.fix(201.0 + k, 200.0, -150.0, (4.0, 0.0, 4.0))
+        # only the lazy propagation of the last steps moves x (micrometres), never the fix's 250 m
+        assert abs(m.x[0] - before[0]) + abs(m.x[1] - before[1]) < 1e-3
+        assert m.last_fix_s == -math.inf                               # a gated fix is no fresh fix
+    m.fix(204.0, 200.0, -150.0, (4.0, 0.0, 4.0))                       # the 4th in a row: taken
+    assert m.last_fix_s == 204.0 and m.x[0] > 100.0        # most of the way to the fix's 200 m
+    near, _ = _settled(gate_cap=3)
+    near.fix(201.0, near.x[0] + 2.0, near.x[1] - 2.0, (4.0, 0.0, 4.0))
+    assert near.last_fix_s == 201.0
+

@@ -161,9 +161,14 @@ class StackConfig:
     # drift_reference tests |drift_z| (the residual against the mission's own pooled scale) against
     # drift_reference_z, or, the first form (586eecb), |drift_residual_m| against the training quantile (m)
     drift_reference_input: str = "drift_z"
-    # h_z, not trained: a training window's 98 % quantile of drift_z does not predict the later one's
-    # (r = 0.01 over seeds 0-19); 2.5 flags about 2 % of the normal epochs after t_a of seeds 0-19
+    # h_z where the training set has no calibration rows (a window alone: its 98 % quantile of drift_z does not
+    # predict the later one's, r = 0.01 over seeds 0-19); 2.5 flags about 2 % of the normal epochs after t_a of
+    # seeds 0-19
     drift_reference_z: float = 2.5
+    # the methods marked ``calibrated`` in the method table take the threshold that flags detection_fpr_target
+    # of the training trial's normal epochs after t_a, where the training set holds them (replay.stack.calibration);
+    # on: in band in 10 of 18 conditions against 5 at the configured multiple (docs/detection.md section 5)
+    calibrate_thresholds: bool = True
     training_source: str = "own"                  # "own" window, a "given" TrainingSet, or "both"
     # anfis_hybrid's inputs, by name from replay.stack.features.FEATURE_NAMES
     hybrid_inputs: tuple[str, ...] = ("f2", "repeat_count", "drift_residual_m", "usbl_residual_m")

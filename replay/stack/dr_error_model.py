@@ -28,7 +28,8 @@ shared cap of 10, entered the model and raised 43 false alarms). It also
 leaves out a range whose lagged residual is beyond ``gate_sigma`` of its
 predicted spread, at most ``gate_cap`` in a row per leader, so a longer
 drift does not pull the state either, while a real change of the DR error
-(which every leader sees) is taken after ``gate_cap`` ranges.
+(which every leader sees) is taken after ``gate_cap`` ranges. A position
+fix (USBL) is gated the same way, on its Mahalanobis distance.
 
 Propagation is lazy: the DR displacement and time are summed between
 events, and the state moves by F = I + G(sums) at the next range or fix,
@@ -134,6 +135,7 @@ class DrErrorModel:
         # t, x, P, cum: the states of the last lag_s and the newest older one
         self._snaps: deque[tuple[float, list[float], list[list[float]], tuple[float, ...]]] = deque()
         self._gated_out: dict[str, int] = {}          # gated ranges left out in a row, per leader
+        self._fixes_out = 0                             # gated fixes left out in a row
         self.last_fix_s = -math.inf                     # time of the last position fix taken
 
     def step(self, dt_s: float, north_m: float, east_m: float, age_s: float = 0.0, heading_rad: float = 0.0) -> None:
@@ -267,9 +269,17 @@ class DrErrorModel:
         if not det > 0.0:
             return
         inn, ine, iee = see / det, -sne / det, snn / det
+        rn, re = north_m - x[0], east_m - x[1]
+        # a fix beyond the gate (its Mahalanobis distance, 2 dof) is left out as a range is, at most gate_cap
+        # in a row: one bad USBL fix taken moved the state 200 m and raised two minutes of false alarms on
+        # both leaders (issue 26, docs/detection.md section 5); a real jump of the DR error is taken later
+        d2 = rn * rn * inn + 2.0 * rn * re * ine + re * re * iee
+        if d2 > self.gate_sigma ** 2 and self._fixes_out < self.gate_cap:
+            self._fixes_out += 1
+            return
+        self._fixes_out = 0
         # K = P[:, :2]·S⁻¹ (n x 2); x += K·(fix - d); P -= K·P[:2, :]
         k = [(p[i][0] * inn + p[i][1] * ine, p[i][0] * ine + p[i][1] * iee) for i in range(n)]
-        rn, re = north_m - x[0], east_m - x[1]
         self.x = [x[i] + k[i][0] * rn + k[i][1] * re for i in range(n)]
         new = [[p[i][j] - k[i][0] * p[0][j] - k[i][1] * p[1][j] for j in range(n)] for i in range(n)]
         self.p = [[0.5 * (new[i][j] + new[j][i]) for j in range(n)] for i in range(n)]

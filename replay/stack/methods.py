@@ -74,6 +74,7 @@ class Method:
     anfis_model: bool = False        # an ANFIS model: the ANFIS tab draws its MFs, rules and training, one view each
     pooled_training: bool = False    # trained on every leader's rows together, whatever anfis.model says
     threaded_training: bool = False  # whole-population numpy training: trained on threads beside its like
+    calibrated: bool = False         # its threshold flags the FPR target of the training trial's normals after t_a
 
     @property
     def detects(self) -> bool:
@@ -141,7 +142,7 @@ METHOD_TABLE: dict[str, Method] = {m.name: m for m in (
            (204, 121, 167), drift_reference.DriftReferenceDetector, _WIDE, drift_reference.why_line,
            score_plot=("drift_reference vs h (sd)",
                        "min(|drift_z|, h*|residual|/T1) against h, in sd (m before drift_z exists)"),
-           pooled_training=True),
+           pooled_training=True, calibrated=True),
     _positioning("kmcdf1", "KMCDF, delays only", (255, 0, 180)),
     _positioning("kmcdf2", "KMCDF, delays and phases", (240, 228, 66)),
     _positioning("gar", "GAR (geometric average)", (0, 210, 0)),

@@ -32,6 +32,11 @@ class OpenLoopScores:
         self._rows.extend((r.time_s, r.leader, r.label, r.f1, r.f2, r.f3, *extra)
                           for r in results if r.method == "ackf")
 
+    def normal_features(self) -> np.ndarray:
+        """The kept epochs labelled normal: their FEATURE_NAMES rows (n, F), what a threshold is calibrated on."""
+        rows = [e[3:] for e in self._rows if e[2] == 0]
+        return np.array(rows, dtype=float).reshape(-1, len(FEATURE_NAMES))
+
     def scores(self, methods: Iterable[ScoredMethod]) -> dict[str, dict[str, np.ndarray]]:
         """Per method: time_s, leader, label and its detectors' score of each kept epoch (NaN: no detector)."""
         src = self._rows

@@ -271,6 +271,10 @@ class CooperativeRunner:
         trainer, reported = self.parts.trainer, self._reported
         scored = [(m.name, m.features, m.detectors) for m in self._methods
                   if m.kind == "detect" and m.name in reported]
+        training_set = trainer.training_set
+        if training_set is not None and self.config.training_source == "own":
+            # its own normal epochs after t_a go with it: a run trained on it calibrates thresholds on them
+            training_set = training_set.with_calibration(self.parts.open_loop.normal_features())
         return RunResults(
             methods=reported, leaders=self.leaders, start_time_s=self.start_time_s,
             training_end_s=self.training_end_s, epochs=self.parts.history.epochs(),
@@ -279,7 +283,7 @@ class CooperativeRunner:
             capped={m.name: self.parts.isolation.capped[m.name] for m in self._methods if m.name in reported},
             clamped_ranges=self.clamped_ranges, trained=trainer.trained,
             training_errors=dict(trainer.errors), position_fixes=self.position_fixes,
-            training_set=trainer.training_set, thresholds=copy.deepcopy(trainer.thresholds),
+            training_set=training_set, thresholds=copy.deepcopy(trainer.thresholds),
             training_notes=dict(trainer.notes),
         )
 

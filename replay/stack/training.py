@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -43,6 +43,10 @@ class TrainingSet:
     leaders: np.ndarray               # (n,) object: the leader ranged
     feature_names: tuple[str, ...]
     kinds: np.ndarray = field(default_factory=lambda: _empty_object(0))
+    # (m, F): the trial's epochs labelled normal scored after t_a (open loop, every leader), for thresholds
+    # set at a target false-alarm rate on the training trial (`replay.stack.calibration`); empty when the
+    # set is a window alone (a run gives it with its `RunResults.training_set`)
+    calibration: np.ndarray = field(default_factory=lambda: np.empty(0))
 
     def __post_init__(self) -> None:
         """Coerce the arrays and check that every column has one value per row."""
@@ -55,6 +59,8 @@ class TrainingSet:
         kinds = np.asarray(self.kinds, dtype=object).reshape(-1)
         object.__setattr__(self, "kinds", _empty_object(n) if kinds.size == 0 and n else kinds)
         object.__setattr__(self, "feature_names", tuple(self.feature_names))
+        object.__setattr__(self, "calibration",
+                           np.asarray(self.calibration, dtype=float).reshape(-1, len(self.feature_names)))
         for name in ("range_error", "labels", "leaders", "kinds"):
             if getattr(self, name).shape[0] != n:
                 raise ValueError(f"TrainingSet.{name} has {getattr(self, name).shape[0]} rows, features {n}")
@@ -72,7 +78,7 @@ class TrainingSet:
     def select(self, mask: np.ndarray) -> TrainingSet:
         """The rows where ``mask`` is true (a boolean array or indices)."""
         return TrainingSet(self.features[mask], self.range_error[mask], self.labels[mask], self.leaders[mask],
-                           self.feature_names, self.kinds[mask])
+                           self.feature_names, self.kinds[mask], self.calibration)
 
     def for_leader(self, leader: str) -> TrainingSet:
         """The rows of one leader."""
@@ -93,7 +99,14 @@ class TrainingSet:
         """The same rows with only the feature columns called ``names`` (KeyError naming a missing one)."""
         if tuple(names) == self.feature_names:
             return self
-        return TrainingSet(self.columns(names), self.range_error, self.labels, self.leaders, tuple(names), self.kinds)
+        cols = [self.feature_names.index(n) for n in names]
+        return TrainingSet(self.columns(names), self.range_error, self.labels, self.leaders, tuple(names), self.kinds,
+                           self.calibration[:, cols])
+
+    def with_calibration(self, rows: np.ndarray) -> TrainingSet:
+        """The same rows with ``rows`` (m, F) added to the calibration rows (normal epochs after t_a)."""
+        return replace(self, calibration=np.concatenate([self.calibration,
+                                                         np.asarray(rows, float).reshape(-1, self.features.shape[1])]))
 
     def digest(self) -> str:
         """SHA-256 (hex) of every row's content and the feature names: equal sets give equal digests.
@@ -110,6 +123,9 @@ class TrainingSet:
         for arr in (self.leaders, self.kinds):
             h.update("\x00".join(str(v) for v in arr.tolist()).encode())
             h.update(b"\x01")
+        if self.calibration.size:     # a set without calibration rows keeps the digest it had before them
+            h.update(f"calibration{self.calibration.shape}".encode())
+            h.update(np.ascontiguousarray(self.calibration).tobytes())
         return h.hexdigest()
 
     def concat(self, other: TrainingSet) -> TrainingSet:
@@ -120,4 +136,5 @@ class TrainingSet:
                            np.concatenate([self.range_error, other.range_error]),
                            np.concatenate([self.labels, other.labels]),
                            np.concatenate([self.leaders, other.leaders]), self.feature_names,
-                           np.concatenate([self.kinds, other.kinds]))
+                           np.concatenate([self.kinds, other.kinds]),
+                           np.concatenate([self.calibration, other.calibration]))

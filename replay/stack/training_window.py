@@ -25,6 +25,7 @@ from collections import OrderedDict
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 
+from replay.stack.calibration import calibrate
 from replay.stack.config import ConfigError, StackConfig
 from replay.stack.detectors.base import Detector
 from replay.stack.features import FEATURE_NAMES, PAPER_FEATURES
@@ -146,9 +147,13 @@ class TrainingWindow:
         self.training_set = ts
         jobs = [(e, key, data) for e in entries if e.detects for key, data in self._split(e, ts)]
         out: Trained = {e.name: {} for e in entries if e.detects}
-        for (e, key, _), (det, error) in zip(jobs, self._run(jobs), strict=True):
+        for (e, key, data), (det, error) in zip(jobs, self._run(jobs), strict=True):
             if error:
                 self.errors[f"{e.name}/{key}"] = error
+            if det is not None and e.calibrated and self.config.calibrate_thresholds \
+                    and calibrate(det, data.calibration, self.config.detection_fpr_target):
+                self.notes[f"{e.name}/calibration"] = \
+                    f"threshold at {self.config.detection_fpr_target:g} of {len(data.calibration)} normal epochs"
             if key == "all":        # shared: one model, a copy per leader (memory per acoustic link)
                 out[e.name] = {ld: copy.deepcopy(det) if det is not None else None for ld in self.leaders}
             else:

@@ -26,6 +26,11 @@ model's predicted sigma (issue 26) it was kept: on seeds 1-4 trained on 0
 it flagged 1.4 % (default scenario) and 1.6 % (bottom-lock loss), against
 1.6 % and 8.0 % unscaled without the held-step term; the held-out figures
 are in docs/detection.md section 5.
+With ``calibrate_thresholds`` and a training set carrying its trial's
+normal epochs after t_a, h_z is instead their 2 % quantile (`calibrate`,
+`replay.stack.calibration`; the default). One training trial's quantile
+is decided by whether it had a burst of false alarms (docs/detection.md
+section 5).
 Where drift_z is NaN (the first ~70 s of a run) the metres threshold h_m
 decides: the (1 - ``detection_fpr_target``) quantile of |drift_residual_m|
 over the training rows labelled normal, never below ``t1_m``. The runner
@@ -49,6 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from replay.events import EpochResult
+from replay.stack.calibration import MIN_ROWS
 from replay.stack.config import CHOICES, ConfigError, StackConfig
 from replay.stack.detectors.anfis_hybrid import fpr_threshold
 from replay.stack.detectors.base import Decision
@@ -60,6 +66,8 @@ _METRES = FEATURE_NAMES.index("drift_residual_m")
 _Z = FEATURE_NAMES.index("drift_z")
 _INPUTS = CHOICES["stack.drift_reference_input"]
 _MIN_RECORDED = 100
+Z_FLOOR = 1.0
+"""A calibrated h_z never goes under one sigma of the mission's scale (a quantile of 0: |residual| > t1_m alone)."""
 
 
 @dataclass(frozen=True)
@@ -92,6 +100,7 @@ class DriftReferenceDetector:
         self.threshold_z = float(config.drift_reference_z) if config.drift_reference_input == "drift_z" \
             else math.nan
         self.threshold = self.threshold_z if math.isfinite(self.threshold_z) else self.t1
+        self.z0 = float(config.drift_reference_z)     # the score's metres term is on this scale, calibrated or not
         self.thresholds: dict[str, float] = {"configured": self.t1}
 
     def train_on(self, ts: TrainingSet) -> None:
@@ -115,6 +124,28 @@ class DriftReferenceDetector:
                            "training_alarm_rate": float(np.mean(finite > self.threshold)) if finite.size
                            else float("nan")}
 
+    def calibrate(self, rows: np.ndarray, target: float) -> bool:
+        """Set h to flag ``target`` of the training trial's normal rows (n, F) after t_a; False if too few.
+
+        h is the (1 - target) quantile of `scores` over the rows with a
+        drift_z, never under `Z_FLOOR`: it then flags |drift_z| > h with
+        |drift_residual_m| > t1_m·h/h_z0 (h_z0 the configured
+        ``drift_reference_z``), so the metres floor moves with h and a
+        calibration can reach its target where few residuals pass t1_m (with
+        USBL fixes). The metres input (no h_z) keeps its trained h_m.
+        """
+        if not math.isfinite(self.threshold_z):
+            return False
+        x = np.asarray(rows, dtype=float).reshape(-1, len(FEATURE_NAMES))
+        x = x[np.isfinite(x[:, _Z]) & np.isfinite(x[:, _METRES])]
+        if x.shape[0] < MIN_ROWS:
+            return False
+        h = max(fpr_threshold(self.scores(x), target), Z_FLOOR)
+        self.threshold_z = self.threshold = h
+        self.thresholds = {**self.thresholds, "configured_z": self.z0, "calibrated_z": h, "used": h,
+                           "calibration_rows": float(x.shape[0])}
+        return True
+
     def decide(self, features: np.ndarray) -> Decision:
         """Flag when the score exceeds the threshold (a NaN residual is not flagged).
 
@@ -131,9 +162,11 @@ class DriftReferenceDetector:
     def scores(self, features: np.ndarray) -> np.ndarray:
         """Open-loop scores of the rows (n, F), on the scale of ``threshold``.
 
-        With h_z: min(|z|, h_z·|x|/t1_m), above h_z exactly when |z| > h_z and
-        |x| > t1_m (a residual under the label threshold is not an anomaly);
-        where z is NaN, h_z·|x|/h_m (the metres threshold). Without h_z: |x|.
+        With h_z: min(|z|, h_z0·|x|/t1_m) (h_z0 the configured multiple), above
+        h_z = h_z0 exactly when |z| > h_z and |x| > t1_m (a residual under the
+        label threshold is not an anomaly; a calibrated h_z moves that floor
+        with it); where z is NaN, h_z·|x|/h_m (the metres threshold). Without
+        h_z: |x|.
         """
         rows = np.asarray(features, dtype=float).reshape(-1, len(FEATURE_NAMES))
         x = np.abs(rows[:, _METRES])
@@ -141,7 +174,7 @@ class DriftReferenceDetector:
         if not math.isfinite(h_z):
             return x
         z = np.abs(rows[:, _Z])
-        floored = np.minimum(z, h_z * x / self.t1) if self.t1 > 0.0 else z
+        floored = np.minimum(z, self.z0 * x / self.t1) if self.t1 > 0.0 else z
         return np.where(np.isfinite(z), floored, h_z * x / self.threshold_m)
 
     def reset(self) -> None:
