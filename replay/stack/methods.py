@@ -24,7 +24,15 @@ from dataclasses import dataclass
 
 from replay.events import EpochResult
 from replay.stack.config import ConfigError, StackConfig
-from replay.stack.detectors import anfis_detector, anfis_hybrid, chi_square, cusum, drift_reference, dual_threshold
+from replay.stack.detectors import (
+    anfis_detector,
+    anfis_hybrid,
+    chi_square,
+    cusum,
+    drift_reference,
+    dual_threshold,
+    fix_aware,
+)
 from replay.stack.detectors.base import Detector
 from replay.stack.detectors.why_text import generic_why
 from replay.stack.features import FEATURE_NAMES, PAPER_FEATURES
@@ -143,6 +151,12 @@ METHOD_TABLE: dict[str, Method] = {m.name: m for m in (
            score_plot=("drift_reference vs h (sd)",
                        "min(|drift_z|, h*|residual|/T1) against h, in sd (m before drift_z exists)"),
            pooled_training=True, calibrated=True),
+    # drift_reference without a fresh USBL fix, chi-square with one (the drift residual is then the DR error
+    # model's innovation, and the ACKF's separates better: docs/detection.md section 5)
+    Method("fix_aware", "detector", "detect", _TRAINED, "ACKF + DR error reference, chi-square under a fresh fix",
+           "fixaw", (120, 90, 60), fix_aware.FixAwareDetector, _WIDE, fix_aware.why_line,
+           score_plot=("fix_aware vs h (sd)", "chi-square's h*sqrt(f2/gate) with a fresh fix, else drift_reference's"),
+           pooled_training=True),
     _positioning("kmcdf1", "KMCDF, delays only", (255, 0, 180)),
     _positioning("kmcdf2", "KMCDF, delays and phases", (240, 228, 66)),
     _positioning("gar", "GAR (geometric average)", (0, 210, 0)),
