@@ -29,7 +29,7 @@ from formats import geodesy
 from formats.records import FormatError, Reject, Where
 from formats.units import NS
 
-from .base import CONTAINER_TIME, Ignored, LogContext, Output, SourceBatch
+from .base import CONTAINER_TIME, Ignored, LogContext, Output, SourceBatch, one_by_one
 from .clock import offset_problem, shift_text
 from .registry import family_converter
 
@@ -128,7 +128,7 @@ def convert_stream(stream: TextStream, ctx: LogContext, label: str) -> Iterator[
     sub = replace(ctx, vehicle=stream.vehicle, prefix="unix", path=f"{ctx.path} {label}", trial_date=day,
                   options={**ctx.options, **_stream_options(ctx, family), CONTAINER_TIME: True})
     used: set[Where] = set()
-    for item in convert(blob.encode("utf-8", "replace"), sub):
+    for item in one_by_one(convert(blob.encode("utf-8", "replace"), sub)):
         line = item.where.line if item.where is not None and item.where.line is not None else 0
         i = min(max(line - 1, 0), len(stream.wheres) - 1)
         where = stream.wheres[i]
