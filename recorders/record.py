@@ -393,28 +393,30 @@ class LogRecorder:
             else:
                 k2 = taken[j] = k + end - start
                 writer.write_serialized_batch(p.topic, payloads[j][k:k2], times[j][0][k:k2], times[j][1][k:k2])
-        self._batch_stats(batch, log_all)
+        self._batch_stats(batch.keys, [(p.topic, p.log_times_ns) for p in parts], log_all)
 
-    def _batch_stats(self, batch: Batch, log_all: np.ndarray) -> None:
-        """The statistics `add` keeps, for a batch's messages (`log_all`: their log times in write order)."""
+    def _batch_stats(self, keys: Sequence[int] | np.ndarray, topic_times: list[tuple[str, Sequence[int] | np.ndarray]],
+                     log_all: np.ndarray) -> None:
+        """The statistics `add` keeps, for a batch's messages: `keys` their records (byte offsets) and `log_all`
+        their log times, both in write order; `topic_times` each topic's log times in order."""
         st = self.stats
         st.messages += len(log_all)
-        keys = np.asarray(batch.keys, dtype=np.int64)
+        keys = np.asarray(keys, dtype=np.int64)
         records = self.records
         last = records.last
         for key in keys[np.flatnonzero(np.diff(keys, prepend=keys[0] - 1))].tolist():
             if key != last:  # not a record's second message: one count
                 records.add(key)
                 last = key
-        for p in batch.parts:
-            t = np.asarray(p.log_times_ns, dtype=np.int64)
+        for topic, times in topic_times:
+            t = np.asarray(times, dtype=np.int64)
             if not len(t):
                 continue
-            prev = self.last_ns.get(p.topic)
+            prev = self.last_ns.get(topic)
             steps = np.diff(t) if prev is None else np.diff(t, prepend=prev)
             st.out_of_order += int((steps < 0).sum())
             st.duplicates += int((steps == 0).sum())
-            self.last_ns[p.topic] = int(t[-1])
+            self.last_ns[topic] = int(t[-1])
         low, high = int(log_all.min()), int(log_all.max())
         if st.start_ns is None or low < st.start_ns:
             st.start_ns = low
@@ -442,34 +444,7 @@ class LogRecorder:
             return
         self.writer.source_channel(batch.topic, batch.message)   # type: ignore[attr-defined]
         write(batch.topic, batch.payloads, times, batch.publish_times_ns)
-        st = self.stats
-        st.messages += len(times)
-        records = self.records
-        for where in batch.wheres:
-            if where.offset != records.last:
-                records.add(where.offset)
-        topic = batch.topic
-        prev = self.last_ns.get(topic)
-        for t in times:
-            if prev is None or t > prev:
-                pass
-            elif t < prev:
-                st.out_of_order += 1
-            else:
-                st.duplicates += 1
-            prev = t
-        self.last_ns[topic] = prev   # type: ignore[assignment]
-        first, last = min(times), max(times)
-        if st.start_ns is None or first < st.start_ns:
-            st.start_ns = first
-        if st.end_ns is None or last > st.end_ns:
-            st.end_ns = last
-        if self.part_starts:
-            for t, where in zip(times, batch.wheres):
-                span = self.part_spans[bisect.bisect_right(self.part_starts, where.offset) - 1]
-                if not span:
-                    span += [t, t]
-                span[0], span[1] = min(span[0], t), max(span[1], t)
+        self._batch_stats([w.offset for w in batch.wheres], [(batch.topic, times)], np.asarray(times, dtype=np.int64))
 
     def _check_shift(self, t_ns: int) -> None:
         """The log's first message time, its offset or start applied, in 1980-2100; else a ManifestError."""
