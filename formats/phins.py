@@ -306,14 +306,19 @@ def scan(data: LogText, prefix: str = "auto") -> Iterator[Scanned | Reject]:
     here with the checksum from a prefix XOR of the whole buffer; everything
     else goes through `iter_frames`' general path.
     """
+    check_prefix(prefix)
+    for block in blocks_in(data):
+        yield from scan_block(block, prefix)
+
+
+def check_prefix(prefix: str) -> None:
+    """ValueError for a host-timestamp prefix style that is none of PREFIX_STYLES."""
     if prefix not in PREFIX_STYLES:
         raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
-    for block in blocks_in(data):
-        yield from _scan_block(block, prefix)
 
 
-def _scan_block(block: Block, prefix: str) -> Iterator[Scanned | Reject]:
-    """`scan` of one block of a log (positions the log's)."""
+def scan_block(block: Block, prefix: str) -> Iterator[Scanned | Reject]:
+    """`scan` of one block of a log (positions the log's; the prefix style already checked)."""
     data, base = block.data, block.offset
     pxor = prefix_xor(data)
     hexes, values = HEX, _values

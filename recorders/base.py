@@ -265,3 +265,22 @@ class Rows:
         return Batch([Columns(topic, self.message_class, columns, log_ns, publish_ns)],
                      np.zeros(len(times), dtype=np.int64), np.array([w.offset for w in wheres], dtype=np.int64),
                      wheres[-1], outputs)
+
+
+def columns_batch(topic: str, message_class: Any, build: Callable[..., Any], constants: Mapping[str, Any],
+                  names: tuple[str, ...], columns: Sequence[Any], log_ns: np.ndarray, publish_ns: np.ndarray,
+                  offsets: np.ndarray, lines: np.ndarray) -> Batch:
+    """The Batch `Rows` would take of the same messages, made from columns a converter computed at once: `columns`
+    the builder's arguments after the time (a list of strings or a float array each, in `names`' order),
+    `offsets` and `lines` each message's record (Where without a host time)."""
+    def outputs() -> Iterator[Output]:
+        values = [c if isinstance(c, list) else c.tolist() for c in columns]
+        for t, p, offset, line, v in zip(log_ns.tolist(), publish_ns.tolist(), offsets.tolist(), lines.tolist(),
+                                         zip(*values)):
+            yield Output(topic, build(t, *v), t, p, Where(offset, line))
+
+    cols: dict[str, Any] = dict(constants)
+    cols.update(zip(names, columns))
+    cols["timestamp"] = log_ns
+    return Batch([Columns(topic, message_class, cols, log_ns, publish_ns)], np.zeros(len(log_ns), dtype=np.int64),
+                 offsets, Where(int(offsets[-1]), int(lines[-1])), outputs)

@@ -26,16 +26,34 @@ Epochs (see `recorders.epochs.group_epochs`):
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from bisect import bisect_left
+from collections.abc import Generator, Iterator
 
-from formats import pashr, phins
+import numpy as np
+
+from formats import pashr, phins, phins_columns
 from formats import schemas as S
-from formats.log_blocks import LogText
+from formats.log_blocks import Block, LogText, blocks_in
 from formats.nmea import sentences as nmea
 from formats.novatel import scan as novatel_scan
 from formats.records import Reject, Where
+from formats.units import DAY_NS, NS
 
-from .base import Batch, BlockConverter, Converter, Ignored, LogContext, Output, Rows, batched, blockwise, output
+from .base import (
+    ROWS_PER_BATCH,
+    Batch,
+    BlockConverter,
+    Converter,
+    Ignored,
+    LogContext,
+    Output,
+    Rows,
+    batched,
+    blockwise,
+    columns_batch,
+    int64_times,
+    output,
+)
 from .clock import DayClock
 from .epochs import host_time_ns
 from .gnss_velocity import components
@@ -157,22 +175,214 @@ def ins_rows(ctx: LogContext) -> Rows:
 
 
 def convert_phins(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | Ignored | Batch]:
-    """iXblue/Exail PHINS standard ASCII ($HEHDT, $PIXSE ..., $PHTRO), one InsState per burst."""
-    clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
-    burst: dict[str, phins.Scanned] = {}
-    rows = ins_rows(ctx)
-    for item in phins.scan(data, ctx.prefix):
+    """iXblue/Exail PHINS standard ASCII ($HEHDT, $PIXSE ..., $PHTRO), one InsState per burst.
+
+    A clean block takes the block columns (`formats.phins_columns`), any other the per-line path; the burst
+    that may go on in the next block is held open (as scanned sentences), so the bursts are the whole log's
+    wherever the blocks are cut.
+    """
+    phins.check_prefix(ctx.prefix)
+    state = _PhinsState(ctx)
+    blocks = iter(blocks_in(data))
+    block = next(blocks, None)
+    while block is not None:
+        following = next(blocks, None)
+        yield from _phins_block(block, following is None, ctx, state)
+        block = following
+    reject = _phins_scan_outputs(state.burst, ctx, state.clock, state.rows) if state.burst else None
+    yield from _taken(state.rows, ctx, reject)
+
+
+class _PhinsState:
+    """What goes on from one block of a PHINS log to the next: the day clock, the burst still open, the rows."""
+
+    __slots__ = ("clock", "burst", "rows")
+
+    def __init__(self, ctx: LogContext):
+        self.clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
+        self.burst: dict[str, phins.Scanned] = {}  # {epoch key: scanned tuple} in arrival order
+        self.rows = ins_rows(ctx)
+
+
+def _phins_block(block: Block, last: bool, ctx: LogContext, state: _PhinsState
+                 ) -> Iterator[Output | Reject | Ignored | Batch]:
+    """One block's outputs; the burst still open at its end (unless `last`) is left in `state`."""
+    if state.burst:  # the previous block's last burst: line by line until a sentence closes it
+        closed = yield from _phins_lines(phins.scan_block(block, ctx.prefix), ctx, state, until_closed=True)
+        if closed is None:
+            return
+        offset, line = closed
+        block = Block(block.data[offset - block.offset:], offset, line - 1)
+    cols = phins_columns.decode_columns(block.data)
+    if cols is not None:
+        taken = _phins_columns_outputs(cols, block, last, ctx, state)
+        if taken is not None:
+            batches, tail = taken
+            yield from _taken(state.rows, ctx)  # rows of an earlier block's lines go first
+            for batch in batches:
+                yield from batched(ctx, batch)
+            if tail is None:
+                return
+            at, line = tail  # the last burst, which the next block may go on: line by line
+            block = Block(block.data[at:], block.offset + at, block.lines + line - 1)
+    yield from _phins_lines(phins.scan_block(block, ctx.prefix), ctx, state)
+
+
+def _bursts(key: np.ndarray) -> list[int]:
+    """The first sentence of each burst, for sentences of epoch keys `key` in file order: a burst ends before
+    the first sentence whose key it already holds (`convert_phins`' rule, found without a loop over lines)."""
+    n = len(key)
+    order = np.argsort(key, kind="stable")
+    same = key[order[1:]] == key[order[:-1]]
+    before = np.full(n, -1, dtype=np.int64)  # the sentence's key seen last at: -1 for its first
+    before[order[1:][same]] = order[:-1][same]
+    # the burst from s ends at the first i > s with before[i] >= s, which is the first with reach[i] >= s
+    # (every j with before[j] >= s lies after s): one bisection per burst on the running maximum
+    reach = np.maximum.accumulate(before).tolist()
+    starts, s = [], 0
+    while s < n:
+        starts.append(s)
+        s = bisect_left(reach, s, s + 1)
+    return starts
+
+
+def _phins_columns_outputs(cols: phins_columns.PhinsColumns, block: Block, last: bool, ctx: LogContext,
+                           state: _PhinsState) -> tuple[list[Batch], tuple[int, int] | None] | None:
+    """The Batches of a clean block's bursts and where its last burst starts (offset, line in the block) when
+    that is left to the next block (unless `last`); None when the per-line path must run (a burst without
+    TIME__ or no date: it words the reject; a time beyond int64)."""
+    n = len(cols.key)
+    if not n:
+        return [], None
+    starts = _bursts(cols.key)
+    tail = None
+    if not last:
+        k = starts.pop()
+        tail = int(cols.offsets[k]), int(cols.numbers[k])
+        n = k
+    if not starts:
+        return [], tail
+    count = len(starts)
+    burst = np.repeat(np.arange(count), np.diff(np.append(starts, n)))
+    member = {}  # key -> per burst, its sentence's index among that key's sentences, -1 without one
+    for name, pos in cols.rows.items():
+        pos = pos[:int(np.searchsorted(pos, n))]
+        m = member[name] = np.full(count, -1, dtype=np.int64)
+        m[burst[pos]] = np.arange(len(pos))
+    absent = np.full(count, -1, dtype=np.int64)
+    nav = np.zeros(count, dtype=bool)
+    for name in _NAV_KEYS:
+        nav |= member.get(name, absent) >= 0
+    out = np.flatnonzero(nav)
+    if not len(out):
+        return [], tail
+    clock = state.clock
+    stamp = member.get("Time", absent)[out]
+    if clock.day_ns is None or (stamp < 0).any():
+        return None
+    tod = cols.values["Time"]["time_s"][stamp]
+    tod_ns = np.rint(tod * NS).astype(np.int64)  # round(tod_s * NS) of `DayClock.resolve`, half to even alike
+    last_tod = clock._last_tod_ns
+    steps = np.diff(tod_ns) if last_tod is None else np.diff(tod_ns, prepend=last_tod)
+    if (np.abs(steps) > DAY_NS // 2).any():  # a midnight (or a record from before it): the clock's own steps
+        times = [clock.resolve(x) for x in tod.tolist()]
+    else:
+        base = clock.day_ns + clock.offset_ns
+        times = [base + x for x in tod_ns.tolist()]
+        clock._last_tod_ns = times[-1] - base
+    t_ns = int64_times(times)
+    if t_ns is None:
+        return None  # a time beyond int64: the per-line path gives such messages one by one
+
+    def pick(name: str, field: str) -> np.ndarray:
+        m = member.get(name)
+        if m is None:
+            return np.full(len(out), NAN)
+        return np.append(np.asarray(cols.values[name][field], dtype=np.float64), NAN)[m[out]]
+
+    def has(name: str) -> np.ndarray:
+        return member.get(name, absent)[out] >= 0
+
+    heading = pick("Heading", "heading_deg")
+    if "Heading" in member:
+        invalid = np.append(np.array(cols.values["Heading"]["mode"]) == "V", False)[member["Heading"][out]]
+        heading = np.where(invalid, NAN, heading)
+    atitud = has("Atitud")
+    roll = pick("Atitud", "roll_port_up_deg")
+    pitch = np.where(atitud, -pick("Atitud", "pitch_bow_down_deg"), NAN)
+    if "Phtro" in member:  # $PHTRO only where the burst has no ATITUD
+        phtro = has("Phtro") & ~atitud
+        pitch = np.where(phtro, pick("Phtro", "pitch_bow_up_deg"), pitch)
+        roll = np.where(phtro, pick("Phtro", "roll_port_up_deg"), roll)
+    alt = pick("Positi", "altitude_m")
+    depth = np.where(has("Positi"), 0.0 - alt, NAN)
+    up = pick("Speed", "up_mps")
+    down = np.where(has("Speed"), 0.0 - up, NAN)
+    columns = [
+        ["phins"] * len(out), _phins_status(cols, burst, n, count, out), pick("Positi", "latitude"),
+        pick("Positi", "longitude"), depth, roll, pitch, heading, pick("Speed", "north_mps"), pick("Speed", "east_mps"),
+        down, pick("StdHrp", "heading_std_deg"), pick("StdPos", "lat_std_m"), pick("StdPos", "lon_std_m"),
+        pick("StdHrp", "roll_std_deg"), pick("StdHrp", "pitch_std_deg"), alt,
+    ]
+    first = np.asarray(starts)[out]
+    offsets = cols.offsets[first] + block.offset
+    lines = cols.numbers[first] + block.lines
+    rows, batches = state.rows, []
+    for a in range(0, len(out), ROWS_PER_BATCH):
+        b = a + ROWS_PER_BATCH
+        batches.append(columns_batch(rows.topic, rows.message_class, rows.build, rows.constants, rows.names,
+                                     [c[a:b] for c in columns], t_ns[a:b], t_ns[a:b], offsets[a:b], lines[a:b]))
+    return batches, tail
+
+
+def _phins_status(cols: phins_columns.PhinsColumns, burst: np.ndarray, n: int, count: int, out: np.ndarray
+                  ) -> list[str]:
+    """The status text of each burst in `out`: its status words in arrival order, as `_phins_scan_fields` writes
+    them."""
+    words: list[list[str]] = [[] for _ in range(count)]
+    found = []
+    for kind in ("ALGSTS", "STATUS", "HT_STS"):
+        pos = cols.rows.get(kind)
+        if pos is None:
+            continue
+        pos = pos[:int(np.searchsorted(pos, n))]
+        v = cols.values[kind]
+        text = {pair: f"{kind}={pair[0]:08X}" + ("" if kind == "HT_STS" else f",{pair[1]:08X}")
+                for pair in set(zip(v["lsb"], v["msb"]))}
+        found += zip(pos.tolist(), [text[pair] for pair in zip(v["lsb"], v["msb"])])
+    found.sort()
+    which = burst.tolist()
+    for p, text in found:
+        words[which[p]].append(text)
+    return [" ".join(words[b]) for b in out.tolist()]
+
+
+def _phins_lines(items: Iterator[phins.Scanned | Reject], ctx: LogContext, state: _PhinsState,
+                 until_closed: bool = False) -> Generator[Output | Reject | Ignored | Batch, None, tuple[int, int] | None]:
+    """`convert_phins` line by line over `phins.scan` items: any log, damaged ones included.
+
+    The burst still open at the end is left in `state`. With `until_closed`, it stops at the sentence that
+    closes the burst open at the start and returns that sentence's (offset, line), not taken: the caller
+    goes on from there (unless the sentence shares its line with an item before it: then to the end).
+    """
+    burst, rows, clock = state.burst, state.rows, state.clock
+    previous = -1  # the byte offset of the item before: a line of glued sentences gives several
+    for item in items:
         if isinstance(item, Reject):
+            previous = item.where.offset
             yield from _taken(rows, ctx, item)
             continue
         if item[0] in burst:  # a repeated sentence starts the next burst (`group_epochs` with no times)
             reject = _phins_scan_outputs(burst, ctx, clock, rows)
             if reject is not None or rows.full:
                 yield from _taken(rows, ctx, reject)
-            burst = {}
+            burst = state.burst = {}
+            if until_closed and item[2] != previous:
+                return item[2], item[3]
         burst[item[0]] = item
-    reject = _phins_scan_outputs(burst, ctx, clock, rows) if burst else None
-    yield from _taken(rows, ctx, reject)
+        previous = item[2]
+    state.burst = burst
+    return None
 
 
 def _taken(rows: Rows, ctx: LogContext, then: Reject | None = None) -> Iterator[Output | Reject | Ignored | Batch]:
