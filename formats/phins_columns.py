@@ -136,7 +136,11 @@ def decode_columns(data: bytes) -> PhinsColumns | None:
     clean = clean_lines(data)
     if clean is None:
         return None
-    code = _codes(clean.heads(13))
+    heads = clean.heads(13)
+    # the name after "PIXSE," tells its kind; any other line's address alone does (its values are no key)
+    raw = heads.view(np.uint8).reshape(len(heads), 13)
+    raw[(raw[:, :6] != np.frombuffer(b"PIXSE,", np.uint8)).any(axis=1), 6:] = 0
+    code = _codes(heads)
     if code is None:
         return None
     kept = np.flatnonzero(code >= 0)

@@ -339,22 +339,30 @@ def _phins_status(cols: phins_columns.PhinsColumns, burst: np.ndarray, n: int, c
                   ) -> list[str]:
     """The status text of each burst in `out`: its status words in arrival order, as `_phins_scan_fields` writes
     them."""
-    words: list[list[str]] = [[] for _ in range(count)]
-    found = []
+    at, texts = [], []
     for kind in ("ALGSTS", "STATUS", "HT_STS"):
         pos = cols.rows.get(kind)
         if pos is None:
             continue
         pos = pos[:int(np.searchsorted(pos, n))]
         v = cols.values[kind]
-        text = {pair: f"{kind}={pair[0]:08X}" + ("" if kind == "HT_STS" else f",{pair[1]:08X}")
-                for pair in set(zip(v["lsb"], v["msb"]))}
-        found += zip(pos.tolist(), [text[pair] for pair in zip(v["lsb"], v["msb"])])
-    found.sort()
-    which = burst.tolist()
-    for p, text in found:
-        words[which[p]].append(text)
-    return [" ".join(words[b]) for b in out.tolist()]
+        pairs = list(zip(v["lsb"], v["msb"]))[:len(pos)]
+        text = {pair: f"{kind}={pair[0]:08X}" + ("" if kind == "HT_STS" else f",{pair[1]:08X}") for pair in set(pairs)}
+        at.append(pos)
+        texts += [text[pair] for pair in pairs]
+    status = np.full(count, "", dtype=object)
+    if not at:
+        return status[out].tolist()
+    where = np.concatenate(at)
+    order = np.argsort(where, kind="stable")
+    owner = burst[where[order]]
+    ordered = np.array(texts, dtype=object)[order]
+    if (np.diff(owner) > 0).all():  # at most one status sentence a burst: its text
+        status[owner] = ordered
+    else:  # several: joined in arrival order
+        for b, text in zip(owner.tolist(), ordered.tolist()):
+            status[b] = f"{status[b]} {text}" if status[b] else text
+    return status[out].tolist()
 
 
 def _phins_lines(items: Iterator[phins.Scanned | Reject], ctx: LogContext, state: _PhinsState,
