@@ -44,6 +44,7 @@ from itertools import chain
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import zstandard
 from google.protobuf.message import Message
 from mcap_protobuf.schema import build_file_descriptor_set
@@ -72,6 +73,9 @@ _CHUNK_HEAD = struct.Struct("<QQQI")  # start, end, uncompressed size, uncompres
 _INDEX_HEAD = struct.Struct("<BQHI")  # opcode, length, channel id, byte length of the entries
 _U16_U64 = struct.Struct("<HQ")
 _SEQUENCE_MASK = 0xFFFFFFFF
+# a Message record's fixed part as _MESSAGE packs it, for headers made in numpy (`write_blob`)
+_MESSAGE_DTYPE = np.dtype([("op", "u1"), ("length", "<u8"), ("channel", "<u2"), ("sequence", "<u4"), ("log", "<u8"),
+                           ("publish", "<u8")])
 # messages that carry their schema (name, encoding, text) and channel encoding: a source log's records as themselves
 SOURCE_CLASSES = (JsonMessage, RosMessage)
 
@@ -292,6 +296,57 @@ class ArchiveWriter:
                 self._finish_chunk()
                 buf, index = self._chunk, ch.index
         ch.count = count
+
+    def write_blob(self, channel_ids: np.ndarray, blob: bytes | memoryview, ends: np.ndarray, log_times_ns: np.ndarray,
+                   publish_times_ns: np.ndarray) -> None:
+        """`write_serialized` of many messages on registered channels, in order, in a few numpy steps: message i
+        is blob[ends[i - 1]:ends[i]] (from 0) on `channel_ids[i]`. The same bytes and chunks as one call each."""
+        n = len(ends)
+        ids = np.asarray(channel_ids, dtype=np.int64)
+        log_ns, publish_ns = np.asarray(log_times_ns, dtype=np.int64), np.asarray(publish_times_ns, dtype=np.int64)
+        unknown = set(np.unique(ids).tolist()) - self._by_id.keys()
+        if self._closed or unknown or not n or (log_ns < 0).any() or (publish_ns < 0).any():
+            # the message-by-message path: its errors (a closed archive, a channel not registered, a time the
+            # record cannot hold), or nothing to write
+            view, start = memoryview(blob), 0
+            for cid, end, t, p in zip(ids.tolist(), np.asarray(ends).tolist(), log_ns.tolist(), publish_ns.tolist()):
+                self.write_serialized(cid, view[start:end], t, p)
+                start = end
+            return
+        ends = np.asarray(ends, dtype=np.int64)
+        sizes = np.diff(ends, prepend=0)
+        head = np.zeros(n, dtype=_MESSAGE_DTYPE)
+        head["op"], head["length"], head["channel"] = OP_MESSAGE, _MESSAGE_FIXED + sizes, ids
+        head["log"], head["publish"] = log_ns, publish_ns
+        sequence = np.zeros(n, dtype=np.int64)
+        by_channel = {cid: np.flatnonzero(ids == cid) for cid in np.unique(ids).tolist()}
+        for cid, rows in by_channel.items():
+            sequence[rows] = self._by_id[cid].count + np.arange(len(rows))
+        head["sequence"] = sequence & _SEQUENCE_MASK
+        records = np.cumsum(sizes + _MESSAGE.size)  # each message's record end, from the first
+        data = np.frombuffer(blob, dtype=np.uint8)
+        first = 0
+        while first < n:
+            before = int(records[first - 1]) if first else 0
+            filled = len(self._chunk)
+            # the chunk closes after the message that brings it to the size limit, as write_serialized closes it
+            last = min(max(int(np.searchsorted(records, self._chunk_size - filled + before)), first), n - 1)
+            at = filled + records[first:last + 1] - before - sizes[first:last + 1] - _MESSAGE.size
+            out = np.empty(int(records[last]) - before, dtype=np.uint8)
+            header = np.zeros(len(out), dtype=bool)
+            header[((at - filled)[:, None] + np.arange(_MESSAGE.size)).ravel()] = True
+            out[header] = head[first:last + 1].view(np.uint8)
+            out[~header] = data[int(ends[first] - sizes[first]):int(ends[last])]
+            self._chunk += out.data
+            offsets = at.tolist()
+            for cid, rows in by_channel.items():
+                mine = rows[(rows >= first) & (rows <= last)]
+                ch = self._by_id[cid]
+                ch.index.extend(zip(log_ns[mine].tolist(), [offsets[i] for i in (mine - first).tolist()]))
+                ch.count += len(mine)
+            first = last + 1
+            if len(self._chunk) >= self._chunk_size:
+                self._finish_chunk()
 
     def _finish_chunk(self) -> None:
         """Compress the open chunk into a Chunk record, its Message Indexes and a Chunk Index."""

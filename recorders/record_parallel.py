@@ -135,6 +135,20 @@ class Capture:
             index.extend((number, size, log_time, publish_time))
         self._size = size
 
+    def write_blob(self, channel_ids: np.ndarray, blob: bytes | memoryview, ends: np.ndarray, log_times_ns: np.ndarray,
+                   publish_times_ns: np.ndarray) -> None:
+        """Keep serialized messages of topics registered with `channel` (numbers as it returned them), as
+        ArchiveWriter.write_blob would write them: message i is blob[ends[i - 1]:ends[i]] (from 0)."""
+        ends = np.asarray(ends, dtype=np.int64)
+        if not len(ends):
+            return
+        self._parts.append(bytes(blob[:int(ends[-1])]))
+        table = np.stack([np.asarray(channel_ids, dtype=np.int64), ends + self._size,
+                          np.asarray(log_times_ns, dtype=np.int64), np.asarray(publish_times_ns, dtype=np.int64)],
+                         axis=1)
+        self.captured.index.frombytes(table.tobytes())
+        self._size += int(ends[-1])
+
     def _register(self, topic: str, cls: type[Message], message: Any) -> int:
         if cls in SOURCE_CLASSES:  # its schema travels with it: source topics have no class to find again
             number = self._numbers[(topic, cls)] = len(self.captured.topics)
@@ -164,20 +178,21 @@ def write_captured(writer: ArchiveWriter, captured: Captured) -> None:
     table = np.frombuffer(captured.index, dtype=np.int64).reshape(-1, _FIELDS)
     if not len(table):
         return
-    numbers, ends = table[:, 0], table[:, 1].tolist()
-    log_times, publish_times = table[:, 2].tolist(), table[:, 3].tolist()
-    blob = memoryview(captured.blob)
-    cuts = [0, *(np.flatnonzero(numbers[1:] != numbers[:-1]) + 1).tolist(), len(table)]
-    for first, stop, number in zip(cuts, cuts[1:], numbers[cuts[:-1]].tolist()):
+    numbers = table[:, 0]
+    # each topic's channel is registered at its first message, as write() registers it: the messages between
+    # two such firsts go in one write_blob
+    _, firsts = np.unique(numbers, return_index=True)
+    cuts = [*sorted(firsts.tolist()), len(table)]
+    for first, stop in zip(cuts, cuts[1:]):
+        number = int(numbers[first])
         topic, name = captured.topics[number]
-        if ids[number] is None:
-            source = captured.sources.get(number)
-            ids[number] = writer.channel(topic, MESSAGE_CLASSES[name]) if source is None \
-                else writer.source_channel(topic, source)
-        starts = ends[first - 1: stop - 1] if first else [0, *ends[: stop - 1]]
-        payloads = [blob[a:b] for a, b in zip(starts, ends[first:stop])]
-        writer.write_serialized_batch(topic, payloads, log_times[first:stop],  # type: ignore[arg-type]
-                                      publish_times[first:stop])
+        source = captured.sources.get(number)
+        ids[number] = writer.channel(topic, MESSAGE_CLASSES[name]) if source is None \
+            else writer.source_channel(topic, source)
+        start = int(table[first - 1, 1]) if first else 0
+        channel_ids = np.array([-1 if i is None else i for i in ids], dtype=np.int64)[numbers[first:stop]]
+        writer.write_blob(channel_ids, memoryview(captured.blob)[start:], table[first:stop, 1] - start,
+                          table[first:stop, 2], table[first:stop, 3])
 
 
 class WorkerDied(RuntimeError):
