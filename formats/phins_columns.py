@@ -73,8 +73,11 @@ def _codes(heads: np.ndarray) -> np.ndarray | None:
 
 
 def _numbers(fields: list[list[str]], names: tuple[str, ...]) -> dict | None:
+    """Float columns of the number rule (NaN when empty), or None where it might refuse one."""
     cols = {name: number_column(float, fields[k], NAN) for k, name in enumerate(names)}
-    return None if any(v is None for v in cols.values()) else {k: np.array(v, dtype=np.float64) for k, v in cols.items()}
+    if any(v is None for v in cols.values()):
+        return None
+    return {k: np.array(v, dtype=np.float64) for k, v in cols.items()}
 
 
 def _words(fields: list[list[str]], two: bool) -> dict | None:

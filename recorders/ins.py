@@ -278,18 +278,22 @@ def _phins_columns_outputs(cols: phins_columns.PhinsColumns, block: Block, last:
         return [], tail
     clock = state.clock
     stamp = member.get("Time", absent)[out]
-    if clock.day_ns is None or (stamp < 0).any():
-        return None
+    if (stamp < 0).any():
+        return None  # a burst without TIME__: the per-line path takes the host time or words the reject
     tod = cols.values["Time"]["time_s"][stamp]
     tod_ns = np.rint(tod * NS).astype(np.int64)  # round(tod_s * NS) of `DayClock.resolve`, half to even alike
     last_tod = clock._last_tod_ns
     steps = np.diff(tod_ns) if last_tod is None else np.diff(tod_ns, prepend=last_tod)
+    day = clock.day_ns
+    if day is None:
+        return None  # the per-line path words the reject (no date)
+    times: list[int | None]
     if (np.abs(steps) > DAY_NS // 2).any():  # a midnight (or a record from before it): the clock's own steps
         times = [clock.resolve(x) for x in tod.tolist()]
     else:
-        base = clock.day_ns + clock.offset_ns
+        base = day + clock.offset_ns
         times = [base + x for x in tod_ns.tolist()]
-        clock._last_tod_ns = times[-1] - base
+        clock._last_tod_ns = int(tod_ns[-1])
     t_ns = int64_times(times)
     if t_ns is None:
         return None  # a time beyond int64: the per-line path gives such messages one by one
@@ -318,7 +322,7 @@ def _phins_columns_outputs(cols: phins_columns.PhinsColumns, block: Block, last:
     depth = np.where(has("Positi"), 0.0 - alt, NAN)
     up = pick("Speed", "up_mps")
     down = np.where(has("Speed"), 0.0 - up, NAN)
-    columns = [
+    columns: list[list[str] | np.ndarray] = [
         ["phins"] * len(out), _phins_status(cols, burst, n, count, out), pick("Positi", "latitude"),
         pick("Positi", "longitude"), depth, roll, pitch, heading, pick("Speed", "north_mps"), pick("Speed", "east_mps"),
         down, pick("StdHrp", "heading_std_deg"), pick("StdPos", "lat_std_m"), pick("StdPos", "lon_std_m"),
@@ -366,7 +370,8 @@ def _phins_status(cols: phins_columns.PhinsColumns, burst: np.ndarray, n: int, c
 
 
 def _phins_lines(items: Iterator[phins.Scanned | Reject], ctx: LogContext, state: _PhinsState,
-                 until_closed: bool = False) -> Generator[Output | Reject | Ignored | Batch, None, tuple[int, int] | None]:
+                 until_closed: bool = False
+                 ) -> Generator[Output | Reject | Ignored | Batch, None, tuple[int, int] | None]:
     """`convert_phins` line by line over `phins.scan` items: any log, damaged ones included.
 
     The burst still open at the end is left in `state`. With `until_closed`, it stops at the sentence that

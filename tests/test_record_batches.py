@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import shutil
+import struct
 from dataclasses import asdict
 from pathlib import Path
 
@@ -20,6 +21,7 @@ from formats.mcap_writer import ArchiveWriter
 from formats.nmea.framing import nmea_checksum
 from recorders.manifest import load_manifest
 from recorders.record import record
+from recorders.record_parallel import Capture, write_captured
 from recorders.value_checks import _RULES, ValueChecks
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -181,6 +183,51 @@ def test_a_batch_write_is_the_writes_one_by_one(tmp_path_factory, messages, chun
                     i = j
         paths.append(path)
     assert paths[0].read_bytes() == paths[1].read_bytes()
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from([0, 1]), st.binary(max_size=300), st.integers(0, 2 ** 40)), max_size=60),
+       st.integers(64, 2000), st.integers(0, 3))
+def test_a_blob_write_is_the_writes_one_by_one(tmp_path_factory, messages, chunk_size, before):
+    """`ArchiveWriter.write_blob` against write_serialized per message: the same file, chunks cut at the same
+    messages (small chunk sizes), after `before` messages one by one; and a worker's Capture of the same blob
+    written by `write_captured` too."""
+    out = tmp_path_factory.mktemp("w")
+    files = []
+    for how in ("one", "blob", "captured"):
+        path = out / f"{how}.mcap"
+        with ArchiveWriter(path, chunk_size=chunk_size) as w:
+            ids = [w.channel(topic, S.GnssStatus) for topic in ("/a", "/b")]
+            for k, data, t in messages[:before]:
+                w.write_serialized(ids[k], data, t, t + 1)
+            rest = messages[before:]
+            blob = b"".join(m[1] for m in rest)
+            ends = np.cumsum([len(m[1]) for m in rest], dtype=np.int64)
+            channels = np.array([ids[m[0]] for m in rest], dtype=np.int64)
+            times = np.array([m[2] for m in rest], dtype=np.int64)
+            if how == "one":
+                for k, data, t in rest:
+                    w.write_serialized(ids[k], data, t, t + 1)
+            elif how == "blob":
+                w.write_blob(channels, blob, ends, times, times + 1)
+            else:
+                capture = Capture()
+                numbers = [capture.channel(topic, S.GnssStatus) for topic in ("/a", "/b")]
+                capture.write_blob(np.array([numbers[m[0]] for m in rest], dtype=np.int64), blob, ends, times,
+                                   times + 1)
+                write_captured(w, capture.finish(None))
+        files.append(path.read_bytes())
+    assert files[0] == files[1] == files[2]
+
+
+def test_a_blob_write_refuses_as_the_one_by_one_write(tmp_path):
+    with ArchiveWriter(tmp_path / "x.mcap") as w:
+        with pytest.raises(KeyError):
+            w.write_blob(np.array([7]), b"x", np.array([1]), np.array([1]), np.array([1]))
+        cid = w.channel("/a", S.GnssStatus)
+        with pytest.raises(struct.error):  # a negative time: the Message record holds none
+            w.write_blob(np.array([cid]), b"x", np.array([1]), np.array([-1]), np.array([1]))
+        w.write_blob(np.array([], dtype=np.int64), b"", np.array([], dtype=np.int64), np.array([]), np.array([]))
 
 
 def test_a_batch_write_needs_a_channel_and_as_many_times(tmp_path):
