@@ -88,12 +88,29 @@ def _position_pair(latitude: float, longitude: float) -> str | None:
     return None
 
 
-# schema name -> (the fields it reads, a rule over their values): rules across fields, for a message and for columns
-_EXTRA: dict[str, tuple[tuple[str, ...], Callable[..., str | None]]] = {
-    "foxglove.LocationFix": (("position_covariance_type", "position_covariance"), _covariance),
-    "auvreplay.InsState": (("latitude", "longitude"), _position_pair),
+def _covariance_rows(kind: np.ndarray, cov: np.ndarray) -> np.ndarray | None:
+    """`_covariance` refusing, per row of columns: an infinity, or a negative variance (None unless `kind` is a
+    value per row and `cov` an (n, k) array)."""
+    if kind.ndim != 1 or cov.ndim != 2:
+        return None
+    with np.errstate(invalid="ignore"):
+        return (kind != 0) & (np.isinf(cov).any(axis=1) | (cov[:, ::4] < 0.0).any(axis=1))
+
+
+def _position_pair_rows(latitude: np.ndarray, longitude: np.ndarray) -> np.ndarray | None:
+    """`_position_pair` refusing, per row of columns (None unless both are a value per row)."""
+    if latitude.ndim != 1 or longitude.ndim != 1:
+        return None
+    return np.isnan(latitude) != np.isnan(longitude)
+
+
+# schema name -> (the fields it reads, a rule over their values, the rule's refusals over columns as arrays):
+# rules across fields, for a message and for columns (tests/test_record_batches.py holds the two forms together)
+_EXTRA: dict[str, tuple[tuple[str, ...], Callable[..., str | None], Callable[..., np.ndarray | None]]] = {
+    "foxglove.LocationFix": (("position_covariance_type", "position_covariance"), _covariance, _covariance_rows),
+    "auvreplay.InsState": (("latitude", "longitude"), _position_pair, _position_pair_rows),
 }
-Extra = tuple[Callable[[Any], Any], tuple[str, ...], Callable[..., str | None]] | None
+Extra = tuple[Callable[[Any], Any], tuple[str, ...], Callable[..., str | None], Callable[..., np.ndarray | None]] | None
 
 
 class ValueChecks:
@@ -112,8 +129,8 @@ class ValueChecks:
             rules = (("range_m", _ABOVE_ZERO, self.max_range_m, _RANGE_NAN_OK[name]), *rules)
         extra: Extra = None
         if name in _EXTRA:
-            fields, rule = _EXTRA[name]
-            extra = (attrgetter(*fields), fields, rule)
+            fields, rule, rows_rule = _EXTRA[name]
+            extra = (attrgetter(*fields), fields, rule, rows_rule)
         self._by_class[cls] = found = (rules, extra)
         return found
 
@@ -162,7 +179,12 @@ class ValueChecks:
                 inside = (v >= low) & (v <= high)
                 bad |= ~(inside | np.isnan(v)) if nan_ok else ~inside
         if extra is not None:
-            _, fields, rule = extra
+            _, fields, rule, rows_rule = extra
+            arrays = [columns.get(f) for f in fields]
+            if all(type(a) is np.ndarray and len(a) == n and a.dtype.kind in "fiu" for a in arrays):
+                refused = rows_rule(*(np.asarray(a, dtype=np.float64) for a in arrays))  # a value per row each
+                if refused is not None:
+                    return bad | refused
             values = [_rows(columns.get(f, 0), n) for f in fields]
             bad |= np.fromiter((rule(*row) is not None for row in zip(*values)), dtype=bool, count=n)
         return bad
