@@ -148,8 +148,9 @@ def _join(segments: list[Segment], present: np.ndarray | None = None) -> Segment
     return out, total
 
 
-def encode_columns(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[bytes, np.ndarray]:
-    """`n` messages of `cls` from columns: (their bytes one after the other, each one's end offset in them).
+def encode_rows(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """`n` messages of `cls` from columns as rows: an (n, width) byte matrix, each message's bytes at the left of
+    its row, and each message's length.
 
     `columns` maps field names to a value per row (a numpy array or sequence of
     length n) or one value for every row: doubles, ints and bools; str or str
@@ -177,10 +178,24 @@ def encode_columns(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[bytes,
         else:
             raise TypeError(f"{cls.DESCRIPTOR.full_name}.{name}: type {kind} is not encoded from columns")
     if not segments or not n:
+        return np.zeros((n, 0), dtype=np.uint8), np.zeros(n, dtype=np.int64)
+    return _join(segments)
+
+
+def encode_columns(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[bytes, np.ndarray]:
+    """`n` messages of `cls` from columns: (their bytes one after the other, each one's end offset in them).
+
+    The columns are those `encode_rows` takes.
+    """
+    out, lens = encode_rows(cls, n, columns)
+    if not out.shape[1]:
         return b"", np.zeros(n, dtype=np.int64)
-    out, lens = _join(segments)
-    ends = np.cumsum(lens)
-    return out[np.arange(out.shape[1])[None, :] < lens[:, None]].tobytes(), ends
+    return flatten(out, lens), np.cumsum(lens)
+
+
+def flatten(rows: np.ndarray, lens: np.ndarray) -> bytes:
+    """The first lens[i] bytes of each row of a byte matrix, one row after the other."""
+    return rows[np.arange(rows.shape[1])[None, :] < lens[:, None]].tobytes()
 
 
 def _is_timestamp(cls: Any, name: str) -> bool:

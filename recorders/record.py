@@ -21,7 +21,7 @@ import formats.log_blocks as log_blocks
 from formats import schemas as S
 from formats.log_blocks import ChangedWhileRead, LogFiles, blocks_of
 from formats.mcap_writer import ArchiveWriter
-from formats.proto_encode import encode_columns, split
+from formats.proto_encode import encode_columns, encode_rows, flatten, split
 from formats.records import FormatError, Reject, Where
 from formats.units import NS, archivable_ns
 
@@ -378,15 +378,32 @@ class LogRecorder:
             log_all[order == j] = p.log_times_ns
         if self.unchecked:
             self._check_shift(int(log_all[0]))
-        encoded = [encode_columns(p.message_class, len(p.log_times_ns), p.columns) for p in parts]
         writer = self.writer
-        if len(parts) > 1 or not hasattr(writer, "write_blob"):
-            # topics taking turns (a fix, its status): their bytes interleaved one by one cost more than the calls
-            self._write_parts(parts, order, encoded)
-        else:  # one topic: its blob as encoded, in one call
-            p, (blob, ends) = parts[0], encoded[0]
-            cid = writer.channel(p.topic, p.message_class)
-            writer.write_blob(np.full(n, cid, dtype=np.int64), blob, ends, log_all, p.publish_times_ns)
+        if not hasattr(writer, "write_blob"):  # a sink that takes messages one by one
+            self._write_parts(parts, order, [encode_columns(p.message_class, len(p.log_times_ns), p.columns)
+                                             for p in parts])
+        else:
+            # every part's messages as rows of bytes, put in write order: one blob, one write_blob per stretch
+            # between two parts' first messages (a channel is registered there, as write() registers it)
+            encoded = [encode_rows(p.message_class, len(p.log_times_ns), p.columns) for p in parts]
+            rows = [np.flatnonzero(order == j) for j in range(len(parts))] if len(parts) > 1 else [np.arange(n)]
+            width = max(mat.shape[1] for mat, _ in encoded)
+            matrix = encoded[0][0] if len(parts) == 1 else np.zeros((n, width), dtype=np.uint8)
+            lens = encoded[0][1] if len(parts) == 1 else np.empty(n, dtype=np.int64)
+            publish_all = np.empty(n, dtype=np.int64)
+            for p, (mat, mat_lens), mine in zip(parts, encoded, rows):
+                if len(parts) > 1:
+                    matrix[mine, :mat.shape[1]] = mat
+                    lens[mine] = mat_lens
+                publish_all[mine] = p.publish_times_ns
+            blob, ends = flatten(matrix, lens), np.cumsum(lens)
+            firsts = sorted((int(mine[0]), j) for j, mine in enumerate(rows) if len(mine))
+            ids = np.zeros(n, dtype=np.int64)
+            for (first, j), stop in zip(firsts, [f for f, _ in firsts[1:]] + [n]):
+                ids[rows[j]] = writer.channel(parts[j].topic, parts[j].message_class)
+                at = int(ends[first - 1]) if first else 0
+                writer.write_blob(ids[first:stop], memoryview(blob)[at:], ends[first:stop] - at, log_all[first:stop],
+                                  publish_all[first:stop])
         self._batch_stats(batch.keys, [(p.topic, p.log_times_ns) for p in parts], log_all)
 
     def _write_parts(self, parts: list[Columns], order: np.ndarray, encoded: list[tuple[bytes, np.ndarray]]) -> None:
