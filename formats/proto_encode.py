@@ -158,6 +158,8 @@ def encode_rows(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[np.ndarra
     double. Fields not named stay unset. Raises TypeError for a field this
     encoder does not write (another sub-message, bytes, a repeated non-double).
     """
+    if not n:  # no rows: nothing to encode (an empty (0, k) column has no row length to reshape by)
+        return np.zeros((0, 0), dtype=np.uint8), np.zeros(0, dtype=np.int64)
     segments: list[Segment] = []
     for name, _number, kind, repeated, tag in _fields(cls):
         if name not in columns:
@@ -177,7 +179,7 @@ def encode_rows(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[np.ndarra
             segments.append(_timestamps(n, tag, values))
         else:
             raise TypeError(f"{cls.DESCRIPTOR.full_name}.{name}: type {kind} is not encoded from columns")
-    if not segments or not n:
+    if not segments:
         return np.zeros((n, 0), dtype=np.uint8), np.zeros(n, dtype=np.int64)
     return _join(segments)
 

@@ -36,6 +36,9 @@ from __future__ import annotations
 import math
 from collections.abc import Generator, Iterable, Iterator
 from math import isnan
+from typing import Any
+
+import numpy as np
 
 from formats import schemas as S
 from formats.lines import PREFIX_STYLES
@@ -47,7 +50,18 @@ from formats.novatel import scan as novatel_scan
 from formats.records import Reject, Where
 
 from . import gps_columns
-from .base import Batch, BlockConverter, Converter, Ignored, LogContext, Output
+from .base import (
+    ROWS_PER_BATCH,
+    Batch,
+    BlockConverter,
+    Columns,
+    Converter,
+    Ignored,
+    LogContext,
+    Output,
+    batched,
+    int64_times,
+)
 from .clock import DayClock
 from .gnss_covariance import Covariance, fix_covariance, sigma_covariance
 from .gnss_velocity import NO_VELOCITY, components, gnss_velocity
@@ -367,14 +381,122 @@ def novatel_velocity(ctx: LogContext, t_ns: int, source: str, speed: float, trac
 _GNSS_KINDS = frozenset(("BestPos", "BestVel"))
 
 
-def convert_novatel(data: bytes, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_novatel(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored | Batch]:
     """NovAtel BESTPOS/BESTVEL logs, ASCII (long or short header) or binary."""
-    topics = (f"/{ctx.vehicle}/gps", f"/{ctx.vehicle}/gps/status", f"/{ctx.vehicle}/{VELOCITY}")
+    rows = _NovatelRows(ctx)
     for epoch in novatel_scan_epochs(data, ctx, _GNSS_KINDS):
-        if isinstance(epoch, Reject):
-            yield epoch
-        else:
-            yield from _novatel_scan_outputs(epoch, ctx, topics)
+        reject = epoch if isinstance(epoch, Reject) else rows.add(epoch)
+        if reject is not None or rows.full:
+            yield from batched(ctx, rows.take())
+            if reject is not None:
+                yield reject
+    yield from batched(ctx, rows.take())
+
+
+class _NovatelRows:
+    """Epochs' fix, status and velocity as rows of their builders' arguments (what `_novatel_scan_outputs` would
+    build), taken as one Batch whose items one by one are that function's outputs of the same epochs."""
+
+    def __init__(self, ctx: LogContext):
+        self.ctx = ctx
+        self.topics = (f"/{ctx.vehicle}/gps", f"/{ctx.vehicle}/gps/status", f"/{ctx.vehicle}/{VELOCITY}")
+        self.epochs: list[dict[str, novatel_scan.Scanned]] = []
+        self.order: list[int] = []  # per message, its topic: 0 fix, 1 status, 2 velocity
+        self.keys: list[int] = []   # per message, its record's byte offset
+        self.last: Where = Where(0)
+        self.parts: tuple[list, list, list] = ([], [], [])  # per topic: (t, publish, builder arguments...) rows
+
+    @property
+    def full(self) -> bool:
+        """Whether the rows should be taken now."""
+        return len(self.order) >= ROWS_PER_BATCH
+
+    def add(self, epoch: dict[str, novatel_scan.Scanned]) -> Reject | None:
+        """One epoch's messages as rows (`_novatel_scan_outputs`, step for step), or its Reject."""
+        ctx = self.ctx
+        t = novatel_scan_time(epoch, ctx)
+        if isinstance(t, Reject):
+            return t
+        bp, bv = epoch.get("BestPos"), epoch.get("BestVel")
+        where_item = next(iter(epoch.values()))
+        fix, status, velocity = self.parts
+        quality = satellites = -1
+        if bp is not None:
+            pos = novatel_scan.BEST_POS._make(bp[4])
+            quality, satellites = NOVATEL_QUALITY.get(pos.position_type, -1), pos.satellites_used
+            if pos.solution_status == "SOL_COMPUTED" and pos.position_type != "NONE":
+                u = pos.undulation_m
+                alt = pos.height_msl_m if isnan(u) else pos.height_msl_m + u
+                cov, kind = sigma_covariance(pos.lat_std_m, pos.lon_std_m, pos.height_std_m)
+                fix.append((t, novatel_publish_ns(bp, t, ctx), pos.latitude, pos.longitude, alt, cov, kind))
+                self.order.append(0)
+                self.keys.append(bp[5])
+                where_item = bp
+        speed = course = NAN
+        source = "novatel:" + ",".join([item[1] for item in epoch.values()])
+        moving = None
+        if bv is not None:
+            vel = novatel_scan.BEST_VEL._make(bv[4])
+            if vel.solution_status == "SOL_COMPUTED":
+                speed, course = vel.horizontal_speed_mps, vel.track_deg
+                # `gnss_velocity`'s components: from the speed and course when both are finite
+                north, east = components(speed, course) if math.isfinite(speed) and math.isfinite(course) \
+                    else (NAN, NAN)
+                moving = (t, novatel_publish_ns(bv, t, ctx), north, east, vel.vertical_speed_mps, speed, course,
+                          source)
+        status.append((t, novatel_publish_ns(where_item, t, ctx), quality, satellites, source, speed, course))
+        self.order.append(1)
+        self.keys.append(where_item[5])
+        self.last = novatel_scan.where_of(where_item)
+        if moving is not None:
+            velocity.append(moving)
+            self.order.append(2)
+            self.keys.append(bv[5])  # type: ignore[index]
+            self.last = novatel_scan.where_of(bv)  # type: ignore[arg-type]
+        self.epochs.append(epoch)
+        return None
+
+    def take(self) -> Batch | None:
+        """The rows so far as one Batch (None without any), and a fresh start."""
+        if not self.order:
+            return None
+        ctx, topics, epochs = self.ctx, self.topics, self.epochs
+        fix, status, velocity = self.parts
+        order, keys, last = self.order, self.keys, self.last
+        self.epochs, self.order, self.keys, self.parts = [], [], [], ([], [], [])
+
+        def outputs() -> Iterator[Output | Reject | Ignored]:
+            for epoch in epochs:
+                yield from _novatel_scan_outputs(epoch, ctx, topics)
+
+        times = [int64_times([r[0] for r in rows]) if rows else np.zeros(0, dtype=np.int64) for rows in (
+            fix, status, velocity)]
+        publish = [int64_times([r[1] for r in rows]) if rows else np.zeros(0, dtype=np.int64) for rows in (
+            fix, status, velocity)]
+        if any(t is None for t in times + publish):  # a time beyond int64: the messages one by one
+            return Batch([], np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), last, outputs, one_by_one=True)
+        vehicle = ctx.vehicle
+        f: list[tuple] = list(zip(*fix)) if fix else [()] * 7
+        st: list[tuple] = list(zip(*status))
+        v: list[tuple] = list(zip(*velocity)) if velocity else [()] * 8
+        columns: tuple[dict[str, Any], ...] = (
+            {"timestamp": times[0], "frame_id": vehicle, "latitude": np.array(f[2], dtype=np.float64),
+             "longitude": np.array(f[3], dtype=np.float64), "altitude": np.array(f[4], dtype=np.float64),
+             "position_covariance": np.array(f[5], dtype=np.float64).reshape(-1, 9),
+             "position_covariance_type": np.array(f[6], dtype=np.int64)},
+            {"timestamp": times[1], "frame_id": vehicle, "fix_quality": np.array(st[2], dtype=np.int64),
+             "satellites": np.array(st[3], dtype=np.int64), "hdop": NAN, "source_format": list(st[4]),
+             "speed_over_ground_mps": np.array(st[5], dtype=np.float64),
+             "course_over_ground_deg": np.array(st[6], dtype=np.float64), "heading_deg": NAN},
+            {"timestamp": times[2], "frame_id": vehicle, "velocity_north_mps": np.array(v[2], dtype=np.float64),
+             "velocity_east_mps": np.array(v[3], dtype=np.float64), "velocity_up_mps": np.array(v[4], dtype=np.float64),
+             "speed_over_ground_mps": np.array(v[5], dtype=np.float64),
+             "course_over_ground_deg": np.array(v[6], dtype=np.float64), "speed_std_mps": NAN,
+             "source_format": list(v[7])},
+        )
+        parts = [Columns(topic, cls, cols, t, p) for topic, cls, cols, t, p in zip(
+            topics, (S.LocationFix, S.GnssStatus, S.GnssVelocity), columns, times, publish)]
+        return Batch(parts, np.array(order, dtype=np.int64), np.array(keys, dtype=np.int64), last, outputs)
 
 
 CONVERTERS: dict[str, Converter] = {"nmea": convert_nmea, "novatel": convert_novatel}

@@ -9,10 +9,12 @@ from hypothesis import strategies as st
 
 from formats.novatel import logs as nv
 from formats.novatel import scan as novatel_scan
+from formats.proto_encode import encode_columns, split
 from formats.records import Reject
 from formats.units import NS as S1
 from recorders import gps, ins
-from recorders.base import LogContext, Output
+from recorders.base import Batch, LogContext, Output, one_by_one
+from recorders.value_checks import ValueChecks
 from tests import reference_converters as reference
 
 T0 = 1476259201_250_000_000  # 2016-10-12T08:00:01.25Z
@@ -104,3 +106,48 @@ def test_fast_novatel_paths_equal_the_record_based_references(data: bytes, offse
     ctx = LogContext("boat", clock_offset_ns=offset_s * S1)
     assert _outputs(gps.convert_novatel(data, ctx)) == _outputs(reference.convert_novatel_reference(data, ctx))
     assert _outputs(ins.convert_span(data, ctx)) == _outputs(reference.convert_span_reference(data, ctx))
+
+
+def assert_batch_is_its_items(batch: Batch) -> None:
+    """A Batch's columns are its items' messages: topics in `order`, records in `keys`, times, the bytes each
+    column encodes to, and the rows the value checks refuse."""
+    outs = list(batch.outputs())
+    assert all(type(o) is Output for o in outs)
+    assert [batch.parts[j].topic for j in batch.order.tolist()] == [o.topic for o in outs]
+    assert batch.keys.tolist() == [o.where.offset for o in outs]
+    for part in batch.parts:
+        mine = [o for o in outs if o.topic == part.topic]
+        n = len(mine)
+        assert part.log_times_ns.tolist() == [o.log_time_ns for o in mine]
+        assert part.publish_times_ns.tolist() == [o.publish_time_ns for o in mine]
+        assert split(*encode_columns(part.message_class, n, part.columns)) == [o.message.SerializeToString()
+                                                                               for o in mine]
+        checks = ValueChecks()
+        refused = checks.refused_rows(part.message_class, n, part.columns, part.log_times_ns).tolist()
+        assert refused == [checks.problem(o.message, o.log_time_ns) is not None for o in mine]
+
+
+@settings(max_examples=200, deadline=None)
+@given(_log(), st.integers(-2, 2))
+def test_novatel_gnss_batches_are_their_items_and_the_reference(data: bytes, offset_s: int) -> None:
+    ctx = LogContext("boat", clock_offset_ns=offset_s * S1, batches=True)
+    items = list(gps.convert_novatel(data, ctx))
+    for item in items:
+        if type(item) is Batch and not item.one_by_one:
+            assert_batch_is_its_items(item)
+    assert _outputs(one_by_one(items)) == _outputs(reference.convert_novatel_reference(data, ctx))
+
+
+def test_a_long_novatel_log_comes_in_batches_of_bounded_size() -> None:
+    lines = []
+    for k in range(700):
+        t = T0 + k * S1
+        lines += [nv.encode_bestposa(t, 45.7 + k * 1e-6, 126.6, 120.0 + k, undulation_m=-8.0),
+                  nv.encode_bestvela(t, 1.5, 45.0 + k % 360)]
+    data = "".join(lines).encode()
+    items = list(gps.convert_novatel(data, LogContext("boat", batches=True)))
+    assert [type(item) for item in items] == [Batch, Batch, Batch]  # 2,100 messages: 1,024-odd a batch
+    assert sum(len(item.order) for item in items) == 2100
+    for item in items:
+        assert_batch_is_its_items(item)
+    assert _outputs(one_by_one(items)) == _outputs(reference.convert_novatel_reference(data, LogContext("boat")))
