@@ -40,7 +40,7 @@ from formats.scanned import positions
 from formats.schemas import UsblObservation, timestamp
 from formats.units import NS, archivable_ns
 
-from .base import BlockConverter, Converter, LogContext, Output, blockwise, output
+from .base import Batch, BlockConverter, Converter, Ignored, LogContext, Output, Rows, batched, blockwise, output
 from .modem import (
     NO_USBL_TIME,
     RegexOptions,
@@ -134,15 +134,24 @@ def fix_time(arrival: int, travel_s: float) -> int:
     return arrival - round(travel_s * NS) if math.isfinite(travel_s) else arrival
 
 
+# UsblObservation's fields in `AM.usbl_observation`'s order after the node: the columns of a Rows of observations
+USBL_FIELDS = ("target", "source_format", "travel_time_s", "range_m", "bearing_deg", "elevation_deg", "phase_x_rad",
+               "phase_y_rad", "relative_east_m", "relative_north_m", "relative_up_m", "integrity", "rssi_db")
+
+
 class _ScanEmitter:
-    """`_emit` on scanned values, with what is the same for every observation of a log worked out once."""
+    """`_emit` on scanned values, with what is the same for every observation of a log worked out once: each
+    observation added to `rows` (as the arguments of `AM.usbl_observation`), or its Reject."""
 
     def __init__(self, ctx: LogContext, opts: UsblOptions) -> None:
         self.ctx, self.opts = ctx, opts
         self.topic, self.offset_ns = f"/{ctx.vehicle}/{SUFFIX}", ctx.clock_offset_ns
         self.targets: dict[int, str] = {}
+        vehicle = ctx.vehicle
+        self.rows = Rows(self.topic, UsblObservation, USBL_FIELDS,
+                         lambda t, *values: AM.usbl_observation(t, vehicle, *values), {"node": vehicle})
 
-    def __call__(self, first: evs.Scanned, parts: dict[str, list]) -> Output | Reject:
+    def __call__(self, first: evs.Scanned, parts: dict[str, list]) -> Reject | None:
         _, v, offset, line, host = first
         if host is None:
             own = usbl_own_time_ns(self.ctx, v[LONG.measurement_time_s])
@@ -162,16 +171,18 @@ class _ScanEmitter:
         target = self.targets.get(address)
         if target is None:
             target = self.targets[address] = self.ctx.vehicle_for_address(address)
-        msg = AM.usbl_observation(t, self.ctx.vehicle, target, "evologics", *values)
-        return Output(self.topic, msg, t, publish, Where(offset, line, host))
+        self.rows.add(t, publish, Where(offset, line, host), (target, "evologics", *values))
+        return None
 
 
-def _evologics_scan(data: LogText, ctx: LogContext, opts: UsblOptions) -> Iterator[Output | Reject]:
+def _evologics_scan(data: LogText, ctx: LogContext, opts: UsblOptions) -> Iterator[Output | Reject | Ignored | Batch]:
     emit = _ScanEmitter(ctx, opts)
+    rows = emit.rows
     first: evs.Scanned | None = None
     parts: dict[str, list] = {}
     for item in evs.scan(data, ctx.prefix):
         if isinstance(item, Reject):
+            yield from batched(ctx, rows.take())
             yield item
             continue
         keyword, v = item[0], item[1]
@@ -184,13 +195,22 @@ def _evologics_scan(data: LogText, ctx: LogContext, opts: UsblOptions) -> Iterat
                     and abs(v[LONG.measurement_time_s] - head[LONG.measurement_time_s]) <= MATCH_S):
                 parts[keyword] = v
                 continue
-            yield emit(first, parts)
+            reject = emit(first, parts)
+            if reject is not None or rows.full:
+                yield from batched(ctx, rows.take())
+                if reject is not None:
+                    yield reject
         first, parts = item, {keyword: v}
     if first is not None:
-        yield emit(first, parts)
+        reject = emit(first, parts)
+        yield from batched(ctx, rows.take())
+        if reject is not None:
+            yield reject
+    else:
+        yield from batched(ctx, rows.take())
 
 
-def convert_evologics(data: LogText, ctx: LogContext) -> Iterator[Output | Reject]:
+def convert_evologics(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | Ignored | Batch]:
     """EvoLogics USBL log -> one UsblObservation per measurement."""
     return _evologics_scan(data, ctx, usbl_options(ctx))
 

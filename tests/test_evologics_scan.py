@@ -4,6 +4,7 @@ tuples, each judged by the record-based code it replaces, on built logs with dam
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -15,8 +16,9 @@ from formats.evologics import scan as evs
 from formats.lines import iter_lines
 from formats.schemas import UsblObservation, timestamp
 from recorders import modem, usbl
-from recorders.base import LogContext, Output
+from recorders.base import Batch, LogContext, Output, one_by_one
 from tests import reference_converters as reference
+from tests.test_novatel_scan import assert_batch_is_its_items
 
 PREFIXES = [
     "", "2016-10-12T02:00:03.263140Z ", "2016-10-12T23:59:59.5Z\t|", "[2016-10-12T02:00:03.263Z] ",
@@ -120,7 +122,14 @@ def test_fast_usbl_path_equals_the_record_based_reference(data, options, offset_
     ctx = LogContext("buoy1", options=options, address_book={3: "follower", 11: "buoy1"},
                      clock_offset_ns=offset_s * 1_000_000_000)
     fast = list(usbl.convert_evologics(data, ctx))
-    assert _outputs(fast) == _outputs(list(reference.convert_usbl_evologics_reference(data, ctx)))
+    expected = _outputs(list(reference.convert_usbl_evologics_reference(data, ctx)))
+    assert _outputs(fast) == expected
+    # as the recording takes them: Batches of observations (each one its items), in the same order
+    items = list(usbl.convert_evologics(data, replace(ctx, batches=True)))
+    for item in items:
+        if type(item) is Batch and not item.one_by_one:
+            assert_batch_is_its_items(item)
+    assert _outputs(list(one_by_one(items))) == expected
 
 
 _DOUBLE = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.just(-0.0), st.just(0.0))
