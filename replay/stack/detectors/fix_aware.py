@@ -23,6 +23,11 @@ So at each epoch the test is the one that is informative at that fix age:
   h_z serves both and the open-loop ranking within the fresh epochs is
   chi-square's.
 
+Calibrated (`calibrate`, marked in the method table): each test's threshold
+flags the target share of the training trial's normal rows of its own fix
+age, and the closed-loop decision runs through the running threshold
+(`replay.stack.running_threshold`), as drift_reference's does.
+
 The choice is by fix age, not learned per trial: on development seeds
 (9101-9104 trained on 9100) the training set ranked chi-square above the
 drift residual in every condition, with and without USBL, while the test
