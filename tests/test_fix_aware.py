@@ -123,3 +123,38 @@ def test_its_why_line_names_the_test_that_decided() -> None:
     assert why_line(base, fa).startswith("fresh USBL fix: f2 9.80 > gate 6.63")
     quiet = base._replace(usbl_residual_m=math.nan, flagged=False, score=0.4)
     assert why_line(quiet, fa).startswith("no fresh fix: score 0.40 <= h 2.50 sd")
+
+
+def test_calibration_sets_each_part_on_its_own_rows() -> None:
+    """Without a fresh fix drift_reference's h flags 2 % of those rows; with one the gate flags 2 % of f2."""
+    rng = np.random.default_rng(3)
+    x = np.full((1000, len(FEATURE_NAMES)), np.nan)
+    x[:, F2] = rng.chisquare(1, 1000) * 2.0            # an f2 twice chi-square's: the fixed gate flags ~9 %
+    x[:, RES] = rng.normal(0, 6, 1000)
+    x[:, Z] = x[:, RES] / 2.0                           # a drift_z wider than its scale says
+    x[500:, USBL] = 1.0                                 # half the rows with a fresh fix
+    fa, dr = _trained()
+    assert METHOD_TABLE["fix_aware"].calibrated
+    assert fa.calibrate(x, 0.02)
+    assert dr.calibrate(x[:500], 0.02)
+    assert fa.threshold == dr.threshold > 2.5 and fa.drift.threshold_z == dr.threshold_z
+    s = fa.scores(x)
+    assert np.mean(s[:500] > fa.threshold) == pytest.approx(0.02, abs=0.003)
+    assert np.mean(s[500:] > fa.threshold) == pytest.approx(0.02, abs=0.003)
+    assert fa.gate == fa.thresholds["chi_square_gate"] > chi_square_threshold(0.01)
+    assert fa.decide(x[700]).flagged == bool(x[700, F2] > fa.gate)
+
+
+def test_a_part_with_too_few_rows_keeps_its_threshold() -> None:
+    """All rows without a fix (a trial without USBL): the gate stays chi-square's; none with: h stays 2.5."""
+    rng = np.random.default_rng(4)
+    x = np.full((400, len(FEATURE_NAMES)), np.nan)
+    x[:, F2] = rng.chisquare(1, 400) * 2.0
+    x[:, RES] = rng.normal(0, 6, 400)
+    x[:, Z] = x[:, RES] / 2.0
+    fa, _ = _trained()
+    assert fa.calibrate(x, 0.02) and fa.gate == chi_square_threshold(0.01) and fa.threshold > 2.5
+    x[:, USBL] = 0.5
+    fa, _ = _trained()
+    assert fa.calibrate(x, 0.02) and fa.threshold == 2.5 and fa.gate > chi_square_threshold(0.01)
+    assert not fa.calibrate(x[:100], 0.02)

@@ -77,6 +77,10 @@ RANGES: dict[str, Range] = {
     "stack.seed": Range(0, SEED_MAX, "[]", "a random seed (numpy: [0, 2^32))"),
     "stack.detection_fpr_target": Range(0, 1, "()", "a false-alarm rate on training: a probability"),
     "stack.drift_reference_z": Range(0, 1e3, "(]", "a threshold in sigmas: positive"),
+    "stack.running_threshold_gain": Range(0, 1, "[]", "a log step per epoch: 0 (off) to 1 (g moves e-fold)"),
+    "stack.running_threshold_share": Range(0, 1, "()", "the share of marginal exceedances held: a probability"),
+    "stack.running_threshold_band": Range(1, 1e3, "(]", "a marginal exceedance's ceiling, a multiple above 1"),
+    "stack.running_threshold_floor": Range(0, 1, "(]", "the lowest multiple of the starting threshold"),
     # ANFIS (sections 10 and 12)
     "stack.anfis.mfs_per_input": Range(1, 10, "[]", "membership functions per input: the grid has n^3 rules"),
     "stack.anfis.epochs": Range(0, 100_000, "[]", "training epochs"),

@@ -169,6 +169,14 @@ class StackConfig:
     # of the training trial's normal epochs after t_a, where the training set holds them (replay.stack.calibration);
     # on: in band in 10 of 18 conditions against 5 at the configured multiple (docs/detection.md section 5)
     calibrate_thresholds: bool = True
+    # ... and decide closed loop against that threshold times a running multiplier that holds the false-alarm
+    # rate per trial (replay.stack.running_threshold): log g += gain * (1[h < score < band h] - share), from
+    # min(calibrated, drift_reference_z), never under floor times that; gain 0: the calibrated threshold alone
+    # (docs/detection.md section 5, docs/design.md section 14)
+    running_threshold_gain: float = 0.04
+    running_threshold_share: float = 0.035
+    running_threshold_band: float = 1.5
+    running_threshold_floor: float = 0.6
     training_source: str = "own"                  # "own" window, a "given" TrainingSet, or "both"
     # anfis_hybrid's inputs, by name from replay.stack.features.FEATURE_NAMES
     hybrid_inputs: tuple[str, ...] = ("f2", "repeat_count", "drift_residual_m", "usbl_residual_m")

@@ -156,7 +156,7 @@ METHOD_TABLE: dict[str, Method] = {m.name: m for m in (
     Method("fix_aware", "detector", "detect", _TRAINED, "ACKF + DR error reference, chi-square under a fresh fix",
            "fixaw", (120, 90, 60), fix_aware.FixAwareDetector, _WIDE, fix_aware.why_line,
            score_plot=("fix_aware vs h (sd)", "chi-square's h*sqrt(f2/gate) with a fresh fix, else drift_reference's"),
-           pooled_training=True),
+           pooled_training=True, calibrated=True),
     _positioning("kmcdf1", "KMCDF, delays only", (255, 0, 180)),
     _positioning("kmcdf2", "KMCDF, delays and phases", (240, 228, 66)),
     _positioning("gar", "GAR (geometric average)", (0, 210, 0)),

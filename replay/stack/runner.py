@@ -67,6 +67,7 @@ from replay.stack.methods import method
 from replay.stack.model import metric_scales_scalar, slant_to_horizontal
 from replay.stack.open_loop import OpenLoopScores
 from replay.stack.runner_options import RunnerOptions, Start, default_training_threads
+from replay.stack.running_threshold import RunningThreshold
 from replay.stack.tracking import runner_tracker
 from replay.stack.training_window import TrainingWindow
 
@@ -87,6 +88,8 @@ class _Method:
     state: State2
     features: tuple[str, ...] = PAPER_FEATURES   # the columns its detector reads (the method table's)
     detectors: dict[str, Detector | None] = field(default_factory=dict)   # per leader, once trained
+    running: bool = False            # decides against a running threshold (replay.stack.running_threshold)
+    threshold: RunningThreshold | None = None   # ... every leader's epochs together, from its first decision
 
 
 @dataclass(frozen=True)
@@ -152,7 +155,9 @@ class CooperativeRunner:
         self._entries = [method(n) for n in names]
         if any(e.detects for e in self._entries) and "ackf" not in names:
             self._entries.append(method("ackf"))    # the open-loop feature source for ROC curves
-        self._methods = [_Method(e.name, e.filter, s0, e.features or PAPER_FEATURES) for e in self._entries]
+        running = config.running_threshold_gain > 0.0
+        self._methods = [_Method(e.name, e.filter, s0, e.features or PAPER_FEATURES,
+                                 running=running and e.calibrated) for e in self._entries]
         self._ackf = next((m for m in self._methods if m.kind == "ackf"), None)
         # the gated ACKF the lagged residual starts from (replay.stack.features); never reported
         self._reference: _Method | None = None
@@ -405,6 +410,10 @@ class CooperativeRunner:
             self.parts.trainer.rows.append((ep.t_s, ep.leader, f1, f2, f3, *extra, ep.z - truth, label))
         elif m.kind == "detect" and ep.t_s > self.training_end_s and (det := m.detectors.get(ep.leader)) is not None:
             decision = det.decide(_columns(m, f1, f2, f3, extra))
+            if m.running:       # the closed-loop decision only: open-loop scores are the detector's own
+                if m.threshold is None:
+                    m.threshold = RunningThreshold.for_detector(self.config, float(getattr(det, "threshold", NAN)))
+                decision = m.threshold.decide(decision)
             if decision.flagged:
                 det.reset()
             action, used_inn, compensated = self.parts.isolation.act(m.name, m.state, decision, inn, ep)

@@ -23,6 +23,11 @@ So at each epoch the test is the one that is informative at that fix age:
   h_z serves both and the open-loop ranking within the fresh epochs is
   chi-square's.
 
+Calibrated (`calibrate`, marked in the method table): each test's threshold
+flags the target share of the training trial's normal rows of its own fix
+age, and the closed-loop decision runs through the running threshold
+(`replay.stack.running_threshold`), as drift_reference's does.
+
 The choice is by fix age, not learned per trial: on development seeds
 (9101-9104 trained on 9100) the training set ranked chi-square above the
 drift residual in every condition, with and without USBL, while the test
@@ -38,7 +43,9 @@ import math
 import numpy as np
 
 from replay.events import EpochResult
+from replay.stack.calibration import MIN_ROWS
 from replay.stack.config import StackConfig
+from replay.stack.detectors.anfis_hybrid import fpr_threshold
 from replay.stack.detectors.base import Decision
 from replay.stack.detectors.chi_square import chi_square_threshold
 from replay.stack.detectors.drift_reference import DriftReferenceDetector
@@ -88,6 +95,32 @@ class FixAwareDetector:
         """Train the drift_reference part on wide rows (n, F)."""
         self.drift.train(features, range_error, labels)
         self._after_training()
+
+    def calibrate(self, rows: np.ndarray, target: float) -> bool:
+        """Each part on its own rows (n, F): drift_reference's h without a fresh fix, chi-square's gate with one.
+
+        The two parts are two tests on two populations of epochs (by fix
+        age), so each takes the threshold flagging ``target`` of the
+        training trial's normal rows of its own kind: the rows without a
+        fresh fix through `DriftReferenceDetector.calibrate`, the gate as the
+        (1 - target) quantile of f2 over the rows with one (f2 > gate then
+        flags, whatever h is). A part with fewer than `MIN_ROWS` rows keeps
+        its threshold (without USBL no row has a fix; with KMCDF's fixes
+        every one has); False when neither moved.
+        """
+        x = np.asarray(rows, dtype=float).reshape(-1, len(FEATURE_NAMES))
+        fresh = np.isfinite(x[:, _USBL])
+        drift_done = self.drift.calibrate(x[~fresh], target)
+        f2 = x[fresh, _F2]
+        f2 = f2[np.isfinite(f2)]
+        gate = fpr_threshold(np.abs(f2), target) if f2.size >= MIN_ROWS else math.nan
+        chi_done = gate > 0.0       # NaN (too few rows) compares False
+        if chi_done:
+            self.gate = gate
+        self._after_training()
+        if chi_done:
+            self.thresholds["calibration_rows_fresh"] = float(f2.size)
+        return drift_done or chi_done
 
     def _after_training(self) -> None:
         self.threshold = self.drift.threshold
