@@ -90,14 +90,13 @@ class StaleAwareDetector:
         x = np.asarray(rows, dtype=float).reshape(-1, len(FEATURE_NAMES))
         plain = ~(x[:, _REPEAT] > 0) & ~np.isfinite(x[:, _USBL])
         done = self.inner.drift.calibrate(x[plain], target)
-        self.inner._after_training()    # noqa: SLF001 - fix_aware takes its threshold from drift_reference
         self._after()
         return done
 
     def _after(self) -> None:
-        self.threshold = self.inner.drift.threshold
-        self.inner.threshold = self.threshold
-        self.thresholds = {**self.inner.thresholds, "stale_t1_m": self.t1}
+        # fix_aware's threshold is drift_reference's (calibrated here, not by fix_aware)
+        self.threshold = self.inner.threshold = self.inner.drift.threshold
+        self.thresholds = {**self.inner.drift.thresholds, "chi_square_gate": self.inner.gate, "stale_t1_m": self.t1}
 
     def _stale(self, rows: np.ndarray) -> np.ndarray:
         """True where a row is a repeated range with a model innovation and no fresh fix."""
