@@ -189,7 +189,7 @@ class UsblObservation(_message.Message):
     def __init__(self, timestamp: _Optional[_Union[datetime.datetime, _timestamp_pb2.Timestamp, _Mapping]] = ..., node: _Optional[str] = ..., target: _Optional[str] = ..., travel_time_s: _Optional[float] = ..., range_m: _Optional[float] = ..., bearing_deg: _Optional[float] = ..., elevation_deg: _Optional[float] = ..., phase_x_rad: _Optional[float] = ..., phase_y_rad: _Optional[float] = ..., relative_east_m: _Optional[float] = ..., relative_north_m: _Optional[float] = ..., relative_up_m: _Optional[float] = ..., source_format: _Optional[str] = ..., integrity: _Optional[float] = ..., rssi_db: _Optional[float] = ...) -> None: ...
 
 class Detection(_message.Message):
-    __slots__ = ("timestamp", "follower", "leader", "method", "flagged", "score", "threshold", "feature_innovation_m", "feature_mahalanobis2", "feature_r_adapted_m2", "label", "isolation_capped", "repeat_count", "dr_residual_m", "leader_consistency_m", "usbl_residual_m", "lag_residual_m", "drift_residual_m", "drift_cusum_m", "exclusion_residual_m", "drift_z", "exclusion_z")
+    __slots__ = ("timestamp", "follower", "leader", "method", "flagged", "score", "threshold", "feature_innovation_m", "feature_mahalanobis2", "feature_r_adapted_m2", "label", "isolation_capped", "repeat_count", "dr_residual_m", "leader_consistency_m", "usbl_residual_m", "lag_residual_m", "drift_residual_m", "drift_cusum_m", "exclusion_residual_m", "drift_z", "exclusion_z", "model_innovation_m")
     TIMESTAMP_FIELD_NUMBER: _ClassVar[int]
     FOLLOWER_FIELD_NUMBER: _ClassVar[int]
     LEADER_FIELD_NUMBER: _ClassVar[int]
@@ -212,6 +212,7 @@ class Detection(_message.Message):
     EXCLUSION_RESIDUAL_M_FIELD_NUMBER: _ClassVar[int]
     DRIFT_Z_FIELD_NUMBER: _ClassVar[int]
     EXCLUSION_Z_FIELD_NUMBER: _ClassVar[int]
+    MODEL_INNOVATION_M_FIELD_NUMBER: _ClassVar[int]
     timestamp: _timestamp_pb2.Timestamp
     follower: str
     leader: str
@@ -234,7 +235,8 @@ class Detection(_message.Message):
     exclusion_residual_m: float
     drift_z: float
     exclusion_z: float
-    def __init__(self, timestamp: _Optional[_Union[datetime.datetime, _timestamp_pb2.Timestamp, _Mapping]] = ..., follower: _Optional[str] = ..., leader: _Optional[str] = ..., method: _Optional[str] = ..., flagged: _Optional[bool] = ..., score: _Optional[float] = ..., threshold: _Optional[float] = ..., feature_innovation_m: _Optional[float] = ..., feature_mahalanobis2: _Optional[float] = ..., feature_r_adapted_m2: _Optional[float] = ..., label: _Optional[int] = ..., isolation_capped: _Optional[bool] = ..., repeat_count: _Optional[float] = ..., dr_residual_m: _Optional[float] = ..., leader_consistency_m: _Optional[float] = ..., usbl_residual_m: _Optional[float] = ..., lag_residual_m: _Optional[float] = ..., drift_residual_m: _Optional[float] = ..., drift_cusum_m: _Optional[float] = ..., exclusion_residual_m: _Optional[float] = ..., drift_z: _Optional[float] = ..., exclusion_z: _Optional[float] = ...) -> None: ...
+    model_innovation_m: float
+    def __init__(self, timestamp: _Optional[_Union[datetime.datetime, _timestamp_pb2.Timestamp, _Mapping]] = ..., follower: _Optional[str] = ..., leader: _Optional[str] = ..., method: _Optional[str] = ..., flagged: _Optional[bool] = ..., score: _Optional[float] = ..., threshold: _Optional[float] = ..., feature_innovation_m: _Optional[float] = ..., feature_mahalanobis2: _Optional[float] = ..., feature_r_adapted_m2: _Optional[float] = ..., label: _Optional[int] = ..., isolation_capped: _Optional[bool] = ..., repeat_count: _Optional[float] = ..., dr_residual_m: _Optional[float] = ..., leader_consistency_m: _Optional[float] = ..., usbl_residual_m: _Optional[float] = ..., lag_residual_m: _Optional[float] = ..., drift_residual_m: _Optional[float] = ..., drift_cusum_m: _Optional[float] = ..., exclusion_residual_m: _Optional[float] = ..., drift_z: _Optional[float] = ..., exclusion_z: _Optional[float] = ..., model_innovation_m: _Optional[float] = ...) -> None: ...
 
 class BellMembership(_message.Message):
     __slots__ = ("input", "index", "a", "b", "c")

@@ -81,6 +81,7 @@ class EpochResult(NamedTuple):
     exclusion_residual_m: float = NAN  # range - range of the ACKF on DR and the other leaders' ranges only
     drift_z: float = NAN              # drift residual against all leaders' median / MAD-scale of 60-900 s ago
     exclusion_z: float = NAN          # exclusion residual against its median / MAD-scale of 60-300 s ago
+    model_innovation_m: float = NAN   # range - the DR error model's current prediction (a stale run's error)
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,8 @@ DETECTION_COLUMNS = ["t_s", "follower", "leader", "method", "flagged", "score", 
                      # the filter-independent features (replay.stack.features.EXTRA_FEATURES), NaN where a run
                      # did not compute them, and why the detector did (not) flag ('' before t_a)
                      "repeat_count", "dr_residual_m", "leader_consistency_m", "usbl_residual_m", "lag_residual_m",
-                     "drift_residual_m", "drift_cusum_m", "exclusion_residual_m", "drift_z", "exclusion_z", "why"]
+                     "drift_residual_m", "drift_cusum_m", "exclusion_residual_m", "drift_z", "exclusion_z",
+                     "model_innovation_m", "why"]
 ERROR_COLUMNS = ["t_s", "follower", "method", "error_m"]
 ANFIS_EPOCH_COLUMNS = ["model", "epoch", "rmse", "params"]          # params: dict (see AnfisSnapshot)
 ANFIS_EXPLAIN_COLUMNS = ["t_s", "model", "inputs", "memberships", "firing", "output", "threshold", "flagged"]

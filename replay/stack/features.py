@@ -67,7 +67,13 @@ filter, and are the same for every method of a run:
   offset is the follower's DR error across the other links' lines of
   sight, which changes slowly along the mission);
 - ``drift_cusum_m``: max(S+, S-) of a two-sided CUSUM(k, h) of the drift
-  residual per leader, restarting after each of its own alarms.
+  residual per leader, restarting after each of its own alarms;
+- ``model_innovation_m``: the range minus the DR error model's current
+  prediction, before this range's update (NaN without the model). A
+  repeated range never updates the model, so on a stale run this is the
+  stale value against where the leader is now: the range error that
+  the label thresholds, predicted (``stale_aware`` tests it;
+  docs/detection.md section 5).
 
 Why a model of the DR error of a minute ago sees a slow drift (issue 16):
 the ACKF's process noise (1 m/sqrt(s)) lets it move ~2 m between two ranges
@@ -104,7 +110,7 @@ from replay.stack.exclusion import LeaderExclusion
 PAPER_FEATURES: tuple[str, ...] = ("f1", "f2", "f3")
 EXTRA_FEATURES: tuple[str, ...] = (
     "repeat_count", "dr_residual_m", "leader_consistency_m", "usbl_residual_m", "lag_residual_m",
-    "drift_residual_m", "drift_cusum_m", "exclusion_residual_m", "drift_z", "exclusion_z",
+    "drift_residual_m", "drift_cusum_m", "exclusion_residual_m", "drift_z", "exclusion_z", "model_innovation_m",
 )
 FEATURE_NAMES: tuple[str, ...] = PAPER_FEATURES + EXTRA_FEATURES
 """Every feature of a range epoch, in the order of a feature vector and of ``TrainingSet.features``."""
@@ -276,7 +282,7 @@ class FeatureTracker:
         """
         cfg = self.config
         lag = self._lag_residual(t_s, z_m, depth_m, geo, reference)
-        scaled = NAN
+        scaled = innovation = NAN
         self._repeats[leader] = self._repeats[leader] + 1 if self._last_slant.get(leader) == slant_m else 0
         self._last_slant[leader] = slant_m
         e = z_m - range_to(self.dr[0], self.dr[1], depth_m, *geo)
@@ -299,6 +305,7 @@ class FeatureTracker:
         rel = (b * (self.dr[0] - lat), a * (self.dr[1] - lon))
         if self.model is not None:
             res = self.model.range(t_s, leader, z_m, *rel, self._repeats[leader] > 0)
+            innovation = res.innovation_m
             # the current innovation before the first lagged state (lag_s into the run), and while a USBL fix
             # younger than lag_s holds the filter: the lagged state has not seen that fix, and fixes keep the
             # filter off a drift (dev seeds 1-9 with fixes: FNR at 2 % 0.051 against the lagged one's 0.071)
@@ -320,7 +327,7 @@ class FeatureTracker:
                 self._standardized(t_s, pool, scaled if math.isfinite(scaled) else drift,
                                    keep=not (cfg.scale_pooled and self._repeats[leader] > 0),
                                    window_s=cfg.scale_pooled_window_s if cfg.scale_pooled else None),
-                self._standardized(t_s, ("excl", leader), excl) if self.exclusion is not None else NAN)
+                self._standardized(t_s, ("excl", leader), excl) if self.exclusion is not None else NAN, innovation)
 
     def _standardized(self, t_s: float, key: tuple[str, str], x: float, keep: bool = True,
                       window_s: float | None = None) -> float:

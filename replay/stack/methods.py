@@ -32,6 +32,7 @@ from replay.stack.detectors import (
     drift_reference,
     dual_threshold,
     fix_aware,
+    stale_aware,
 )
 from replay.stack.detectors.base import Detector
 from replay.stack.detectors.why_text import generic_why
@@ -156,6 +157,12 @@ METHOD_TABLE: dict[str, Method] = {m.name: m for m in (
     Method("fix_aware", "detector", "detect", _TRAINED, "ACKF + DR error reference, chi-square under a fresh fix",
            "fixaw", (120, 90, 60), fix_aware.FixAwareDetector, _WIDE, fix_aware.why_line,
            score_plot=("fix_aware vs h (sd)", "chi-square's h*sqrt(f2/gate) with a fresh fix, else drift_reference's"),
+           pooled_training=True, calibrated=True),
+    # fix_aware, and a repeated range judged by its error predicted now against T1 (the DR error model never
+    # takes a repeated range, so its innovation there is the stale run's error: docs/detection.md section 5)
+    Method("stale_aware", "detector", "detect", _TRAINED, "ACKF + DR error reference, stale ranges by their error",
+           "stale", (0, 255, 255), stale_aware.StaleAwareDetector, _WIDE, stale_aware.why_line,
+           score_plot=("stale_aware vs h (sd)", "h*(|e|/T1)^8 on a repeated range, else fix_aware's score"),
            pooled_training=True, calibrated=True),
     _positioning("kmcdf1", "KMCDF, delays only", (255, 0, 180)),
     _positioning("kmcdf2", "KMCDF, delays and phases", (240, 228, 66)),

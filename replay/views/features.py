@@ -38,7 +38,7 @@ from replay.views.series import LEADER_RGB, log_truth_marks
 FEATURE_GROUPS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ("dr", "range - DR range (m)", ("dr_residual_m", "leader_consistency_m")),
     ("anchored", "vs {} (m)", ("usbl_residual_m", "lag_residual_m", "exclusion_residual_m")),
-    ("drift", "DR model, CUSUM (m)", ("drift_residual_m", "drift_cusum_m")),
+    ("drift", "DR model, CUSUM (m)", ("drift_residual_m", "drift_cusum_m", "model_innovation_m")),
     ("z", "standardized (sd)", ("drift_z", "exclusion_z")),
     ("repeats", "same range (count)", ("repeat_count",)),
 )
@@ -47,6 +47,7 @@ FEATURE_RGB: dict[str, tuple[int, int, int]] = {
     "usbl_residual_m": (60, 200, 120), "lag_residual_m": (235, 90, 200), "exclusion_residual_m": (200, 160, 0),
     "drift_residual_m": (90, 160, 255), "drift_cusum_m": (240, 80, 60),
     "drift_z": (90, 160, 255), "exclusion_z": (200, 160, 0), "repeat_count": (128, 128, 140),
+    "model_innovation_m": (60, 200, 120),
 }
 
 
@@ -62,6 +63,7 @@ FEATURE_WORDS: dict[str, str] = {
     "usbl_residual_m": "vs USBL fix", "lag_residual_m": "vs lagged ACKF", "exclusion_residual_m": "vs other leaders",
     "drift_residual_m": "DR model residual", "drift_cusum_m": "its CUSUM", "drift_z": "drift, standardized",
     "exclusion_z": "exclusion, standardized", "repeat_count": "identical ranges in a row",
+    "model_innovation_m": "DR model innovation",
 }
 """Each feature in words, for plot titles and legends (the field names stay in the entity paths)."""
 
