@@ -33,6 +33,9 @@ INS_DECIMATE_S = 1.0
 DECIMATE_SLACK_S = 1e-6
 
 
+TRACK_COLUMNS = ("t_s", "vehicle", "source", "lat_deg", "lon_deg", "east_m", "north_m", "std_east_m", "std_north_m")
+"""The tracks table's columns, in order."""
+
 PAPER_INPUTS = ("f1", "f2", "f3")
 """The inputs of paper A's ANFIS detectors (a wide detector names its own: `inputs`)."""
 
@@ -71,6 +74,11 @@ def decimated(ts: list[float], last: float, gap: float) -> tuple[list[int], floa
     return keep, last
 
 
+def _copy(value: Any) -> Any:
+    """A copy of what ndarray.tolist gave: nested lists copied level by level, a scalar as it is."""
+    return [_copy(v) for v in value] if isinstance(value, list) else value
+
+
 class ReviewCollector(Listener):
     """Keeps rows for every ReviewData table while the engine runs."""
 
@@ -83,7 +91,13 @@ class ReviewCollector(Listener):
         self._many = sum(role == "follower" for role in dict(layout.roles).values()) > 1
         self._origin: tuple[float, float] | None = None
         self.rows: dict[str, list[dict[str, Any]]] = {k: [] for k in (
-            "tracks", "ranges", "detections", "errors", "anfis_epochs", "anfis_explain", "kmcdf", "events")}
+            "ranges", "detections", "errors", "anfis_epochs", "anfis_explain", "kmcdf", "events")}
+        # tracks as tuples of TRACK_COLUMNS but east/north, which are kept apart: the rows of a latitude and
+        # longitude get theirs at once, over the whole column (`_resolve`), as horizontal_offset_m gives them
+        self._tracks: list[tuple[Any, ...]] = []
+        self._east: list[float] = []
+        self._north: list[float] = []
+        self._pending: tuple[list[int], list[float], list[float]] = ([], [], [])   # rows, their lat and lon (rad)
         self._last_drawn: dict[tuple[str, str], float] = {}    # (vehicle, source) -> its last track point
         self._models: dict[str, TrainedDetectors] = {}
         self._detecting = detecting_names()     # the method table's detectors, in its order
@@ -91,6 +105,7 @@ class ReviewCollector(Listener):
         self._detectors: dict[str, dict[str, dict[str, Any]]] = {}     # follower -> method -> leader -> detector
 
     def origin(self, lat_rad: float, lon_rad: float) -> None:
+        self._resolve()     # rows before keep the origin they were collected under
         self._origin = (lat_rad, lon_rad)
 
     def _en(self, lat: float, lon: float) -> tuple[float, float]:
@@ -101,10 +116,50 @@ class ReviewCollector(Listener):
 
     def _track_row(self, t_s: float, vehicle: str, source: str, lat: float, lon: float,
                    std_e: float = math.nan, std_n: float = math.nan) -> None:
-        e, n = self._en(lat, lon)
-        self.rows["tracks"].append({"t_s": t_s, "vehicle": vehicle, "source": source, "lat_deg": lat * RAD,
-                                    "lon_deg": lon * RAD, "east_m": e, "north_m": n,
-                                    "std_east_m": std_e, "std_north_m": std_n})
+        """One track row; its east/north (about the origin) computed with the others' by `_resolve`."""
+        if self._origin is not None:
+            rows, lats, lons = self._pending
+            rows.append(len(self._tracks))
+            lats.append(lat)
+            lons.append(lon)
+        self._tracks.append((t_s, vehicle, source, lat * RAD, lon * RAD, std_e, std_n))
+        self._east.append(math.nan)
+        self._north.append(math.nan)
+
+    def _resolve(self) -> None:
+        """East/north of the rows waiting for theirs: horizontal_offset_m over the column, element for element
+        what it gives one point at a time."""
+        rows, lats, lons = self._pending
+        if not rows or self._origin is None:
+            return
+        n, e = horizontal_offset_m(np.array(lats), np.array(lons), *self._origin)
+        east, north = self._east, self._north
+        for i, ei, ni in zip(rows, e.tolist(), n.tolist(), strict=True):
+            east[i] = ei
+            north[i] = ni
+        self._pending = ([], [], [])
+
+    def count(self, name: str) -> int:
+        """How many rows the table `name` has so far."""
+        return len(self._tracks) if name == "tracks" else len(self.rows[name])
+
+    def table(self, name: str, start: int = 0) -> pd.DataFrame | None:
+        """The rows of table `name` from `start` on, as a frame; None when there are none."""
+        if name != "tracks":
+            rows = self.rows[name][start:]
+            if not rows:
+                return None
+            keys = tuple(rows[0])
+            if all(len(r) == len(keys) and tuple(r) == keys for r in rows):     # one shape: by columns
+                return pd.DataFrame({k: [r[k] for r in rows] for k in keys})
+            return pd.DataFrame(rows)
+        if start >= len(self._tracks):
+            return None
+        self._resolve()
+        t, vehicle, source, lat, lon, std_e, std_n = zip(*self._tracks[start:], strict=True)
+        return pd.DataFrame(dict(zip(TRACK_COLUMNS, (list(t), list(vehicle), list(source), list(lat), list(lon),
+                                                     self._east[start:], self._north[start:], list(std_e),
+                                                     list(std_n)), strict=True)))
 
     def position(self, vehicle: str, source: str, fix: Fix) -> None:
         if source != "gps":       # INS and other solutions come at tens of Hz: one point a second is a track
@@ -248,20 +303,23 @@ class ReviewCollector(Listener):
 
     def usbl(self, epoch: UsblEpoch, positions: dict[str, tuple[float, float]]) -> None:
         fixes = epoch.fix.fixes
+        # the epoch's arrays as lists once, each method's row a copy of them
+        nodes_e, nodes_n = epoch.node_en[:, 0].tolist(), epoch.node_en[:, 1].tolist()
+        delay, phase = np.asarray(epoch.fix.delay_normal).tolist(), np.asarray(epoch.fix.phase_normal).tolist()
+        nodes = list(epoch.nodes)
         for method, (e, n) in positions.items():
             if self._origin is not None and math.isfinite(e) and math.isfinite(n):
                 lat, lon = offset_to_latlon(n, e, *self._origin)
-                self.rows["tracks"].append({"t_s": epoch.t_s, "vehicle": epoch.target, "source": method,
-                                            "lat_deg": lat * RAD, "lon_deg": lon * RAD, "east_m": e, "north_m": n,
-                                            "std_east_m": math.nan, "std_north_m": math.nan})
+                self._tracks.append((epoch.t_s, epoch.target, method, lat * RAD, lon * RAD, math.nan, math.nan))
+                self._east.append(e)
+                self._north.append(n)
             self.rows["kmcdf"].append({
                 "t_s": epoch.t_s, "target": epoch.target, "method": method, "east_m": e, "north_m": n,
                 "fixes_east_m": [f.xy[0] for f in fixes] if method == "kmcdf2" else [],
                 "fixes_north_m": [f.xy[1] for f in fixes] if method == "kmcdf2" else [],
                 "fixes_cluster": [f.cluster for f in fixes] if method == "kmcdf2" else [],
-                "nodes_east_m": epoch.node_en[:, 0].tolist(), "nodes_north_m": epoch.node_en[:, 1].tolist(),
-                "delay_normal": np.asarray(epoch.fix.delay_normal).tolist(),
-                "phase_normal": np.asarray(epoch.fix.phase_normal).tolist(), "nodes": list(epoch.nodes)})
+                "nodes_east_m": nodes_e.copy(), "nodes_north_m": nodes_n.copy(), "delay_normal": _copy(delay),
+                "phase_normal": _copy(phase), "nodes": nodes.copy()})
 
     def event(self, t_s: float, level: str, text: str) -> None:
         self.rows["events"].append({"t_s": t_s, "level": level, "text": text})
@@ -285,9 +343,10 @@ class ReviewCollector(Listener):
                           dict(self.layout.roles), list(metrics.get("methods", {})), metrics=metrics)
         for note in metrics.get("notes", []):
             self.event(0.0, "WARN", note)
-        for name, rows in self.rows.items():
-            if rows:
-                setattr(data, name, pd.DataFrame(rows))
+        for name in ("tracks", *self.rows):
+            frame = self.table(name)
+            if frame is not None:
+                setattr(data, name, frame)
         data.parameters = self.parameters
         data.navigation = dict(navigation or {})
         data.events = data.events.sort_values("t_s", kind="stable", ignore_index=True)
