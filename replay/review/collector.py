@@ -74,11 +74,6 @@ def decimated(ts: list[float], last: float, gap: float) -> tuple[list[int], floa
     return keep, last
 
 
-def _copy(value: Any) -> Any:
-    """A copy of what ndarray.tolist gave: nested lists copied level by level, a scalar as it is."""
-    return [_copy(v) for v in value] if isinstance(value, list) else value
-
-
 class ReviewCollector(Listener):
     """Keeps rows for every ReviewData table while the engine runs."""
 
@@ -303,7 +298,7 @@ class ReviewCollector(Listener):
 
     def usbl(self, epoch: UsblEpoch, positions: dict[str, tuple[float, float]]) -> None:
         fixes = epoch.fix.fixes
-        # the epoch's arrays as lists once, each method's row a copy of them
+        # the epoch's arrays as lists once, shared by its methods' rows (review tables are read, not changed)
         nodes_e, nodes_n = epoch.node_en[:, 0].tolist(), epoch.node_en[:, 1].tolist()
         delay, phase = np.asarray(epoch.fix.delay_normal).tolist(), np.asarray(epoch.fix.phase_normal).tolist()
         nodes = list(epoch.nodes)
@@ -318,8 +313,8 @@ class ReviewCollector(Listener):
                 "fixes_east_m": [f.xy[0] for f in fixes] if method == "kmcdf2" else [],
                 "fixes_north_m": [f.xy[1] for f in fixes] if method == "kmcdf2" else [],
                 "fixes_cluster": [f.cluster for f in fixes] if method == "kmcdf2" else [],
-                "nodes_east_m": nodes_e.copy(), "nodes_north_m": nodes_n.copy(), "delay_normal": _copy(delay),
-                "phase_normal": _copy(phase), "nodes": nodes.copy()})
+                "nodes_east_m": nodes_e, "nodes_north_m": nodes_n, "delay_normal": delay, "phase_normal": phase,
+                "nodes": nodes})
 
     def event(self, t_s: float, level: str, text: str) -> None:
         self.rows["events"].append({"t_s": t_s, "level": level, "text": text})

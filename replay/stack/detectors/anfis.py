@@ -192,10 +192,13 @@ def normalized_firing(x: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray
 
 def design_matrix(x: np.ndarray, wbar: np.ndarray) -> np.ndarray:
     """Least-squares regressors wbar_r * [x, 1] per rule (A.24): (..., n, R*(D+1)), rule-major."""
-    x1 = np.concatenate([x, np.ones((x.shape[0], 1))], axis=1)
-    # written C-ordered so the reshape below is a view, not a copy of the whole matrix
-    phi = np.empty(wbar.shape + (x1.shape[1],))
-    np.multiply(wbar[..., :, :, None], x1[:, None, :], out=phi)
+    d = x.shape[1]
+    # written C-ordered so the reshape below is a view, not a copy of the whole matrix; one multiply per input
+    # column (long inner loops, not D+1 at a time), the last column wbar itself (wbar * 1 is wbar)
+    phi = np.empty(wbar.shape + (d + 1,))
+    for k in range(d):
+        np.multiply(wbar, x[:, k, None], out=phi[..., k])
+    phi[..., d] = wbar
     return phi.reshape(*phi.shape[:-2], -1)
 
 
