@@ -297,7 +297,8 @@ class ReviewCollector(Listener):
                         "rule_structure": snap.rule_structure, **about}})
 
     def usbl(self, epoch: UsblEpoch, positions: dict[str, tuple[float, float]]) -> None:
-        fixes = epoch.fix.fixes
+        # the preliminary fixes as columns, not PreliminaryFix objects (the same numbers)
+        fix_e, fix_n, fix_cluster = epoch.fix.fix_columns() if "kmcdf2" in positions else ([], [], [])
         # the epoch's arrays as lists once, shared by its methods' rows (review tables are read, not changed)
         nodes_e, nodes_n = epoch.node_en[:, 0].tolist(), epoch.node_en[:, 1].tolist()
         delay, phase = np.asarray(epoch.fix.delay_normal).tolist(), np.asarray(epoch.fix.phase_normal).tolist()
@@ -310,9 +311,9 @@ class ReviewCollector(Listener):
                 self._north.append(n)
             self.rows["kmcdf"].append({
                 "t_s": epoch.t_s, "target": epoch.target, "method": method, "east_m": e, "north_m": n,
-                "fixes_east_m": [f.xy[0] for f in fixes] if method == "kmcdf2" else [],
-                "fixes_north_m": [f.xy[1] for f in fixes] if method == "kmcdf2" else [],
-                "fixes_cluster": [f.cluster for f in fixes] if method == "kmcdf2" else [],
+                "fixes_east_m": fix_e if method == "kmcdf2" else [],
+                "fixes_north_m": fix_n if method == "kmcdf2" else [],
+                "fixes_cluster": fix_cluster if method == "kmcdf2" else [],
                 "nodes_east_m": nodes_e, "nodes_north_m": nodes_n, "delay_normal": delay, "phase_normal": phase,
                 "nodes": nodes})
 
