@@ -175,8 +175,27 @@ class ReviewCollector(Listener):
             keep, last = decimated(ts, self._last_drawn.get(key, -math.inf), INS_DECIMATE_S - DECIMATE_SLACK_S)
             if keep:
                 self._last_drawn[key] = last
-        for i in keep:
-            self._track_row(ts[i], vehicle, source, float(lat_rad[i]), float(lon_rad[i]))
+        if not keep:
+            return
+        idx = np.asarray(keep)
+        lat = np.asarray(lat_rad, dtype=float)[idx]
+        lon = np.asarray(lon_rad, dtype=float)[idx]
+        self._track_rows([ts[i] for i in keep], vehicle, source, lat.tolist(), lon.tolist(),
+                         (lat * RAD).tolist(), (lon * RAD).tolist())
+
+    def _track_rows(self, ts: list[float], vehicle: str, source: str, lat: list[float], lon: list[float],
+                    lat_deg: list[float], lon_deg: list[float]) -> None:
+        """`_track_row` for many points of one vehicle and source (no standard deviations)."""
+        first = len(self._tracks)
+        if self._origin is not None:
+            rows, lats, lons = self._pending
+            rows.extend(range(first, first + len(ts)))
+            lats.extend(lat)
+            lons.extend(lon)
+        nan = math.nan
+        self._tracks.extend((t, vehicle, source, la, lo, nan, nan) for t, la, lo in zip(ts, lat_deg, lon_deg))
+        self._east.extend([nan] * len(ts))
+        self._north.extend([nan] * len(ts))
 
     def estimates(self, follower: str, t_s: float, est: Mapping[str, tuple[float, ...]]) -> None:
         for method, (lat, lon, nn, _ne, ee) in est.items():
@@ -331,8 +350,11 @@ class ReviewCollector(Listener):
             t, lat, lon = dr.t_s[keep], dr.lat_deg[keep], dr.lon_deg[keep]
             # the first sample of each second (none for a vehicle whose DR never started: no DVL or no heading)
             second = np.diff(np.floor(t / INS_DECIMATE_S), prepend=-np.inf) > 0
-            for ti, la, lo in zip(t[second].tolist(), lat[second].tolist(), lon[second].tolist(), strict=True):
-                self._track_row(ti, vehicle, DR_METHOD, la / RAD, lo / RAD)
+            lat_s, lon_s = lat[second], lon[second]
+            # radians as _track_row was given them (la / RAD), and degrees back as it made them (* RAD)
+            lat_r, lon_r = lat_s / RAD, lon_s / RAD
+            self._track_rows(t[second].tolist(), vehicle, DR_METHOD, lat_r.tolist(), lon_r.tolist(),
+                             (lat_r * RAD).tolist(), (lon_r * RAD).tolist())
         origin = self._origin
         data = ReviewData(self.run_id, str(self.trial.get("name", "")), self.t0_ns,
                           origin[0] * RAD if origin else math.nan, origin[1] * RAD if origin else math.nan,
