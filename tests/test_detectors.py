@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from replay.stack import labels
 from replay.stack.config import StackConfig
+from replay.stack.detectors import dual_threshold
 from replay.stack.detectors.chi_square import ChiSquareDetector, chi_square_threshold
 from replay.stack.detectors.dual_threshold import DualThresholdDetector, cusum, train_bp
 from replay.stack.methods import METHOD_TABLE, detecting_names, filter_kind, runnable_names
@@ -78,6 +79,29 @@ def test_bp_network_learns_the_range_error() -> None:
     assert rmse < 0.5 * err.std()
     again = train_bp(feats, err, hidden=8, seed=0)
     np.testing.assert_array_equal(net.w1, again.w1)                      # seeded, deterministic
+
+
+def _adam_reference(flat: np.ndarray, u: np.ndarray, t: np.ndarray, hidden: int) -> np.ndarray:
+    """Adam written as its formulas, one new array per operation: what the buffered `_adam` must equal."""
+    m = np.zeros_like(flat)
+    v = np.zeros_like(flat)
+    for it in range(1, dual_threshold.BP_ITERATIONS + 1):
+        g = dual_threshold._gradient(flat, u, t, hidden)
+        m = 0.9 * m + 0.1 * g
+        v = 0.999 * v + 0.001 * g * g
+        flat = flat - (dual_threshold.BP_STEP / (1.0 - 0.9 ** it)) * m / (np.sqrt(v / (1.0 - 0.999 ** it)) + 1e-8)
+    return flat
+
+
+@settings(max_examples=5, deadline=None)
+@given(n=st.integers(1, 40), hidden=st.integers(1, 9), seed=st.integers(0, 2**16))
+def test_buffered_adam_equals_the_formulas_bit_for_bit(n: int, hidden: int, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    u, t = rng.normal(size=(n, 3)), rng.normal(size=n)
+    flat = rng.normal(size=3 * hidden + 2 * hidden + 1)
+    got = dual_threshold._adam(flat.copy(), u, t, hidden)
+    want = _adam_reference(flat, u, t, hidden)
+    assert got.tobytes() == want.tobytes()
 
 
 def test_bp_network_with_no_data_predicts_constant() -> None:

@@ -125,6 +125,18 @@ def test_epoch_finds_abnormal_delay_and_phases() -> None:
     assert {f.kind for f in fix.fixes} == {"usbl", "bearing_pair", "circle_pair", "range_triple"}
 
 
+def test_fix_columns_are_the_preliminary_fixes_columns() -> None:
+    nodes = mc.node_layout(6)
+    delays, px, py = (a[0].copy() for a in observe(nodes, np.array([[300.0, 200.0]])))
+    delays[1], delays[3] = 0.9, np.nan
+    px[4] = 2.5
+    for fix in (km.kmcdf_epoch(nodes, delays, px, py), km.kmcdf_epoch(nodes, *([np.full(6, np.nan)] * 3))):
+        east, north, cluster = fix.fix_columns()
+        assert east == [f.xy[0] for f in fix.fixes] and north == [f.xy[1] for f in fix.fixes]
+        assert cluster == [f.cluster for f in fix.fixes]
+    assert len(km.kmcdf_epoch(nodes, delays, px, py).fix_columns()[0]) > 0
+
+
 def test_epoch_with_missing_measurement_does_not_raise() -> None:
     nodes = mc.node_layout(4)
     target = np.array([[-250.0, 610.0]])

@@ -33,6 +33,9 @@ INS_DECIMATE_S = 1.0
 DECIMATE_SLACK_S = 1e-6
 
 
+TRACK_COLUMNS = ("t_s", "vehicle", "source", "lat_deg", "lon_deg", "east_m", "north_m", "std_east_m", "std_north_m")
+"""The tracks table's columns, in order."""
+
 PAPER_INPUTS = ("f1", "f2", "f3")
 """The inputs of paper A's ANFIS detectors (a wide detector names its own: `inputs`)."""
 
@@ -83,7 +86,13 @@ class ReviewCollector(Listener):
         self._many = sum(role == "follower" for role in dict(layout.roles).values()) > 1
         self._origin: tuple[float, float] | None = None
         self.rows: dict[str, list[dict[str, Any]]] = {k: [] for k in (
-            "tracks", "ranges", "detections", "errors", "anfis_epochs", "anfis_explain", "kmcdf", "events")}
+            "ranges", "detections", "errors", "anfis_epochs", "anfis_explain", "kmcdf", "events")}
+        # tracks as tuples of TRACK_COLUMNS but east/north, which are kept apart: the rows of a latitude and
+        # longitude get theirs at once, over the whole column (`_resolve`), as horizontal_offset_m gives them
+        self._tracks: list[tuple[Any, ...]] = []
+        self._east: list[float] = []
+        self._north: list[float] = []
+        self._pending: tuple[list[int], list[float], list[float]] = ([], [], [])   # rows, their lat and lon (rad)
         self._last_drawn: dict[tuple[str, str], float] = {}    # (vehicle, source) -> its last track point
         self._models: dict[str, TrainedDetectors] = {}
         self._detecting = detecting_names()     # the method table's detectors, in its order
@@ -91,6 +100,7 @@ class ReviewCollector(Listener):
         self._detectors: dict[str, dict[str, dict[str, Any]]] = {}     # follower -> method -> leader -> detector
 
     def origin(self, lat_rad: float, lon_rad: float) -> None:
+        self._resolve()     # rows before keep the origin they were collected under
         self._origin = (lat_rad, lon_rad)
 
     def _en(self, lat: float, lon: float) -> tuple[float, float]:
@@ -101,10 +111,50 @@ class ReviewCollector(Listener):
 
     def _track_row(self, t_s: float, vehicle: str, source: str, lat: float, lon: float,
                    std_e: float = math.nan, std_n: float = math.nan) -> None:
-        e, n = self._en(lat, lon)
-        self.rows["tracks"].append({"t_s": t_s, "vehicle": vehicle, "source": source, "lat_deg": lat * RAD,
-                                    "lon_deg": lon * RAD, "east_m": e, "north_m": n,
-                                    "std_east_m": std_e, "std_north_m": std_n})
+        """One track row; its east/north (about the origin) computed with the others' by `_resolve`."""
+        if self._origin is not None:
+            rows, lats, lons = self._pending
+            rows.append(len(self._tracks))
+            lats.append(lat)
+            lons.append(lon)
+        self._tracks.append((t_s, vehicle, source, lat * RAD, lon * RAD, std_e, std_n))
+        self._east.append(math.nan)
+        self._north.append(math.nan)
+
+    def _resolve(self) -> None:
+        """East/north of the rows waiting for theirs: horizontal_offset_m over the column, element for element
+        what it gives one point at a time."""
+        rows, lats, lons = self._pending
+        if not rows or self._origin is None:
+            return
+        n, e = horizontal_offset_m(np.array(lats), np.array(lons), *self._origin)
+        east, north = self._east, self._north
+        for i, ei, ni in zip(rows, e.tolist(), n.tolist(), strict=True):
+            east[i] = ei
+            north[i] = ni
+        self._pending = ([], [], [])
+
+    def count(self, name: str) -> int:
+        """How many rows the table `name` has so far."""
+        return len(self._tracks) if name == "tracks" else len(self.rows[name])
+
+    def table(self, name: str, start: int = 0) -> pd.DataFrame | None:
+        """The rows of table `name` from `start` on, as a frame; None when there are none."""
+        if name != "tracks":
+            rows = self.rows[name][start:]
+            if not rows:
+                return None
+            keys = tuple(rows[0])
+            if all(len(r) == len(keys) and tuple(r) == keys for r in rows):     # one shape: by columns
+                return pd.DataFrame({k: [r[k] for r in rows] for k in keys})
+            return pd.DataFrame(rows)
+        if start >= len(self._tracks):
+            return None
+        self._resolve()
+        t, vehicle, source, lat, lon, std_e, std_n = zip(*self._tracks[start:], strict=True)
+        return pd.DataFrame(dict(zip(TRACK_COLUMNS, (list(t), list(vehicle), list(source), list(lat), list(lon),
+                                                     self._east[start:], self._north[start:], list(std_e),
+                                                     list(std_n)), strict=True)))
 
     def position(self, vehicle: str, source: str, fix: Fix) -> None:
         if source != "gps":       # INS and other solutions come at tens of Hz: one point a second is a track
@@ -125,8 +175,27 @@ class ReviewCollector(Listener):
             keep, last = decimated(ts, self._last_drawn.get(key, -math.inf), INS_DECIMATE_S - DECIMATE_SLACK_S)
             if keep:
                 self._last_drawn[key] = last
-        for i in keep:
-            self._track_row(ts[i], vehicle, source, float(lat_rad[i]), float(lon_rad[i]))
+        if not keep:
+            return
+        idx = np.asarray(keep)
+        lat = np.asarray(lat_rad, dtype=float)[idx]
+        lon = np.asarray(lon_rad, dtype=float)[idx]
+        self._track_rows([ts[i] for i in keep], vehicle, source, lat.tolist(), lon.tolist(),
+                         (lat * RAD).tolist(), (lon * RAD).tolist())
+
+    def _track_rows(self, ts: list[float], vehicle: str, source: str, lat: list[float], lon: list[float],
+                    lat_deg: list[float], lon_deg: list[float]) -> None:
+        """`_track_row` for many points of one vehicle and source (no standard deviations)."""
+        first = len(self._tracks)
+        if self._origin is not None:
+            rows, lats, lons = self._pending
+            rows.extend(range(first, first + len(ts)))
+            lats.extend(lat)
+            lons.extend(lon)
+        nan = math.nan
+        self._tracks.extend((t, vehicle, source, la, lo, nan, nan) for t, la, lo in zip(ts, lat_deg, lon_deg))
+        self._east.extend([nan] * len(ts))
+        self._north.extend([nan] * len(ts))
 
     def estimates(self, follower: str, t_s: float, est: Mapping[str, tuple[float, ...]]) -> None:
         for method, (lat, lon, nn, _ne, ee) in est.items():
@@ -247,21 +316,25 @@ class ReviewCollector(Listener):
                         "rule_structure": snap.rule_structure, **about}})
 
     def usbl(self, epoch: UsblEpoch, positions: dict[str, tuple[float, float]]) -> None:
-        fixes = epoch.fix.fixes
+        # the preliminary fixes as columns, not PreliminaryFix objects (the same numbers)
+        fix_e, fix_n, fix_cluster = epoch.fix.fix_columns() if "kmcdf2" in positions else ([], [], [])
+        # the epoch's arrays as lists once, shared by its methods' rows (review tables are read, not changed)
+        nodes_e, nodes_n = epoch.node_en[:, 0].tolist(), epoch.node_en[:, 1].tolist()
+        delay, phase = np.asarray(epoch.fix.delay_normal).tolist(), np.asarray(epoch.fix.phase_normal).tolist()
+        nodes = list(epoch.nodes)
         for method, (e, n) in positions.items():
             if self._origin is not None and math.isfinite(e) and math.isfinite(n):
                 lat, lon = offset_to_latlon(n, e, *self._origin)
-                self.rows["tracks"].append({"t_s": epoch.t_s, "vehicle": epoch.target, "source": method,
-                                            "lat_deg": lat * RAD, "lon_deg": lon * RAD, "east_m": e, "north_m": n,
-                                            "std_east_m": math.nan, "std_north_m": math.nan})
+                self._tracks.append((epoch.t_s, epoch.target, method, lat * RAD, lon * RAD, math.nan, math.nan))
+                self._east.append(e)
+                self._north.append(n)
             self.rows["kmcdf"].append({
                 "t_s": epoch.t_s, "target": epoch.target, "method": method, "east_m": e, "north_m": n,
-                "fixes_east_m": [f.xy[0] for f in fixes] if method == "kmcdf2" else [],
-                "fixes_north_m": [f.xy[1] for f in fixes] if method == "kmcdf2" else [],
-                "fixes_cluster": [f.cluster for f in fixes] if method == "kmcdf2" else [],
-                "nodes_east_m": epoch.node_en[:, 0].tolist(), "nodes_north_m": epoch.node_en[:, 1].tolist(),
-                "delay_normal": np.asarray(epoch.fix.delay_normal).tolist(),
-                "phase_normal": np.asarray(epoch.fix.phase_normal).tolist(), "nodes": list(epoch.nodes)})
+                "fixes_east_m": fix_e if method == "kmcdf2" else [],
+                "fixes_north_m": fix_n if method == "kmcdf2" else [],
+                "fixes_cluster": fix_cluster if method == "kmcdf2" else [],
+                "nodes_east_m": nodes_e, "nodes_north_m": nodes_n, "delay_normal": delay, "phase_normal": phase,
+                "nodes": nodes})
 
     def event(self, t_s: float, level: str, text: str) -> None:
         self.rows["events"].append({"t_s": t_s, "level": level, "text": text})
@@ -277,17 +350,21 @@ class ReviewCollector(Listener):
             t, lat, lon = dr.t_s[keep], dr.lat_deg[keep], dr.lon_deg[keep]
             # the first sample of each second (none for a vehicle whose DR never started: no DVL or no heading)
             second = np.diff(np.floor(t / INS_DECIMATE_S), prepend=-np.inf) > 0
-            for ti, la, lo in zip(t[second].tolist(), lat[second].tolist(), lon[second].tolist(), strict=True):
-                self._track_row(ti, vehicle, DR_METHOD, la / RAD, lo / RAD)
+            lat_s, lon_s = lat[second], lon[second]
+            # radians as _track_row was given them (la / RAD), and degrees back as it made them (* RAD)
+            lat_r, lon_r = lat_s / RAD, lon_s / RAD
+            self._track_rows(t[second].tolist(), vehicle, DR_METHOD, lat_r.tolist(), lon_r.tolist(),
+                             (lat_r * RAD).tolist(), (lon_r * RAD).tolist())
         origin = self._origin
         data = ReviewData(self.run_id, str(self.trial.get("name", "")), self.t0_ns,
                           origin[0] * RAD if origin else math.nan, origin[1] * RAD if origin else math.nan,
                           dict(self.layout.roles), list(metrics.get("methods", {})), metrics=metrics)
         for note in metrics.get("notes", []):
             self.event(0.0, "WARN", note)
-        for name, rows in self.rows.items():
-            if rows:
-                setattr(data, name, pd.DataFrame(rows))
+        for name in ("tracks", *self.rows):
+            frame = self.table(name)
+            if frame is not None:
+                setattr(data, name, frame)
         data.parameters = self.parameters
         data.navigation = dict(navigation or {})
         data.events = data.events.sort_values("t_s", kind="stable", ignore_index=True)

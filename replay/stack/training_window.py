@@ -171,20 +171,27 @@ class TrainingWindow:
         """Every job's (detector or None, error): the threaded ones side by side, the others here in turn."""
         # AQPSO-GA evaluates whole populations, where numpy and LAPACK release the GIL: two such
         # models train ~1.5x faster side by side. The other trainers are many small numpy calls
-        # that only contend for the GIL (3x slower each on threads), so they run here, in turn.
-        # Each job has its own data and seed: results do not depend on the threads.
+        # that only contend for the GIL (3x slower each on threads), so they run here, in turn,
+        # while the threaded ones train. Each job has its own data and seed: results do not depend
+        # on the threads.
         outcomes: list[tuple[Detector | None, str] | None] = [None] * len(jobs)
         heavy = [i for i, job in enumerate(jobs) if job[0].threaded_training]
+        futures = {}
+        pool = None
         if self.threads > 1 and len(heavy) > 1:
             from concurrent.futures import ThreadPoolExecutor
 
-            with ThreadPoolExecutor(min(self.threads, len(heavy))) as pool:
-                futures = {i: pool.submit(self._train_one, jobs[i][0], jobs[i][2]) for i in heavy}
+            pool = ThreadPoolExecutor(min(self.threads, len(heavy)))
+            futures = {i: pool.submit(self._train_one, jobs[i][0], jobs[i][2]) for i in heavy}
+        try:
+            for i, (e, _, data) in enumerate(jobs):
+                if i not in futures:
+                    outcomes[i] = self._train_one(e, data)
             for i, future in futures.items():
                 outcomes[i] = future.result()
-        for i, (e, _, data) in enumerate(jobs):
-            if outcomes[i] is None:
-                outcomes[i] = self._train_one(e, data)
+        finally:
+            if pool is not None:
+                pool.shutdown()
         return [o for o in outcomes if o is not None]     # every job has its outcome by now
 
     def _assemble(self) -> TrainingSet:

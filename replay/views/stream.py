@@ -33,7 +33,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, cast
 
-import pandas as pd
 import rerun as rr
 
 from replay.review.collector import ReviewCollector
@@ -137,10 +136,10 @@ class StreamedRecording:
                           origin[1] * 57.29577951308232 if origin else float("nan"), dict(c.layout.roles))
         fresh = False
         for name in TABLES:
-            rows = c.rows[name]
-            if len(rows) > self._taken[name]:
-                setattr(data, name, pd.DataFrame(rows[self._taken[name]:]))
-                self._taken[name] = len(rows)
+            frame = c.table(name, self._taken[name])
+            if frame is not None:
+                setattr(data, name, frame)
+                self._taken[name] = c.count(name)
                 fresh = True
         return data if fresh else None
 

@@ -181,7 +181,11 @@ def rule_grades(mu: np.ndarray, rules: np.ndarray) -> np.ndarray:
 def normalized_firing(x: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray,
                       rules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Firing strengths w (A.22) and their normalization w / sum(w) (A.23), each (..., n, R)."""
-    mu = memberships(x, a, b, c)
+    return firing_from(memberships(x, a, b, c), rules)
+
+
+def firing_from(mu: np.ndarray, rules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`normalized_firing` from membership grades already computed (..., n, D, M)."""
     # the product over inputs, left to right as prod() does, without gathering (..., n, R, D) first
     w = mu[..., 0, rules[:, 0]]
     for d in range(1, rules.shape[1]):
@@ -192,10 +196,13 @@ def normalized_firing(x: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray
 
 def design_matrix(x: np.ndarray, wbar: np.ndarray) -> np.ndarray:
     """Least-squares regressors wbar_r * [x, 1] per rule (A.24): (..., n, R*(D+1)), rule-major."""
-    x1 = np.concatenate([x, np.ones((x.shape[0], 1))], axis=1)
-    # written C-ordered so the reshape below is a view, not a copy of the whole matrix
-    phi = np.empty(wbar.shape + (x1.shape[1],))
-    np.multiply(wbar[..., :, :, None], x1[:, None, :], out=phi)
+    d = x.shape[1]
+    # written C-ordered so the reshape below is a view, not a copy of the whole matrix; one multiply per input
+    # column (long inner loops, not D+1 at a time), the last column wbar itself (wbar * 1 is wbar)
+    phi = np.empty(wbar.shape + (d + 1,))
+    for k in range(d):
+        np.multiply(wbar, x[:, k, None], out=phi[..., k])
+    phi[..., d] = wbar
     return phi.reshape(*phi.shape[:-2], -1)
 
 
@@ -304,14 +311,17 @@ def bell_derivatives(x: np.ndarray, a: np.ndarray, b: np.ndarray,
     sa = _safe_a(a)
     diff = x[:, :, None] - c[None]
     t = np.abs(diff / sa[None])
+    b2 = 2.0 * b[None]
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-        u = t ** (2.0 * b[None])
+        u = t ** b2
         mu = 1.0 / (1.0 + u)
         one_minus = np.where(u > 1.0, 1.0 - mu, u * mu)
         s = mu * one_minus
-        d_a = 2.0 * b[None] * s / sa[None]
-        d_b = np.where(t > 0.0, -2.0 * np.log(np.where(t > 0.0, t, 1.0)) * s, 0.0)
-        d_c = np.where(diff != 0.0, 2.0 * b[None] * s / np.where(diff != 0.0, diff, 1.0), 0.0)
+        b2s = b2 * s        # 2b mu(1-mu), shared by d_a and d_c
+        d_a = b2s / sa[None]
+        positive, moved = t > 0.0, diff != 0.0
+        d_b = np.where(positive, -2.0 * np.log(np.where(positive, t, 1.0)) * s, 0.0)
+        d_c = np.where(moved, b2s / np.where(moved, diff, 1.0), 0.0)
     return mu, d_a, d_b, d_c
 
 
@@ -332,12 +342,18 @@ def premise_gradient(model: AnfisModel, x: np.ndarray,
 
 
 def _premise_gradient(x: np.ndarray, y: np.ndarray, terms: tuple[np.ndarray, ...],
-                      sel: np.ndarray, model: AnfisModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The premise gradient from precomputed bell terms and rule grades (shared with the forward pass)."""
+                      sel: np.ndarray, model: AnfisModel,
+                      forward: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The premise gradient from precomputed bell terms and rule grades (shared with the forward pass);
+    `forward`: the firing w, its floored sum and the rule outputs f of `model`, when the caller has them."""
     _, d_a, d_b, d_c = terms
-    w = sel.prod(axis=-1)
-    total = np.maximum(w.sum(axis=-1, keepdims=True), _S_FLOOR)
-    f = rule_outputs(x, model.consequents)                    # (n, R)
+    if forward is None:
+        w = sel.prod(axis=-1)
+        total = np.maximum(w.sum(axis=-1, keepdims=True), _S_FLOOR)
+        f = rule_outputs(x, model.consequents)                    # (n, R)
+    else:
+        w, total, f = forward
     out = (w * f).sum(axis=-1, keepdims=True) / total
     g_w = (-2.0 * (y[:, None] - out)) * (f - out) / total     # dE/dw_r, (n, R)
     g_mu = _scatter_to_mfs(g_w[None] * _leave_one_out(sel), model.rules, model.mfs_per_input)
@@ -408,13 +424,15 @@ def train_hybrid(x: np.ndarray, y: np.ndarray, *, mfs: int = 2, structure: str =
         terms = bell_derivatives(x, model.a, model.b, model.c)
         sel = rule_grades(terms[0], model.rules)
         w = sel.prod(axis=-1)
-        wbar = w / np.maximum(w.sum(axis=-1, keepdims=True), _S_FLOOR)
+        total = np.maximum(w.sum(axis=-1, keepdims=True), _S_FLOOR)
+        wbar = w / total
         model = model.with_consequents(fit_consequents(x, wbar, y, ridge))
-        resid = y - (wbar * rule_outputs(x, model.consequents)).sum(axis=-1)
+        f = rule_outputs(x, model.consequents)
+        resid = y - (wbar * f).sum(axis=-1)
         errors.append(float(np.sqrt(np.mean(resid ** 2))))
         hist_a[k], hist_b[k], hist_c[k], hist_q[k] = model.a, model.b, model.c, model.consequents
         hist_rmse[k] = errors[-1]
-        model = _gradient_step(model, _premise_gradient(x, y, terms, sel, model), step)
+        model = _gradient_step(model, _premise_gradient(x, y, terms, sel, model, (w, total, f)), step)
         step, last_inc, last_dec = step_size_update(errors, step, last_inc, last_dec,
                                                     step_increase, step_decrease)
         hist_step[k] = step

@@ -26,11 +26,11 @@ from replay.stack.detectors.anfis import (
     PointPredictor,
     TrainingHistory,
     TrainingResult,
+    firing_from,
     initial_model,
     memberships,
     minmax_bounds,
     normalize,
-    normalized_firing,
     output_surface,
     predict,
     rule_outputs,
@@ -218,9 +218,10 @@ class AnfisDetector:
         feats = np.asarray(features, dtype=float)
         x = normalize(np.atleast_2d(feats), self.input_min, self.input_max)
         m = self.result.model
-        w, wbar = normalized_firing(x, m.a, m.b, m.c, m.rules)
+        mu = memberships(x, m.a, m.b, m.c)
+        w, wbar = firing_from(mu, m.rules)
         f = rule_outputs(x, m.consequents)
-        parts = (x, memberships(x, m.a, m.b, m.c), w, wbar, f, (wbar * f).sum(axis=-1))
+        parts = (x, mu, w, wbar, f, (wbar * f).sum(axis=-1))
         if feats.ndim == 1:
             parts = tuple(p[0] for p in parts)
         return Explanation(*parts)

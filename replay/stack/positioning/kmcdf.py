@@ -306,6 +306,13 @@ class KmcdfFix:
             for m in np.nonzero(valid)[0].tolist())
 
 
+    def fix_columns(self) -> tuple[list[float], list[float], list[int]]:
+        """x, y and cluster of the preliminary fixes that exist, in layout order (those of `fixes`), as lists."""
+        _, xy_all = self._source
+        valid = self.clusters > 0
+        return xy_all[valid, 0].tolist(), xy_all[valid, 1].tolist(), self.clusters[valid].tolist()
+
+
 def kmcdf_epoch(
     node_xy: FloatArray, delays_s: FloatArray, phase_x: FloatArray, phase_y: FloatArray,
     params: KmcdfParams = KmcdfParams(),
