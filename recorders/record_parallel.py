@@ -158,26 +158,27 @@ class Capture:
 
 
 def write_captured(writer: ArchiveWriter, captured: Captured) -> None:
-    """Write one log's captured messages, registering each channel at its first message as write() does: a run
-    of messages of one topic in one `write_serialized_batch`."""
-    ids: list[int | None] = [None] * len(captured.topics)
+    """Write one log's captured messages, registering each channel at its first message as write() does: the
+    messages between two first uses in one `write_serialized_mixed`."""
     table = np.frombuffer(captured.index, dtype=np.int64).reshape(-1, _FIELDS)
     if not len(table):
         return
-    numbers, ends = table[:, 0], table[:, 1].tolist()
+    numbers = table[:, 0]
+    ends = table[:, 1].tolist()
     log_times, publish_times = table[:, 2].tolist(), table[:, 3].tolist()
     blob = memoryview(captured.blob)
-    cuts = [0, *(np.flatnonzero(numbers[1:] != numbers[:-1]) + 1).tolist(), len(table)]
-    for first, stop, number in zip(cuts, cuts[1:], numbers[cuts[:-1]].tolist()):
+    payloads = [blob[a:b] for a, b in zip([0, *ends[:-1]], ends)]
+    kinds, firsts = np.unique(numbers, return_index=True)
+    ids = np.zeros(int(kinds.max()) + 1, dtype=np.int64)
+    cuts = [*sorted(firsts.tolist()), len(table)]
+    for first, stop in zip(cuts, cuts[1:]):
+        number = int(numbers[first])
         topic, name = captured.topics[number]
-        if ids[number] is None:
-            source = captured.sources.get(number)
-            ids[number] = writer.channel(topic, MESSAGE_CLASSES[name]) if source is None \
-                else writer.source_channel(topic, source)
-        starts = ends[first - 1: stop - 1] if first else [0, *ends[: stop - 1]]
-        payloads = [blob[a:b] for a, b in zip(starts, ends[first:stop])]
-        writer.write_serialized_batch(topic, payloads, log_times[first:stop],  # type: ignore[arg-type]
-                                      publish_times[first:stop])
+        source = captured.sources.get(number)
+        ids[number] = writer.channel(topic, MESSAGE_CLASSES[name]) if source is None \
+            else writer.source_channel(topic, source)
+        writer.write_serialized_mixed(ids[numbers[first:stop]].tolist(), payloads[first:stop],
+                                      log_times[first:stop], publish_times[first:stop])
 
 
 class WorkerDied(RuntimeError):

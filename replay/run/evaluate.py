@@ -13,10 +13,11 @@ own arrays give each epoch's injected anomaly kind. Only the test seeds are
 scored: the train seed never is.
 
 The trials of one seed (scripted, and at each drift rate of the sweep) differ
-only in the follower's acoustic log: they are recorded together
-(`prepare_trials`), and a log of the same bytes is decoded once
-(`recorders.record.ReusedLogs`); each archive is the bytes `record` writes
-alone, which the tests check.
+only in the follower's acoustic log: they are prepared together
+(`prepare_trials`, `SeedCache`): the navigation logs are written once
+(`samples.writer.log_files`' `like`) and a log of the same bytes is decoded
+once (`recorders.record.ReusedLogs`); each archive is the bytes `record`
+writes alone, which the tests check.
 
 On Dask (`run_trials`) a trial is two tasks, `prepare_trials` (simulate and
 record one seed's trials: the archives' bytes come back) and `score_prepared`
@@ -92,7 +93,7 @@ from replay.stack.training_window import TrainedCache, reuse_training
 from samples.anomalies import KIND_CODES
 from samples.scenario import ANOMALY_KINDS, Scenario, ScenarioError
 from samples.simulator import SimulatedTrial, simulate_trial
-from samples.writer import write_trial
+from samples.writer import log_files, write_files
 
 if TYPE_CHECKING:
     from distributed import Client, Future
@@ -210,15 +211,29 @@ def _scratch(seed: int) -> tempfile.TemporaryDirectory[str]:
     return tempfile.TemporaryDirectory(prefix=f"auvreplay-evaluate-{seed}-", dir=memory)
 
 
-def _record_trial(spec: TrialSpec, root: Path, reuse: ReusedLogs | None = None
+@dataclass
+class SeedCache:
+    """What one seed's trials share, prepared one after another: the first trial and its log files (its
+    navigation logs are the others' when their navigation is the same) and every log recorded so far."""
+
+    like: tuple[SimulatedTrial, dict[str, bytes]] | None = None
+    logs: ReusedLogs = field(default_factory=dict)
+
+
+def _record_trial(spec: TrialSpec, root: Path, reuse: SeedCache | None = None
                   ) -> tuple[SimulatedTrial, bytes, float]:
     """Simulate one trial, write its manifest and logs under `root` and record them into memory: the trial, the
-    archive's bytes, the offset. With `reuse`, logs recorded before in it are not decoded again (same bytes)."""
+    archive's bytes, the offset. With `reuse`, what an earlier trial of the seed wrote and decoded is taken."""
     trial = simulate_trial(spec.scenario(), spec.seed)
-    write_trial(trial, root, logs_only=True)    # the truth CSVs come from the arrays, not from files
+    # the manifest and the logs only: the truth CSVs come from the arrays, not from files
+    files = log_files(trial, reuse.like if reuse is not None else None)
+    write_files(files, root)
+    if reuse is not None and reuse.like is None:
+        reuse.like = (trial, files)
     buffer = io.BytesIO()
     # one process per trial: the harness runs trials side by side instead
-    summary = record(load_manifest(root / "trial.toml"), buffer, workers=1, reuse=reuse)
+    summary = record(load_manifest(root / "trial.toml"), buffer, workers=1,
+                     reuse=reuse.logs if reuse is not None else None)
     archive = buffer.getvalue()
     refused = refused_records(summary)
     if refused:
@@ -241,7 +256,7 @@ def _replay(archive: bytes, config: RunConfig, listeners: Sequence[Listener],
 
 def _closed_loop(spec: TrialSpec, config: RunConfig, listeners: Sequence[Listener] = (),
                  training_set: TrainingSet | None = None,
-                 reuse: ReusedLogs | None = None) -> tuple[SimulatedTrial, RunOutcome, float]:
+                 reuse: SeedCache | None = None) -> tuple[SimulatedTrial, RunOutcome, float]:
     """Simulate, write, record and replay one trial (logs in a scratch directory): the trial, the run, the offset."""
     with _scratch(spec.seed) as tmp:
         trial, archive, offset_s = _record_trial(spec, Path(tmp), reuse)
@@ -280,7 +295,7 @@ def _epochs(trial: SimulatedTrial) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     return r.follower, r.leader, r.t_s, r.injected
 
 
-def prepare_trial(spec: TrialSpec, reuse: ReusedLogs | None = None) -> PreparedTrial:
+def prepare_trial(spec: TrialSpec, reuse: SeedCache | None = None) -> PreparedTrial:
     """Simulate and record one trial (what needs no training set): a task that runs while the train seed trains."""
     wall0, cpu0 = time.monotonic(), time.process_time()
     with _scratch(spec.seed) as tmp:
@@ -290,8 +305,8 @@ def prepare_trial(spec: TrialSpec, reuse: ReusedLogs | None = None) -> PreparedT
 
 
 def prepare_trials(specs: Sequence[TrialSpec]) -> list[PreparedTrial]:
-    """`prepare_trial` of several trials in turn, a log of the same bytes decoded once (one seed's sweep)."""
-    reuse: ReusedLogs = {}
+    """`prepare_trial` of several trials in turn, sharing what they can (`SeedCache`: one seed's sweep)."""
+    reuse = SeedCache()
     return [prepare_trial(spec, reuse) for spec in specs]
 
 
@@ -311,7 +326,7 @@ def score_prepared(prepared: PreparedTrial, config: RunConfig,
 
 
 def evaluate_trial(spec: TrialSpec, config: RunConfig, training_set: TrainingSet | None = None,
-                   reuse: ReusedLogs | None = None) -> TrialScores:
+                   reuse: SeedCache | None = None) -> TrialScores:
     """One trial through the real pipeline (trained as `config.stack.training_source` says); its scores after t_a.
 
     `reuse`: the logs recorded before (`prepare_trials`), for trials of the same seed one after another."""
@@ -515,11 +530,11 @@ def run_trials(groups: Sequence[TrialGroup], client: Client | None = None,
                     progress(done, total)
             sets = same_seed(g.specs)
             last = {s[-1]: k for k, s in enumerate(sets)}
-            kept: dict[int, ReusedLogs] = {}
+            kept: dict[int, SeedCache] = {}
             which = {i: k for k, s in enumerate(sets) for i in s}
             scored = []
             for i, spec in enumerate(g.specs):
-                reuse = kept.setdefault(which[i], {}) if len(sets[which[i]]) > 1 else None
+                reuse = kept.setdefault(which[i], SeedCache()) if len(sets[which[i]]) > 1 else None
                 scored.append(evaluate_trial(spec, g.config, given, reuse))
                 if i in last:
                     kept.pop(last[i], None)
@@ -597,7 +612,7 @@ def evaluate(seeds: Sequence[int], config: RunConfig, train_seed: int | None = N
                       {m: closed_loop_fpr(main, m) for m in config.stack.methods})
 
 
-__all__ = ["DEFAULT_DRIFT_RATES", "FPR_TARGETS", "TRAINING_MODES", "Evaluation", "PreparedTrial", "TrialGroup",
-           "TrialScores", "TrialSpec", "closed_loop_fpr", "drift_sweep", "epoch_kinds", "evaluate", "evaluate_trial",
-           "method_figures", "prepare_trial", "prepare_trials", "recall_by_kind", "refused_records", "run_trials",
-           "same_seed", "score_prepared", "split_seeds", "training_set_of"]
+__all__ = ["DEFAULT_DRIFT_RATES", "FPR_TARGETS", "TRAINING_MODES", "Evaluation", "PreparedTrial", "SeedCache",
+           "TrialGroup", "TrialScores", "TrialSpec", "closed_loop_fpr", "drift_sweep", "epoch_kinds", "evaluate",
+           "evaluate_trial", "method_figures", "prepare_trial", "prepare_trials", "recall_by_kind", "refused_records",
+           "run_trials", "same_seed", "score_prepared", "split_seeds", "training_set_of"]
