@@ -27,7 +27,7 @@ from replay.run.evaluate import TrialSpec, same_seed
 from replay.run.pipeline import replay_archive
 from samples.scenario import Scenario
 from samples.simulator import simulate_trial
-from samples.writer import write_trial
+from samples.writer import log_files, same_inputs, write_trial
 
 T0 = 1_700_000_000 * 10**9
 DURATION_S = 240.0
@@ -139,3 +139,39 @@ def test_a_seeds_trials_are_grouped_and_prepared_together_as_alone() -> None:
     for p, spec in zip(together, (specs[0], specs[2])):
         alone = ev.prepare_trial(spec)
         assert p.spec == spec and p.archive == alone.archive and p.offset_s == alone.offset_s
+
+
+def test_a_sweep_trial_takes_only_the_logs_whose_inputs_are_the_same() -> None:
+    """`log_files(like=...)` gives the trial's own files byte for byte, sharing what a drift rate leaves."""
+    first = simulate_trial(TrialSpec(3, None, DURATION_S).scenario(), 3)
+    files = log_files(first)
+    for rate in (0.2, 1.0):
+        trial = simulate_trial(TrialSpec(3, rate, DURATION_S).scenario(), 3)
+        shared = log_files(trial, (first, files))
+        assert shared == log_files(trial)
+        assert {"vehicles", "buoys", "usbl"} <= same_inputs(trial, first)
+        taken = [rel for rel in shared if shared[rel] is files[rel]]
+        assert "follower/gps.log" in taken and "buoy1/usbl.log" in taken
+    other = simulate_trial(TrialSpec(4, None, DURATION_S).scenario(), 4)    # another seed: nothing in common
+    assert same_inputs(other, first) == set()
+    assert not [rel for rel, data in log_files(other, (first, files)).items() if data is files[rel] and
+                rel != "trial.toml"]
+
+
+def test_interleaved_channels_in_one_call_write_the_bytes_of_one_by_one(tmp_path: Path) -> None:
+    rows = [(i % 3, f"m{i}".encode() * (i % 7 + 1), T0 + i * 10, T0 + i * 10 + 3) for i in range(900)]
+    out = []
+    for mixed in (False, True):
+        buffer = io.BytesIO()
+        with ArchiveWriter(buffer, chunk_size=700) as w:
+            ids = [w.channel(f"/v{k}/gps", S.LocationFix) for k in range(3)]
+            if mixed:
+                w.write_serialized_mixed([ids[k] for k, *_ in rows], [r[1] for r in rows], [r[2] for r in rows],
+                                         [r[3] for r in rows])
+            else:
+                for k, data, lt, pt in rows:
+                    w.write_serialized(ids[k], data, lt, pt)
+            with pytest.raises(KeyError):
+                w.write_serialized_mixed([99], [b""], [T0], [T0])
+        out.append(buffer.getvalue())
+    assert out[0] == out[1]
