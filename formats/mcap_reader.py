@@ -15,6 +15,7 @@ line what was skipped.
 from __future__ import annotations
 
 import heapq
+import io
 import json
 import os
 import struct
@@ -22,7 +23,7 @@ from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, BinaryIO, NamedTuple
 
 from google.protobuf.message import DecodeError
 from mcap.exceptions import McapError
@@ -178,14 +179,30 @@ def _check_magic(path: Path) -> int:
     return size
 
 
-class ArchiveReader:
-    """Reads an MCAP archive (context manager). Raises FormatError only if it is not MCAP at all."""
+def _check_magic_bytes(data: bytes | bytearray | memoryview) -> int:
+    """`_check_magic` of an archive held in memory: its size."""
+    if not len(data):
+        raise FormatError("<bytes>: empty, not an MCAP archive")
+    if bytes(data[:len(MAGIC)]) != MAGIC:
+        raise FormatError("<bytes>: not an MCAP archive (no MCAP magic at the start)")
+    return len(data)
 
-    def __init__(self, path: str | os.PathLike[str], validate_crcs: bool = True,
+
+class ArchiveReader:
+    """Reads an MCAP archive, a file or its bytes (context manager); FormatError only if it is not MCAP at all."""
+
+    def __init__(self, path: str | os.PathLike[str] | bytes | bytearray | memoryview, validate_crcs: bool = True,
                  max_chunk_bytes: int = MAX_CHUNK_BYTES):
-        self.path = Path(path)
-        self._size = _check_magic(self.path)
-        self._file = open(self.path, "rb")
+        # an archive's bytes (`evaluate` keeps its trials in memory) are read as the file would be
+        self._file: BinaryIO
+        if isinstance(path, (bytes, bytearray, memoryview)):
+            self.path = Path("<bytes>")
+            self._size = _check_magic_bytes(path)
+            self._file = io.BytesIO(path)
+        else:
+            self.path = Path(path)
+            self._size = _check_magic(self.path)
+            self._file = open(self.path, "rb")
         self.validate_crcs = validate_crcs
         self.max_chunk_bytes = max_chunk_bytes
         self.damage = Damage()

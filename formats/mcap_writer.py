@@ -30,7 +30,9 @@ first message.
 
 The file is written under a temporary name next to the target and renamed
 only when `close()` finishes, so an interrupted write never leaves a file
-that looks complete.
+that looks complete. Given a binary stream instead of a path (an
+`io.BytesIO`: `evaluate` records its trials in memory), the writer writes
+the same bytes into it and leaves it open: no claim, no rename, no fsync.
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ import zlib
 from collections.abc import Iterable, Mapping, Sequence
 from itertools import chain
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO, cast
 
 import numpy as np
 import zstandard
@@ -109,6 +111,39 @@ def record(opcode: int, body: bytes) -> bytes:
     return _RECORD.pack(opcode, len(body)) + body
 
 
+class _StreamClaim:
+    """OutputClaim's part for a caller's binary stream: written in place, never renamed, synced or closed."""
+
+    def __init__(self, stream: BinaryIO):
+        self.output = Path(f"<{type(stream).__name__}>")
+        self.part = self.output
+        self.removed: list[Path] = []
+        self._stream = stream
+
+    def open_part(self) -> BinaryIO:
+        return cast(BinaryIO, _Unclosed(self._stream))
+
+    def publish(self) -> None:
+        """Nothing to rename: the stream holds the archive."""
+
+    def abandon(self, keep_part: bool = False) -> None:
+        """The caller's stream is the caller's: what was written stays in it."""
+
+
+class _Unclosed:
+    """A caller's stream as the writer's file: close() flushes it and leaves it open (a BytesIO keeps its bytes)."""
+
+    def __init__(self, stream: BinaryIO):
+        self._stream = stream
+        self.write = stream.write
+
+    def flush(self) -> None:
+        self._stream.flush()
+
+    def close(self) -> None:
+        self._stream.flush()
+
+
 class _Channel:
     """A registered channel: its id, message class, messages so far and the open chunk's index."""
 
@@ -128,13 +163,15 @@ class ArchiveWriter:
     Times are integer nanoseconds (UTC); there is no wall-clock default.
     """
 
-    def __init__(self, path: str | os.PathLike[str], chunk_size: int = CHUNK_SIZE, part_path: Path | None = None,
-                 replace: bool = True, keep_on_error: bool = False):
-        self.path = Path(path)
+    def __init__(self, path: str | os.PathLike[str] | BinaryIO, chunk_size: int = CHUNK_SIZE,
+                 part_path: Path | None = None, replace: bool = True, keep_on_error: bool = False):
         # the output is claimed (formats.output_files): a second writer of the same path is refused, and
         # without `replace` an existing file is never replaced, not even one that appears while we write.
         # A live capture grows under a name the user knows (TRIAL.mcap.part) to recover it after a crash.
-        self._claim = OutputClaim(self.path, replace, part_path)
+        # A stream (not a path) is the caller's: written in place (_StreamClaim).
+        self._claim: OutputClaim | _StreamClaim = OutputClaim(Path(path), replace, part_path) \
+            if isinstance(path, (str, os.PathLike)) else _StreamClaim(path)
+        self.path = self._claim.output
         self.temp_path = self._claim.part
         self._named_part = part_path is not None
         self.removed_parts: list[Path] = self._claim.removed  # part files of dead writers, removed
@@ -385,8 +422,13 @@ class ArchiveWriter:
     def flush(self) -> None:
         """Close the open chunk, write it out and fsync: everything written so far survives a crash."""
         self._finish_chunk()
+        self._sync()
+
+    def _sync(self) -> None:
+        """Flush, and fsync a file of our own (a caller's stream is not synced)."""
         self._stream.flush()
-        os.fsync(self._stream.fileno())
+        if isinstance(self._claim, OutputClaim):
+            os.fsync(self._stream.fileno())
 
     def add_metadata(self, name: str, data: Mapping[str, Any]) -> None:
         """A metadata record; non-string values are stored as JSON text."""
@@ -468,8 +510,7 @@ class ArchiveWriter:
         if not self._closed:
             try:
                 self._finish()
-                self._stream.flush()
-                os.fsync(self._stream.fileno())
+                self._sync()
             except BaseException:
                 if self.keep_on_error:
                     self.leave()

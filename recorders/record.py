@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import bisect
+import copy
 import hashlib
 import mimetypes
 import re
@@ -13,7 +14,7 @@ from dataclasses import asdict, dataclass, field
 from dataclasses import replace as replaced
 from functools import partial
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, BinaryIO, Protocol
 
 import numpy as np
 
@@ -749,12 +750,38 @@ def _captured_parts(log: LogSpec, captured: Captured) -> list[tuple[str, bytes]]
 
 
 def _record_serial(manifest: Manifest, writer: ArchiveWriter, tables: Converters, fallback: int,
-                   summary: RecordingSummary, progress: Progress | None) -> None:
+                   summary: RecordingSummary, progress: Progress | None, reuse: ReusedLogs | None = None) -> None:
     for log in manifest.logs():
-        stats = _record_here(manifest, writer, log, tables, fallback, progress)
+        stats = _record_here(manifest, writer, log, tables, fallback, progress) if reuse is None \
+            else _record_reused(manifest, writer, log, tables, fallback, progress, reuse)
         summary.files.append(stats)
         if progress is not None:
             progress(log.path, stats.size, stats.size)
+
+
+ReusedLogs = dict[tuple[str, str, int, tuple[str, ...]], Captured]
+"""Logs decoded before, kept by `record(reuse=...)`: (manifest's sha256, log path, fallback time, its files' sha256s)
+-> what the log gave. `evaluate`'s drift sweep re-records a seed whose logs are all the same but one."""
+
+
+def _record_reused(manifest: Manifest, writer: ArchiveWriter, log: LogSpec, tables: Converters, fallback: int,
+                   progress: Progress | None, reuse: ReusedLogs) -> FileStats:
+    """`_record_here` of a log read whole, through `reuse`: a log of the same bytes under the same manifest is
+    written from what it gave before (the archive is the same bytes: `write_captured`, as with workers)."""
+    how = _reading(manifest, log, tables)
+    if not isinstance(how, tuple):
+        return _record_here(manifest, writer, log, tables, fallback, progress)
+    convert, parts = how
+    key = (hashlib.sha256(manifest.path.read_bytes()).hexdigest(), log.path, fallback,
+           tuple(hashlib.sha256(data).hexdigest() for _, data in parts))
+    captured = reuse.get(key)
+    if captured is None:
+        sink = Capture()
+        stats, _ = _decode_log(manifest, log, parts, convert, fallback, sink, progress)
+        captured = reuse[key] = sink.finish(stats)
+    _attach(writer, parts, fallback)
+    write_captured(writer, captured)
+    return copy.deepcopy(captured.stats)
 
 
 def _record_parallel(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[Captured], tables: Converters,
@@ -801,8 +828,8 @@ def _next_captured(manifest: Manifest, writer: ArchiveWriter, pool: WorkerPool[C
     return pool.result(i)
 
 
-def record(manifest: Manifest, output_path: str | Path, progress: Progress | None = None,
-           workers: int | None = None, replace: bool = True) -> RecordingSummary:
+def record(manifest: Manifest, output_path: str | Path | BinaryIO, progress: Progress | None = None,
+           workers: int | None = None, replace: bool = True, reuse: ReusedLogs | None = None) -> RecordingSummary:
     """Record every log of the manifest into `output_path`; returns the per-file summary.
 
     `workers` processes decode the logs (None: automatic, see `resolve_workers`);
@@ -811,11 +838,14 @@ def record(manifest: Manifest, output_path: str | Path, progress: Progress | Non
     and an existing archive only with `replace` (see recorders.output_checks);
     a second process writing the same output at the same time is refused
     (formats.output_files); the part file is removed on any failure, and stale
-    ones of dead processes before the start.
+    ones of dead processes before the start. A binary stream (`io.BytesIO`) as
+    the output gets the same bytes, and is left open. With `reuse` (one process),
+    a log seen before in it is not decoded again (`ReusedLogs`): the same bytes.
     """
-    output = Path(output_path)
+    output = Path(output_path) if isinstance(output_path, (str, Path)) else output_path
     try:
-        check_output(output, [manifest.path, *(manifest.root / log.path for log in manifest.logs())], replace)
+        if isinstance(output, Path):
+            check_output(output, [manifest.path, *(manifest.root / log.path for log in manifest.logs())], replace)
     except OutputProblem as exc:
         raise ManifestError(str(exc)) from None
     tables = Converters(converters(), block_converters())
@@ -824,7 +854,7 @@ def record(manifest: Manifest, output_path: str | Path, progress: Progress | Non
     if live is not None:
         raise ManifestError(f"{manifest.path}: log {live.path} is a live source ({live.source}): "
                             "use `auvreplay capture`")
-    summary = RecordingSummary(workers=resolve_workers(manifest, workers))
+    summary = RecordingSummary(workers=1 if reuse is not None else resolve_workers(manifest, workers))
     fallback = date_to_ns(manifest.date) if manifest.date else 0
     writer: ArchiveWriter | None = None
     try:
@@ -842,13 +872,13 @@ def record(manifest: Manifest, output_path: str | Path, progress: Progress | Non
             # first, so that an archive cut off mid-write still says who is who
             writer.add_metadata("trial", trial_metadata(manifest))
             if pool is None:
-                _record_serial(manifest, writer, tables, fallback, summary, progress)
+                _record_serial(manifest, writer, tables, fallback, summary, progress, reuse)
             else:
                 _record_parallel(manifest, writer, pool, tables, fallback, summary, progress)
             writer.add_metadata("recording", {"files": [f.as_json() for f in summary.files]})
     except BaseException:
         # the writer drops its part file on an error inside; this also covers a failed final rename
-        if writer is not None:
+        if writer is not None and isinstance(output, Path):
             writer.temp_path.unlink(missing_ok=True)
         raise
     return summary

@@ -172,8 +172,8 @@ class Capture:
 
 
 def write_captured(writer: ArchiveWriter, captured: Captured) -> None:
-    """Write one log's captured messages, registering each channel at its first message as write() does: a run
-    of messages of one topic in one `write_serialized_batch`."""
+    """Write one log's captured messages, registering each channel at its first message as write() does: the
+    messages between two first uses in one `write_blob`."""
     ids: list[int | None] = [None] * len(captured.topics)
     table = np.frombuffer(captured.index, dtype=np.int64).reshape(-1, _FIELDS)
     if not len(table):

@@ -20,6 +20,7 @@ Directory layout::
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import fields, is_dataclass
 from pathlib import Path
 
 import numpy as np
@@ -173,12 +174,55 @@ def readme(trial: SimulatedTrial) -> str:
     return "\n".join(lines) + "\n"
 
 
-def log_files(trial: SimulatedTrial) -> dict[str, bytes]:
-    """What `record` reads of the trial: the manifest and every vendor log (relative POSIX path -> bytes)."""
+WRITER_INPUTS: dict[Callable[[SimulatedTrial, str], bytes], tuple[str, ...]] = {
+    logs_nav.nmea_gps: (), logs_nav.novatel_gps: (), logs_nav.phins_ins: (), logs_nav.novatel_ins: (),
+    logs_nav.pd0_dvl: (), logs_acoustic.micromodem_log: ("ranges", "pings"), logs_acoustic.evologics_usbl: ("usbl",)}
+"""What each writer's log is a function of, besides the start time, the scenario's sensor tables (`_SENSOR_TABLES`)
+and the vehicles' and buoys' simulated series: the trial's other series it reads (never the scenario's anomalies).
+A writer not listed is never shared (`log_files`' `like`)."""
+_SENSOR_TABLES = ("gps", "ins", "dvl", "ranging", "usbl")
+_SERIES = ("vehicles", "buoys", "ranges", "pings", "usbl")
+
+
+def _same_values(a: object, b: object) -> bool:
+    """Deep equality of simulated series: dataclasses field by field, arrays element by element (NaN = NaN)."""
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        a, b = np.asarray(a), np.asarray(b)
+        return a.shape == b.shape and a.dtype == b.dtype and bool(
+            np.array_equal(a, b, equal_nan=a.dtype.kind in "fc"))
+    if is_dataclass(a) and not isinstance(a, type):
+        return type(a) is type(b) and all(_same_values(getattr(a, f.name), getattr(b, f.name)) for f in fields(a))
+    if isinstance(a, (tuple, list)):
+        return isinstance(b, type(a)) and len(a) == len(b) and all(_same_values(x, y) for x, y in zip(a, b))
+    return type(a) is type(b) and bool(a == b)
+
+
+def same_inputs(a: SimulatedTrial, b: SimulatedTrial) -> set[str]:
+    """The simulated series (`_SERIES`) two trials hold equal, when their start and sensor tables are (else none)."""
+    tables = [getattr(a.scenario, t) == getattr(b.scenario, t) for t in _SENSOR_TABLES]
+    if a.start_ns != b.start_ns or not all(tables):
+        return set()
+    return {f for f in _SERIES if _same_values(getattr(a, f), getattr(b, f))}
+
+
+def log_files(trial: SimulatedTrial,
+              like: tuple[SimulatedTrial, dict[str, bytes]] | None = None) -> dict[str, bytes]:
+    """What `record` reads of the trial: the manifest and every vendor log (relative POSIX path -> bytes).
+
+    `like`: another trial and its `log_files`; a log whose writer's inputs (`WRITER_INPUTS`) are equal in
+    both is taken from it as it is (a drift rate of `evaluate`'s sweep changes only the ranges).
+    """
     files = {"trial.toml": manifest_text(trial).encode()}
+    same = same_inputs(trial, like[0]) if like is not None else set()
     for name, role, _ in _roster(trial):
         for _, _, fname, write, _ in _plans(trial, name, role):
-            files[f"{name}/{fname}"] = write(trial, name)
+            rel = f"{name}/{fname}"
+            inputs = WRITER_INPUTS.get(write)
+            if like is not None and inputs is not None and {"vehicles", "buoys", *inputs} <= same \
+                    and rel in like[1]:
+                files[rel] = like[1][rel]
+            else:
+                files[rel] = write(trial, name)
     return files
 
 
@@ -197,9 +241,14 @@ def render(trial: SimulatedTrial) -> dict[str, bytes]:
 
 def write_trial(trial: SimulatedTrial, out_dir: str | Path, logs_only: bool = False) -> list[Path]:
     """Write the trial directory (`logs_only`: the manifest and the logs, what `record` reads); the paths (sorted)."""
+    return write_files(log_files(trial) if logs_only else render(trial), out_dir)
+
+
+def write_files(files: dict[str, bytes], out_dir: str | Path) -> list[Path]:
+    """Write `render`'s or `log_files`' files under `out_dir`; the paths (sorted)."""
     root = Path(out_dir)
     written = []
-    for rel, data in sorted((log_files(trial) if logs_only else render(trial)).items()):
+    for rel, data in sorted(files.items()):
         path = root / rel
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(data)

@@ -66,9 +66,9 @@ def evaluated(tmp_path_factory: pytest.TempPathFactory) -> Spied:
     spied = Spied({})
     real_trial, real_set, real_replay = ev.evaluate_trial, ev.training_set_of, ev.replay_archive
 
-    def trial(spec: TrialSpec, config: Any, given: Any = None) -> TrialScores:
+    def trial(spec: TrialSpec, config: Any, given: Any = None, reuse: Any = None) -> TrialScores:
         spied.scored.append(spec)
-        return real_trial(spec, config, given)
+        return real_trial(spec, config, given, reuse)
 
     def training(spec: TrialSpec, config: Any) -> Any:
         spied.trained_on.append(spec.seed)

@@ -2,8 +2,9 @@
 
 Every seed is simulated (the sample trial's scenario, or `--scenario FILE`),
 written as vendor logs, recorded and replayed (as `simulate`, `record` and
-`replay` do) in a scratch directory (in memory where the system has /dev/shm,
-removed after each trial), with every method of the configuration.
+`replay` do), with every method of the configuration: the logs in a scratch
+directory (in memory where the system has /dev/shm, removed after each trial),
+the archive in memory only (none is written).
 The train seed (default: the first) is never scored. Per method, pooled over the test seeds after t_a: open-loop AUC and
 FNR at FPR 1, 2 and 5 %; closed-loop recall per injected anomaly kind among
 the epochs labelled anomalous (dropout: none, a dropout leaves no range to

@@ -2,20 +2,28 @@
 
 Every trial is simulated (`samples.simulator`), written as vendor logs,
 recorded into an archive and replayed (`replay_archive`), exactly as
-`auvreplay simulate`, `record` and `replay` do, in a scratch directory of
-the process that runs it: in memory (/dev/shm) where the system has one,
-only the manifest and the logs (the truth CSVs are not needed: the
-simulator's arrays are at hand), removed when the trial ends; nothing is
+`auvreplay simulate`, `record` and `replay` do. The manifest and the logs
+go to a scratch directory of the process that runs it (in memory, /dev/shm,
+where the system has one; the truth CSVs are not needed: the simulator's
+arrays are at hand), removed when the trial ends; the archive is recorded
+into memory and replayed from its bytes: no archive is written, nothing is
 written anywhere else, and a Dask worker needs no shared file system. A
 listener keeps each epoch's decision per method after t_a; the simulator's
 own arrays give each epoch's injected anomaly kind. Only the test seeds are
 scored: the train seed never is.
 
-On Dask (`run_trials`) a trial is two tasks, `prepare_trial` (simulate and
-record: the archive's bytes come back) and `score_prepared` (replay), so the
-trials are prepared while the train seeds train; the train seeds go first.
-Detectors trained on the train seed's set are the same in every test
-trial, so each process trains them once and copies them
+The trials of one seed (scripted, and at each drift rate of the sweep) differ
+only in the follower's acoustic log: they are prepared together
+(`prepare_trials`, `SeedCache`): the navigation logs are written once
+(`samples.writer.log_files`' `like`) and a log of the same bytes is decoded
+once (`recorders.record.ReusedLogs`); each archive is the bytes `record`
+writes alone, which the tests check.
+
+On Dask (`run_trials`) a trial is two tasks, `prepare_trials` (simulate and
+record one seed's trials: the archives' bytes come back) and `score_prepared`
+(replay), so the trials are prepared while the train seeds train; the train
+seeds go first. Detectors trained on the train seed's set are the same in
+every test trial, so each process trains them once and copies them
 (`replay.stack.training_window.reuse_training`): the figures are those of
 training them in every trial, which the tests check array for array.
 
@@ -59,6 +67,7 @@ behind it.
 from __future__ import annotations
 
 import contextlib
+import io
 import math
 import os
 import tempfile
@@ -73,7 +82,7 @@ import numpy as np
 from formats.mcap_reader import ArchiveReader
 from formats.units import NS
 from recorders.manifest import load_manifest
-from recorders.record import RecordingSummary, record
+from recorders.record import RecordingSummary, ReusedLogs, record
 from replay.engine.config import RunConfig
 from replay.errors import UserError
 from replay.events import EpochResult, ErrorSample, Fix, Listener
@@ -84,7 +93,7 @@ from replay.stack.training_window import TrainedCache, reuse_training
 from samples.anomalies import KIND_CODES
 from samples.scenario import ANOMALY_KINDS, Scenario, ScenarioError
 from samples.simulator import SimulatedTrial, simulate_trial
-from samples.writer import write_trial
+from samples.writer import log_files, write_files
 
 if TYPE_CHECKING:
     from distributed import Client, Future
@@ -184,7 +193,7 @@ def epoch_kinds(sim_follower: np.ndarray, sim_leader: np.ndarray, sim_t: np.ndar
     return out
 
 
-def _archive_offset_s(archive: Path, trial: SimulatedTrial) -> float:
+def _archive_offset_s(archive: bytes, trial: SimulatedTrial) -> float:
     """Seconds from the simulated trial's start to the archive's first message (replay times count from it)."""
     with ArchiveReader(archive) as reader:
         start = reader.summary().start_ns
@@ -197,18 +206,35 @@ def refused_records(summary: RecordingSummary) -> int:
 
 
 def _scratch(seed: int) -> tempfile.TemporaryDirectory[str]:
-    """A temporary directory for one trial's logs and archive: in memory (/dev/shm) where the system has one."""
+    """A temporary directory for one trial's logs: in memory (/dev/shm) where the system has one."""
     memory = SCRATCH_IN_MEMORY if os.path.isdir(SCRATCH_IN_MEMORY) and os.access(SCRATCH_IN_MEMORY, os.W_OK) else None
     return tempfile.TemporaryDirectory(prefix=f"auvreplay-evaluate-{seed}-", dir=memory)
 
 
-def _record_trial(spec: TrialSpec, root: Path) -> tuple[SimulatedTrial, Path, float]:
-    """Simulate one trial, write its manifest and logs under `root` and record them: the trial, archive, offset."""
+@dataclass
+class SeedCache:
+    """What one seed's trials share, prepared one after another: the first trial and its log files (its
+    navigation logs are the others' when their navigation is the same) and every log recorded so far."""
+
+    like: tuple[SimulatedTrial, dict[str, bytes]] | None = None
+    logs: ReusedLogs = field(default_factory=dict)
+
+
+def _record_trial(spec: TrialSpec, root: Path, reuse: SeedCache | None = None
+                  ) -> tuple[SimulatedTrial, bytes, float]:
+    """Simulate one trial, write its manifest and logs under `root` and record them into memory: the trial, the
+    archive's bytes, the offset. With `reuse`, what an earlier trial of the seed wrote and decoded is taken."""
     trial = simulate_trial(spec.scenario(), spec.seed)
-    write_trial(trial, root / "trial", logs_only=True)    # the truth CSVs come from the arrays, not from files
-    archive = root / "trial.mcap"
+    # the manifest and the logs only: the truth CSVs come from the arrays, not from files
+    files = log_files(trial, reuse.like if reuse is not None else None)
+    write_files(files, root)
+    if reuse is not None and reuse.like is None:
+        reuse.like = (trial, files)
+    buffer = io.BytesIO()
     # one process per trial: the harness runs trials side by side instead
-    summary = record(load_manifest(root / "trial" / "trial.toml"), archive, workers=1)
+    summary = record(load_manifest(root / "trial.toml"), buffer, workers=1,
+                     reuse=reuse.logs if reuse is not None else None)
+    archive = buffer.getvalue()
     refused = refused_records(summary)
     if refused:
         # a simulated log is valid by construction: a refused record is a simulator bug that would
@@ -218,21 +244,23 @@ def _record_trial(spec: TrialSpec, root: Path) -> tuple[SimulatedTrial, Path, fl
     return trial, archive, _archive_offset_s(archive, trial)
 
 
-def _replay(archive: Path, config: RunConfig, listeners: Sequence[Listener],
+def _replay(archive: bytes, config: RunConfig, listeners: Sequence[Listener],
             training_set: TrainingSet | None) -> RunOutcome:
-    """Replay one trial's archive, nothing written; detectors trained on a given set are trained once per process."""
+    """Replay one trial's archive from its bytes, nothing written and no navigation review (never read here);
+    detectors trained on a given set are trained once per process."""
     given = training_set is not None and config.stack.training_source == "given"
     with reuse_training(_TRAINED_HERE) if given else contextlib.nullcontext():
-        return replay_archive(archive, config, write_output=False, listeners=listeners, training_set=training_set)
+        return replay_archive(archive, config, write_output=False, listeners=listeners, training_set=training_set,
+                              nav_review=False)
 
 
 def _closed_loop(spec: TrialSpec, config: RunConfig, listeners: Sequence[Listener] = (),
-                 training_set: TrainingSet | None = None) -> tuple[SimulatedTrial, RunOutcome, float]:
-    """Simulate, write, record and replay one trial in a scratch directory: the trial, the run, the offset."""
+                 training_set: TrainingSet | None = None,
+                 reuse: SeedCache | None = None) -> tuple[SimulatedTrial, RunOutcome, float]:
+    """Simulate, write, record and replay one trial (logs in a scratch directory): the trial, the run, the offset."""
     with _scratch(spec.seed) as tmp:
-        trial, archive, offset_s = _record_trial(spec, Path(tmp))
-        outcome = _replay(archive, config, listeners, training_set)
-    return trial, outcome, offset_s
+        trial, archive, offset_s = _record_trial(spec, Path(tmp), reuse)
+    return trial, _replay(archive, config, listeners, training_set), offset_s
 
 
 def training_set_of(spec: TrialSpec, config: RunConfig) -> TrainingSet:
@@ -267,13 +295,24 @@ def _epochs(trial: SimulatedTrial) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     return r.follower, r.leader, r.t_s, r.injected
 
 
-def prepare_trial(spec: TrialSpec) -> PreparedTrial:
+def prepare_trial(spec: TrialSpec, reuse: SeedCache | None = None) -> PreparedTrial:
     """Simulate and record one trial (what needs no training set): a task that runs while the train seed trains."""
     wall0, cpu0 = time.monotonic(), time.process_time()
     with _scratch(spec.seed) as tmp:
-        trial, archive, offset_s = _record_trial(spec, Path(tmp))
-        data = archive.read_bytes()
-    return PreparedTrial(spec, data, offset_s, _epochs(trial), time.monotonic() - wall0, time.process_time() - cpu0)
+        trial, archive, offset_s = _record_trial(spec, Path(tmp), reuse)
+    return PreparedTrial(spec, archive, offset_s, _epochs(trial), time.monotonic() - wall0,
+                         time.process_time() - cpu0)
+
+
+def prepare_trials(specs: Sequence[TrialSpec]) -> list[PreparedTrial]:
+    """`prepare_trial` of several trials in turn, sharing what they can (`SeedCache`: one seed's sweep)."""
+    reuse = SeedCache()
+    return [prepare_trial(spec, reuse) for spec in specs]
+
+
+def _nth(prepared: Sequence[PreparedTrial], i: int) -> PreparedTrial:
+    """One trial of a `prepare_trials` task (a Dask task of its own, run where the list is)."""
+    return prepared[i]
 
 
 def score_prepared(prepared: PreparedTrial, config: RunConfig,
@@ -281,19 +320,19 @@ def score_prepared(prepared: PreparedTrial, config: RunConfig,
     """Replay a prepared trial (trained as `config.stack.training_source` says); its scores after t_a."""
     wall0, cpu0 = time.monotonic(), time.process_time()
     log = _EpochLog(config.stack.training_window_s)
-    with _scratch(prepared.spec.seed) as tmp:
-        archive = Path(tmp) / "trial.mcap"
-        archive.write_bytes(prepared.archive)
-        outcome = _replay(archive, config, [log], training_set)
+    outcome = _replay(prepared.archive, config, [log], training_set)
     return _scores(prepared.spec, config, outcome, log, prepared.epochs, prepared.offset_s,
                    prepared.wall_s + time.monotonic() - wall0, prepared.cpu_s + time.process_time() - cpu0)
 
 
-def evaluate_trial(spec: TrialSpec, config: RunConfig, training_set: TrainingSet | None = None) -> TrialScores:
-    """One trial through the real pipeline (trained as `config.stack.training_source` says); its scores after t_a."""
+def evaluate_trial(spec: TrialSpec, config: RunConfig, training_set: TrainingSet | None = None,
+                   reuse: SeedCache | None = None) -> TrialScores:
+    """One trial through the real pipeline (trained as `config.stack.training_source` says); its scores after t_a.
+
+    `reuse`: the logs recorded before (`prepare_trials`), for trials of the same seed one after another."""
     wall0, cpu0 = time.monotonic(), time.process_time()
     log = _EpochLog(config.stack.training_window_s)
-    trial, outcome, offset_s = _closed_loop(spec, config, [log], training_set)
+    trial, outcome, offset_s = _closed_loop(spec, config, [log], training_set, reuse)
     return _scores(spec, config, outcome, log, _epochs(trial), offset_s, time.monotonic() - wall0,
                    time.process_time() - cpu0)
 
@@ -452,15 +491,32 @@ class TrialGroup:
     specs: tuple[TrialSpec, ...]
 
 
+def same_seed(specs: Sequence[TrialSpec]) -> list[list[int]]:
+    """The specs' indices by trial but for the drift rate (seed, length, scenario), in order of first appearance."""
+    sets: list[list[int]] = []
+    firsts: list[TrialSpec] = []
+    for i, spec in enumerate(specs):
+        plain = replace(spec, drift_rate_mps=None)
+        k = next((j for j, f in enumerate(firsts) if f == plain), None)
+        if k is None:
+            firsts.append(plain)
+            sets.append([i])
+        else:
+            sets[k].append(i)
+    return sets
+
+
 def run_trials(groups: Sequence[TrialGroup], client: Client | None = None,
                progress: Progress | None = None) -> list[list[TrialScores]]:
     """Every group's test trials scored, in order: on the Dask client, else one by one here.
 
-    On Dask a trial is two tasks: `prepare_trial` (simulate and record, no training needed) and
-    `score_prepared` (replay, once its group's training set is there). Every train seed is submitted
-    first, then each trial's two tasks: the workers start on the train seeds, and while one trains the
-    other prepares trials, so no worker waits for a training set. Dask runs the ready task submitted
-    first, so a prepared trial is replayed before another is prepared (memory: a few archives).
+    On Dask a trial is two tasks: `prepare_trials` (simulate and record one seed's trials of the group,
+    no training needed) and `score_prepared` (replay, once its group's training set is there). Every
+    train seed is submitted first, then each seed's tasks: the workers start on the train seeds, and
+    while one trains the other prepares trials, so no worker waits for a training set. Dask runs the
+    ready task submitted first, so prepared trials are replayed before more are prepared (memory: a few
+    seeds' archives). Here, a seed's logs are kept from its first trial to its last (`evaluate_trial`'s
+    `reuse`).
     """
     total = sum(len(g.specs) + (g.train is not None) for g in groups)
     done = 0
@@ -472,9 +528,16 @@ def run_trials(groups: Sequence[TrialGroup], client: Client | None = None,
                 done += 1
                 if progress is not None:
                     progress(done, total)
+            sets = same_seed(g.specs)
+            last = {s[-1]: k for k, s in enumerate(sets)}
+            kept: dict[int, SeedCache] = {}
+            which = {i: k for k, s in enumerate(sets) for i in s}
             scored = []
-            for spec in g.specs:
-                scored.append(evaluate_trial(spec, g.config, given))
+            for i, spec in enumerate(g.specs):
+                reuse = kept.setdefault(which[i], SeedCache()) if len(sets[which[i]]) > 1 else None
+                scored.append(evaluate_trial(spec, g.config, given, reuse))
+                if i in last:
+                    kept.pop(last[i], None)
                 done += 1
                 if progress is not None:
                     progress(done, total)
@@ -487,8 +550,13 @@ def run_trials(groups: Sequence[TrialGroup], client: Client | None = None,
                                     if g.train is not None else None for g in groups]
     futures: list[list[Future]] = []
     for g, train_future in zip(groups, trained):
-        futures.append([client.submit(score_prepared, client.submit(prepare_trial, spec, pure=False), g.config,
-                                      train_future, pure=False) for spec in g.specs])
+        scores: dict[int, Future] = {}
+        for indices in same_seed(g.specs):
+            prepared = client.submit(prepare_trials, [g.specs[i] for i in indices], pure=False)
+            for n, i in enumerate(indices):
+                scores[i] = client.submit(score_prepared, client.submit(_nth, prepared, n, pure=False), g.config,
+                                          train_future, pure=False)
+        futures.append([scores[i] for i in range(len(g.specs))])
     where = {f.key: (k, i) for k, group in enumerate(futures) for i, f in enumerate(group)}
     results: list[list[TrialScores | None]] = [[None] * len(group) for group in futures]
     watched = [f for f in trained if f is not None] + [f for group in futures for f in group]
@@ -544,7 +612,7 @@ def evaluate(seeds: Sequence[int], config: RunConfig, train_seed: int | None = N
                       {m: closed_loop_fpr(main, m) for m in config.stack.methods})
 
 
-__all__ = ["DEFAULT_DRIFT_RATES", "FPR_TARGETS", "TRAINING_MODES", "Evaluation", "PreparedTrial", "TrialGroup",
-           "TrialScores", "TrialSpec", "closed_loop_fpr", "drift_sweep", "epoch_kinds", "evaluate", "evaluate_trial",
-           "method_figures", "prepare_trial", "recall_by_kind", "refused_records", "run_trials", "score_prepared",
-           "split_seeds", "training_set_of"]
+__all__ = ["DEFAULT_DRIFT_RATES", "FPR_TARGETS", "TRAINING_MODES", "Evaluation", "PreparedTrial", "SeedCache",
+           "TrialGroup", "TrialScores", "TrialSpec", "closed_loop_fpr", "drift_sweep", "epoch_kinds", "evaluate",
+           "evaluate_trial", "method_figures", "prepare_trial", "prepare_trials", "recall_by_kind", "refused_records",
+           "run_trials", "same_seed", "score_prepared", "split_seeds", "training_set_of"]

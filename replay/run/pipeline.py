@@ -105,11 +105,12 @@ def _readable_topics(summary: Any, reader: ArchiveReader) -> dict[str, int]:
     return topics
 
 
-def replay_archive(archive: str | Path, config: RunConfig | None = None, output: str | Path | None = None,
+def replay_archive(archive: str | Path | bytes, config: RunConfig | None = None, output: str | Path | None = None,
                    write_output: bool = True, review: bool = False, force: bool = False,
                    listeners: Sequence[Listener] = (), training_set: TrainingSet | None = None,
                    require_work: bool = False, blocks: bool = True,
-                   on_block: Callable[[ReviewCollector | None, float], None] | None = None) -> RunOutcome:
+                   on_block: Callable[[ReviewCollector | None, float], None] | None = None,
+                   nav_review: bool = True) -> RunOutcome:
     """Replay an archive with a configuration; see the module docstring for what comes out.
 
     The results archive and its metrics files are claimed (replay.run.outputs) before the run:
@@ -121,29 +122,35 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
     message (as `--rate` pacing does), the reference the block path is tested against. `on_block`, when given,
     is called after each block (each message when fed message by message) with the review collector (None
     without `review`) and the mission seconds the engine reached: `view` streams what was collected so far.
+    An archive given as its bytes (`evaluate`) is replayed the same, with no output written. `nav_review=False`
+    leaves out the vehicles' navigation reviews (metrics["navigation"] empty), which `evaluate` never reads.
     """
     config = config or RunConfig()
-    sha = file_sha256(archive)
+    in_memory = isinstance(archive, bytes)
+    if in_memory and (write_output or output is not None):
+        raise ValueError("an archive given as bytes is replayed with write_output=False and no output")
+    sha = hashlib.sha256(archive).hexdigest() if isinstance(archive, bytes) else file_sha256(archive)
+    label: str | Path = "<bytes>" if in_memory else archive  # type: ignore[assignment]
     version = package_version()
     id_input = sha
     if training_set is not None and config.stack.training_source != "own":
         # the detectors trained on the given set: another set is another run (the archive's purity rule)
         id_input = hashlib.sha256(f"{sha}\ntraining set {training_set.digest()}".encode()).hexdigest()
     rid = run_id(config, id_input, version)
-    out_path = Path(output) if output is not None else (default_output(archive, rid) if write_output else None)
+    out_path = Path(output) if output is not None else (default_output(label, rid) if write_output else None)
     if out_path is not None:
         claim_outputs(results_paths(out_path), force)
     wall0 = time.monotonic()
     with ArchiveReader(archive) as reader:
         summary = reader.summary()
         if not summary.message_count or summary.start_ns is None:
-            raise UserError(_nothing_to_run(archive, "the archive holds no messages", [], reader))
+            raise UserError(_nothing_to_run(label, "the archive holds no messages", [], reader))
         trial = trial_metadata(reader.metadata_json("trial"))
         readable = _readable_topics(summary, reader)
         positions = [t for t, v in summary.topics.items() if v["schema"] in POSITION_SCHEMAS]
         layout = plan_trial(trial, readable, config.stack.methods, positions)
         if require_work and not _holds_position(archive, layout):
-            raise UserError(_nothing_to_run(archive, "the trial holds no position of any kind (no GPS fix and no "
+            raise UserError(_nothing_to_run(label, "the trial holds no position of any kind (no GPS fix and no "
                                             "INS or autopilot position)", layout.notes, reader))
         t0_ns = summary.start_ns
         topics = [t for t in readable if t == "/diagnostics" or t in layout.sources
@@ -170,7 +177,8 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
                 # message by message: --rate paces each one (and the block path's reference)
                 for m in reader.messages(topics, start_ns, end_ns):
                     engine.push(m.topic, m.log_time_ns, m.message)
-                    nav_columns.add(m.topic, m.log_time_ns, m.message)
+                    if nav_review:
+                        nav_columns.add(m.topic, m.log_time_ns, m.message)
                     if on_block is not None:
                         on_block(collector, engine.last_s)
                     if config.engine.rate > 0:
@@ -180,7 +188,8 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
                 columnar = [t for t in topics if summary.topics[t]["schema"] in COLUMN_FIELDS]
                 for block in reader.blocks(topics, start_ns, end_ns, columnar):
                     engine.push_block(block)
-                    nav_columns.add_block(block)
+                    if nav_review:
+                        nav_columns.add_block(block)
                     if on_block is not None:
                         on_block(collector, engine.last_s)
             results = engine.finish()
@@ -189,7 +198,7 @@ def replay_archive(archive: str | Path, config: RunConfig | None = None, output:
             # the reviews are kept only for the views
             navigation: dict[str, NavigationReview] = {}
             metrics["navigation"] = {}
-            for v in nav_columns.vehicles:
+            for v in nav_columns.vehicles if nav_review else ():
                 nav = nav_columns.review(v)
                 metrics["navigation"][v] = review_metrics(nav)
                 if collector is not None:
@@ -229,7 +238,7 @@ def record_time_refusals(recording: Any) -> str | None:
             f"{values - ranges} other values out of range; they are not in the archive")
 
 
-def _holds_position(archive: str | Path, layout: TrialLayout) -> bool:
+def _holds_position(archive: str | Path | bytes, layout: TrialLayout) -> bool:
     """Whether a vehicle of the trial has a position: GPS fixes, another position source, or an INS state with a
     finite latitude and longitude (an IMU's or an autopilot's attitude-only states, as a tlog without
     GLOBAL_POSITION_INT gives, are no position). A reader of its own: the replay's damage counts stay its own."""
