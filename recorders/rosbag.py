@@ -270,7 +270,7 @@ class _Bag:
             found = self.targets[key] = _target(topic, msgtype, self.ctx) is not None
         return found
 
-    def item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored]:
+    def item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored | Batch]:
         """The archive messages of one bag message (raw text kept for `finish`; an Imu read from its bytes, `OWN`,
         for its topic's batch), each on its topic's source."""
         for item in self._item(m, where):
@@ -291,7 +291,7 @@ class _Bag:
                     self.sources.place(item, topic)
                 yield item
 
-    def _item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored]:
+    def _item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored | Batch]:
         key = (m.topic, m.msgtype)
         target = self.found[key] if key in self.found else self.found.setdefault(key, _target(*key, self.ctx))
         if target is None:   # archived as itself alone (`recorders.ros_raw`)
@@ -369,7 +369,7 @@ class _Bag:
         else:
             yield Reject(where, f"{m.topic} ({m.msgtype}): mapped to {family}, but we convert no {m.msgtype} message")
 
-    def finish(self) -> Iterator[Output | Reject | Ignored]:
+    def finish(self) -> Iterator[Output | Reject | Ignored | Batch]:
         """The Imu batches, then the raw text streams through their vendor converters, each on its topic's
         source."""
         yield from self.flush()
@@ -754,7 +754,7 @@ def _velocity(ctx: LogContext, msgtype: str, msg: Any, t: int, publish: int,
                                        source=source), t, publish, where)
 
 
-def convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored | SourceBatch]:
+def convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored | SourceBatch | Batch]:
     """ROS 1 .bag, ROS 2 .mcap/.db3 (rosbags): NavSatFix, NMEA/text sentences, Imu, Odometry, Twist, DVL."""
     return checked_times(_convert_rosbag(data, ctx), ctx)
 
