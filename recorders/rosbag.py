@@ -60,7 +60,7 @@ from formats.records import FormatError, Reject, Where
 from formats.units import NS
 
 from . import dvl
-from .base import Batch, Columns, Converter, Ignored, LogContext, Output, Rows, SourceBatch, batched, output
+from .base import Batch, Columns, Converter, Ignored, LogContext, Output, SourceBatch, output
 from .containers import (
     EARLIEST_NS,
     LATEST_NS,
@@ -80,7 +80,6 @@ from .containers import (
 from .gnss_velocity import SUFFIX as VELOCITY
 from .gnss_velocity import gnss_velocity
 from .gps import gnss_status
-from .ins import INS_FIELDS
 from .manifest import SENSORS
 from .ros_raw import RosTopics
 
@@ -250,8 +249,6 @@ class _Bag:
         self.found: dict[tuple[str, str], tuple[str, str, str] | None] = {}   # (topic, type) -> its `_target`
         self.imus: dict[str, _ImuBatch] = {}              # Imu topic -> its messages read from their bytes
         self.oldest: int | None = None   # the number of the earliest bag message an Imu batch holds
-        # Odometry and NavSatFix read from their bytes, held as rows when the recording takes batches
-        self.held = _Held() if ctx.batches and ctx.source_batches else None
         # typed topics claim their archive topics first, a position (Odometry) before an attitude alone (Imu)
         ranked = []
         for topic, msgtype in dict.fromkeys(topics):
@@ -316,9 +313,6 @@ class _Bag:
             return
         if head is not None and m.msgtype in (ODOMETRY, NAVSATFIX):   # read from its bytes (`formats.ros_standard`)
             t = (head[0] if head[0] > 0 else m.bag_time_ns) + ctx.clock_offset_ns
-            # held as rows (the recording's batches) unless a time is outside 1980-2100: `checked_times` refuses it
-            held = self.held if self.held is not None and EARLIEST_NS <= t <= LATEST_NS and \
-                EARLIEST_NS <= publish <= LATEST_NS else None
             if m.msgtype == ODOMETRY:
                 _, frame, child, v = head
                 x, y, z, qx, qy, qz, qw = map(_num, v[:7])   # position, orientation (`ros_standard.ODOMETRY_DOUBLES`)
@@ -327,22 +321,12 @@ class _Bag:
                                           _finite(v[ros_standard.POSE_COV]), self.origin)
                 if fields is None:
                     yield Reject(where, NO_ODOMETRY)
-                elif held is not None:
-                    held.add("ins", self.sources.placed(f"/{ctx.vehicle}/ins", m.topic), ctx.vehicle, t, publish,
-                             where, fields)
                 else:
                     yield _out(ctx, "ins", S.ins_state(t, ctx.vehicle, *fields), t, publish, where)
             else:
                 _, _, status, v, kind = head
                 fix, quality = _navsatfix_values(status, _num(v[0]), _num(v[1]), _num(v[2]), _finite(v[3:]), kind)
-                if held is not None:
-                    if fix is not None:
-                        held.add("gps", self.sources.placed(f"/{ctx.vehicle}/gps", m.topic), ctx.vehicle, t,
-                                 publish, where, fix)
-                    held.add("gps/status", self.sources.placed(f"/{ctx.vehicle}/gps/status", m.topic), ctx.vehicle,
-                             t, publish, where, (quality,))
-                else:
-                    yield from _navsatfix_outputs(ctx, fix, quality, t, publish, where)
+                yield from _navsatfix_outputs(ctx, fix, quality, t, publish, where)
             return
         t = _stamp_ns(m.message, m.bag_time_ns) + ctx.clock_offset_ns
         msg = m.message
@@ -378,62 +362,6 @@ class _Bag:
                 if type(item) is Output:
                     self.sources.place(item, topic)
                 yield item
-
-
-class _Held:
-    """Our messages of Odometry and NavSatFix topics read from their bytes (InsState; LocationFix and GnssStatus),
-    held as rows of their builders' arguments (`recorders.base.Rows`, one per archive topic) and given as one
-    Batch of columns, in the order they came, before anything else goes out (`_convert_rosbag`): the recording
-    writes them where it wrote them one by one, so the archive is the same, byte for byte, and where the value
-    checks would refuse one the Batch goes message by message, as before."""
-
-    def __init__(self) -> None:
-        self.rows: dict[str, tuple[int, Rows]] = {}   # archive topic -> (its part's number, its rows)
-        self.order: list[int] = []                    # per message held: its part's number
-        self.keys: list[int] = []                     # per message held: its record's byte offset
-
-    def add(self, kind: str, topic: str, vehicle: str, t: int, publish: int, where: Where, values: tuple) -> None:
-        """One message of `kind` ("ins", "gps", "gps/status") on `topic`: its times, record and builder's arguments
-        after time and frame."""
-        found = self.rows.get(topic)
-        if found is None:
-            found = self.rows[topic] = (len(self.rows), _held_rows(kind, topic, vehicle))
-        found[1].add(t, publish, where, values)
-        self.order.append(found[0])
-        self.keys.append(where.offset)
-
-    def take(self) -> Batch | None:
-        """The messages held as one Batch (None without any), and a fresh start."""
-        if not self.order:
-            return None
-        order, keys, rows = self.order, self.keys, [r for _, r in self.rows.values()]
-        self.order, self.keys, self.rows = [], [], {}
-        last = rows[order[-1]].wheres[-1]
-        batches = [r.take() for r in rows]
-
-        def outputs() -> Iterator[Output | Reject | Ignored]:
-            each = [iter(b.outputs()) for b in batches if b is not None]
-            for j in order:
-                yield next(each[j])
-
-        if any(b is None or b.one_by_one for b in batches):   # (every time is in 1980-2100: never in practice)
-            return Batch([], np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), last, outputs, one_by_one=True)
-        return Batch([b.parts[0] for b in batches if b is not None], np.array(order, dtype=np.int64),
-                     np.array(keys, dtype=np.int64), last, outputs)
-
-
-FIX_FIELDS = ("latitude", "longitude", "altitude", "position_covariance", "position_covariance_type")
-
-
-def _held_rows(kind: str, topic: str, vehicle: str) -> Rows:
-    """The rows of one archive topic of `_Held`: `_odometry_fields`' InsState, `_navsatfix_values`' fix or status."""
-    if kind == "ins":
-        return Rows(topic, S.InsState, INS_FIELDS, lambda t, *v: S.ins_state(t, vehicle, *v), {"frame_id": vehicle})
-    if kind == "gps":
-        return Rows(topic, S.LocationFix, FIX_FIELDS, lambda t, *v: _fix(t, vehicle, *v), {"frame_id": vehicle})
-    return Rows(topic, S.GnssStatus, ("fix_quality",), lambda t, q: _status(t, vehicle, q),
-                {"frame_id": vehicle, "satellites": -1, "hdop": NAN, "source_format": NAVSATFIX_SOURCE,
-                 "speed_over_ground_mps": NAN, "course_over_ground_deg": NAN, "heading_deg": NAN})
 
 
 def _with_vehicle(ctx: LogContext, vehicle: str) -> LogContext:
@@ -766,21 +694,12 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
     # a ROS 2 bag folder given whole (path = "dive3/"): its metadata.yaml reads every storage file of it
     files = [p for p in ctx.files if p.name == "metadata.yaml" or p.parent not in folders]
     bag = _Bag(ctx, [t for path in files for t in _topics(path)])
-    held = bag.held
-    if held is None:
-        yield from _bag_items(ctx, bag, files)
-        return
-    # the rows held go out before anything else does: the recording writes them where it wrote them one by one
-    for item in _bag_items(ctx, bag, files):
-        if held.order:
-            yield from batched(ctx, held.take())
-        yield item
-    yield from batched(ctx, held.take())
+    yield from _bag_items(ctx, bag, files)
 
 
 def _bag_items(ctx: LogContext, bag: _Bag, files: list[Path]) -> Iterator[Output | Reject | Ignored | SourceBatch |
                                                                           Batch]:
-    """The archive items of a bag's files, in order (the rows `bag.held` takes aside)."""
+    """The archive items of a bag's files, in order."""
     raw = RosTopics(ctx)
     own = OWN
     msg_paths = ctx.options.get("msg_paths")
