@@ -267,6 +267,19 @@ class _Bag:
             found = self.targets[key] = _target(topic, msgtype, self.ctx) is not None
         return found
 
+    def kept_imu(self, m: rb.BagMessage, where: Where) -> bool:
+        """Keep an Imu read from its bytes (`OWN`) in its topic's batch when `item` would, without filling it;
+        whether it was kept (else `item` takes it). The busiest topic of a bag, without `item`'s generators."""
+        batch = self.imus.get(m.topic)
+        if batch is None or len(batch.data) + 1 >= IMU_BATCH or not m.undecoded or m.msgtype != IMU:
+            return False   # (a batch is made by `item`, for a topic mapped to a sensor only)
+        stamp = m.message[0]
+        batch.add((stamp if stamp > 0 else m.bag_time_ns) + batch.ctx.clock_offset_ns,
+                  m.bag_time_ns + batch.ctx.clock_offset_ns, where, m.message[1], m.data)
+        if self.oldest is None:
+            self.oldest = where.message
+        return True
+
     def item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored | Batch]:
         """The archive messages of one bag message (raw text kept for `finish`; an Imu read from its bytes, `OWN`,
         for its topic's batch), each on its topic's source."""
@@ -362,6 +375,22 @@ class _Bag:
                 if type(item) is Output:
                     self.sources.place(item, topic)
                 yield item
+
+
+_new = object.__new__
+_SET_WHERE: tuple[Any, ...] = tuple(vars(Where)[name].__set__ for name in ("offset", "line", "host_time_ns", "message"))
+
+
+def _where(offset: int, host_time_ns: int, message: int) -> Where:
+    """`Where(offset, None, host_time_ns, message)`, made through its slots: one per bag message, and a frozen
+    dataclass's __init__ (object.__setattr__ per field) costs twice as much."""
+    where = _new(Where)
+    set_offset, set_line, set_host, set_message = _SET_WHERE
+    set_offset(where, offset)
+    set_line(where, None)
+    set_host(where, host_time_ns)
+    set_message(where, message)
+    return where
 
 
 def _with_vehicle(ctx: LogContext, vehicle: str) -> LogContext:
@@ -712,9 +741,10 @@ def _bag_items(ctx: LogContext, bag: _Bag, files: list[Path]) -> Iterator[Output
             raise FormatError(f"cannot read {path.name} ({exc.strerror or exc})") from exc
         # offset: the file's first byte in the log plus the message's index in it, so that the recorder maps
         # each message to its file (a message takes more than one byte) for a split bag's gap report
+        last = max(size - 1, 0)
         for m in rb.read_bag(path, types, own):
             number += 1
-            where = Where(start + min(m.index, max(size - 1, 0)), None, m.bag_time_ns, number)
+            where = _where(start + (m.index if m.index < last else last), m.bag_time_ns, number)
             if m.problem or not m.topic:   # neither itself nor ours: refused, with the reason
                 yield from raw.flush()
                 yield Reject(where, f"{m.topic} ({m.msgtype}): {m.problem}" if m.topic else m.problem)
@@ -722,7 +752,7 @@ def _bag_items(ctx: LogContext, bag: _Bag, files: list[Path]) -> Iterator[Output
                 item = raw.output(m, where)
                 if item is not None:   # not in its topic's batch
                     yield from raw.released(iter((item,)))
-                if bag.maps(m.topic, m.msgtype):
+                if bag.maps(m.topic, m.msgtype) and not bag.kept_imu(m, where):
                     yield from raw.released(bag.item(m, where))
             if bag.due(number):
                 yield from raw.released(bag.flush())

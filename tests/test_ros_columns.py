@@ -163,3 +163,13 @@ def test_a_bag_recorded_through_columns_is_the_bag_recorded_one_by_one(tmp_path,
     assert fast[0].skipped >= 5   # the Imu and Odometry refused, the fix and Imu the value checks refused
     # (an Imu batch with a message refused goes one by one: 512 of /imu/data's 1200)
     assert taken["/auv/ins/imu_data"] > 600 and taken["/auv/ins/imu_ned"] > 100
+
+
+def test_a_where_made_through_its_slots_is_the_dataclass():
+    """`_where` sets every field `Where` has (a field added there would be left unset here)."""
+    import dataclasses
+    assert [f.name for f in dataclasses.fields(Where)] == ["offset", "line", "host_time_ns", "message"]
+    made, built = RB._where(12, T0, 3), Where(12, None, T0, 3)
+    assert made == built and hash(made) == hash(built) and repr(made) == repr(built)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        made.offset = 1  # type: ignore[misc]
