@@ -722,13 +722,23 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
     folders = {p.parent for p in ctx.files if p.name == "metadata.yaml"}
     # a ROS 2 bag folder given whole (path = "dive3/"): its metadata.yaml reads every storage file of it
     files = [p for p in ctx.files if p.name == "metadata.yaml" or p.parent not in folders]
-    bag = _Bag(ctx, [t for path in files for t in _topics(path)])
-    yield from _bag_items(ctx, bag, files)
+    # the first file stays open from its topics to its messages (a bag of one file or folder: opened once); the
+    # others are opened for their topics, then again to be read (an open ROS 1 bag holds its whole index)
+    try:
+        first: rb.OpenBag | None = rb.open_bag(files[0])
+    except FormatError:
+        first = None   # reading it says why
+    try:
+        topics = (rb.opened_topics(first) if first is not None else []) + [t for p in files[1:] for t in _topics(p)]
+        yield from _bag_items(ctx, _Bag(ctx, topics), files, first)
+    finally:
+        if first is not None:
+            rb.close_bag(first)
 
 
-def _bag_items(ctx: LogContext, bag: _Bag, files: list[Path]) -> Iterator[Output | Reject | Ignored | SourceBatch |
-                                                                          Batch]:
-    """The archive items of a bag's files, in order."""
+def _bag_items(ctx: LogContext, bag: _Bag, files: list[Path], first: rb.OpenBag | None
+               ) -> Iterator[Output | Reject | Ignored | SourceBatch | Batch]:
+    """The archive items of a bag's files, in order (the first one read from `first` when it is open)."""
     raw = RosTopics(ctx)
     own = OWN
     msg_paths = ctx.options.get("msg_paths")
@@ -742,7 +752,7 @@ def _bag_items(ctx: LogContext, bag: _Bag, files: list[Path]) -> Iterator[Output
         # offset: the file's first byte in the log plus the message's index in it, so that the recorder maps
         # each message to its file (a message takes more than one byte) for a split bag's gap report
         last = max(size - 1, 0)
-        for m in rb.read_bag(path, types, own):
+        for m in rb.read_bag(path, types, own, first if path is files[0] else None):
             number += 1
             where = _where(start + (m.index if m.index < last else last), m.bag_time_ns, number)
             if m.problem or not m.topic:   # neither itself nor ours: refused, with the reason
