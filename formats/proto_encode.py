@@ -14,7 +14,9 @@ a ten-byte varint; a string as UTF-8 after its length, left out when empty; a
 packed repeated double as one length-delimited run, left out when empty; a
 `google.protobuf.Timestamp` is present where the time is archivable
 (`formats.units.archivable_ns`, as `formats.schemas.set_timestamp` sets it),
-its seconds and nanos left out when zero. Tags are read from the message's
+its seconds and nanos left out when zero; a double with explicit presence (proto3
+``optional``) is written wherever it is set, even at 0, and left out only where a
+masked column (`numpy.ma`) masks it. Tags are read from the message's
 descriptor, never written by hand. Fields not given stay unset.
 """
 
@@ -31,6 +33,7 @@ from .wire import varint
 
 # descriptor field types (google.protobuf.descriptor.FieldDescriptor.TYPE_*)
 _T_DOUBLE, _T_INT64, _T_INT32, _T_BOOL, _T_STRING, _T_MESSAGE, _T_ENUM = 1, 3, 5, 8, 9, 11, 14
+_T_OPTIONAL_DOUBLE = -2  # ours: a double with explicit presence (proto3 `optional`)
 _INTS = (_T_INT64, _T_INT32, _T_ENUM)  # varints of a signed value: a negative one takes ten bytes
 _SHIFTS = np.arange(0, 70, 7, dtype=np.uint64)  # the ten 7-bit groups of a 64-bit varint
 
@@ -39,14 +42,18 @@ Segment = tuple[np.ndarray, np.ndarray]  # (uint8 matrix: a row's bytes left-ali
 
 @lru_cache(maxsize=32)
 def _fields(cls: Any) -> tuple[tuple[str, int, int, bool, bytes], ...]:
-    """Per field, in number order: (name, number, descriptor type, repeated, tag bytes by wire type); a scalar
-    with explicit presence (proto3 `optional`: written when set, even at 0) has type -1, not encoded."""
+    """Per field, in number order: (name, number, descriptor type, repeated, tag bytes by wire type); a double
+    with explicit presence (proto3 `optional`: written when set, even at 0) has type _T_OPTIONAL_DOUBLE, any other
+    such scalar type -1, not encoded."""
     out = []
     for f in sorted(cls.DESCRIPTOR.fields, key=lambda f: f.number):
         repeated = getattr(f, "is_repeated", None)
         repeated = repeated if repeated is not None else f.label == 3
         if not repeated and f.type != _T_MESSAGE and f.has_presence:
-            out.append((f.name, f.number, -1, False, b""))
+            if f.type == _T_DOUBLE:
+                out.append((f.name, f.number, _T_OPTIONAL_DOUBLE, False, varint(f.number << 3 | 1)))
+            else:
+                out.append((f.name, f.number, -1, False, b""))
             continue
         if f.type == _T_DOUBLE and not repeated:
             wire = 1
@@ -102,6 +109,15 @@ def _doubles(n: int, tag: bytes, values: Any) -> Segment:
     return np.concatenate([tags, raw], axis=1), np.where(present, len(tag) + 8, 0)
 
 
+def _optional_doubles(n: int, tag: bytes, values: Any) -> Segment:
+    """Tag and 8 little-endian bytes per row where the value is set (every row, but those a masked array masks),
+    zero included: explicit presence."""
+    present = ~np.broadcast_to(np.ma.getmaskarray(values), (n,))
+    v = np.ascontiguousarray(np.broadcast_to(np.ma.getdata(values).astype("<f8", copy=False), (n,)))
+    tags = np.broadcast_to(np.frombuffer(tag, dtype=np.uint8), (n, len(tag)))
+    return np.concatenate([tags, v.view(np.uint8).reshape(n, 8)], axis=1), np.where(present, len(tag) + 8, 0)
+
+
 def _ints(n: int, tag: bytes, values: Any) -> Segment:
     """Tag and varint per row; nothing where the value is 0."""
     v = np.broadcast_to(np.asarray(values, dtype=np.int64), (n,))
@@ -155,7 +171,8 @@ def encode_rows(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[np.ndarra
     `columns` maps field names to a value per row (a numpy array or sequence of
     length n) or one value for every row: doubles, ints and bools; str or str
     sequences; int ns for a Timestamp; an (n, k) array for a packed repeated
-    double. Fields not named stay unset. Raises TypeError for a field this
+    double; for a double with explicit presence, a masked array (`numpy.ma`) leaves it unset where masked.
+    Fields not named stay unset. Raises TypeError for a field this
     encoder does not write (another sub-message, bytes, a repeated non-double).
     """
     if not n:  # no rows: nothing to encode (an empty (0, k) column has no row length to reshape by)
@@ -171,6 +188,8 @@ def encode_rows(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[np.ndarra
             segments.append(_packed(n, tag, values))
         elif kind == _T_DOUBLE:
             segments.append(_doubles(n, tag, values))
+        elif kind == _T_OPTIONAL_DOUBLE:
+            segments.append(_optional_doubles(n, tag, values))
         elif kind in _INTS or kind == _T_BOOL:
             segments.append(_ints(n, tag, values))
         elif kind == _T_STRING:

@@ -213,7 +213,7 @@ def _open(path: Path, kind: str) -> Any:
 
 
 def read_bag(path: Path, types: dict[str, Any] | None = None,
-             own: dict[str, OwnReader] | None = None) -> Iterator[BagMessage]:
+             own: dict[str, OwnReader] | None = None, opened: OpenBag | None = None) -> Iterator[BagMessage]:
     """Every message of one bag file, in bag time order; FormatError when rosbags cannot open it.
 
     `path` may be a ROS 2 bag's ``metadata.yaml``: the whole bag folder is read then (its storage files,
@@ -221,9 +221,10 @@ def read_bag(path: Path, types: dict[str, Any] | None = None,
     bag does not. `own` names types (rosbags' names) the caller reads from the bytes itself, with rosbags' MD5
     of the definition it reads by ROS version and its reader: where the bag's definition is that one, their
     messages come `undecoded`, with what the reader gave; a message the reader does not read (None: damaged, or
-    a layout it leaves to rosbags) is decoded by rosbags as any other, which decides and says why.
+    a layout it leaves to rosbags) is decoded by rosbags as any other, which decides and says why. `opened`:
+    the bag as `open_bag` opened it (read, then closed, here), not opened again.
     """
-    reader, kind = _opened(path)
+    reader, kind = opened if opened is not None else _opened(path)
     try:
         yield from _messages(reader, kind == "ros1", types or {}, own or {})
     finally:
@@ -234,13 +235,34 @@ def read_bag(path: Path, types: dict[str, Any] | None = None,
 def bag_topics(path: Path) -> list[tuple[str, str]]:
     """(topic, type as `ros_type` gives it) of every connection of a bag, from its index or metadata alone;
     FormatError when rosbags cannot open it."""
-    reader, _ = _opened(path)
+    opened = open_bag(path)
     try:
-        return [(c.topic, ros_type(c.msgtype)) for c in reader.connections
-                if isinstance(c.topic, str) and isinstance(c.msgtype, str)]
+        return opened_topics(opened)
     finally:
-        with contextlib.suppress(Exception):
-            reader.close()
+        close_bag(opened)
+
+
+# an open rosbags reader of a bag and its storage kind ("ros1", "mcap", "sqlite3" or "folder")
+OpenBag = tuple[Any, str]
+
+
+def open_bag(path: Path) -> OpenBag:
+    """A bag opened once for its topics (`opened_topics`) and its messages (`read_bag`'s `opened`): opening a ROS 1
+    bag reads its whole index, a ROS 2 folder parses its metadata (twice, with the compression check); FormatError
+    when rosbags cannot open it."""
+    return _opened(path)
+
+
+def opened_topics(opened: OpenBag) -> list[tuple[str, str]]:
+    """`bag_topics` of an open bag."""
+    return [(c.topic, ros_type(c.msgtype)) for c in opened[0].connections
+            if isinstance(c.topic, str) and isinstance(c.msgtype, str)]
+
+
+def close_bag(opened: OpenBag) -> None:
+    """Close an open bag (a damaged one may fail to close: nothing is left to lose)."""
+    with contextlib.suppress(Exception):
+        opened[0].close()
 
 
 def _opened(path: Path) -> tuple[Any, str]:

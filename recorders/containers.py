@@ -29,7 +29,7 @@ from formats import geodesy
 from formats.records import FormatError, Reject, Where
 from formats.units import NS
 
-from .base import CONTAINER_TIME, Ignored, LogContext, Output, SourceBatch, one_by_one
+from .base import CONTAINER_TIME, Batch, Ignored, LogContext, Output, SourceBatch, one_by_one
 from .clock import offset_problem, shift_text
 from .registry import family_converter
 
@@ -158,7 +158,7 @@ EARLIEST_NS = 315_964_800 * NS     # 1980-01-06, the GPS epoch
 LATEST_NS = 4_102_444_800 * NS     # 2100-01-01
 
 
-_Item = TypeVar("_Item", bound="Output | Reject | Ignored | SourceBatch")
+_Item = TypeVar("_Item", bound="Output | Reject | Ignored | SourceBatch | Batch")
 
 
 def checked_times(items: Iterable[_Item], ctx: LogContext) -> Iterator[_Item | Reject]:

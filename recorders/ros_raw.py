@@ -25,7 +25,7 @@ from formats.records import Reject, Where
 from formats.ros_messages import TOPIC, RosMessage, RosSchema, topic_path
 from formats.rosbag import BagMessage
 
-from .base import Ignored, LogContext, Note, Output, SourceBatch
+from .base import Batch, Ignored, LogContext, Note, Output, SourceBatch
 from .containers import EARLIEST_NS, LATEST_NS
 
 # topics named with their counts in the recording's note; the rest are summed (the archive's info lists them all)
@@ -95,11 +95,13 @@ class RosTopics:
         self.batches = {}
         self.held = 0
 
-    def released(self, items: Iterator[Output | Reject | Ignored]) -> Iterator[Output | Reject | Ignored | SourceBatch]:
+    def released(self, items: Iterator[Output | Reject | Ignored | Batch]
+                 ) -> Iterator[Output | Reject | Ignored | Batch | SourceBatch]:
         """The items, with the batches given out before each that the recording may refuse (a Reject, an Output
-        outside 1980-2100 that `containers.checked_times` turns into one)."""
+        outside 1980-2100 that `containers.checked_times` turns into one; a converter's Batch holds none of
+        those, and where the value checks refuse one of its messages it goes one by one, as its Outputs would)."""
         for item in items:
-            if self.batches and (type(item) is not Output or not (
+            if self.batches and type(item) is not Batch and (type(item) is not Output or not (
                     EARLIEST_NS <= item.log_time_ns <= LATEST_NS and EARLIEST_NS <= item.publish_time_ns <= LATEST_NS)):
                 yield from self.flush()
             yield item

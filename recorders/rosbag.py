@@ -60,8 +60,10 @@ from formats.records import FormatError, Reject, Where
 from formats.units import NS
 
 from . import dvl
-from .base import Converter, Ignored, LogContext, Output, SourceBatch, output
+from .base import Batch, Columns, Converter, Ignored, LogContext, Output, SourceBatch, output
 from .containers import (
+    EARLIEST_NS,
+    LATEST_NS,
     TextStream,
     attitude_deg,
     body_to_ned,
@@ -223,12 +225,16 @@ class _Sources:
 
     def place(self, item: Output, topic: str) -> None:
         """Move an output of a ROS topic to that topic's own source (claimed by its first output if not yet)."""
-        parts = item.topic.split("/", 3)   # "", vehicle, family, rest
+        item.topic = self.placed(item.topic, topic)
+
+    def placed(self, archive_topic: str, topic: str) -> str:
+        """The archive topic an output of a ROS topic goes to: its own source's (claimed by its first output if
+        not yet)."""
+        parts = archive_topic.split("/", 3)   # "", vehicle, family, rest
         if topic not in self.name and len(parts) >= 3:
             self.claim(parts[1], parts[2], topic)
         name = self.name.get(topic)
-        if name:
-            item.topic = "/".join([*parts[:3], name, *parts[3:]])
+        return "/".join([*parts[:3], name, *parts[3:]]) if name else archive_topic
 
 
 class _Bag:
@@ -261,7 +267,20 @@ class _Bag:
             found = self.targets[key] = _target(topic, msgtype, self.ctx) is not None
         return found
 
-    def item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored]:
+    def kept_imu(self, m: rb.BagMessage, where: Where) -> bool:
+        """Keep an Imu read from its bytes (`OWN`) in its topic's batch when `item` would, without filling it;
+        whether it was kept (else `item` takes it). The busiest topic of a bag, without `item`'s generators."""
+        batch = self.imus.get(m.topic)
+        if batch is None or len(batch.data) + 1 >= IMU_BATCH or not m.undecoded or m.msgtype != IMU:
+            return False   # (a batch is made by `item`, for a topic mapped to a sensor only)
+        stamp = m.message[0]
+        batch.add((stamp if stamp > 0 else m.bag_time_ns) + batch.ctx.clock_offset_ns,
+                  m.bag_time_ns + batch.ctx.clock_offset_ns, where, m.message[1], m.data)
+        if self.oldest is None:
+            self.oldest = where.message
+        return True
+
+    def item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored | Batch]:
         """The archive messages of one bag message (raw text kept for `finish`; an Imu read from its bytes, `OWN`,
         for its topic's batch), each on its topic's source."""
         for item in self._item(m, where):
@@ -273,16 +292,16 @@ class _Bag:
         """Whether an Imu batch holds a message more than IMU_SPAN bag messages before message `number`."""
         return self.oldest is not None and number - self.oldest >= IMU_SPAN
 
-    def flush(self) -> Iterator[Output | Reject]:
+    def flush(self) -> Iterator[Output | Reject | Batch]:
         """Every Imu batch's messages, each on its topic's source."""
         self.oldest = None
         for topic, batch in self.imus.items():
-            for item in batch.flush():
+            for item in batch.flush(self.sources.placed(f"/{batch.ctx.vehicle}/ins", topic)):
                 if type(item) is Output:
                     self.sources.place(item, topic)
                 yield item
 
-    def _item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored]:
+    def _item(self, m: rb.BagMessage, where: Where) -> Iterator[Output | Reject | Ignored | Batch]:
         key = (m.topic, m.msgtype)
         target = self.found[key] if key in self.found else self.found.setdefault(key, _target(*key, self.ctx))
         if target is None:   # archived as itself alone (`recorders.ros_raw`)
@@ -303,7 +322,7 @@ class _Bag:
                 self.oldest = where.message
             stamp = head[0] if head[0] > 0 else m.bag_time_ns
             if batch.add(stamp + ctx.clock_offset_ns, publish, where, head[1], m.data):
-                yield from batch.flush()
+                yield from batch.flush(self.sources.placed(f"/{ctx.vehicle}/ins", m.topic))
             return
         if head is not None and m.msgtype in (ODOMETRY, NAVSATFIX):   # read from its bytes (`formats.ros_standard`)
             t = (head[0] if head[0] > 0 else m.bag_time_ns) + ctx.clock_offset_ns
@@ -311,12 +330,16 @@ class _Bag:
                 _, frame, child, v = head
                 x, y, z, qx, qy, qz, qw = map(_num, v[:7])   # position, orientation (`ros_standard.ODOMETRY_DOUBLES`)
                 vx, vy, vz = map(_num, v[ros_standard.LINEAR])
-                yield from _odometry_state(ctx, frame, child, (x, y, z), (qx, qy, qz, qw), (vx, vy, vz),
-                                           _finite(v[ros_standard.POSE_COV]), t, publish, where, self.origin)
+                fields = _odometry_fields(frame, child, (x, y, z), (qx, qy, qz, qw), (vx, vy, vz),
+                                          _finite(v[ros_standard.POSE_COV]), self.origin)
+                if fields is None:
+                    yield Reject(where, NO_ODOMETRY)
+                else:
+                    yield _out(ctx, "ins", S.ins_state(t, ctx.vehicle, *fields), t, publish, where)
             else:
                 _, _, status, v, kind = head
-                yield from _navsatfix_fix(ctx, status, _num(v[0]), _num(v[1]), _num(v[2]), _finite(v[3:]), kind, t,
-                                          publish, where)
+                fix, quality = _navsatfix_values(status, _num(v[0]), _num(v[1]), _num(v[2]), _finite(v[3:]), kind)
+                yield from _navsatfix_outputs(ctx, fix, quality, t, publish, where)
             return
         t = _stamp_ns(m.message, m.bag_time_ns) + ctx.clock_offset_ns
         msg = m.message
@@ -343,7 +366,7 @@ class _Bag:
         else:
             yield Reject(where, f"{m.topic} ({m.msgtype}): mapped to {family}, but we convert no {m.msgtype} message")
 
-    def finish(self) -> Iterator[Output | Reject | Ignored]:
+    def finish(self) -> Iterator[Output | Reject | Ignored | Batch]:
         """The Imu batches, then the raw text streams through their vendor converters, each on its topic's
         source."""
         yield from self.flush()
@@ -352,6 +375,22 @@ class _Bag:
                 if type(item) is Output:
                     self.sources.place(item, topic)
                 yield item
+
+
+_new = object.__new__
+_SET_WHERE: tuple[Any, ...] = tuple(vars(Where)[name].__set__ for name in ("offset", "line", "host_time_ns", "message"))
+
+
+def _where(offset: int, host_time_ns: int, message: int) -> Where:
+    """`Where(offset, None, host_time_ns, message)`, made through its slots: one per bag message, and a frozen
+    dataclass's __init__ (object.__setattr__ per field) costs twice as much."""
+    where = _new(Where)
+    set_offset, set_line, set_host, set_message = _SET_WHERE
+    set_offset(where, offset)
+    set_line(where, None)
+    set_host(where, host_time_ns)
+    set_message(where, message)
+    return where
 
 
 def _with_vehicle(ctx: LogContext, vehicle: str) -> LogContext:
@@ -375,18 +414,40 @@ def _navsatfix(ctx: LogContext, msg: Any, t: int, publish: int, where: Where) ->
 def _navsatfix_fix(ctx: LogContext, status: Any, lat: float, lon: float, alt: float, cov: list[float], kind: Any,
                    t: int, publish: int, where: Where) -> Iterator[Output]:
     """A NavSatFix's LocationFix (when it has a fix) and status, from its fields (non-finite numbers NaN)."""
+    yield from _navsatfix_outputs(ctx, *_navsatfix_values(status, lat, lon, alt, cov, kind), t, publish, where)
+
+
+NAVSATFIX_SOURCE = "rosbag:sensor_msgs/NavSatFix"
+_NAN9 = (NAN,) * 9
+
+
+def _navsatfix_values(status: Any, lat: float, lon: float, alt: float, cov: list[float],
+                      kind: Any) -> tuple[tuple[float, float, float, tuple[float, ...], int] | None, int]:
+    """A NavSatFix's fix as `_fix`'s arguments after time and frame (None without a fix), and its status's quality."""
     try:
         quality = NAVSAT_QUALITY.get(int(status), 0)
     except (TypeError, ValueError):
         quality = 0
     if quality > 0 and math.isfinite(lat) and math.isfinite(lon) and -90 <= lat <= 90:
         kind = int(kind) if isinstance(kind, int) and 0 <= kind <= 3 and all(map(math.isfinite, cov)) else 0
-        fix = S.location_fix(t, ctx.vehicle, lat, (lon + 180.0) % 360.0 - 180.0, alt,
-                             tuple(cov) if kind else None, kind)
-        yield _out(ctx, "gps", fix, t, publish, where)
-    source = "rosbag:sensor_msgs/NavSatFix"
-    yield _out(ctx, "gps/status", gnss_status(t, ctx.vehicle, quality, -1, NAN, source, NAN, NAN, NAN),
-               t, publish, where)
+        # no covariance is NaNs of type unknown: what S.location_fix writes for none
+        return (lat, (lon + 180.0) % 360.0 - 180.0, alt, tuple(cov) if kind else _NAN9, kind), quality
+    return None, quality
+
+
+def _fix(t: int, vehicle: str, lat: float, lon: float, alt: float, cov: tuple[float, ...], kind: int) -> Any:
+    return S.location_fix(t, vehicle, lat, lon, alt, cov, kind)
+
+
+def _status(t: int, vehicle: str, quality: int) -> Any:
+    return gnss_status(t, vehicle, quality, -1, NAN, NAVSATFIX_SOURCE, NAN, NAN, NAN)
+
+
+def _navsatfix_outputs(ctx: LogContext, fix: tuple | None, quality: int, t: int, publish: int,
+                       where: Where) -> Iterator[Output]:
+    if fix is not None:
+        yield _out(ctx, "gps", _fix(t, ctx.vehicle, *fix), t, publish, where)
+    yield _out(ctx, "gps/status", _status(t, ctx.vehicle, quality), t, publish, where)
 
 
 def _imu(ctx: LogContext, msg: Any, t: int, publish: int, where: Where) -> Iterator[Output | Reject]:
@@ -440,8 +501,10 @@ class _ImuBatch:
         self.data.append(data)
         return len(self.data) >= IMU_BATCH
 
-    def flush(self) -> Iterator[Output | Reject]:
-        """The batch's InsStates (or rejects, as `_imu` gives them), in the order the messages came."""
+    def flush(self, topic: str) -> Iterator[Output | Reject | Batch]:
+        """The batch's InsStates (or rejects, as `_imu` gives them), in the order the messages came: one Batch of
+        columns on `topic` (the ROS topic's own source) when the recording takes them and none is refused here,
+        else one by one on the vehicle's INS topic (the caller places them, as `_imu`'s)."""
         rows, data = self.rows, self.data
         if not rows:
             return
@@ -465,25 +528,80 @@ class _ImuBatch:
         angular, linear = v[:, ros_imu.ANGULAR].copy(), v[:, ros_imu.LINEAR].copy()
         angular[:, 1:] *= sign[:, None]
         linear[:, 1:] *= sign[:, None]
+        none = v[:, 4] == -1   # REP-145: -1 in the first element means the IMU gives no orientation
+        has_av, has_la = v[:, ros_imu.ANGULAR_COV0] != -1, v[:, ros_imu.LINEAR_COV0] != -1
+        vehicle = self.ctx.vehicle
+        if self.ctx.batches and not (none.any() or np.isnan(heading).any()):
+            batch = _imu_batch(topic, vehicle, rows, (roll, pitch, heading, sigma), (angular, has_av),
+                               (linear, has_la))
+            if batch is not None:
+                yield batch
+                return
         cols = zip(roll.tolist(), pitch.tolist(), heading.tolist(), sigma[:, 0].tolist(), sigma[:, 4].tolist(),
-                   sigma[:, 8].tolist(), (v[:, 4] == -1).tolist(), (v[:, ros_imu.ANGULAR_COV0] != -1).tolist(),
-                   angular.tolist(), (v[:, ros_imu.LINEAR_COV0] != -1).tolist(), linear.tolist())
-        vehicle, topic = self.ctx.vehicle, f"/{self.ctx.vehicle}/ins"
-        for (t, publish, where, _), (r, p, h, rs, ps, hs, none, has_av, av, has_la, la) in zip(rows, cols):
-            if none:   # REP-145: -1 in the first element means the IMU gives no orientation
+                   sigma[:, 8].tolist(), none.tolist(), has_av.tolist(), angular.tolist(), has_la.tolist(),
+                   linear.tolist())
+        for (t, publish, where, _), (r, p, h, rs, ps, hs, no, av_given, av, la_given, la) in zip(rows, cols):
+            if no:
                 yield Reject(where, "sensor_msgs/Imu without orientation (orientation_covariance[0] = -1)")
                 continue
             if h != h:
                 yield Reject(where, "sensor_msgs/Imu orientation is not a rotation (zero or NaN quaternion)")
                 continue
-            state = S.ins_state(t, vehicle, IMU_SOURCE, "", NAN, NAN, NAN, r, p, h, NAN, NAN, NAN, hs, NAN, NAN, rs,
-                                ps, NAN)
-            if has_av:
-                state.angular_velocity_x_radps, state.angular_velocity_y_radps, state.angular_velocity_z_radps = av
-            if has_la:
-                (state.linear_acceleration_x_mps2, state.linear_acceleration_y_mps2,
-                 state.linear_acceleration_z_mps2) = la
-            yield Output(topic, state, t, publish, where)
+            yield Output(f"/{vehicle}/ins", _imu_state(t, vehicle, r, p, h, rs, ps, hs, av if av_given else None,
+                                                       la if la_given else None), t, publish, where)
+
+
+def _imu_state(t: int, vehicle: str, roll: float, pitch: float, heading: float, roll_std: float, pitch_std: float,
+               heading_std: float, angular: list[float] | None, linear: list[float] | None) -> S.InsState:
+    """An Imu's InsState: attitude and sigmas, and the FRD rates and specific force where given (None: not)."""
+    state = S.ins_state(t, vehicle, IMU_SOURCE, "", NAN, NAN, NAN, roll, pitch, heading, NAN, NAN, NAN, heading_std,
+                        NAN, NAN, roll_std, pitch_std, NAN)
+    if angular is not None:
+        state.angular_velocity_x_radps, state.angular_velocity_y_radps, state.angular_velocity_z_radps = angular
+    if linear is not None:
+        (state.linear_acceleration_x_mps2, state.linear_acceleration_y_mps2,
+         state.linear_acceleration_z_mps2) = linear
+    return state
+
+
+IMU_RATES = ("angular_velocity_x_radps", "angular_velocity_y_radps", "angular_velocity_z_radps")
+IMU_FORCES = ("linear_acceleration_x_mps2", "linear_acceleration_y_mps2", "linear_acceleration_z_mps2")
+
+
+def _imu_batch(topic: str, vehicle: str, rows: list[tuple[int, int, Where, bytes]],
+               attitude: tuple[np.ndarray, ...], angular: tuple[np.ndarray, np.ndarray],
+               linear: tuple[np.ndarray, np.ndarray]) -> Batch | None:
+    """An Imu batch's InsStates (none refused here) as one Batch of columns, `_imu_state`'s messages; None when a
+    time lies outside 1980-2100 (`checked_times` refuses those one by one)."""
+    times = [r[0] for r in rows]
+    publish = [r[1] for r in rows]
+    if not (EARLIEST_NS <= min(times) and max(times) <= LATEST_NS and EARLIEST_NS <= min(publish)
+            and max(publish) <= LATEST_NS):
+        return None
+    log_ns, publish_ns = np.array(times, dtype=np.int64), np.array(publish, dtype=np.int64)
+    wheres = [r[2] for r in rows]
+    roll, pitch, heading, sigma = attitude
+    columns: dict[str, Any] = {
+        "timestamp": log_ns, "frame_id": vehicle, "source_format": IMU_SOURCE, "latitude": NAN, "longitude": NAN,
+        "depth_m": NAN, "roll_deg": roll, "pitch_deg": pitch, "heading_deg": heading, "velocity_north_mps": NAN,
+        "velocity_east_mps": NAN, "velocity_down_mps": NAN, "heading_std_deg": sigma[:, 8],
+        "position_std_north_m": NAN, "position_std_east_m": NAN, "roll_std_deg": sigma[:, 0],
+        "pitch_std_deg": sigma[:, 4], "altitude_m": NAN}
+    for names, (values, given) in ((IMU_RATES, angular), (IMU_FORCES, linear)):
+        if given.any():   # a masked row leaves the three unset, as `_imu_state` does without them
+            for k, name in enumerate(names):
+                columns[name] = np.ma.masked_array(values[:, k], mask=~given)
+    sigma_rows = sigma.tolist()
+
+    def outputs() -> Iterator[Output]:
+        for (t, p, where, _), r, pt, h, s, av, la, av_given, la_given in zip(
+                rows, roll.tolist(), pitch.tolist(), heading.tolist(), sigma_rows, angular[0].tolist(),
+                linear[0].tolist(), angular[1].tolist(), linear[1].tolist()):
+            yield Output(topic, _imu_state(t, vehicle, r, pt, h, s[0], s[4], s[8], av if av_given else None,
+                                           la if la_given else None), t, p, where)
+
+    return Batch([Columns(topic, S.InsState, columns, log_ns, publish_ns)], np.zeros(len(rows), dtype=np.int64),
+                 np.array([w.offset for w in wheres], dtype=np.int64), wheres[-1], outputs)
 
 
 @functools.lru_cache(maxsize=1024)
@@ -506,6 +624,22 @@ def _odometry_state(ctx: LogContext, frame: str, child: str, position: tuple[flo
                     pcov: list[float], t: int, publish: int, where: Where,
                     origin: tuple[float, float] | None) -> Iterator[Output | Reject]:
     """An Odometry's InsState from its fields (non-finite numbers NaN), or why it gives none."""
+    fields = _odometry_fields(frame, child, position, quaternion, linear, pcov, origin)
+    if fields is None:
+        yield Reject(where, NO_ODOMETRY)
+        return
+    yield _out(ctx, "ins", S.ins_state(t, ctx.vehicle, *fields), t, publish, where)
+
+
+NO_ODOMETRY = "nav_msgs/Odometry with neither position, orientation nor velocity"
+ODOMETRY_SOURCE = "rosbag:nav_msgs/Odometry"
+
+
+def _odometry_fields(frame: str, child: str, position: tuple[float, float, float],
+                     quaternion: tuple[float, float, float, float], linear: tuple[float, float, float],
+                     pcov: list[float], origin: tuple[float, float] | None) -> tuple | None:
+    """An Odometry's InsState as S.ins_state's arguments after time and frame (`ins.INS_FIELDS`), or None when it
+    has neither position, orientation nor velocity."""
     ned = _ned(frame)
     north, east, down = position if ned else enu_to_ned(position)
     roll, pitch, heading = attitude_deg(quaternion, ned)
@@ -518,12 +652,9 @@ def _odometry_state(ctx: LogContext, frame: str, child: str, position: tuple[flo
         vn = ve = vd = NAN
     sn, se = (pcov[0], pcov[7]) if ned else (pcov[7], pcov[0])
     if not any(map(math.isfinite, (north, east, down, heading, vn))):
-        yield Reject(where, "nav_msgs/Odometry with neither position, orientation nor velocity")
-        return
-    state = S.ins_state(t, ctx.vehicle, "rosbag:nav_msgs/Odometry", "", lat, lon, down, roll, pitch, heading, vn, ve,
-                        vd, _sigma_deg(pcov[35]), math.sqrt(sn) if sn >= 0 else NAN,
-                        math.sqrt(se) if se >= 0 else NAN, NAN, NAN, NAN)
-    yield _out(ctx, "ins", state, t, publish, where)
+        return None
+    return (ODOMETRY_SOURCE, "", lat, lon, down, roll, pitch, heading, vn, ve, vd, _sigma_deg(pcov[35]),
+            math.sqrt(sn) if sn >= 0 else NAN, math.sqrt(se) if se >= 0 else NAN, NAN, NAN, NAN)
 
 
 def _gnss_twist(ctx: LogContext, msgtype: str, msg: Any, t: int, publish: int, where: Where) -> Output:
@@ -580,18 +711,34 @@ def _velocity(ctx: LogContext, msgtype: str, msg: Any, t: int, publish: int,
                                        source=source), t, publish, where)
 
 
-def convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored | SourceBatch]:
+def convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored | SourceBatch | Batch]:
     """ROS 1 .bag, ROS 2 .mcap/.db3 (rosbags): NavSatFix, NMEA/text sentences, Imu, Odometry, Twist, DVL."""
     return checked_times(_convert_rosbag(data, ctx), ctx)
 
 
-def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored | SourceBatch]:
+def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored | SourceBatch | Batch]:
     if not ctx.files:
         raise FormatError("a bag is read from its file: no file given")
     folders = {p.parent for p in ctx.files if p.name == "metadata.yaml"}
     # a ROS 2 bag folder given whole (path = "dive3/"): its metadata.yaml reads every storage file of it
     files = [p for p in ctx.files if p.name == "metadata.yaml" or p.parent not in folders]
-    bag = _Bag(ctx, [t for path in files for t in _topics(path)])
+    # the first file stays open from its topics to its messages (a bag of one file or folder: opened once); the
+    # others are opened for their topics, then again to be read (an open ROS 1 bag holds its whole index)
+    try:
+        first: rb.OpenBag | None = rb.open_bag(files[0])
+    except FormatError:
+        first = None   # reading it says why
+    try:
+        topics = (rb.opened_topics(first) if first is not None else []) + [t for p in files[1:] for t in _topics(p)]
+        yield from _bag_items(ctx, _Bag(ctx, topics), files, first)
+    finally:
+        if first is not None:
+            rb.close_bag(first)
+
+
+def _bag_items(ctx: LogContext, bag: _Bag, files: list[Path], first: rb.OpenBag | None
+               ) -> Iterator[Output | Reject | Ignored | SourceBatch | Batch]:
+    """The archive items of a bag's files, in order (the first one read from `first` when it is open)."""
     raw = RosTopics(ctx)
     own = OWN
     msg_paths = ctx.options.get("msg_paths")
@@ -604,9 +751,10 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
             raise FormatError(f"cannot read {path.name} ({exc.strerror or exc})") from exc
         # offset: the file's first byte in the log plus the message's index in it, so that the recorder maps
         # each message to its file (a message takes more than one byte) for a split bag's gap report
-        for m in rb.read_bag(path, types, own):
+        last = max(size - 1, 0)
+        for m in rb.read_bag(path, types, own, first if path is files[0] else None):
             number += 1
-            where = Where(start + min(m.index, max(size - 1, 0)), None, m.bag_time_ns, number)
+            where = _where(start + (m.index if m.index < last else last), m.bag_time_ns, number)
             if m.problem or not m.topic:   # neither itself nor ours: refused, with the reason
                 yield from raw.flush()
                 yield Reject(where, f"{m.topic} ({m.msgtype}): {m.problem}" if m.topic else m.problem)
@@ -614,7 +762,7 @@ def _convert_rosbag(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
                 item = raw.output(m, where)
                 if item is not None:   # not in its topic's batch
                     yield from raw.released(iter((item,)))
-                if bag.maps(m.topic, m.msgtype):
+                if bag.maps(m.topic, m.msgtype) and not bag.kept_imu(m, where):
                     yield from raw.released(bag.item(m, where))
             if bag.due(number):
                 yield from raw.released(bag.flush())

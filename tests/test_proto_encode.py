@@ -124,3 +124,36 @@ def test_unsupported_fields_are_refused():
     with pytest.raises(TypeError, match="color"):
         encode_columns(S.LocationFix, 1, {"color": [None]})
     assert encode_columns(S.GnssStatus, 0, {"hdop": np.zeros(0)})[0] == b""
+
+
+OPTIONAL = ("angular_velocity_x_radps", "angular_velocity_y_radps", "angular_velocity_z_radps",
+            "linear_acceleration_x_mps2", "linear_acceleration_y_mps2", "linear_acceleration_z_mps2")
+
+
+@settings(max_examples=80, deadline=None)
+@given(data=st.data(), n=st.integers(1, 6))
+def test_optional_doubles_are_written_where_set(data, n):
+    """A proto3 `optional` double (InsState's body rates): written where set, 0.0 too; a masked row leaves it unset,
+    as upb does for a field never assigned."""
+    rows = [{"timestamp": data.draw(TIMES), "heading_deg": data.draw(DOUBLES)} for _ in range(n)]
+    columns: dict = {"timestamp": np.array([r["timestamp"] for r in rows], dtype=np.int64),
+                     "heading_deg": np.array([r["heading_deg"] for r in rows])}
+    for name in OPTIONAL:
+        how = data.draw(st.sampled_from(["absent", "array", "masked", "scalar"]), label=name)
+        if how == "absent":
+            continue
+        values = [data.draw(DOUBLES, label=name) for _ in range(n)]
+        if how == "scalar":
+            values = [values[0]] * n
+            columns[name] = values[0]
+        elif how == "array":
+            columns[name] = np.array(values)
+        else:
+            mask = [data.draw(st.booleans(), label="masked") for _ in range(n)]
+            columns[name] = np.ma.masked_array(values, mask=mask)
+            values = [None if m else v for v, m in zip(values, mask)]
+        for row, v in zip(rows, values):
+            if v is not None:
+                row[name] = v
+    blob, ends = encode_columns(S.InsState, n, columns)
+    assert [bytes(b) for b in split(blob, ends)] == [_reference(S.InsState, row) for row in rows]
