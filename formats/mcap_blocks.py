@@ -49,7 +49,8 @@ BLOCK_MESSAGES = 1 << 16     # messages in hand before a block is cut: numpy ste
 
 # the fields a columnar consumer reads of each schema (float64 columns; booleans and enums as 0/1, ints)
 COLUMN_FIELDS: dict[str, tuple[str, ...]] = {
-    "auvreplay.InsState": ("latitude", "longitude", "depth_m", "heading_deg"),
+    "auvreplay.InsState": ("latitude", "longitude", "depth_m", "heading_deg", "velocity_north_mps",
+                           "velocity_east_mps"),
     "auvreplay.DvlVelocity": ("velocity_x_mps", "velocity_y_mps", "valid", "frame", "altitude_m"),
     "foxglove.LocationFix": ("latitude", "longitude"),
 }
