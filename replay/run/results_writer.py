@@ -18,7 +18,6 @@ from replay.events import (
     TrainedDetectors,
     UsblEpoch,
 )
-from replay.stack.features import EXTRA_FEATURES
 from replay.stack.methods import detecting_names
 from replay.stack.model import offset_to_latlon
 
@@ -38,6 +37,7 @@ class ResultsWriter(Listener):
         self._origin: tuple[float, float] | None = None
         self._detecting = detecting_names()
         self._fix_topics: set[str] = set()       # the estimate topics written once (channel registered)
+        self._detection_topics: set[str] = set()  # likewise the detection topics
 
     def origin(self, lat_rad: float, lon_rad: float) -> None:
         self._origin = (lat_rad, lon_rad)
@@ -64,15 +64,23 @@ class ResultsWriter(Listener):
 
     def epoch(self, follower: str, results: list[EpochResult], leader_fix: Fix | None) -> None:
         t = self._ns(results[0].time_s)
+        topic = f"/replay/{self.run}/{follower}/detections"
+        stamp = None
         for r in results:
             if r.method not in self._detecting:
                 continue
-            msg = S.Detection(timestamp=S.timestamp(t), follower=follower, leader=r.leader, method=r.method,
-                              flagged=bool(r.flagged), score=r.score, threshold=r.threshold,
-                              feature_innovation_m=r.f1, feature_mahalanobis2=r.f2, feature_r_adapted_m2=r.f3,
-                              label=int(r.label), isolation_capped=bool(r.capped),
-                              **{name: float(getattr(r, name)) for name in EXTRA_FEATURES})
-            self.w.write(f"/replay/{self.run}/{follower}/detections", msg, t)
+            scores = (float(r.score), float(r.threshold), float(r.f1), float(r.f2), float(r.f3))
+            extra = tuple(float(getattr(r, name)) for name in S.DETECTION_EXTRA_NAMES)
+            if topic not in self._detection_topics:     # the first detection registers its channel
+                self._detection_topics.add(topic)
+                self.w.write(topic, S.detection(t, follower, r.leader, r.method, bool(r.flagged), scores,
+                                                int(r.label), bool(r.capped), extra), t)
+                continue
+            # the same bytes without a message (several a range epoch: most of the results archive's messages)
+            if stamp is None:
+                stamp = S.detection_stamp(t)
+            self.w.write_serialized(topic, S.detection_bytes(stamp, t, follower, r.leader, r.method, bool(r.flagged),
+                                                             scores, int(r.label), bool(r.capped), extra), t)
 
     def errors(self, follower: str, samples: list[ErrorSample]) -> None:
         pass  # errors are derived data: the metrics carry them
