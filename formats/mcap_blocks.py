@@ -284,7 +284,8 @@ def _take(runs: list[_Run], before: int | None, info: Mapping[int, tuple[str, st
     if not logs:
         return None
     # one buffer of the block's messages (and what lies between them in a chunk), PAD bytes after the last
-    data = b"".join(parts) + bytes(PAD)
+    parts.append(memoryview(bytes(PAD)))
+    data = b"".join(parts)     # one copy
     log = np.concatenate(logs)
     start, end = np.concatenate(starts), np.concatenate(ends)
     if len(runs) == 0 and before is None and len(logs) == 1:

@@ -69,6 +69,8 @@ _TIMESTAMP_TABLE = np.array([0, _VARINT, _VARINT], dtype=np.int8)
 
 PAD = 16          # bytes a buffer holds after its last message: a walk step reads up to 10 bytes past a position
 _SHORT = 64       # strings up to this long are checked for ASCII by a gather, longer ones by a prefix count
+# the high bit of each of the first k bytes of a little-endian 8-byte word, k = 0..8
+_HIGH_BITS = np.array([sum(0x80 << (8 * i) for i in range(k)) for k in range(9)], dtype=np.uint64)
 
 
 class _Bytes:
@@ -78,6 +80,7 @@ class _Bytes:
         self.u8 = np.frombuffer(data, dtype=np.uint8)
         # a little-endian double starting at every byte (stride 1): one gather reads a field of every message
         self.f8 = np.ndarray(shape=(max(len(data) - 7, 0),), dtype="<f8", buffer=data, strides=(1,))
+        self.u64 = np.ndarray(shape=(max(len(data) - 7, 0),), dtype="<u8", buffer=data, strides=(1,))
         self._high: np.ndarray | None = None
 
     def ascii(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -87,9 +90,13 @@ class _Bytes:
         a = np.minimum(a, b)
         width = int((b - a).max()) if a.size else 0
         if width <= _SHORT:
-            idx = np.minimum(a[:, None] + np.arange(width), size - 1)
-            inside = np.arange(width) < (b - a)[:, None]
-            return ~((self.u8[idx] >= 0x80) & inside).any(axis=1)
+            # 8 bytes at a time: the high bits of the range's bytes in each little-endian word
+            length = b - a
+            high = np.zeros(a.size, dtype=np.uint64)
+            for k in range(0, width, 8):
+                at = np.minimum(a + k, self.u64.size - 1)
+                high |= self.u64[at] & _HIGH_BITS[np.clip(length - k, 0, 8)]
+            return high == 0
         if self._high is None:     # high[b] - high[a]: the bytes >= 0x80 in [a, b), counted once per buffer
             self._high = np.concatenate(([0], np.cumsum(self.u8 >= 0x80)))
         return self._high[b] == self._high[a]
@@ -117,8 +124,8 @@ def _walk(view: _Bytes, start: np.ndarray, end: np.ndarray, table: np.ndarray,
     buf = view.u8
     n = start.size
     ok = np.ones(n, dtype=bool)
-    pos = start.copy()
-    live = np.flatnonzero(pos < end)
+    live = np.flatnonzero(start < end)
+    p, lim = start[live], end[live]      # the live messages' positions and ends
     nested: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     steps = 0
     while live.size:
@@ -126,8 +133,6 @@ def _walk(view: _Bytes, start: np.ndarray, end: np.ndarray, table: np.ndarray,
         if steps > MAX_STEPS:
             ok[live] = False       # a message of very many fields: the runtime's, one numpy step per field is not
             break
-        lim = end[live]
-        p = pos[live]
         first = buf[p]
         if first[0] < 0x80 and (first == first[0]).all():
             # the usual step: every message has the same one-byte tag here (the same fields in the same order)
@@ -136,9 +141,12 @@ def _walk(view: _Bytes, start: np.ndarray, end: np.ndarray, table: np.ndarray,
                 ok[live] = False
                 break
             good = after <= lim
+            more = good & (after < lim)
+            if more.all():       # no message ends or fails here: the live set stays as it is
+                p = after
+                continue
             ok[live[~good]] = False
-            pos[live] = after
-            live = live[good & (after < lim)]
+            live, p, lim = live[more], after[more], lim[more]
             continue
         tag, q, good = _varint(buf, p, lim)
         number = (tag >> np.uint64(3)).astype(np.int64)
@@ -191,8 +199,8 @@ def _walk(view: _Bytes, start: np.ndarray, end: np.ndarray, table: np.ndarray,
             else:
                 col[rows] = value[hit].astype(float)
         ok[live[~good]] = False
-        pos[live] = after
-        live = live[good & (after < lim)]
+        more = good & (after < lim)
+        live, p, lim = live[more], after[more], lim[more]
     for rows, a, b in nested:
         sub = _walk(view, a, b, _TIMESTAMP_TABLE, {})
         ok[rows[~sub]] = False
@@ -238,9 +246,10 @@ def _uniform_step(view: _Bytes, p: np.ndarray, lim: np.ndarray, tag: int, table:
             fine = ~bad & (after <= lim)
             nested.append((live[fine], body[fine], after[fine]))
     bad |= after > lim
+    clean = not bad.any()
     if number in wanted:
         col, ftype = wanted[number]
-        fine = ~bad
+        fine = slice(None) if clean else ~bad
         rows = live[fine]
         if ftype == _T_DOUBLE:
             col[rows] = view.f8[q[fine]]
@@ -252,7 +261,7 @@ def _uniform_step(view: _Bytes, p: np.ndarray, lim: np.ndarray, tag: int, table:
                 col[rows] = (v & np.uint64(0xFFFFFFFF)).astype(np.uint32).view(np.int32).astype(float)
             else:
                 col[rows] = v.astype(float)
-    return np.where(bad, lim + 1, after)
+    return after if clean else np.where(bad, lim + 1, after)
 
 
 def decode_columns(datas: Sequence[bytes], cls: Any, names: Sequence[str]) -> tuple[dict[str, np.ndarray],

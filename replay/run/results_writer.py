@@ -38,6 +38,7 @@ class ResultsWriter(Listener):
         self._detecting = detecting_names()
         self._fix_topics: set[str] = set()       # the estimate topics written once (channel registered)
         self._detection_topics: set[str] = set()  # likewise the detection topics
+        self._estimate_topics: dict[str, dict[str, str]] = {}   # follower -> method -> its estimate topic
 
     def origin(self, lat_rad: float, lon_rad: float) -> None:
         self._origin = (lat_rad, lon_rad)
@@ -48,19 +49,30 @@ class ResultsWriter(Listener):
     def estimates(self, follower: str, t_s: float, est: Mapping[str, tuple[float, ...]]) -> None:
         t = self._ns(t_s)
         tail = None
-        for method, (lat, lon, nn, ne, ee) in est.items():
-            topic = f"/replay/{self.run}/{follower}/{method}"
+        topics = self._estimate_topics.get(follower)
+        if topics is None:
+            topics = self._estimate_topics[follower] = {}
+        packed: dict[int, bytes] = {}     # methods with one state share one estimate tuple: its bytes made once
+        for method, value in est.items():
+            topic = topics.get(method)
+            if topic is None:
+                topic = topics[method] = f"/replay/{self.run}/{follower}/{method}"
             if topic not in self._fix_topics:     # the first fix of a topic registers its channel
                 self._fix_topics.add(topic)
+                lat, lon, nn, ne, ee = value
                 fix = S.location_fix(t, follower, lat * RAD, lon * RAD, math.nan, _cov_enu(nn, ne, ee),
                                      S.COVARIANCE_KNOWN)
                 self.w.write(topic, fix, t)
                 continue
             # the same bytes without a message (once a second per method: a tenth of a replay's messages)
-            if tail is None:
-                tail = S.location_fix_tail(t, follower)
-            self.w.write_serialized(topic, S.location_fix_bytes(tail, t, follower, lat * RAD, lon * RAD, math.nan,
-                                                                _cov_enu(nn, ne, ee), S.COVARIANCE_KNOWN), t)
+            data = packed.get(id(value))
+            if data is None:
+                if tail is None:
+                    tail = S.location_fix_tail(t, follower)
+                lat, lon, nn, ne, ee = value
+                data = packed[id(value)] = S.location_fix_bytes(tail, t, follower, lat * RAD, lon * RAD, math.nan,
+                                                                _cov_enu(nn, ne, ee), S.COVARIANCE_KNOWN)
+            self.w.write_serialized(topic, data, t)
 
     def epoch(self, follower: str, results: list[EpochResult], leader_fix: Fix | None) -> None:
         t = self._ns(results[0].time_s)
