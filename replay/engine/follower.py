@@ -75,6 +75,10 @@ class FollowerPipeline:
         """The time of the earliest queued event (inf when none)."""
         return self._queue[0][0] if self._queue else math.inf
 
+    def first_epoch_s(self) -> float:
+        """The time of the earliest queued range or position fix (inf when none): the events that read tracks."""
+        return min((ev[0] for ev in self._queue if ev[2] == "range" or ev[2] == "fix"), default=math.inf)
+
     def _push(self, t_s: float, kind: str, payload: tuple[Any, ...]) -> None:
         self._seq += 1
         heapq.heappush(self._queue, (t_s, self._seq, kind, payload))
