@@ -68,7 +68,7 @@ _TIMESTAMP_TABLE = np.array([0, _VARINT, _VARINT], dtype=np.int8)
 
 
 PAD = 16          # bytes a buffer holds after its last message: a walk step reads up to 10 bytes past a position
-_SHORT = 64       # strings up to this long are checked for ASCII by a gather, longer ones by a prefix count
+_SHORT = 64       # strings up to this long are checked for ASCII 8 bytes a word, longer ones by a prefix count
 # the high bit of each of the first k bytes of a little-endian 8-byte word, k = 0..8
 _HIGH_BITS = np.array([sum(0x80 << (8 * i) for i in range(k)) for k in range(9)], dtype=np.uint64)
 
