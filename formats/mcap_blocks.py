@@ -14,7 +14,10 @@ the file, then position in the chunk.
 A topic asked for as columns has the fields of COLUMN_FIELDS (what a consumer
 reads of every row) decoded straight from the wire into float64 columns
 (formats.proto_columns, the runtime for any message the walk does not vouch
-for); a row's message object is decoded only when asked (`message`). Any
+for); a row's message object is decoded only when asked (`message`). No
+message is cut out of its chunk for that: a chunk's messages stay positions
+in its inflated bytes, and a block's are one buffer (its chunks' spans joined)
+the column walk reads in place. Any
 other topic's messages are decoded objects. What does not decode is skipped and
 counted as `messages` counts it.
 """
@@ -22,7 +25,6 @@ counted as `messages` counts it.
 from __future__ import annotations
 
 import struct
-from bisect import bisect_left
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from operator import attrgetter
@@ -40,14 +42,15 @@ from .mcap_chunks import (
     chunk_records,
     read_chunk,
 )
-from .proto_columns import decode_columns
+from .proto_columns import PAD, decode_columns_at
 from .schemas import MESSAGE_CLASSES
 
 BLOCK_MESSAGES = 1 << 16     # messages in hand before a block is cut: numpy steps per block are amortized
 
 # the fields a columnar consumer reads of each schema (float64 columns; booleans and enums as 0/1, ints)
 COLUMN_FIELDS: dict[str, tuple[str, ...]] = {
-    "auvreplay.InsState": ("latitude", "longitude", "depth_m", "heading_deg"),
+    "auvreplay.InsState": ("latitude", "longitude", "depth_m", "heading_deg", "velocity_north_mps",
+                           "velocity_east_mps"),
     "auvreplay.DvlVelocity": ("velocity_x_mps", "velocity_y_mps", "valid", "frame", "altitude_m"),
     "foxglove.LocationFix": ("latitude", "longitude"),
 }
@@ -64,7 +67,8 @@ class MessageBlock:
     log_ns: np.ndarray                       # per message in stream order: log time (int64)
     columns: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)   # topic -> field -> column
     messages: dict[str, list[Any]] = field(default_factory=dict)    # topic -> decoded objects (not columnar)
-    raw: dict[str, list[bytes]] = field(default_factory=dict)       # columnar topic -> its rows' bytes
+    # columnar topic -> its rows' bytes: the block's buffer, each row's start and end in it
+    raw: dict[str, tuple[bytes, np.ndarray, np.ndarray]] = field(default_factory=dict)
     decoders: dict[str, Callable[[bytes], Any]] = field(default_factory=dict)
 
     def __len__(self) -> int:
@@ -75,16 +79,38 @@ class MessageBlock:
         held = self.messages.get(topic)
         if held is not None:
             return held[row]
-        return self.decoders[topic](self.raw[topic][row])
+        data, start, end = self.raw[topic]
+        return self.decoders[topic](data[int(start[row]):int(end[row])])
 
 
 class _Run:
-    """One chunk's (or the loose messages') wanted messages, sorted by log time, with a read position."""
+    """One chunk's (or the loose messages') wanted messages, sorted by log time, with a read position: log times,
+    channel ids, and each message's bytes as (start, end) in the chunk's data."""
 
-    __slots__ = ("order", "log", "cid", "data", "pos")
+    __slots__ = ("order", "log", "cid", "data", "start", "end", "pos")
 
-    def __init__(self, order: int, log: list[int], cid: list[int], data: list[bytes]):
-        self.order, self.log, self.cid, self.data, self.pos = order, log, cid, data, 0
+    def __init__(self, order: int, log: np.ndarray, cid: np.ndarray, data: bytes, start: np.ndarray,
+                 end: np.ndarray):
+        self.order, self.log, self.cid, self.data, self.start, self.end = order, log, cid, data, start, end
+        self.pos = 0
+
+    @classmethod
+    def of_messages(cls, order: int, messages: Sequence[tuple[int, Any, int, bytes]]) -> _Run:
+        """A run of (log time, _, channel id, data) messages sorted by log time, their bytes joined."""
+        lens = np.fromiter((len(m[3]) for m in messages), dtype=np.int64, count=len(messages))
+        start = np.zeros(lens.size, dtype=np.int64)
+        np.cumsum(lens[:-1], out=start[1:])
+        return cls(order, _times([m[0] for m in messages]), np.array([m[2] for m in messages], dtype=np.int64),
+                   b"".join(m[3] for m in messages), start, start + lens)
+
+    def first(self) -> int:
+        """The log time of the next message not yet taken."""
+        return int(self.log[self.pos])
+
+
+def _times(log: list[int]) -> np.ndarray:
+    """Log times as int64 (a time past 2**63 - 1 raises OverflowError, as numpy does)."""
+    return np.array(log, dtype=np.int64)
 
 
 def _chunk_run(f: BinaryIO, ci: Any, channels: set[int], validate_crc: bool, start_ns: int | None,
@@ -98,15 +124,13 @@ def _chunk_run(f: BinaryIO, ci: Any, channels: set[int], validate_crc: bool, sta
     records = chunk_records(data, offset, channels, start_ns, end_ns, on_damage)   # sorted by log time
     if not records:
         return None
-    log = [r[0] for r in records]
-    cids = [r[2] for r in records]
-    datas = [r[3] for r in records]
-    return _Run(offset, log, cids, datas)
+    return _Run.of_messages(offset, records)
 
 
-def _u64(buf: np.ndarray, at: np.ndarray) -> np.ndarray:
-    """Little-endian u64 at each (unaligned) byte position of `buf`."""
-    return buf[at[:, None] + np.arange(8)].copy().view("<u8")[:, 0]
+def _u64(data: bytes, at: np.ndarray) -> np.ndarray:
+    """Little-endian u64 at each (unaligned) byte position of `data` (each position at most len(data) - 8)."""
+    every = np.ndarray(shape=(max(len(data) - 7, 0),), dtype="<u8", buffer=data, strides=(1,))
+    return every[at]
 
 
 def _indexed(f: BinaryIO, ci: Any, data: bytes, file_size: int) -> tuple[np.ndarray, np.ndarray] | None:
@@ -147,7 +171,7 @@ def _indexed(f: BinaryIO, ci: Any, data: bytes, file_size: int) -> tuple[np.ndar
     buf = np.frombuffer(data, dtype=np.uint8)
     if not (buf[at] == OP_MESSAGE).all():
         return None
-    rlen_all = _u64(buf, at + 1)
+    rlen_all = _u64(data, at + 1)
     if (rlen_all < _MESSAGE_HEAD.size).any() or (rlen_all > end).any():
         return None
     nxt = at + 9 + rlen_all.astype(np.int64)
@@ -172,7 +196,7 @@ def _indexed_run(offset: int, data: bytes, at: np.ndarray, rlen: np.ndarray, cha
     """The wanted messages of a chunk whose message records are known (`_indexed`), as a sorted run."""
     buf = np.frombuffer(data, dtype=np.uint8)
     channel = buf[at + 9].astype(np.int64) | (buf[at + 10].astype(np.int64) << 8)
-    log = _u64(buf, at + 15)
+    log = _u64(data, at + 15)
     keep = np.isin(channel, np.fromiter(channels, dtype=np.int64, count=len(channels)))
     if start_ns is not None:
         keep &= log >= np.uint64(start_ns)
@@ -184,9 +208,9 @@ def _indexed_run(offset: int, data: bytes, at: np.ndarray, rlen: np.ndarray, cha
     if not (log[:-1] <= log[1:]).all():
         order = np.argsort(log, kind="stable")
         at, rlen, channel, log = at[order], rlen[order], channel[order], log[order]
-    a = (at + 31).tolist()
-    b = (at + 9 + rlen).tolist()
-    return _Run(offset, log.tolist(), channel.tolist(), [data[x:y] for x, y in zip(a, b)])
+    if (log >> np.uint64(63)).any():
+        raise OverflowError("a message's log time does not fit int64")
+    return _Run(offset, log.astype(np.int64), channel, data, at + 31, at + 9 + rlen)
 
 
 def read_blocks(f: BinaryIO, chunk_indexes: Iterable[Any], info: Mapping[int, tuple[str, str, Any, str]],
@@ -207,13 +231,13 @@ def read_blocks(f: BinaryIO, chunk_indexes: Iterable[Any], info: Mapping[int, tu
         key=lambda ci: (ci.message_start_time, ci.chunk_start_offset))
     runs: list[_Run] = []
     if loose:
-        runs.append(_Run(-1, [m[0] for m in loose], [m[2] for m in loose], [m[3] for m in loose]))
+        runs.append(_Run.of_messages(-1, loose))
     held = 0        # messages read and not yet handed out
     for ci in todo:
         # a block is what comes before the next chunk's start, once enough is in hand (a few chunks)
-        if held >= BLOCK_MESSAGES and ci.message_start_time > min(r.log[r.pos] for r in runs):
+        if held >= BLOCK_MESSAGES and ci.message_start_time > min(r.first() for r in runs):
             block = _take(runs, ci.message_start_time, info, columnar, skip, decode_errors)
-            held = sum(len(r.log) - r.pos for r in runs)
+            held = sum(r.log.size - r.pos for r in runs)
             if block is not None:
                 yield block
         try:
@@ -225,7 +249,7 @@ def read_blocks(f: BinaryIO, chunk_indexes: Iterable[Any], info: Mapping[int, tu
             continue
         if run is not None:
             runs.append(run)
-            held += len(run.log)
+            held += run.log.size
     if runs:
         block = _take(runs, None, info, columnar, skip, decode_errors)
         if block is not None:
@@ -236,38 +260,50 @@ def _take(runs: list[_Run], before: int | None, info: Mapping[int, tuple[str, st
           columnar: set[str], skip: Callable[[str, str], None] | None,
           decode_errors: tuple[type[BaseException], ...]) -> MessageBlock | None:
     """The messages of every run with log time before `before` (all with None) as one block; runs consumed."""
-    logs: list[int] = []
-    orders: list[int] = []
-    cids: list[int] = []
-    datas: list[bytes] = []
+    logs: list[np.ndarray] = []
+    orders: list[np.ndarray] = []
+    cids: list[np.ndarray] = []
+    starts: list[np.ndarray] = []
+    ends: list[np.ndarray] = []
+    parts: list[memoryview] = []
+    base = 0        # where the next run's bytes go in the block's buffer
     for r in runs:
-        j = len(r.log) if before is None else bisect_left(r.log, before, r.pos)
+        j = r.log.size if before is None else r.pos + int(np.searchsorted(r.log[r.pos:], before, "left"))
         if j > r.pos:
-            logs += r.log[r.pos:j]
-            cids += r.cid[r.pos:j]
-            datas += r.data[r.pos:j]
-            orders += [r.order] * (j - r.pos)
+            st, en = r.start[r.pos:j], r.end[r.pos:j]
+            lo, hi = int(st.min()), int(en.max())
+            parts.append(memoryview(r.data)[lo:hi])
+            logs.append(r.log[r.pos:j])
+            cids.append(r.cid[r.pos:j])
+            starts.append(st + (base - lo))
+            ends.append(en + (base - lo))
+            orders.append(np.full(j - r.pos, r.order, dtype=np.int64))
+            base += hi - lo
             r.pos = j
-    runs[:] = [r for r in runs if r.pos < len(r.log)]
+    runs[:] = [r for r in runs if r.pos < r.log.size]
     if not logs:
         return None
-    log = np.array(logs, dtype=np.int64)
-    if len(runs) == 0 and before is None and len({*orders}) == 1:
+    # one buffer of the block's messages (and what lies between them in a chunk), PAD bytes after the last
+    parts.append(memoryview(bytes(PAD)))
+    data = b"".join(parts)     # one copy
+    log = np.concatenate(logs)
+    start, end = np.concatenate(starts), np.concatenate(ends)
+    if len(runs) == 0 and before is None and len(logs) == 1:
         order = np.arange(log.size)
     else:
         # the heap merge's order: log time, then the chunk's file offset, then position in it (already in place)
-        order = np.lexsort((np.arange(log.size), np.array(orders, dtype=np.int64), log))
-    cid_arr = np.array(cids, dtype=np.int64)[order]
+        order = np.lexsort((np.arange(log.size), np.concatenate(orders), log))
+    cid_arr = np.concatenate(cids)[order]
     log = log[order]
     if not (order[:-1] < order[1:]).all():
-        datas = [datas[i] for i in order.tolist()]
+        start, end = start[order], end[order]
     keep = np.ones(log.size, dtype=bool)
     topics: list[str] = []
     schemas: list[str] = []
     topic_index = np.empty(log.size, dtype=np.int32)
     out_cols: dict[str, dict[str, np.ndarray]] = {}
     out_msgs: dict[str, list[Any]] = {}
-    out_raw: dict[str, list[bytes]] = {}
+    out_raw: dict[str, tuple[bytes, np.ndarray, np.ndarray]] = {}
     out_dec: dict[str, Callable[[bytes], Any]] = {}
     topic_of: dict[str, int] = {}
     for cid in np.unique(cid_arr).tolist():
@@ -279,41 +315,42 @@ def _take(runs: list[_Run], before: int | None, info: Mapping[int, tuple[str, st
                     skip(topic, why)
             keep[where] = False
             continue
-        at = where.tolist()
         names = COLUMN_FIELDS.get(schema) if topic in columnar else None
         cls = MESSAGE_CLASSES.get(schema) if names is not None else None
-        raw: list[bytes] | None = None
+        raw: tuple[np.ndarray, np.ndarray] | None = None
         cols: dict[str, np.ndarray] | None = None
         if cls is not None and names is not None and decode == cls.FromString:
             # columns straight from the wire; a row the walk does not vouch for is the runtime's to decode
-            raw = [datas[i] for i in at]
-            cols, ok = decode_columns(raw, cls, names)
+            st, en = start[where], end[where]
+            cols, ok = decode_columns_at(data, st, en, cls, names)
             if not ok.all():
-                good = np.ones(len(raw), dtype=bool)
+                good = np.ones(st.size, dtype=bool)
                 for x in np.flatnonzero(~ok).tolist():
                     try:
-                        m = decode(raw[x])
+                        m = decode(data[int(st[x]):int(en[x])])
                     except decode_errors:
                         good[x] = False
-                        keep[at[x]] = False
+                        keep[where[x]] = False
                         if skip is not None:
                             skip(topic, "that do not decode")
                         continue
                     for name in names:
                         cols[name][x] = float(getattr(m, name))
                 if not good.all():
-                    raw = [d for d, g in zip(raw, good.tolist()) if g]
+                    st, en = st[good], en[good]
                     cols = {k: v[good] for k, v in cols.items()}
                     where = where[good]
+            raw = (st, en)
             decoded: list[Any] = []
         else:
+            spans = list(zip(start[where].tolist(), end[where].tolist()))
             try:
-                decoded = [decode(datas[i]) for i in at]
+                decoded = [decode(data[a:b]) for a, b in spans]
             except decode_errors:
                 decoded, kept = [], []
-                for i in at:
+                for i, (a, b) in zip(where.tolist(), spans):
                     try:
-                        decoded.append(decode(datas[i]))
+                        decoded.append(decode(data[a:b]))
                     except decode_errors:
                         keep[i] = False
                         if skip is not None:
@@ -334,7 +371,9 @@ def _take(runs: list[_Run], before: int | None, info: Mapping[int, tuple[str, st
             schemas.append(schema)
         topic_index[where] = ti
         if raw is not None:
-            out_raw.setdefault(topic, []).extend(raw)
+            prev_raw = out_raw.get(topic)
+            out_raw[topic] = ((data, *raw) if prev_raw is None
+                              else (data, np.concatenate((prev_raw[1], raw[0])), np.concatenate((prev_raw[2], raw[1]))))
             out_dec[topic] = decode
         else:
             out_msgs.setdefault(topic, []).extend(decoded)

@@ -67,6 +67,41 @@ MAX_STEPS = 64     # fields walked per message at most (ours have up to 25); the
 _TIMESTAMP_TABLE = np.array([0, _VARINT, _VARINT], dtype=np.int8)
 
 
+PAD = 16          # bytes a buffer holds after its last message: a walk step reads up to 10 bytes past a position
+_SHORT = 64       # strings up to this long are checked for ASCII 8 bytes a word, longer ones by a prefix count
+# the high bit of each of the first k bytes of a little-endian 8-byte word, k = 0..8
+_HIGH_BITS = np.array([sum(0x80 << (8 * i) for i in range(k)) for k in range(9)], dtype=np.uint64)
+
+
+class _Bytes:
+    """A buffer of messages as numpy sees it: bytes, doubles at every byte offset, and ASCII checks of ranges."""
+
+    def __init__(self, data: bytes):
+        self.u8 = np.frombuffer(data, dtype=np.uint8)
+        # a little-endian double starting at every byte (stride 1): one gather reads a field of every message
+        self.f8 = np.ndarray(shape=(max(len(data) - 7, 0),), dtype="<f8", buffer=data, strides=(1,))
+        self.u64 = np.ndarray(shape=(max(len(data) - 7, 0),), dtype="<u8", buffer=data, strides=(1,))
+        self._high: np.ndarray | None = None
+
+    def ascii(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Per range [a, b): True when no byte is >= 0x80 (b clipped to the buffer, a range past it is empty)."""
+        size = self.u8.size
+        b = np.minimum(b, size)
+        a = np.minimum(a, b)
+        width = int((b - a).max()) if a.size else 0
+        if width <= _SHORT:
+            # 8 bytes at a time: the high bits of the range's bytes in each little-endian word
+            length = b - a
+            high = np.zeros(a.size, dtype=np.uint64)
+            for k in range(0, width, 8):
+                at = np.minimum(a + k, self.u64.size - 1)
+                high |= self.u64[at] & _HIGH_BITS[np.clip(length - k, 0, 8)]
+            return high == 0
+        if self._high is None:     # high[b] - high[a]: the bytes >= 0x80 in [a, b), counted once per buffer
+            self._high = np.concatenate(([0], np.cumsum(self.u8 >= 0x80)))
+        return self._high[b] == self._high[a]
+
+
 def _varint(buf: np.ndarray, q: np.ndarray, lim: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(value, position after it, ok) of the varints at positions q (ok: at most 9 bytes, none past lim)."""
     val = np.zeros(q.size, dtype=np.uint64)
@@ -83,13 +118,14 @@ def _varint(buf: np.ndarray, q: np.ndarray, lim: np.ndarray) -> tuple[np.ndarray
     return val, end, done & (end <= lim)
 
 
-def _walk(buf: np.ndarray, high: np.ndarray, start: np.ndarray, end: np.ndarray, table: np.ndarray,
+def _walk(view: _Bytes, start: np.ndarray, end: np.ndarray, table: np.ndarray,
           wanted: dict[int, tuple[np.ndarray, int]]) -> np.ndarray:
-    """Walk messages [start, end) of `buf`; fill wanted[number] = (column, type) in place; the ok mask."""
+    """Walk messages [start, end) of the buffer; fill wanted[number] = (column, type) in place; the ok mask."""
+    buf = view.u8
     n = start.size
     ok = np.ones(n, dtype=bool)
-    pos = start.copy()
-    live = np.flatnonzero(pos < end)
+    live = np.flatnonzero(start < end)
+    p, lim = start[live], end[live]      # the live messages' positions and ends
     nested: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     steps = 0
     while live.size:
@@ -97,19 +133,20 @@ def _walk(buf: np.ndarray, high: np.ndarray, start: np.ndarray, end: np.ndarray,
         if steps > MAX_STEPS:
             ok[live] = False       # a message of very many fields: the runtime's, one numpy step per field is not
             break
-        lim = end[live]
-        p = pos[live]
         first = buf[p]
         if first[0] < 0x80 and (first == first[0]).all():
             # the usual step: every message has the same one-byte tag here (the same fields in the same order)
-            after = _uniform_step(buf, high, p, lim, int(first[0]), table, wanted, live, nested)
+            after = _uniform_step(view, p, lim, int(first[0]), table, wanted, live, nested)
             if after is None:
                 ok[live] = False
                 break
             good = after <= lim
+            more = good & (after < lim)
+            if more.all():       # no message ends or fails here: the live set stays as it is
+                p = after
+                continue
             ok[live[~good]] = False
-            pos[live] = after
-            live = live[good & (after < lim)]
+            live, p, lim = live[more], after[more], lim[more]
             continue
         tag, q, good = _varint(buf, p, lim)
         number = (tag >> np.uint64(3)).astype(np.int64)
@@ -141,7 +178,7 @@ def _walk(buf: np.ndarray, high: np.ndarray, start: np.ndarray, end: np.ndarray,
         # strings must be ASCII here (UTF-8 is the runtime's to check); packed doubles whole
         s = good & (kind == _STRING)
         if s.any():
-            good[s] &= high[after[s]] == high[body[s]]
+            good[s] &= view.ascii(body[s], after[s])
         pk = good & (kind == _PACKED_DOUBLES)
         if pk.any():
             good[pk] &= (after[pk] - body[pk]) % 8 == 0
@@ -154,8 +191,7 @@ def _walk(buf: np.ndarray, high: np.ndarray, start: np.ndarray, end: np.ndarray,
                 continue
             rows = live[hit]
             if ftype == _T_DOUBLE:
-                at = q[hit]
-                col[rows] = buf[at[:, None] + np.arange(8)].copy().view("<f8")[:, 0]
+                col[rows] = view.f8[q[hit]]
             elif ftype == _T_BOOL:
                 col[rows] = (value[hit] != 0).astype(float)
             elif ftype in (_T_INT32, _T_ENUM):
@@ -163,19 +199,20 @@ def _walk(buf: np.ndarray, high: np.ndarray, start: np.ndarray, end: np.ndarray,
             else:
                 col[rows] = value[hit].astype(float)
         ok[live[~good]] = False
-        pos[live] = after
-        live = live[good & (after < lim)]
+        more = good & (after < lim)
+        live, p, lim = live[more], after[more], lim[more]
     for rows, a, b in nested:
-        sub = _walk(buf, high, a, b, _TIMESTAMP_TABLE, {})
+        sub = _walk(view, a, b, _TIMESTAMP_TABLE, {})
         ok[rows[~sub]] = False
     return ok
 
 
-def _uniform_step(buf: np.ndarray, high: np.ndarray, p: np.ndarray, lim: np.ndarray, tag: int, table: np.ndarray,
+def _uniform_step(view: _Bytes, p: np.ndarray, lim: np.ndarray, tag: int, table: np.ndarray,
                   wanted: dict[int, tuple[np.ndarray, int]], live: np.ndarray,
                   nested: list[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> np.ndarray | None:
     """One field of every live message, all with the one-byte `tag` at p: the positions after it (past `lim`
     where a message is not ok), or None when the field is one the walk leaves to the runtime."""
+    buf = view.u8
     number, wire = tag >> 3, tag & 7
     kind = int(table[number]) if 0 < number < table.size else 0
     if kind == 0 or wire != _WIRE[kind]:
@@ -202,20 +239,20 @@ def _uniform_step(buf: np.ndarray, high: np.ndarray, p: np.ndarray, lim: np.ndar
             size = np.where(bad, 0, usize).astype(np.int64)
         after = body + size
         if kind == _STRING:
-            bad |= high[np.minimum(after, high.size - 1)] != high[body]
+            bad |= ~view.ascii(body, after)
         elif kind == _PACKED_DOUBLES:
             bad |= size % 8 != 0
         elif kind == _TIMESTAMP:
             fine = ~bad & (after <= lim)
             nested.append((live[fine], body[fine], after[fine]))
     bad |= after > lim
+    clean = not bad.any()
     if number in wanted:
         col, ftype = wanted[number]
-        fine = ~bad
+        fine = slice(None) if clean else ~bad
         rows = live[fine]
         if ftype == _T_DOUBLE:
-            at = q[fine]
-            col[rows] = buf[at[:, None] + np.arange(8)].copy().view("<f8")[:, 0]
+            col[rows] = view.f8[q[fine]]
         elif value is not None:
             v = value[fine]
             if ftype == _T_BOOL:
@@ -224,7 +261,7 @@ def _uniform_step(buf: np.ndarray, high: np.ndarray, p: np.ndarray, lim: np.ndar
                 col[rows] = (v & np.uint64(0xFFFFFFFF)).astype(np.uint32).view(np.int32).astype(float)
             else:
                 col[rows] = v.astype(float)
-    return np.where(bad, lim + 1, after)
+    return after if clean else np.where(bad, lim + 1, after)
 
 
 def decode_columns(datas: Sequence[bytes], cls: Any, names: Sequence[str]) -> tuple[dict[str, np.ndarray],
@@ -235,16 +272,24 @@ def decode_columns(datas: Sequence[bytes], cls: Any, names: Sequence[str]) -> tu
     its proto3 default. Rows not ok hold defaults: decode those with `cls.FromString`.
     """
     n = len(datas)
+    lens = np.fromiter(map(len, datas), dtype=np.int64, count=n)
+    start = np.zeros(n, dtype=np.int64)
+    if n:
+        np.cumsum(lens[:-1], out=start[1:])
+    return decode_columns_at(b"".join(datas) + bytes(PAD), start, start + lens, cls, names)
+
+
+def decode_columns_at(data: bytes, start: np.ndarray, end: np.ndarray, cls: Any, names: Sequence[str]
+                      ) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """`decode_columns` of the messages data[start[i]:end[i]] of one buffer (a chunk's, many messages' at once),
+    which holds at least PAD bytes after the last message: reads past a message's end stay inside it."""
+    n = start.size
     table, fields = _plan(cls)
     cols = {name: np.zeros(n) for name in names}
     if not n:
         return cols, np.ones(0, dtype=bool)
-    lens = np.fromiter(map(len, datas), dtype=np.int64, count=n)
-    start = np.zeros(n, dtype=np.int64)
-    np.cumsum(lens[:-1], out=start[1:])
-    end = start + lens
-    buf = np.frombuffer(b"".join(datas) + bytes(16), dtype=np.uint8)
-    high = np.concatenate(([0], np.cumsum(buf >= 0x80)))   # high[b] - high[a]: bytes >= 0x80 in [a, b)
+    if len(data) < int(end.max()) + PAD:
+        raise ValueError("decode_columns_at: the buffer needs PAD bytes after its last message")
     wanted = {fields[name][0]: (cols[name], fields[name][1]) for name in names}
-    ok = _walk(buf, high, start, end, table, wanted)
+    ok = _walk(_Bytes(data), start.astype(np.int64, copy=False), end.astype(np.int64, copy=False), table, wanted)
     return cols, ok

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Any
 
 from foxglove_schemas_protobuf.LocationFix_pb2 import LocationFix
@@ -10,7 +11,7 @@ from google.protobuf.timestamp_pb2 import Timestamp
 
 from . import auvreplay_pb2 as pb
 from .units import NS, TIME_MAX_NS, TIME_MIN_NS
-from .wire import GNSS_STATUS, GNSS_VELOCITY, INS_STATE, LOCATION_FIX
+from .wire import DETECTION_EXTRA, DETECTION_SCORES, GNSS_STATUS, GNSS_VELOCITY, INS_STATE, LOCATION_FIX, varint
 
 GnssStatus = pb.GnssStatus
 InsState = pb.InsState
@@ -177,3 +178,58 @@ def gnss_velocity(
     msg.source_format = source_format
     set_timestamp(msg.timestamp, t_ns)
     return msg
+
+
+# bound once: `detection_bytes` runs per detecting method at every range epoch
+_DET_SCORE_KEYS, _DET_SCORE_PACK = DETECTION_SCORES.keys, DETECTION_SCORES.struct.pack
+_DET_EXTRA_KEYS, _DET_EXTRA_PACK = DETECTION_EXTRA.keys, DETECTION_EXTRA.struct.pack
+_DET_FLAGGED = varint(Detection.DESCRIPTOR.fields_by_name["flagged"].number << 3) + b"\x01"
+_DET_CAPPED = varint(Detection.DESCRIPTOR.fields_by_name["isolation_capped"].number << 3) + b"\x01"
+_DET_LABEL = varint(Detection.DESCRIPTOR.fields_by_name["label"].number << 3)
+DETECTION_EXTRA_NAMES = DETECTION_EXTRA.names
+"""The Detection fields `detection_bytes` takes as `extra`, in their order (field-number order)."""
+
+
+@lru_cache(maxsize=256)
+def _detection_strings(leader: str, method: str) -> bytes:
+    return Detection(leader=leader, method=method).SerializeToString()
+
+
+@lru_cache(maxsize=64)
+def _detection_follower(follower: str) -> bytes:
+    return Detection(follower=follower).SerializeToString()
+
+
+def detection_stamp(t_ns: int) -> bytes:
+    """The wire bytes of a Detection's timestamp (none when `t_ns` is no archivable time), for `detection_bytes`."""
+    return Detection(timestamp=timestamp(t_ns)).SerializeToString()
+
+
+def detection(t_ns: int, follower: str, leader: str, method: str, flagged: bool, scores: tuple[float, ...],
+              label: int, capped: bool, extra: tuple[float, ...]) -> Any:
+    """An auvreplay.Detection: `scores` are score, threshold and the features f1, f2, f3 (DETECTION_SCORES'
+    fields), `extra` the fields of DETECTION_EXTRA_NAMES."""
+    return Detection(timestamp=timestamp(t_ns), follower=follower, leader=leader, method=method, flagged=flagged,
+                     label=label, isolation_capped=capped, **dict(zip(DETECTION_SCORES.names, scores)),
+                     **dict(zip(DETECTION_EXTRA_NAMES, extra)))
+
+
+def detection_bytes(stamp: bytes, t_ns: int, follower: str, leader: str, method: str, flagged: bool,
+                    scores: tuple[float, ...], label: int, capped: bool, extra: tuple[float, ...]) -> bytes:
+    """`detection(...).SerializeToString()`, with `stamp` = `detection_stamp(t_ns)`, without the message: fields
+    in number order, strings and the time from cached bytes, the doubles packed (`formats.wire`). A zero double
+    (serializing omits it), a label outside int32 or counts not those of the runs go through the message
+    (tests/test_wire.py compares both)."""
+    if (0.0 in scores or 0.0 in extra or len(scores) != 5 or len(extra) != len(DETECTION_EXTRA_NAMES)
+            or not -(1 << 31) <= label < (1 << 31)):
+        return detection(t_ns, follower, leader, method, flagged, scores, label, capped, extra).SerializeToString()
+    k0, k1, k2, k3, k4 = _DET_SCORE_KEYS
+    e = _DET_EXTRA_KEYS
+    x = extra
+    return b"".join((
+        stamp, _detection_strings(leader, method), _DET_FLAGGED if flagged else b"",
+        _DET_SCORE_PACK(k0, scores[0], k1, scores[1], k2, scores[2], k3, scores[3], k4, scores[4]),
+        _DET_LABEL + varint(label & 0xFFFFFFFFFFFFFFFF) if label else b"",    # a negative int32: ten bytes
+        _detection_follower(follower), _DET_CAPPED if capped else b"",
+        _DET_EXTRA_PACK(e[0], x[0], e[1], x[1], e[2], x[2], e[3], x[3], e[4], x[4], e[5], x[5], e[6], x[6], e[7], x[7],
+                        e[8], x[8], e[9], x[9])))

@@ -123,3 +123,9 @@ RUNS: dict[str, FieldRun] = {
     "dvl_velocity": DVL_VELOCITY,
     "acoustic_range": ACOUSTIC_RANGE, "usbl_observation": USBL_OBSERVATION,
 }
+# auvreplay.Detection's doubles: the scores and paper A's features, then the filter-independent features
+# (field numbers 13-22, in number order)
+DETECTION_SCORES = field_run(pb.Detection, "score", "threshold", "feature_innovation_m", "feature_mahalanobis2",
+                             "feature_r_adapted_m2")
+DETECTION_EXTRA = field_run(pb.Detection, *(f.name for f in sorted(pb.Detection.DESCRIPTOR.fields,
+                                                                   key=lambda f: f.number) if f.number >= 13))

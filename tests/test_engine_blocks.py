@@ -127,8 +127,9 @@ def sample_archive(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return archive
 
 
-def write_mission(path: Path, duration_s: float, seed: int = 3) -> None:
-    """A simulated trial written straight into an archive, with the awkward cases the engine must count."""
+def write_mission(path: Path, duration_s: float, seed: int = 3, out_of_order: bool = True) -> None:
+    """A simulated trial written straight into an archive, with the awkward cases the engine must count
+    (INS samples out of log-time order too, unless not `out_of_order`)."""
     trial = simulate_trial(Scenario().with_options(duration_s=duration_s), seed)
     rng = np.random.default_rng(seed)
     with ArchiveWriter(path, chunk_size=64 << 10) as w:
@@ -154,7 +155,7 @@ def write_mission(path: Path, duration_s: float, seed: int = 3) -> None:
                     hdg = math.nan
                 elif r < 0.02:
                     depth = math.nan
-                elif r < 0.03:
+                elif r < 0.03 and out_of_order:
                     t -= 700_000_000        # out of log-time order in its chunk (the reader sorts it)
                 w.write(f"/{v.name}/ins", S.InsState(timestamp=S.timestamp(t), frame_id=v.name, latitude=lat,
                                                      longitude=lon, depth_m=depth, heading_deg=hdg), t)
@@ -178,6 +179,13 @@ def write_mission(path: Path, duration_s: float, seed: int = 3) -> None:
 def mission_archive(tmp_path_factory: pytest.TempPathFactory) -> Path:
     archive = tmp_path_factory.mktemp("blocks") / "mission.mcap"
     write_mission(archive, 900.0)
+    return archive
+
+
+@pytest.fixture(scope="module")
+def ordered_mission(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    archive = tmp_path_factory.mktemp("blocks") / "ordered.mcap"
+    write_mission(archive, 900.0, seed=5, out_of_order=False)
     return archive
 
 
@@ -217,6 +225,30 @@ def test_mission_block_path_equals_per_message_path(mission_archive: Path) -> No
     # the awkward cases happened (else the test would not test them)
     assert counts["gps_without_position"] > 0 and "dvl_frame_unusable" not in counts
     assert counts["dvl_invalid"] > 0
+
+
+@pytest.mark.parametrize("t_a", [600.0, 601.7])
+def test_releases_merged_equal_releases_one_by_one(ordered_mission: Path, monkeypatch: pytest.MonkeyPatch,
+                                                   t_a: float) -> None:
+    """In order, the releases that only move the follower's dead reckoning go as one (blocks._merged_release):
+    the same calls, results and counts as message by message, before and after the training at t_a (601.7 s:
+    between two range epochs, so that only the training stops a merge there)."""
+    from replay.engine import blocks as B
+    from replay.run.config import load_config
+
+    spans: list[int] = []
+    real = B._merged_release
+
+    def spy(engine: Engine, j: int, *args: Any) -> int:
+        out = real(engine, j, *args)
+        spans.append(out - j)
+        return out
+
+    monkeypatch.setattr(B, "_merged_release", spy)
+    engine = assert_same_runs(ordered_mission, load_config(None, [f"stack.training_window_s={t_a}"]))
+    assert engine.counts["out_of_order_messages"] == 0
+    assert sum(1 for x in spans if x > 0) > 100        # merged releases happened
+    assert engine._trained        # the detectors were trained (at t_a, where merging stops until it is said)
 
 
 def test_mission_block_path_with_usbl_fixes_to_filters(sample_archive: Path) -> None:

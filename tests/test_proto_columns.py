@@ -88,3 +88,17 @@ def test_a_message_of_very_many_fields_is_left_to_the_runtime() -> None:
     cols, ok = decode_columns([many, one], S.InsState, ("latitude",))
     assert ok.tolist() == [False, True] and cols["latitude"][1] == 1.0
     assert S.InsState.FromString(many).latitude == 2.5
+
+
+def test_long_strings_ascii_or_not() -> None:
+    """Strings past the word-wise ASCII check (over 64 bytes) go by the prefix count: ASCII ones are walked, others
+    left to the runtime, beside short ones in the same block."""
+    texts = ["a" * 70, "é" * 40, "follower", "ü", "b" * 64, "c" * 63 + "é"]
+    ins = [S.InsState(frame_id=t, latitude=float(i) + 0.5).SerializeToString() for i, t in enumerate(texts)]
+    cols, ok = decode_columns(ins, S.InsState, ("latitude",))
+    assert ok.tolist() == [t.isascii() for t in texts]
+    assert [c for c, k in zip(cols["latitude"].tolist(), ok.tolist()) if k] == \
+        [i + 0.5 for i, t in enumerate(texts) if t.isascii()]
+    words = ["follower", "ü", "b" * 64, "c" * 60 + "é", "d" * 9 + "é"]      # at most 64 bytes: word by word
+    short = [S.InsState(frame_id=t, latitude=1.0).SerializeToString() for t in words]
+    assert decode_columns(short, S.InsState, ("latitude",))[1].tolist() == [t.isascii() for t in words]

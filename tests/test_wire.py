@@ -77,3 +77,23 @@ def test_location_fix_bytes_are_the_messages(t_ns, frame, lat, lon, alt, cov, ki
     tail = S.location_fix_tail(t_ns, frame)
     got = S.location_fix_bytes(tail, t_ns, frame, lat, lon, alt, tuple(cov), kind)
     assert got == S.location_fix(t_ns, frame, lat, lon, alt, tuple(cov), kind).SerializeToString()
+
+
+_NAMES = st.text(max_size=10)
+_NONZERO = st.floats(allow_nan=True, allow_infinity=True).filter(lambda v: v != 0.0)   # the packed path's
+
+
+@settings(max_examples=200, deadline=None)
+@given(t_ns=st.one_of(st.integers(-1, 1 << 64), st.integers(1_700_000_000 * 10**9, 1_700_000_100 * 10**9)),
+       follower=_NAMES, leader=_NAMES, method=_NAMES, flagged=st.booleans(), capped=st.booleans(),
+       scores=st.lists(_NONZERO, min_size=5, max_size=5) | st.lists(_DOUBLE, min_size=5, max_size=5),
+       label=st.sampled_from([-1, 0, 1]) | st.integers(-(1 << 31), (1 << 31) - 1),
+       extra=st.lists(_NONZERO, min_size=10, max_size=10) | st.lists(_DOUBLE, min_size=10, max_size=10))
+def test_detection_bytes_are_the_messages(t_ns, follower, leader, method, flagged, capped, scores, label,
+                                          extra) -> None:
+    from formats import schemas as S
+
+    got = S.detection_bytes(S.detection_stamp(t_ns), t_ns, follower, leader, method, flagged, tuple(scores), label,
+                            capped, tuple(extra))
+    assert got == S.detection(t_ns, follower, leader, method, flagged, tuple(scores), label, capped,
+                              tuple(extra)).SerializeToString()

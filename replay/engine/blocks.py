@@ -16,7 +16,10 @@ DR events are computed from the block's columns with the heading and depth of
 the INS sample before each DVL sample in stream order (`FollowerPipeline.
 dr_payload`, the same rule) and queued in stream order. So every runner call,
 every result, count and metric is the per-message path's, bit for bit
-(tests/test_engine_blocks.py runs both). Listeners hear the same calls in the
+(tests/test_engine_blocks.py runs both). With one follower and messages in
+order, the releases that only move its dead reckoning (DR and GPS events, no
+range or fix due, the training at t_a said) go as one release at the last of
+them (`_merged_release`): the same events in the same order. Listeners hear the same calls in the
 same order, but for positions: a block's positions of one vehicle and source
 come as columns (`Listener.positions`) once the block is done (those before
 the trial's origin before it is said).
@@ -167,6 +170,9 @@ def push_block(engine: Engine, block: MessageBlock) -> None:
     last_l, until_l = last.tolist(), until.tolist()     # per release: floats, not numpy scalars
     # a follower's heading and depth matter until its runner starts (_set_state): once all have, no call
     starting = any(pipe.runner is None for pipe in engine._pipes_only)
+    # releases that only move one follower's dead reckoning may go as one (_merged_release): not with messages
+    # out of order, whose events would be queued after later ones were released
+    mergeable = not late and len(engine._pipes_only) == 1
     try:
         while k < n:
             while d < len(stops) and stops[d] < k:
@@ -193,6 +199,8 @@ def push_block(engine: Engine, block: MessageBlock) -> None:
                 s += 1
                 k = j + 1
                 continue
+            if mergeable and not starting and engine._usbl is None and engine._origin is not None:
+                j = _merged_release(engine, j, h_list, hu_list, special_at[s] if s < len(special_at) else n)
             e = _queue_events(events, e, j)
             engine.messages = seq0 + j + 1
             engine.last_s = last_l[j]
@@ -209,6 +217,25 @@ def push_block(engine: Engine, block: MessageBlock) -> None:
     engine.last_s = float(last[-1])
     _set_state(engine, finals, n - 1)
     _deliver(engine, positions, origin_at, before=False)
+
+
+def _merged_release(engine: Engine, j: int, h_list: list[int], hu_list: list[float], special: int) -> int:
+    """The last handled message (j or later) whose release stands for every release from j to it: the DR and GPS
+    events falling due there, queued and released in time order, are those the releases one by one would
+    release in the same order, and nothing between reads what the intake of those messages changes.
+
+    So: one follower, started, no USBL, messages in order (the caller's conditions); before the next message
+    that goes through `Engine.push` (`special`); before any queued range or fix, which reads the tracks as
+    of its release; and before t_a until the detectors' training was said (it is said after its release).
+    """
+    pipe = engine._pipes_only[0]
+    runner = pipe.runner
+    assert runner is not None
+    limit = pipe.first_epoch_s()
+    if pipe.plan.name not in engine._trained:
+        limit = min(limit, math.nextafter(runner.training_end_s, math.inf))
+    x = min(bisect_left(hu_list, limit), bisect_left(h_list, special)) - 1
+    return h_list[x] if x >= 0 and h_list[x] > j else j
 
 
 def _queue_events(events: list[tuple[int, float, Any, str, tuple[Any, ...]]], e: int, upto: int) -> int:

@@ -25,6 +25,8 @@ from replay.stack.runner import CooperativeRunner, RunnerOptions, Start
 from replay.stack.training import TrainingSet
 
 DEG = math.pi / 180.0
+# ErrorSample(...) without the NamedTuple's Python-level __new__: one per method at every follower GPS fix
+_new_tuple = tuple.__new__
 BODY_FRD, EARTH_NED = 1, 2  # auvreplay.DvlVelocity.Frame
 
 
@@ -72,6 +74,10 @@ class FollowerPipeline:
     def queue_head_s(self) -> float:
         """The time of the earliest queued event (inf when none)."""
         return self._queue[0][0] if self._queue else math.inf
+
+    def first_epoch_s(self) -> float:
+        """The time of the earliest queued range or position fix (inf when none): the events that read tracks."""
+        return min((ev[0] for ev in self._queue if ev[2] == "range" or ev[2] == "fix"), default=math.inf)
 
     def _push(self, t_s: float, kind: str, payload: tuple[Any, ...]) -> None:
         self._seq += 1
@@ -205,8 +211,8 @@ class FollowerPipeline:
                 for method, est, p in zip(names, now, prev):
                     lat = p[0] + w * (est[0] - p[0])
                     lon = p[1] + w * (est[1] - p[1])
-                    samples.append(ErrorSample(fix.t_s, method,
-                                               horizontal_distance_scalar(lat, lon, fix.lat_rad, fix.lon_rad)))
+                    samples.append(_new_tuple(ErrorSample, (
+                        fix.t_s, method, horizontal_distance_scalar(lat, lon, fix.lat_rad, fix.lon_rad))))
             self._pending_gps = keep
             if samples:
                 self.on_error(self.plan.name, samples)

@@ -176,6 +176,25 @@ def _depth_value(msg: Any) -> float:
     return float("nan")
 
 
+# the fields of a row `_append` makes of an INS state and of a fix (after the time), read from a block's columns
+INS_FIELDS = ("latitude", "longitude", "heading_deg", "depth_m", "velocity_north_mps", "velocity_east_mps")
+GPS_FIELDS = ("latitude", "longitude")
+
+
+def _block_columns(block: MessageBlock, topic: str, schema: str, names: tuple[str, ...]
+                   ) -> tuple[np.ndarray, ...] | None:
+    """A block's columns `names` of `topic` when it holds them for messages of `schema`, else None."""
+    cols = block.columns.get(topic)
+    if cols is None or block.schemas[block.topics.index(topic)] != schema or not all(n in cols for n in names):
+        return None
+    return tuple(cols[n] for n in names)
+
+
+def _rows(cols: tuple[np.ndarray, ...], rows: np.ndarray) -> list[tuple[float, ...]]:
+    """The values of some rows of columns, row by row (plain floats)."""
+    return list(zip(*(c[rows].tolist() for c in cols)))
+
+
 INS_MIN_DT_S = 1.0   # INS solutions kept one a second (and the last before each fix): heading gaps up to 5 s are fine
 
 
@@ -222,8 +241,8 @@ class ColumnCollector:
             self._last_ins[vehicle] = t
             held.clear()
         elif kind == "gps" and self._held[vehicle]:
-            for held_ns, held_msg in self._held[vehicle]:
-                self._append(vehicle, "ins", (held_ns - self.start_ns) / NS, held_msg, f"/{vehicle}/ins")
+            for held_ns, held in self._held[vehicle]:
+                self._append_held(vehicle, held_ns, held)
             self._held[vehicle].clear()
         self._append(vehicle, kind, t, msg, topic)
 
@@ -300,13 +319,24 @@ class ColumnCollector:
             carried = []
             floor = j
         out.sort(key=lambda e: e[0])      # stable: a fix's held samples stay before it
+        ins_cols = _block_columns(block, ins_topic, "auvreplay.InsState", INS_FIELDS)
+        gps_cols = _block_columns(block, gps_topic, "foxglove.LocationFix", GPS_FIELDS)
+        # the rows of the INS samples used, from the block's columns (each message decoded only without them)
+        used = [k for _, kind, k in out if kind != 2 and k >= 0]
+        ins_rows = iter(_rows(ins_cols, block.row[[pos[k] for k in used]]) if ins_cols is not None else ())
+        fix_at = [at for at, kind, _ in out if kind == 2]
+        fix_rows = iter(_rows(gps_cols, block.row[fix_at]) if gps_cols is not None else ())
         for at, kind, k in out:
             if kind == 2:
-                self._append(vehicle, "gps", float(t_all[at]), block.message(gps_topic, int(block.row[at])),
-                             gps_topic)
+                if gps_cols is not None:
+                    self._store(vehicle, "gps", (float(t_all[at]), *next(fix_rows)))
+                else:
+                    self._append(vehicle, "gps", float(t_all[at]), block.message(gps_topic, int(block.row[at])),
+                                 gps_topic)
             elif k < 0:
-                held_ns, msg = self._held[vehicle][-1 - k]
-                self._append(vehicle, "ins", (held_ns - self.start_ns) / NS, msg, ins_topic)
+                self._append_held(vehicle, *self._held[vehicle][-1 - k])
+            elif ins_cols is not None:
+                self._store(vehicle, "ins", (ts[k], *next(ins_rows)))
             else:
                 self._append(vehicle, "ins", ts[k], block.message(ins_topic, int(block.row[pos[k]])), ins_topic)
         # the samples held at the end of the block: after the last kept one and the last fix, the last two
@@ -316,9 +346,18 @@ class ColumnCollector:
             carried = []
         tail = list(range(max(lo, len(ts) - 2), len(ts)))
         keep_carried = carried[len(carried) - (2 - len(tail)):] if len(tail) < 2 and carried else []
-        self._held[vehicle] = keep_carried + [
-            (int(block.log_ns[pos[h]]), block.message(ins_topic, int(block.row[pos[h]]))) for h in tail]
+        tail_rows = (_rows(ins_cols, block.row[[pos[h] for h in tail]]) if ins_cols is not None
+                     else [block.message(ins_topic, int(block.row[pos[h]])) for h in tail])
+        self._held[vehicle] = keep_carried + [(int(block.log_ns[pos[h]]), r) for h, r in zip(tail, tail_rows)]
         self._last_ins[vehicle] = last
+
+    def _append_held(self, vehicle: str, log_ns: int, held: Any) -> None:
+        """An INS sample held back (`add`): a message, or its row's values but the time (a block's columns)."""
+        t = (log_ns - self.start_ns) / NS
+        if isinstance(held, tuple):
+            self._store(vehicle, "ins", (t, *held))
+        else:
+            self._append(vehicle, "ins", t, held, f"/{vehicle}/ins")
 
     def _append(self, vehicle: str, kind: str, t: float, msg: Any, topic: str) -> None:
         try:

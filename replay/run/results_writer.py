@@ -18,7 +18,6 @@ from replay.events import (
     TrainedDetectors,
     UsblEpoch,
 )
-from replay.stack.features import EXTRA_FEATURES
 from replay.stack.methods import detecting_names
 from replay.stack.model import offset_to_latlon
 
@@ -38,6 +37,8 @@ class ResultsWriter(Listener):
         self._origin: tuple[float, float] | None = None
         self._detecting = detecting_names()
         self._fix_topics: set[str] = set()       # the estimate topics written once (channel registered)
+        self._detection_topics: set[str] = set()  # likewise the detection topics
+        self._estimate_topics: dict[str, dict[str, str]] = {}   # follower -> method -> its estimate topic
 
     def origin(self, lat_rad: float, lon_rad: float) -> None:
         self._origin = (lat_rad, lon_rad)
@@ -48,31 +49,50 @@ class ResultsWriter(Listener):
     def estimates(self, follower: str, t_s: float, est: Mapping[str, tuple[float, ...]]) -> None:
         t = self._ns(t_s)
         tail = None
-        for method, (lat, lon, nn, ne, ee) in est.items():
-            topic = f"/replay/{self.run}/{follower}/{method}"
+        topics = self._estimate_topics.get(follower)
+        if topics is None:
+            topics = self._estimate_topics[follower] = {}
+        packed: dict[int, bytes] = {}     # methods with one state share one estimate tuple: its bytes made once
+        for method, value in est.items():
+            topic = topics.get(method)
+            if topic is None:
+                topic = topics[method] = f"/replay/{self.run}/{follower}/{method}"
             if topic not in self._fix_topics:     # the first fix of a topic registers its channel
                 self._fix_topics.add(topic)
+                lat, lon, nn, ne, ee = value
                 fix = S.location_fix(t, follower, lat * RAD, lon * RAD, math.nan, _cov_enu(nn, ne, ee),
                                      S.COVARIANCE_KNOWN)
                 self.w.write(topic, fix, t)
                 continue
             # the same bytes without a message (once a second per method: a tenth of a replay's messages)
-            if tail is None:
-                tail = S.location_fix_tail(t, follower)
-            self.w.write_serialized(topic, S.location_fix_bytes(tail, t, follower, lat * RAD, lon * RAD, math.nan,
-                                                                _cov_enu(nn, ne, ee), S.COVARIANCE_KNOWN), t)
+            data = packed.get(id(value))
+            if data is None:
+                if tail is None:
+                    tail = S.location_fix_tail(t, follower)
+                lat, lon, nn, ne, ee = value
+                data = packed[id(value)] = S.location_fix_bytes(tail, t, follower, lat * RAD, lon * RAD, math.nan,
+                                                                _cov_enu(nn, ne, ee), S.COVARIANCE_KNOWN)
+            self.w.write_serialized(topic, data, t)
 
     def epoch(self, follower: str, results: list[EpochResult], leader_fix: Fix | None) -> None:
         t = self._ns(results[0].time_s)
+        topic = f"/replay/{self.run}/{follower}/detections"
+        stamp = None
         for r in results:
             if r.method not in self._detecting:
                 continue
-            msg = S.Detection(timestamp=S.timestamp(t), follower=follower, leader=r.leader, method=r.method,
-                              flagged=bool(r.flagged), score=r.score, threshold=r.threshold,
-                              feature_innovation_m=r.f1, feature_mahalanobis2=r.f2, feature_r_adapted_m2=r.f3,
-                              label=int(r.label), isolation_capped=bool(r.capped),
-                              **{name: float(getattr(r, name)) for name in EXTRA_FEATURES})
-            self.w.write(f"/replay/{self.run}/{follower}/detections", msg, t)
+            scores = (float(r.score), float(r.threshold), float(r.f1), float(r.f2), float(r.f3))
+            extra = tuple(float(getattr(r, name)) for name in S.DETECTION_EXTRA_NAMES)
+            if topic not in self._detection_topics:     # the first detection registers its channel
+                self._detection_topics.add(topic)
+                self.w.write(topic, S.detection(t, follower, r.leader, r.method, bool(r.flagged), scores,
+                                                int(r.label), bool(r.capped), extra), t)
+                continue
+            # the same bytes without a message (several a range epoch: most of the results archive's messages)
+            if stamp is None:
+                stamp = S.detection_stamp(t)
+            self.w.write_serialized(topic, S.detection_bytes(stamp, t, follower, r.leader, r.method, bool(r.flagged),
+                                                             scores, int(r.label), bool(r.capped), extra), t)
 
     def errors(self, follower: str, samples: list[ErrorSample]) -> None:
         pass  # errors are derived data: the metrics carry them

@@ -2,12 +2,13 @@
 
 The ``ackf`` method isolates nothing, so its features after t_a are the
 same whichever detector looks at them; the runner runs it internally even
-when it is not requested. Only these compact rows are kept during a run,
+when it is not requested. Only these compact rows (columns of doubles) are kept during a run,
 and `OpenLoopScores.scores` runs ``Detector.scores`` on them at the end.
 """
 
 from __future__ import annotations
 
+from array import array
 from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
@@ -25,32 +26,40 @@ class OpenLoopScores:
 
     def __init__(self) -> None:
         """No rows yet."""
-        self._rows: list[tuple] = []      # (t, leader, label, features...) of ackf after t_a
+        # per kept epoch (ackf after t_a): time, label and FEATURE_NAMES as doubles, flat; its leader beside.
+        # Columns, not a tuple of float objects per epoch: a day holds some 35,000 epochs (bench_replay's memory)
+        self._num = array("d")
+        self._leaders: list[str] = []
 
     def add(self, results: Sequence[EpochResult], extra: tuple[float, ...]) -> None:
         """Keep the ``ackf`` result of one epoch (its (f1, f2, f3) and the epoch's extra features)."""
-        self._rows.extend((r.time_s, r.leader, r.label, r.f1, r.f2, r.f3, *extra)
-                          for r in results if r.method == "ackf")
+        for r in results:
+            if r.method == "ackf":
+                self._num.extend((r.time_s, r.label, r.f1, r.f2, r.f3, *extra))
+                self._leaders.append(r.leader)
+
+    def _table(self) -> np.ndarray:
+        """The kept rows (n, 2 + len(FEATURE_NAMES)): time, label, features."""
+        return np.array(self._num, dtype=float).reshape(-1, 2 + len(FEATURE_NAMES))
 
     def normal_features(self) -> np.ndarray:
         """The kept epochs labelled normal: their FEATURE_NAMES rows (n, F), what a threshold is calibrated on."""
-        rows = [e[3:] for e in self._rows if e[2] == 0]
-        return np.array(rows, dtype=float).reshape(-1, len(FEATURE_NAMES))
+        table = self._table()
+        return table[table[:, 1] == 0, 2:]
 
     def scores(self, methods: Iterable[ScoredMethod]) -> dict[str, dict[str, np.ndarray]]:
         """Per method: time_s, leader, label and its detectors' score of each kept epoch (NaN: no detector)."""
-        src = self._rows
-        leaders = np.array([e[1] for e in src], dtype=object)
-        wide_all = np.array([e[3:] for e in src], dtype=float).reshape(-1, len(FEATURE_NAMES))
+        table = self._table()
+        leaders = np.array(self._leaders, dtype=object)
+        wide_all = table[:, 2:]
         out = {}
         for name, features, detectors in methods:
             feats_all = wide_all[:, [FEATURE_NAMES.index(n) for n in features]]
-            score = np.full(len(src), np.nan)
+            score = np.full(len(leaders), np.nan)
             for leader, det in detectors.items():
                 idx = np.nonzero(leaders == leader)[0]
                 if det is not None and idx.size:
                     score[idx] = det.scores(feats_all[idx])
-            out[name] = {"time_s": np.array([e[0] for e in src], dtype=float),
-                         "leader": leaders,
-                         "label": np.array([e[2] for e in src], dtype=np.int8), "score": score}
+            out[name] = {"time_s": table[:, 0].copy(), "leader": leaders,
+                         "label": table[:, 1].astype(np.int8), "score": score}
         return out

@@ -304,7 +304,15 @@ class CooperativeRunner:
 
     def estimates(self) -> dict[str, tuple[float, float, float, float, float]]:
         """Each reported method's current estimate: lat, lon (rad), covariance nn, ne, ee (m²)."""
-        return {m.name: (m.state.lat, m.state.lon, *_cov_m2(m.state, self._depth)) for m in self._reported_methods}
+        out: dict[str, tuple[float, float, float, float, float]] = {}
+        made: dict[int, tuple[float, float, float, float, float]] = {}   # methods of one state share its tuple
+        for m in self._reported_methods:
+            s = m.state
+            value = made.get(id(s))
+            if value is None:
+                value = made[id(s)] = (s.lat, s.lon, *_cov_m2(s, self._depth))
+            out[m.name] = value
+        return out
 
     def positions(self) -> dict[str, tuple[float, float]]:
         """Each reported method's current lat, lon (rad): `estimates` without the covariances."""
