@@ -224,12 +224,10 @@ def detection_bytes(stamp: bytes, t_ns: int, follower: str, leader: str, method:
             or not -(1 << 31) <= label < (1 << 31)):
         return detection(t_ns, follower, leader, method, flagged, scores, label, capped, extra).SerializeToString()
     k0, k1, k2, k3, k4 = _DET_SCORE_KEYS
-    e = _DET_EXTRA_KEYS
-    x = extra
+    e, x = _DET_EXTRA_KEYS, extra     # every field from 13 on, however many the schema holds
     return b"".join((
         stamp, _detection_strings(leader, method), _DET_FLAGGED if flagged else b"",
         _DET_SCORE_PACK(k0, scores[0], k1, scores[1], k2, scores[2], k3, scores[3], k4, scores[4]),
         _DET_LABEL + varint(label & 0xFFFFFFFFFFFFFFFF) if label else b"",    # a negative int32: ten bytes
         _detection_follower(follower), _DET_CAPPED if capped else b"",
-        _DET_EXTRA_PACK(e[0], x[0], e[1], x[1], e[2], x[2], e[3], x[3], e[4], x[4], e[5], x[5], e[6], x[6], e[7], x[7],
-                        e[8], x[8], e[9], x[9])))
+        _DET_EXTRA_PACK(*[v for pair in zip(e, x) for v in pair])))

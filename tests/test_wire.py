@@ -81,6 +81,7 @@ def test_location_fix_bytes_are_the_messages(t_ns, frame, lat, lon, alt, cov, ki
 
 _NAMES = st.text(max_size=10)
 _NONZERO = st.floats(allow_nan=True, allow_infinity=True).filter(lambda v: v != 0.0)   # the packed path's
+_N_EXTRA = len(wire.DETECTION_EXTRA.names)    # every Detection field from 13 on
 
 
 @settings(max_examples=200, deadline=None)
@@ -88,7 +89,8 @@ _NONZERO = st.floats(allow_nan=True, allow_infinity=True).filter(lambda v: v != 
        follower=_NAMES, leader=_NAMES, method=_NAMES, flagged=st.booleans(), capped=st.booleans(),
        scores=st.lists(_NONZERO, min_size=5, max_size=5) | st.lists(_DOUBLE, min_size=5, max_size=5),
        label=st.sampled_from([-1, 0, 1]) | st.integers(-(1 << 31), (1 << 31) - 1),
-       extra=st.lists(_NONZERO, min_size=10, max_size=10) | st.lists(_DOUBLE, min_size=10, max_size=10))
+       extra=st.lists(_NONZERO, min_size=_N_EXTRA, max_size=_N_EXTRA)
+       | st.lists(_DOUBLE, min_size=_N_EXTRA, max_size=_N_EXTRA))
 def test_detection_bytes_are_the_messages(t_ns, follower, leader, method, flagged, capped, scores, label,
                                           extra) -> None:
     from formats import schemas as S
@@ -97,3 +99,19 @@ def test_detection_bytes_are_the_messages(t_ns, follower, leader, method, flagge
                             capped, tuple(extra))
     assert got == S.detection(t_ns, follower, leader, method, flagged, tuple(scores), label, capped,
                               tuple(extra)).SerializeToString()
+
+
+def test_detection_bytes_take_the_packed_path_for_every_extra_field(monkeypatch) -> None:
+    """A field added to Detection joins the packed path: with nonzero doubles the message is never built."""
+    from formats import schemas as S
+
+    want = S.detection(5_000_000_000, "f", "l1", "chi_square", True, (1.5,) * 5, 1, False,
+                       tuple(float(i + 1) for i in range(_N_EXTRA))).SerializeToString()
+
+    def no_message(*args, **kwargs):
+        raise AssertionError("the message path was taken")
+
+    monkeypatch.setattr(S, "detection", no_message)
+    got = S.detection_bytes(S.detection_stamp(5_000_000_000), 5_000_000_000, "f", "l1", "chi_square", True,
+                            (1.5,) * 5, 1, False, tuple(float(i + 1) for i in range(_N_EXTRA)))
+    assert got == want
