@@ -36,7 +36,7 @@ from __future__ import annotations
 import math
 from collections.abc import Generator, Iterable, Iterator
 from math import isnan
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -336,15 +336,27 @@ def _nmea_lines(items: Iterator[nmea.Scanned | Reject], ctx: LogContext, state: 
 # tuples grouped by `novatel_epochs`: one dict per epoch, no records.
 
 
-def _novatel_scan_outputs(epoch: dict[str, novatel_scan.Scanned], ctx: LogContext, topics: tuple[str, str, str]
-                          ) -> tuple[Output | Reject, ...]:
-    """`_novatel_outputs` on scanned values, as a tuple."""
+class _NovatelEpoch(NamedTuple):
+    """What one epoch's fix, status and velocity are made of: the one rule both paths build from."""
+
+    t: int
+    fix: tuple[int, float, float, float, tuple[float, ...] | None, int, novatel_scan.Scanned] | None
+    """publish, latitude, longitude, altitude, covariance, its kind, the BESTPOS item (None: no fix)"""
+    status: tuple[int, int, int, str, float, float, novatel_scan.Scanned]
+    """publish, quality, satellites, source, speed, course, the item it is stamped from"""
+    velocity: tuple[int, float, float, float, novatel_scan.Scanned] | None
+    """publish, speed, track, vertical speed, the BESTVEL item (None: no velocity)"""
+
+
+def _novatel_epoch(epoch: dict[str, novatel_scan.Scanned], ctx: LogContext) -> _NovatelEpoch | Reject:
+    """One epoch's messages as values: a fix from a computed BESTPOS, a status always, a velocity from a
+    computed BESTVEL; or the epoch's time Reject."""
     t = novatel_scan_time(epoch, ctx)
     if isinstance(t, Reject):
-        return (t,)
+        return t
     bp, bv = epoch.get("BestPos"), epoch.get("BestVel")
     where_item = next(iter(epoch.values()))
-    out: list[Output | Reject] = []
+    fix = None
     quality = satellites = -1
     if bp is not None:
         pos = novatel_scan.BEST_POS._make(bp[4])
@@ -353,8 +365,7 @@ def _novatel_scan_outputs(epoch: dict[str, novatel_scan.Scanned], ctx: LogContex
             u = pos.undulation_m
             alt = pos.height_msl_m if isnan(u) else pos.height_msl_m + u
             cov, kind = sigma_covariance(pos.lat_std_m, pos.lon_std_m, pos.height_std_m)
-            fix = S.location_fix(t, ctx.vehicle, pos.latitude, pos.longitude, alt, cov, kind)
-            out.append(Output(topics[0], fix, t, novatel_publish_ns(bp, t, ctx), novatel_scan.where_of(bp)))
+            fix = (novatel_publish_ns(bp, t, ctx), pos.latitude, pos.longitude, alt, cov, kind, bp)
             where_item = bp
     speed = course = NAN
     source = "novatel:" + ",".join([item[1] for item in epoch.values()])
@@ -363,12 +374,29 @@ def _novatel_scan_outputs(epoch: dict[str, novatel_scan.Scanned], ctx: LogContex
         vel = novatel_scan.BEST_VEL._make(bv[4])
         if vel.solution_status == "SOL_COMPUTED":
             speed, course = vel.horizontal_speed_mps, vel.track_deg
-            velocity = Output(topics[2], novatel_velocity(ctx, t, source, speed, course, vel.vertical_speed_mps),
-                              t, novatel_publish_ns(bv, t, ctx), novatel_scan.where_of(bv))
-    status = gnss_status(t, ctx.vehicle, quality, satellites, NAN, source, speed, course, NAN)
-    out.append(Output(topics[1], status, t, novatel_publish_ns(where_item, t, ctx), novatel_scan.where_of(where_item)))
-    if velocity is not None:
-        out.append(velocity)
+            velocity = (novatel_publish_ns(bv, t, ctx), speed, course, vel.vertical_speed_mps, bv)
+    status = (novatel_publish_ns(where_item, t, ctx), quality, satellites, source, speed, course, where_item)
+    return _NovatelEpoch(t, fix, status, velocity)
+
+
+def _novatel_scan_outputs(epoch: dict[str, novatel_scan.Scanned], ctx: LogContext, topics: tuple[str, str, str]
+                          ) -> tuple[Output | Reject, ...]:
+    """`_novatel_outputs` on scanned values, as a tuple."""
+    e = _novatel_epoch(epoch, ctx)
+    if isinstance(e, Reject):
+        return (e,)
+    t, out = e.t, []
+    if e.fix is not None:
+        publish, lat, lon, alt, cov, kind, bp = e.fix
+        out.append(Output(topics[0], S.location_fix(t, ctx.vehicle, lat, lon, alt, cov, kind), t, publish,
+                          novatel_scan.where_of(bp)))
+    publish, quality, satellites, source, speed, course, item = e.status
+    out.append(Output(topics[1], gnss_status(t, ctx.vehicle, quality, satellites, NAN, source, speed, course, NAN),
+                      t, publish, novatel_scan.where_of(item)))
+    if e.velocity is not None:
+        publish, speed, course, up, bv = e.velocity
+        out.append(Output(topics[2], novatel_velocity(ctx, t, source, speed, course, up), t, publish,
+                          novatel_scan.where_of(bv)))
     return tuple(out)
 
 
@@ -412,47 +440,32 @@ class _NovatelRows:
         return len(self.order) >= ROWS_PER_BATCH
 
     def add(self, epoch: dict[str, novatel_scan.Scanned]) -> Reject | None:
-        """One epoch's messages as rows (`_novatel_scan_outputs`, step for step), or its Reject."""
-        ctx = self.ctx
-        t = novatel_scan_time(epoch, ctx)
-        if isinstance(t, Reject):
-            return t
-        bp, bv = epoch.get("BestPos"), epoch.get("BestVel")
-        where_item = next(iter(epoch.values()))
+        """One epoch's messages as rows (`_novatel_epoch`'s values, as `_novatel_scan_outputs` builds them), or
+        its Reject."""
+        e = _novatel_epoch(epoch, self.ctx)
+        if isinstance(e, Reject):
+            return e
+        t = e.t
         fix, status, velocity = self.parts
-        quality = satellites = -1
-        if bp is not None:
-            pos = novatel_scan.BEST_POS._make(bp[4])
-            quality, satellites = NOVATEL_QUALITY.get(pos.position_type, -1), pos.satellites_used
-            if pos.solution_status == "SOL_COMPUTED" and pos.position_type != "NONE":
-                u = pos.undulation_m
-                alt = pos.height_msl_m if isnan(u) else pos.height_msl_m + u
-                cov, kind = sigma_covariance(pos.lat_std_m, pos.lon_std_m, pos.height_std_m)
-                fix.append((t, novatel_publish_ns(bp, t, ctx), pos.latitude, pos.longitude, alt, cov, kind))
-                self.order.append(0)
-                self.keys.append(bp[5])
-                where_item = bp
-        speed = course = NAN
-        source = "novatel:" + ",".join([item[1] for item in epoch.values()])
-        moving = None
-        if bv is not None:
-            vel = novatel_scan.BEST_VEL._make(bv[4])
-            if vel.solution_status == "SOL_COMPUTED":
-                speed, course = vel.horizontal_speed_mps, vel.track_deg
-                # `gnss_velocity`'s components: from the speed and course when both are finite
-                north, east = components(speed, course) if math.isfinite(speed) and math.isfinite(course) \
-                    else (NAN, NAN)
-                moving = (t, novatel_publish_ns(bv, t, ctx), north, east, vel.vertical_speed_mps, speed, course,
-                          source)
-        status.append((t, novatel_publish_ns(where_item, t, ctx), quality, satellites, source, speed, course))
+        if e.fix is not None:
+            publish, lat, lon, alt, cov, kind, bp = e.fix
+            fix.append((t, publish, lat, lon, alt, cov, kind))
+            self.order.append(0)
+            self.keys.append(bp[5])
+        publish, quality, satellites, source, speed, course, item = e.status
+        status.append((t, publish, quality, satellites, source, speed, course))
         self.order.append(1)
-        self.keys.append(where_item[5])
-        self.last = novatel_scan.where_of(where_item)
-        if moving is not None:
-            velocity.append(moving)
+        self.keys.append(item[5])
+        self.last = novatel_scan.where_of(item)
+        if e.velocity is not None:
+            publish, speed, course, up, bv = e.velocity
+            # `gnss_velocity`'s components: from the speed and course when both are finite
+            north, east = components(speed, course) if math.isfinite(speed) and math.isfinite(course) \
+                else (NAN, NAN)
+            velocity.append((t, publish, north, east, up, speed, course, source))
             self.order.append(2)
-            self.keys.append(bv[5])  # type: ignore[index]
-            self.last = novatel_scan.where_of(bv)  # type: ignore[arg-type]
+            self.keys.append(bv[5])
+            self.last = novatel_scan.where_of(bv)
         self.epochs.append(epoch)
         return None
 
