@@ -23,6 +23,7 @@ from recorders import rosbag as RB
 from recorders.base import Batch, LogContext, Output
 from recorders.manifest import load_manifest
 from recorders.record import record
+from tests.ros_bag_writer import write_bag
 from tests.test_ros_standard import _message, _serialize, _store
 
 NS = 10**9
@@ -116,21 +117,7 @@ def _bag(folder: Path, ros1: bool, seconds: int) -> Path:
                 msg = _message(store, ros1, msgtype, numbers, stamp, ("odom", "base_link"))
             items.append((t, topic, msgtype, _serialize(store, ros1, msg, msgtype)))
     items.sort()
-    if ros1:
-        from rosbags.rosbag1 import Writer as Writer1
-        path = folder / "dive.bag"
-        with Writer1(path) as w:
-            conns = {tp: w.add_connection(tp, mt, typestore=store) for tp, mt, _ in streams}
-            for t, tp, _, data in items:
-                w.write(conns[tp], t, data)
-    else:
-        from rosbags.rosbag2 import StoragePlugin, Writer
-        path = folder / "dive"
-        with Writer(path, version=8, storage_plugin=StoragePlugin.SQLITE3) as w2:
-            conns = {tp: w2.add_connection(tp, mt, typestore=store) for tp, mt, _ in streams}
-            for t, tp, _, data in items:
-                w2.write(conns[tp], t, data)
-    return path
+    return write_bag(folder, ros1, store, streams, items)
 
 
 @pytest.mark.parametrize("ros1", [True, False])

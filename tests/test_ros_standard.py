@@ -21,6 +21,7 @@ from formats import schemas as S
 from recorders import rosbag as RB
 from recorders.manifest import load_manifest
 from recorders.record import record
+from tests.ros_bag_writer import write_bag
 
 NS = 10**9
 T0 = 1476237600 * NS
@@ -203,21 +204,7 @@ def _bag(folder: Path, ros1: bool, seconds: int, seed: int) -> Path:
                 t = 100 * 86400 * NS + t % NS   # 1970: before 1980
             items.append((t, topic, msgtype, bytes(data)))
     items.sort()
-    if ros1:
-        from rosbags.rosbag1 import Writer as Writer1
-        path = folder / "dive.bag"
-        with Writer1(path) as w:
-            conns = {tp: w.add_connection(tp, mt, typestore=store) for tp, mt, _ in STREAMS}
-            for t, tp, _, data in items:
-                w.write(conns[tp], t, data)
-    else:
-        from rosbags.rosbag2 import StoragePlugin, Writer
-        path = folder / "dive"
-        with Writer(path, version=8, storage_plugin=StoragePlugin.SQLITE3) as w2:
-            conns = {tp: w2.add_connection(tp, mt, typestore=store) for tp, mt, _ in STREAMS}
-            for t, tp, _, data in items:
-                w2.write(conns[tp], t, data)
-    return path
+    return write_bag(folder, ros1, store, STREAMS, items)
 
 
 def _archive(path: Path) -> dict[str, list[tuple[int, int, int, bytes]]]:
