@@ -7,8 +7,8 @@ every write the serial recorder would have made, already serialized (one
 bytes blob, one int64 array of (topic, end offset, log time, publish time)),
 plus the log's statistics and its bytes (for the attachment: the main process
 then never reads the file again). The main process replays it with
-`ArchiveWriter.write_serialized_batch` (a run of one topic a call), registering each channel at its first
-message exactly as `ArchiveWriter.write` would.
+`ArchiveWriter.write_blob` (the messages between two channels' first uses a call), registering each channel
+at its first message exactly as `ArchiveWriter.write` would.
 
 `WorkerPool` is a small fork pool of our own rather than multiprocessing.Pool
 (which hangs when a worker dies) or ProcessPoolExecutor (which cannot say
@@ -109,7 +109,7 @@ class Capture:
             (number, self._size, log_time_ns, log_time_ns if publish_time_ns is None else publish_time_ns))
 
     def channel(self, topic: str, message_class: type[Message]) -> int:
-        """Register a topic of protobuf messages for `write_serialized_batch`, as ArchiveWriter.channel does."""
+        """Register a topic of protobuf messages for `write_captured`, as ArchiveWriter.channel does."""
         number = self._numbers.get((topic, message_class))
         if number is None:
             number = self._register(topic, message_class, None)
