@@ -40,6 +40,7 @@ Trained = dict[str, dict[str, Detector | None]]
 """Method name -> leader -> its trained detector (None: it could not be trained)."""
 _Job = tuple[Method, str, TrainingSet]     # a method, the leader it trains for (or "all"), its rows
 _Trained = tuple[Detector | None, str]     # a detector (None: not trained) and why not
+_INSTANT = frozenset({"chi_square"})        # trained in closed form (a gate from the window), in well under 1 ms
 
 
 class TrainedCache:
@@ -177,9 +178,13 @@ class TrainingWindow:
         todo = [i for i, o in enumerate(outcomes) if o is None]
         if can_fork():
             # each job is many small numpy calls, bound by the interpreter: processes, not threads, run them
-            # side by side; the heavy ones (whole-population AQPSO-GA) weigh about four of the others
-            costs = [4.0 if jobs[i][0].threaded_training else 1.0 for i in todo]
-            groups = [[todo[k] for k in g] for g in balance(costs, self.threads)]
+            # side by side; the heavy ones (whole-population AQPSO-GA) weigh about four of the others, and
+            # one trained in an instant is not worth a fork (~20 ms): it trains here
+            instant = [i for i in todo if jobs[i][0].name in _INSTANT]
+            timed = [i for i in todo if jobs[i][0].name not in _INSTANT]
+            costs = [4.0 if jobs[i][0].threaded_training else 1.0 for i in timed]
+            groups = [[timed[k] for k in g] for g in balance(costs, self.threads)] or [[]]
+            groups[0] = sorted(groups[0] + instant)
             trained = run_groups(lambda i: self._train_new(jobs[i][0], jobs[i][2]), groups)
         else:
             trained = dict(zip(todo, self._run_threads([jobs[i] for i in todo]), strict=True))
