@@ -98,6 +98,9 @@ class ReviewCollector(Listener):
         self._detecting = detecting_names()     # the method table's detectors, in its order
         self._anfis = frozenset(anfis_models()) & frozenset(self._detecting)
         self._detectors: dict[str, dict[str, dict[str, Any]]] = {}     # follower -> method -> leader -> detector
+        # anfis_explain rows of plain ANFIS detectors waiting for their model's internals, per detector (its id):
+        # the detector, the epochs' features and their rows; `_explain_pending` fills them, one call a detector
+        self._unexplained: dict[int, tuple[Any, list[list[float]], list[dict[str, Any]]]] = {}
 
     def origin(self, lat_rad: float, lon_rad: float) -> None:
         self._resolve()     # rows before keep the origin they were collected under
@@ -141,6 +144,8 @@ class ReviewCollector(Listener):
     def table(self, name: str, start: int = 0) -> pd.DataFrame | None:
         """The rows of table `name` from `start` on, as a frame; None when there are none."""
         if name != "tracks":
+            if name == "anfis_explain":
+                self._explain_pending()
             rows = self.rows[name][start:]
             if not rows:
                 return None
@@ -280,14 +285,34 @@ class ReviewCollector(Listener):
         det: Any = models.detectors(r.method).get(r.leader)
         if anfis_core(det) is None:
             return
+        row = {"t_s": r.time_s, "model": self._model_key(r.method, follower, r.leader), "inputs": None,
+               "memberships": None, "firing": None, "output": math.nan, "threshold": r.threshold,
+               "flagged": bool(r.flagged)}
+        self.rows["anfis_explain"].append(row)
+        if hasattr(det, "explain_rows"):     # explained with the detector's other epochs when a table is taken
+            _, features, rows = self._unexplained.setdefault(id(det), (det, [], []))
+            features.append([r.f1, r.f2, r.f3])
+            rows.append(row)
+            return
         # a wide detector (anfis_hybrid) turns the epoch's feature row into its model's inputs itself
         ex = det.explain(epoch_features(r)) if hasattr(det, "anfis") else det.explain(np.array([r.f1, r.f2, r.f3]))
-        ex = getattr(ex, "anfis", ex)
-        self.rows["anfis_explain"].append({
-            "t_s": r.time_s, "model": self._model_key(r.method, follower, r.leader),
-            "inputs": np.asarray(ex.normalized_inputs).tolist(),
-            "memberships": np.asarray(ex.memberships).tolist(), "firing": np.asarray(ex.normalized_firing).tolist(),
-            "output": float(np.asarray(ex.output)), "threshold": r.threshold, "flagged": bool(r.flagged)})
+        self._explained([row], getattr(ex, "anfis", ex))
+
+    def _explain_pending(self) -> None:
+        """The waiting anfis_explain rows' inputs, memberships, firing and output: `explain_rows` per detector."""
+        for det, features, rows in self._unexplained.values():
+            self._explained(rows, det.explain_rows(np.array(features)))
+        self._unexplained.clear()
+
+    @staticmethod
+    def _explained(rows: list[dict[str, Any]], ex: Any) -> None:
+        """Fill anfis_explain rows from an explanation of as many epochs (or of one, without its row axis)."""
+        inputs, mu = np.asarray(ex.normalized_inputs).tolist(), np.asarray(ex.memberships).tolist()
+        firing, output = np.asarray(ex.normalized_firing).tolist(), np.asarray(ex.output).tolist()
+        if len(rows) == 1 and np.ndim(ex.output) == 0:
+            inputs, mu, firing, output = [inputs], [mu], [firing], [output]
+        for k, row in enumerate(rows):
+            row.update(inputs=inputs[k], memberships=mu[k], firing=firing[k], output=float(output[k]))
 
     def errors(self, follower: str, samples: list[ErrorSample]) -> None:
         self.rows["errors"].extend({"t_s": s.t_s, "follower": follower, "method": s.method, "error_m": s.error_m}

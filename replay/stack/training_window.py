@@ -29,6 +29,7 @@ from replay.stack.calibration import calibrate
 from replay.stack.config import ConfigError, StackConfig
 from replay.stack.detectors.base import Detector
 from replay.stack.features import FEATURE_NAMES, PAPER_FEATURES
+from replay.stack.forked import balance, can_fork, run_groups
 from replay.stack.hybrid_database import HybridDatabase, WindowInput, rows_to_set
 from replay.stack.methods import Method, method
 from replay.stack.runner_options import RunnerOptions, Start
@@ -39,6 +40,7 @@ Trained = dict[str, dict[str, Detector | None]]
 """Method name -> leader -> its trained detector (None: it could not be trained)."""
 _Job = tuple[Method, str, TrainingSet]     # a method, the leader it trains for (or "all"), its rows
 _Trained = tuple[Detector | None, str]     # a detector (None: not trained) and why not
+_INSTANT = frozenset({"chi_square"})        # trained in closed form (a gate from the window), in well under 1 ms
 
 
 class TrainedCache:
@@ -168,13 +170,39 @@ class TrainingWindow:
         return out
 
     def _run(self, jobs: list[_Job]) -> list[tuple[Detector | None, str]]:
-        """Every job's (detector or None, error): the threaded ones side by side, the others here in turn."""
+        """Every job's (detector or None, error): kept ones from the cache, the others trained side by side."""
+        cache = self._reused
+        keys = [None if cache is None or e.name in self._factories else (e.name, repr(self.config), data.digest())
+                for e, _, data in jobs]
+        outcomes: list[_Trained | None] = [None if key is None or cache is None else cache.get(key) for key in keys]
+        todo = [i for i, o in enumerate(outcomes) if o is None]
+        if can_fork():
+            # each job is many small numpy calls, bound by the interpreter: processes, not threads, run them
+            # side by side; the heavy ones (whole-population AQPSO-GA) weigh about four of the others, and
+            # one trained in an instant is not worth a fork (~20 ms): it trains here
+            instant = [i for i in todo if jobs[i][0].name in _INSTANT]
+            timed = [i for i in todo if jobs[i][0].name not in _INSTANT]
+            costs = [4.0 if jobs[i][0].threaded_training else 1.0 for i in timed]
+            groups = [[timed[k] for k in g] for g in balance(costs, self.threads)] or [[]]
+            groups[0] = sorted(groups[0] + instant)
+            trained = run_groups(lambda i: self._train_new(jobs[i][0], jobs[i][2]), groups)
+        else:
+            trained = dict(zip(todo, self._run_threads([jobs[i] for i in todo]), strict=True))
+        for i in todo:
+            outcomes[i] = trained[i]
+            key = keys[i]
+            if cache is not None and key is not None:
+                cache.put(key, trained[i])
+        return [o for o in outcomes if o is not None]     # every job has its outcome by now
+
+    def _run_threads(self, jobs: list[_Job]) -> list[_Trained]:
+        """Every job's outcome where there is no fork: the heavy ones on threads, the others here in turn."""
         # AQPSO-GA evaluates whole populations, where numpy and LAPACK release the GIL: two such
         # models train ~1.5x faster side by side. The other trainers are many small numpy calls
         # that only contend for the GIL (3x slower each on threads), so they run here, in turn,
         # while the threaded ones train. Each job has its own data and seed: results do not depend
         # on the threads.
-        outcomes: list[tuple[Detector | None, str] | None] = [None] * len(jobs)
+        outcomes: list[_Trained | None] = [None] * len(jobs)
         heavy = [i for i, job in enumerate(jobs) if job[0].threaded_training]
         futures = {}
         pool = None
@@ -182,17 +210,17 @@ class TrainingWindow:
             from concurrent.futures import ThreadPoolExecutor
 
             pool = ThreadPoolExecutor(min(self.threads, len(heavy)))
-            futures = {i: pool.submit(self._train_one, jobs[i][0], jobs[i][2]) for i in heavy}
+            futures = {i: pool.submit(self._train_new, jobs[i][0], jobs[i][2]) for i in heavy}
         try:
             for i, (e, _, data) in enumerate(jobs):
                 if i not in futures:
-                    outcomes[i] = self._train_one(e, data)
+                    outcomes[i] = self._train_new(e, data)
             for i, future in futures.items():
                 outcomes[i] = future.result()
         finally:
             if pool is not None:
                 pool.shutdown()
-        return [o for o in outcomes if o is not None]     # every job has its outcome by now
+        return [o for o in outcomes if o is not None]
 
     def _assemble(self) -> TrainingSet:
         """The rows every detector trains on, by ``config.training_source`` (see the module doc)."""
@@ -224,19 +252,6 @@ class TrainingWindow:
         if self.config.anfis.model == "shared" or entry.pooled_training:
             return [("all", sub)]
         return [(ld, sub.for_leader(ld)) for ld in self.leaders]
-
-    def _train_one(self, entry: Method, ts: TrainingSet) -> tuple[Detector | None, str]:
-        """One detector trained on the given rows (the method's feature columns), or (None, why not); a copy of
-        the one trained before on the same rows and configuration within `reuse_training`."""
-        cache = self._reused
-        if cache is None or entry.name in self._factories:
-            return self._train_new(entry, ts)
-        key = (entry.name, repr(self.config), ts.digest())
-        found = cache.get(key)
-        if found is None:
-            found = self._train_new(entry, ts)
-            cache.put(key, found)
-        return found
 
     def _train_new(self, entry: Method, ts: TrainingSet) -> tuple[Detector | None, str]:
         """One detector trained on the given rows, or (None, why not)."""

@@ -22,6 +22,7 @@ import numpy as np
 from replay.events import EpochResult
 from replay.stack.config import ConfigError, StackConfig
 from replay.stack.detectors.anfis import (
+    _S_FLOOR,
     AnfisModel,
     PointPredictor,
     TrainingHistory,
@@ -225,6 +226,30 @@ class AnfisDetector:
         if feats.ndim == 1:
             parts = tuple(p[0] for p in parts)
         return Explanation(*parts)
+
+    def explain_rows(self, features: np.ndarray) -> Explanation:
+        """`explain` of each row of features (n, 3), stacked: element for element what it gives one row at a
+        time (the tests check). The element-wise layers run over every row at once; the sums over the rules
+        and the rule outputs run row by row, because numpy sums a stack of rows in another order than one
+        row (the last bit of the firing sums would change)."""
+        if self.result is None:
+            raise RuntimeError("explain_rows() needs a trained model")
+        x = normalize(np.atleast_2d(np.asarray(features, dtype=float)), self.input_min, self.input_max)
+        m = self.result.model
+        mu = memberships(x, m.a, m.b, m.c)
+        w = mu[..., 0, m.rules[:, 0]]     # the product over inputs, as `firing_from` takes it
+        for d in range(1, m.rules.shape[1]):
+            w = w * mu[..., d, m.rules[:, d]]
+        total = np.empty((x.shape[0], 1))
+        f = np.empty_like(w)
+        out = np.empty(x.shape[0])
+        for k in range(x.shape[0]):
+            total[k] = np.maximum(w[k:k + 1].sum(axis=-1, keepdims=True), _S_FLOOR)[0]
+            f[k] = rule_outputs(x[k:k + 1], m.consequents)[0]
+        wbar = w / total
+        for k in range(x.shape[0]):
+            out[k] = (wbar[k:k + 1] * f[k:k + 1]).sum(axis=-1)[0]
+        return Explanation(x, mu, w, wbar, f, out)
 
     def surface(self, pair: tuple[int, int] = (0, 1), fixed: float | np.ndarray = 0.5,
                 resolution: int = 25) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
