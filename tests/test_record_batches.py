@@ -186,12 +186,14 @@ def test_a_batch_write_is_the_writes_one_by_one(tmp_path_factory, messages, chun
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.lists(st.tuples(st.sampled_from([0, 1]), st.binary(max_size=300), st.integers(0, 2 ** 40)), max_size=60),
-       st.integers(64, 2000), st.integers(0, 3))
-def test_a_blob_write_is_the_writes_one_by_one(tmp_path_factory, messages, chunk_size, before):
+@given(st.lists(st.tuples(st.sampled_from([0, 1]), st.binary(max_size=300), st.integers(0, 2 ** 40) | st.integers(0, 3)),
+                max_size=60),
+       st.integers(64, 2000), st.integers(0, 3), st.integers(0, 3))
+def test_a_blob_write_is_the_writes_one_by_one(tmp_path_factory, messages, chunk_size, before, after):
     """`ArchiveWriter.write_blob` against write_serialized per message: the same file, chunks cut at the same
-    messages (small chunk sizes), after `before` messages one by one; and a worker's Capture of the same blob
-    written by `write_captured` too."""
+    messages (small chunk sizes), after `before` messages one by one and before `after` more (a chunk's index
+    of both kinds of writes, times in any order); and a worker's Capture of the same blob written by
+    `write_captured` too."""
     out = tmp_path_factory.mktemp("w")
     files = []
     for how in ("one", "blob", "captured"):
@@ -200,7 +202,7 @@ def test_a_blob_write_is_the_writes_one_by_one(tmp_path_factory, messages, chunk
             ids = [w.channel(topic, S.GnssStatus) for topic in ("/a", "/b")]
             for k, data, t in messages[:before]:
                 w.write_serialized(ids[k], data, t, t + 1)
-            rest = messages[before:]
+            rest, tail = messages[before:len(messages) - after], messages[max(before, len(messages) - after):]
             blob = b"".join(m[1] for m in rest)
             ends = np.cumsum([len(m[1]) for m in rest], dtype=np.int64)
             channels = np.array([ids[m[0]] for m in rest], dtype=np.int64)
@@ -216,6 +218,8 @@ def test_a_blob_write_is_the_writes_one_by_one(tmp_path_factory, messages, chunk
                 capture.write_blob(np.array([numbers[m[0]] for m in rest], dtype=np.int64), blob, ends, times,
                                    times + 1)
                 write_captured(w, capture.finish(None))
+            for k, data, t in tail:
+                w.write_serialized(ids[k], data, t, t + 1)
         files.append(path.read_bytes())
     assert files[0] == files[1] == files[2]
 
