@@ -86,8 +86,9 @@ def _strings(n: int, tag: bytes, values: str | Sequence[str]) -> Segment:
     if isinstance(values, str):
         text = values.encode("utf-8")
         return _const(n, tag + varint(len(text)) + text, None if text else np.zeros(n, dtype=bool))
-    codes: dict[str, int] = {}
-    index = np.fromiter((codes.setdefault(s, len(codes)) for s in values), dtype=np.int64, count=n)
+    # the distinct values in order of first use (a dict keeps it), each row's number among them: C loops only
+    codes = {s: k for k, s in enumerate(dict.fromkeys(values))}
+    index = np.fromiter(map(codes.__getitem__, values), dtype=np.int64, count=n)
     pieces = []
     for s in codes:
         text = s.encode("utf-8")
@@ -164,6 +165,15 @@ def _join(segments: list[Segment], present: np.ndarray | None = None) -> Segment
     return out, total
 
 
+def _join_flat(segments: list[Segment]) -> tuple[np.ndarray, np.ndarray]:
+    """`flatten(*_join(segments))` as a uint8 array, and each row's length: the kept bytes of the segments side by
+    side, taken row after row at once (no padded matrix between)."""
+    lens = [np.asarray(seg[1], dtype=np.int64) for seg in segments]
+    keep = np.concatenate([np.arange(seg[0].shape[1])[None, :] < seg_lens[:, None]
+                           for seg, seg_lens in zip(segments, lens)], axis=1)
+    return np.concatenate([seg[0] for seg in segments], axis=1)[keep], np.sum(lens, axis=0)
+
+
 def encode_rows(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
     """`n` messages of `cls` from columns as rows: an (n, width) byte matrix, each message's bytes at the left of
     its row, and each message's length.
@@ -175,8 +185,27 @@ def encode_rows(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[np.ndarra
     Fields not named stay unset. Raises TypeError for a field this
     encoder does not write (another sub-message, bytes, a repeated non-double).
     """
-    if not n:  # no rows: nothing to encode (an empty (0, k) column has no row length to reshape by)
+    segments = _segments(cls, n, columns)
+    if segments is None:  # no rows: nothing to encode (an empty (0, k) column has no row length to reshape by)
         return np.zeros((0, 0), dtype=np.uint8), np.zeros(0, dtype=np.int64)
+    if not segments:
+        return np.zeros((n, 0), dtype=np.uint8), np.zeros(n, dtype=np.int64)
+    return _join(segments)
+
+
+def encode_flat(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """`n` messages of `cls` from `encode_rows`' columns: their bytes one after the other (a uint8 array) and each
+    one's length; `flatten` of `encode_rows`, without its padded rows."""
+    segments = _segments(cls, n, columns)
+    if not segments:
+        return np.zeros(0, dtype=np.uint8), np.zeros(n, dtype=np.int64)
+    return _join_flat(segments)
+
+
+def _segments(cls: Any, n: int, columns: Mapping[str, Any]) -> list[Segment] | None:
+    """Each given field's segment, in field-number order; None without rows."""
+    if not n:
+        return None
     segments: list[Segment] = []
     for name, _number, kind, repeated, tag in _fields(cls):
         if name not in columns:
@@ -198,9 +227,7 @@ def encode_rows(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[np.ndarra
             segments.append(_timestamps(n, tag, values))
         else:
             raise TypeError(f"{cls.DESCRIPTOR.full_name}.{name}: type {kind} is not encoded from columns")
-    if not segments:
-        return np.zeros((n, 0), dtype=np.uint8), np.zeros(n, dtype=np.int64)
-    return _join(segments)
+    return segments
 
 
 def encode_columns(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[bytes, np.ndarray]:
@@ -208,10 +235,8 @@ def encode_columns(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[bytes,
 
     The columns are those `encode_rows` takes.
     """
-    out, lens = encode_rows(cls, n, columns)
-    if not out.shape[1]:
-        return b"", np.zeros(n, dtype=np.int64)
-    return flatten(out, lens), np.cumsum(lens)
+    blob, lens = encode_flat(cls, n, columns)
+    return blob.tobytes(), np.cumsum(lens)
 
 
 def flatten(rows: np.ndarray, lens: np.ndarray) -> bytes:

@@ -242,3 +242,37 @@ def test_a_batch_write_needs_a_channel_and_as_many_times(tmp_path):
         with pytest.raises(ValueError):
             w.write_serialized_batch("/a", [b"", b""], [1])
         w.write_serialized_batch("/a", [b"x"], [5])  # publish time defaults to the log time
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.lists(st.one_of(st.integers(-3, 40), st.integers(0, 10 ** 6)), min_size=1, max_size=40),
+                max_size=8),
+       st.lists(st.integers(-3, 60), max_size=10), st.integers(1, 12), st.booleans())
+def test_a_batch_of_record_keys_counts_as_the_keys_one_by_one(batches, singles, window, rising):
+    """`RecordCount.add_many` against `add` key by key as `_batch_stats` called it (a key equal to the one before
+    it skipped): the same count, last key and window, for keys in any order or rising (its path at once),
+    with keys one by one between the batches and a window small enough to be crossed."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(recording, "RECORDS_WINDOW", window)
+        _count_both(batches, singles, rising)
+
+
+def _count_both(batches: list[list[int]], singles: list[int], rising: bool) -> None:
+    if rising:  # a log read forward: each batch's keys above the last
+        top, rose = 0, []
+        for batch in batches:
+            rose.append([top + k for k in np.cumsum(np.abs(batch)).tolist()])
+            top = rose[-1][-1]
+        batches = rose
+    many, one = recording.RecordCount(), recording.RecordCount()
+    for k, batch in enumerate(batches):
+        many.add_many(np.array(batch, dtype=np.int64))
+        last = one.last
+        for key in batch:
+            if key != last:
+                one.add(key)
+                last = key
+        if k < len(singles):
+            many.add(singles[k])
+            one.add(singles[k])
+        assert (many.count, many.last, list(many.order), many.seen) == (one.count, one.last, list(one.order), one.seen)
