@@ -65,9 +65,20 @@ def _fields(cls: Any) -> tuple[tuple[str, int, int, bool, bytes], ...]:
     return tuple(out)
 
 
+def _rows(data: bytes, n: int) -> np.ndarray:
+    """`data` in each of n rows, an (n, len(data)) uint8 matrix."""
+    return np.frombuffer(data * n, dtype=np.uint8).reshape(n, len(data))
+
+
+def _column(values: np.ndarray, n: int) -> np.ndarray:
+    """A value per row: `values` itself when it is one already, else its one value repeated."""
+    return values if values.shape == (n,) and values.flags.c_contiguous else \
+        np.ascontiguousarray(np.broadcast_to(values, (n,)))
+
+
 def _const(n: int, data: bytes, present: np.ndarray | None = None) -> Segment:
     """The same bytes in every row (none where `present` is False)."""
-    mat = np.broadcast_to(np.frombuffer(data, dtype=np.uint8), (n, len(data)))
+    mat = _rows(data, n)
     lens = np.full(n, len(data), dtype=np.int64)
     return mat, lens if present is None else np.where(present, lens, 0)
 
@@ -103,9 +114,9 @@ def _strings(n: int, tag: bytes, values: str | Sequence[str]) -> Segment:
 
 def _doubles(n: int, tag: bytes, values: Any) -> Segment:
     """Tag and 8 little-endian bytes per row; nothing where the bits are zero (0.0, not -0.0)."""
-    v = np.ascontiguousarray(np.broadcast_to(np.asarray(values, dtype="<f8"), (n,)))
+    v = _column(np.asarray(values, dtype="<f8"), n)
     raw = v.view(np.uint8).reshape(n, 8)
-    tags = np.broadcast_to(np.frombuffer(tag, dtype=np.uint8), (n, len(tag)))
+    tags = _rows(tag, n)
     present = v.view(np.uint64) != 0
     return np.concatenate([tags, raw], axis=1), np.where(present, len(tag) + 8, 0)
 
@@ -115,15 +126,15 @@ def _optional_doubles(n: int, tag: bytes, values: Any) -> Segment:
     zero included: explicit presence."""
     present = ~np.broadcast_to(np.ma.getmaskarray(values), (n,))
     v = np.ascontiguousarray(np.broadcast_to(np.ma.getdata(values).astype("<f8", copy=False), (n,)))
-    tags = np.broadcast_to(np.frombuffer(tag, dtype=np.uint8), (n, len(tag)))
+    tags = _rows(tag, n)
     return np.concatenate([tags, v.view(np.uint8).reshape(n, 8)], axis=1), np.where(present, len(tag) + 8, 0)
 
 
 def _ints(n: int, tag: bytes, values: Any) -> Segment:
     """Tag and varint per row; nothing where the value is 0."""
-    v = np.broadcast_to(np.asarray(values, dtype=np.int64), (n,))
+    v = _column(np.asarray(values, dtype=np.int64), n)
     mat, lens = varints(v)
-    tags = np.broadcast_to(np.frombuffer(tag, dtype=np.uint8), (n, len(tag)))
+    tags = _rows(tag, n)
     return _join([(tags, np.full(n, len(tag))), (mat, lens)], v != 0)
 
 
@@ -134,18 +145,18 @@ def _packed(n: int, tag: bytes, values: Any) -> Segment:
     if not k:
         return np.zeros((n, 0), dtype=np.uint8), np.zeros(n, dtype=np.int64)
     head = tag + varint(8 * k)
-    tags = np.broadcast_to(np.frombuffer(head, dtype=np.uint8), (n, len(head)))
+    tags = _rows(head, n)
     return np.concatenate([tags, v.view(np.uint8).reshape(n, 8 * k)], axis=1), np.full(n, len(head) + 8 * k)
 
 
 def _timestamps(n: int, tag: bytes, values: Any) -> Segment:
     """A Timestamp sub-message of integer ns per row, where archivable; seconds and nanos left out when 0."""
-    t = np.broadcast_to(np.asarray(values, dtype=np.int64), (n,))
+    t = _column(np.asarray(values, dtype=np.int64), n)
     present = (t >= TIME_MIN_NS) & (t < TIME_MAX_NS)
     sec, nanos = np.divmod(np.where(present, t, 0), NS)
     inner = [_ints(n, b"\x08", sec), _ints(n, b"\x10", nanos)]
     size = inner[0][1] + inner[1][1]  # at most 6 + 5 bytes: the length is one varint byte
-    tags = np.broadcast_to(np.frombuffer(tag, dtype=np.uint8), (n, len(tag)))
+    tags = _rows(tag, n)
     head = np.concatenate([tags, size.astype(np.uint8)[:, None]], axis=1)
     return _join([(head, np.full(n, len(tag) + 1)), *inner], present)
 
