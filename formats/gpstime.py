@@ -32,11 +32,11 @@ def gps_to_unix_ns(week: int, seconds_of_week: float) -> int:
     """UTC nanoseconds since the Unix epoch for a GPS week and seconds of week."""
     gps_ns = (GPS_EPOCH_UNIX_S + week * 604800) * NS + round(seconds_of_week * NS)
     if 0.0 <= seconds_of_week < 604800.0:  # within its week: the week's one count, when it has one
-        leap = _WEEK_LEAPS.get(week, _UNKNOWN)
-        if leap is _UNKNOWN:
-            leap = _week_leap(week)
-        if leap is not None:
-            return gps_ns - leap * NS
+        known = _WEEK_LEAPS.get(week, -1)  # -1: not worked out yet (a count is never negative)
+        if known == -1:
+            known = _week_leap(week)
+        if known is not None:
+            return gps_ns - known * NS
     approx = gps_ns / NS
     leap = leap_seconds_at_utc(approx - leap_seconds_at_utc(approx))
     return gps_ns - leap * NS
@@ -45,7 +45,6 @@ def gps_to_unix_ns(week: int, seconds_of_week: float) -> int:
 # GPS week -> the leap count of every instant of it, or None for a week a leap second falls in; bounded (a log of
 # garbage may name any week)
 _WEEK_LEAPS: dict[int, int | None] = {}
-_UNKNOWN = object()
 
 
 def _week_leap(week: int) -> int | None:

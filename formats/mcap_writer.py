@@ -428,9 +428,9 @@ class ArchiveWriter:
         offsets = {}
         for cid, idx in indexes:
             n = 2 * len(idx)
-            entries = idx.astype("<u8").tobytes() if isinstance(idx, np.ndarray) \
+            packed = idx.astype("<u8").tobytes() if isinstance(idx, np.ndarray) \
                 else struct.pack(f"<{n}Q", *chain.from_iterable(idx))
-            offsets[cid] = self._emit(_INDEX_HEAD.pack(OP_MESSAGE_INDEX, 6 + 8 * n, cid, 8 * n) + entries)
+            offsets[cid] = self._emit(_INDEX_HEAD.pack(OP_MESSAGE_INDEX, 6 + 8 * n, cid, 8 * n) + packed)
         index_length = self._pos - chunk_at - chunk_length
         self._chunk_indexes.append(record(OP_CHUNK_INDEX, struct.pack("<QQQQ", start, end, chunk_at, chunk_length)
                                           + _id_map(offsets) + _U64.pack(index_length) + _string("zstd")

@@ -302,7 +302,7 @@ class _ModemRows:
     def __init__(self, ctx: LogContext, ping: _ScanPings):
         self.ctx, self.ping = ctx, ping
         self.topic = f"/{ctx.vehicle}/{EVENTS}"
-        self.items: list[tuple | Ignored] = []  # (0, t, publish, where, text) or (1, *ping row), or Ignored
+        self.items: list[Any] = []  # (0, t, publish, where, text) or (1, *ping row), or an Ignored
         self.messages = 0
 
     @property
@@ -319,7 +319,7 @@ class _ModemRows:
             self.items.append((0, times[0], times[1], where, text))
             self.messages += 1
 
-    def add(self, item: tuple | Ignored) -> None:
+    def add(self, item: Any) -> None:
         """A ping row (`_ScanPings.row`) or an Ignored."""
         if type(item) is Ignored:
             self.items.append(item)
@@ -344,7 +344,7 @@ class _ModemRows:
                 else:
                     yield ping.output(*item[1:])
 
-        rows = [item for item in items if type(item) is not Ignored]
+        rows: list[tuple] = [item for item in items if type(item) is not Ignored]
         ignored = Counter(item.reason for item in items if type(item) is Ignored)
         last = items[-1].where if type(items[-1]) is Ignored else items[-1][3]
         times, publish = int64_times([r[1] for r in rows]), int64_times([r[2] for r in rows])
@@ -352,7 +352,8 @@ class _ModemRows:
                 -2**31 <= r[k] < 2**31 for r in rows if r[0] == 1 for k in (5, 6))):
             return Batch([], np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), last, outputs, one_by_one=True)
         kinds = np.array([r[0] for r in rows], dtype=np.int64)
-        parts, numbers = [], np.zeros(2, dtype=np.int64)
+        parts: list[Columns] = []
+        numbers = np.zeros(2, dtype=np.int64)
         for kind in (0, 1):
             mine = [r for r in rows if r[0] == kind]
             if not mine:
@@ -381,7 +382,7 @@ def _micromodem_scan(data: LogText, ctx: LogContext, opts: MicromodemOptions
     """The log's items; for a consumer of batches (`LogContext.batches`) its events, ping ranges and Ignored items
     gathered as rows (`_ModemRows`), taken before anything else (a Reject, a TOA range) and when full."""
     for item in _micromodem_items(data, ctx, opts):
-        if type(item) is _ModemRows:
+        if isinstance(item, _ModemRows):
             yield from batched(ctx, item.take())
         else:
             yield item
@@ -467,7 +468,7 @@ def _micromodem_items(data: LogText, ctx: LogContext, opts: MicromodemOptions
         yield rows
 
 
-def convert_micromodem(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+def convert_micromodem(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | Ignored | Batch]:
     """WHOI Micro-Modem log -> ranges (options are checked before the first record)."""
     return _micromodem_scan(data, ctx, micromodem_options(ctx))
 
