@@ -31,9 +31,34 @@ def leap_seconds_at_utc(unix_s: float) -> int:
 def gps_to_unix_ns(week: int, seconds_of_week: float) -> int:
     """UTC nanoseconds since the Unix epoch for a GPS week and seconds of week."""
     gps_ns = (GPS_EPOCH_UNIX_S + week * 604800) * NS + round(seconds_of_week * NS)
+    if 0.0 <= seconds_of_week < 604800.0:  # within its week: the week's one count, when it has one
+        known = _WEEK_LEAPS.get(week, -1)  # -1: not worked out yet (a count is never negative)
+        if known == -1:
+            known = _week_leap(week)
+        if known is not None:
+            return gps_ns - known * NS
     approx = gps_ns / NS
     leap = leap_seconds_at_utc(approx - leap_seconds_at_utc(approx))
     return gps_ns - leap * NS
+
+
+# GPS week -> the leap count of every instant of it, or None for a week a leap second falls in; bounded (a log of
+# garbage may name any week)
+_WEEK_LEAPS: dict[int, int | None] = {}
+
+
+def _week_leap(week: int) -> int | None:
+    """The count `gps_to_unix_ns` works out for every time of `week` (None where it is not one count): with the
+    same count at both ends of the week (a margin either side), it is the same inside, both steps being monotone."""
+    start = GPS_EPOCH_UNIX_S + week * 604800
+    lo, hi = (start - 2) * NS / NS, (start + 604802) * NS / NS
+    inner = leap_seconds_at_utc(lo)
+    leap = leap_seconds_at_utc(lo - inner)
+    same = inner == leap_seconds_at_utc(hi) and leap == leap_seconds_at_utc(hi - inner)
+    if len(_WEEK_LEAPS) >= 1024:
+        _WEEK_LEAPS.clear()
+    _WEEK_LEAPS[week] = leap if same else None
+    return _WEEK_LEAPS[week]
 
 
 def unix_ns_to_gps(unix_ns: int) -> tuple[int, float]:

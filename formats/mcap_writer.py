@@ -147,13 +147,31 @@ class _Unclosed:
 class _Channel:
     """A registered channel: its id, message class, messages so far and the open chunk's index."""
 
-    __slots__ = ("id", "cls", "count", "index")
+    __slots__ = ("id", "cls", "count", "index", "blocks")
 
     def __init__(self, channel_id: int, cls: type[Message]):
         self.id = channel_id
         self.cls = cls
         self.count = 0
         self.index: list[tuple[int, int]] = []  # (log time, offset in the chunk) of the open chunk
+        # the same entries of `write_blob`'s messages, as (k, 2) int64 arrays: no tuple per message
+        self.blocks: list[np.ndarray] = []
+
+    def entries(self) -> np.ndarray | list[tuple[int, int]]:
+        """The open chunk's index entries sorted by (log time, offset), and a fresh start: the tuples as they are
+        when no block was written, else one (n, 2) int64 array of all of them."""
+        index, blocks = self.index, self.blocks
+        self.index, self.blocks = [], []
+        if not blocks:
+            index.sort()  # already in order unless times went backwards: linear then
+            return index
+        table = np.concatenate([np.array(index, dtype=np.int64).reshape(-1, 2), *blocks]) if index \
+            else blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
+        # in chunk order (offsets rising) with times not going backwards, it is sorted already; else sorted as
+        # the tuples sort, by time then offset
+        if (np.diff(table[:, 0]) < 0).any() or (np.diff(table[:, 1]) < 0).any():
+            table = table[np.lexsort((table[:, 1], table[:, 0]))]
+        return table
 
 
 class ArchiveWriter:
@@ -375,12 +393,12 @@ class ArchiveWriter:
             out[header] = head[first:last + 1].view(np.uint8)
             out[~header] = data[int(ends[first] - sizes[first]):int(ends[last])]
             self._chunk += out.data
-            offsets = at.tolist()
             for cid, rows in by_channel.items():
                 mine = rows[(rows >= first) & (rows <= last)]
-                ch = self._by_id[cid]
-                ch.index.extend(zip(log_ns[mine].tolist(), [offsets[i] for i in (mine - first).tolist()]))
-                ch.count += len(mine)
+                if len(mine):
+                    ch = self._by_id[cid]
+                    ch.blocks.append(np.stack([log_ns[mine], at[mine - first]], axis=1))
+                    ch.count += len(mine)
             first = last + 1
             if len(self._chunk) >= self._chunk_size:
                 self._finish_chunk()
@@ -393,13 +411,12 @@ class ArchiveWriter:
         indexes = []
         start = end = None
         for ch in self._by_id.values():
-            if ch.index:
-                ch.index.sort()  # already in order unless times went backwards: linear then
-                first, last = ch.index[0][0], ch.index[-1][0]
+            if ch.index or ch.blocks:
+                entries = ch.entries()
+                first, last = int(entries[0][0]), int(entries[-1][0])
                 start = first if start is None else min(start, first)
                 end = last if end is None else max(end, last)
-                indexes.append((ch.id, ch.index))
-                ch.index = []
+                indexes.append((ch.id, entries))
         self._chunk = bytearray()
         if start is None or end is None:
             self._emit(buf)  # only Schema/Channel records, no message: they stand outside any chunk
@@ -411,8 +428,9 @@ class ArchiveWriter:
         offsets = {}
         for cid, idx in indexes:
             n = 2 * len(idx)
-            offsets[cid] = self._emit(_INDEX_HEAD.pack(OP_MESSAGE_INDEX, 6 + 8 * n, cid, 8 * n)
-                                      + struct.pack(f"<{n}Q", *chain.from_iterable(idx)))
+            packed = idx.astype("<u8").tobytes() if isinstance(idx, np.ndarray) \
+                else struct.pack(f"<{n}Q", *chain.from_iterable(idx))
+            offsets[cid] = self._emit(_INDEX_HEAD.pack(OP_MESSAGE_INDEX, 6 + 8 * n, cid, 8 * n) + packed)
         index_length = self._pos - chunk_at - chunk_length
         self._chunk_indexes.append(record(OP_CHUNK_INDEX, struct.pack("<QQQQ", start, end, chunk_at, chunk_length)
                                           + _id_map(offsets) + _U64.pack(index_length) + _string("zstd")

@@ -65,9 +65,20 @@ def _fields(cls: Any) -> tuple[tuple[str, int, int, bool, bytes], ...]:
     return tuple(out)
 
 
+def _rows(data: bytes, n: int) -> np.ndarray:
+    """`data` in each of n rows, an (n, len(data)) uint8 matrix."""
+    return np.frombuffer(data * n, dtype=np.uint8).reshape(n, len(data))
+
+
+def _column(values: np.ndarray, n: int) -> np.ndarray:
+    """A value per row: `values` itself when it is one already, else its one value repeated."""
+    return values if values.shape == (n,) and values.flags.c_contiguous else \
+        np.ascontiguousarray(np.broadcast_to(values, (n,)))
+
+
 def _const(n: int, data: bytes, present: np.ndarray | None = None) -> Segment:
     """The same bytes in every row (none where `present` is False)."""
-    mat = np.broadcast_to(np.frombuffer(data, dtype=np.uint8), (n, len(data)))
+    mat = _rows(data, n)
     lens = np.full(n, len(data), dtype=np.int64)
     return mat, lens if present is None else np.where(present, lens, 0)
 
@@ -86,8 +97,9 @@ def _strings(n: int, tag: bytes, values: str | Sequence[str]) -> Segment:
     if isinstance(values, str):
         text = values.encode("utf-8")
         return _const(n, tag + varint(len(text)) + text, None if text else np.zeros(n, dtype=bool))
-    codes: dict[str, int] = {}
-    index = np.fromiter((codes.setdefault(s, len(codes)) for s in values), dtype=np.int64, count=n)
+    # the distinct values in order of first use (a dict keeps it), each row's number among them: C loops only
+    codes = {s: k for k, s in enumerate(dict.fromkeys(values))}
+    index = np.fromiter(map(codes.__getitem__, values), dtype=np.int64, count=n)
     pieces = []
     for s in codes:
         text = s.encode("utf-8")
@@ -102,9 +114,9 @@ def _strings(n: int, tag: bytes, values: str | Sequence[str]) -> Segment:
 
 def _doubles(n: int, tag: bytes, values: Any) -> Segment:
     """Tag and 8 little-endian bytes per row; nothing where the bits are zero (0.0, not -0.0)."""
-    v = np.ascontiguousarray(np.broadcast_to(np.asarray(values, dtype="<f8"), (n,)))
+    v = _column(np.asarray(values, dtype="<f8"), n)
     raw = v.view(np.uint8).reshape(n, 8)
-    tags = np.broadcast_to(np.frombuffer(tag, dtype=np.uint8), (n, len(tag)))
+    tags = _rows(tag, n)
     present = v.view(np.uint64) != 0
     return np.concatenate([tags, raw], axis=1), np.where(present, len(tag) + 8, 0)
 
@@ -114,15 +126,15 @@ def _optional_doubles(n: int, tag: bytes, values: Any) -> Segment:
     zero included: explicit presence."""
     present = ~np.broadcast_to(np.ma.getmaskarray(values), (n,))
     v = np.ascontiguousarray(np.broadcast_to(np.ma.getdata(values).astype("<f8", copy=False), (n,)))
-    tags = np.broadcast_to(np.frombuffer(tag, dtype=np.uint8), (n, len(tag)))
+    tags = _rows(tag, n)
     return np.concatenate([tags, v.view(np.uint8).reshape(n, 8)], axis=1), np.where(present, len(tag) + 8, 0)
 
 
 def _ints(n: int, tag: bytes, values: Any) -> Segment:
     """Tag and varint per row; nothing where the value is 0."""
-    v = np.broadcast_to(np.asarray(values, dtype=np.int64), (n,))
+    v = _column(np.asarray(values, dtype=np.int64), n)
     mat, lens = varints(v)
-    tags = np.broadcast_to(np.frombuffer(tag, dtype=np.uint8), (n, len(tag)))
+    tags = _rows(tag, n)
     return _join([(tags, np.full(n, len(tag))), (mat, lens)], v != 0)
 
 
@@ -133,18 +145,18 @@ def _packed(n: int, tag: bytes, values: Any) -> Segment:
     if not k:
         return np.zeros((n, 0), dtype=np.uint8), np.zeros(n, dtype=np.int64)
     head = tag + varint(8 * k)
-    tags = np.broadcast_to(np.frombuffer(head, dtype=np.uint8), (n, len(head)))
+    tags = _rows(head, n)
     return np.concatenate([tags, v.view(np.uint8).reshape(n, 8 * k)], axis=1), np.full(n, len(head) + 8 * k)
 
 
 def _timestamps(n: int, tag: bytes, values: Any) -> Segment:
     """A Timestamp sub-message of integer ns per row, where archivable; seconds and nanos left out when 0."""
-    t = np.broadcast_to(np.asarray(values, dtype=np.int64), (n,))
+    t = _column(np.asarray(values, dtype=np.int64), n)
     present = (t >= TIME_MIN_NS) & (t < TIME_MAX_NS)
     sec, nanos = np.divmod(np.where(present, t, 0), NS)
     inner = [_ints(n, b"\x08", sec), _ints(n, b"\x10", nanos)]
     size = inner[0][1] + inner[1][1]  # at most 6 + 5 bytes: the length is one varint byte
-    tags = np.broadcast_to(np.frombuffer(tag, dtype=np.uint8), (n, len(tag)))
+    tags = _rows(tag, n)
     head = np.concatenate([tags, size.astype(np.uint8)[:, None]], axis=1)
     return _join([(head, np.full(n, len(tag) + 1)), *inner], present)
 
@@ -164,6 +176,15 @@ def _join(segments: list[Segment], present: np.ndarray | None = None) -> Segment
     return out, total
 
 
+def _join_flat(segments: list[Segment]) -> tuple[np.ndarray, np.ndarray]:
+    """`flatten(*_join(segments))` as a uint8 array, and each row's length: the kept bytes of the segments side by
+    side, taken row after row at once (no padded matrix between)."""
+    lens = [np.asarray(seg[1], dtype=np.int64) for seg in segments]
+    keep = np.concatenate([np.arange(seg[0].shape[1])[None, :] < seg_lens[:, None]
+                           for seg, seg_lens in zip(segments, lens)], axis=1)
+    return np.concatenate([seg[0] for seg in segments], axis=1)[keep], np.sum(lens, axis=0)
+
+
 def encode_rows(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
     """`n` messages of `cls` from columns as rows: an (n, width) byte matrix, each message's bytes at the left of
     its row, and each message's length.
@@ -175,8 +196,27 @@ def encode_rows(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[np.ndarra
     Fields not named stay unset. Raises TypeError for a field this
     encoder does not write (another sub-message, bytes, a repeated non-double).
     """
-    if not n:  # no rows: nothing to encode (an empty (0, k) column has no row length to reshape by)
+    segments = _segments(cls, n, columns)
+    if segments is None:  # no rows: nothing to encode (an empty (0, k) column has no row length to reshape by)
         return np.zeros((0, 0), dtype=np.uint8), np.zeros(0, dtype=np.int64)
+    if not segments:
+        return np.zeros((n, 0), dtype=np.uint8), np.zeros(n, dtype=np.int64)
+    return _join(segments)
+
+
+def encode_flat(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """`n` messages of `cls` from `encode_rows`' columns: their bytes one after the other (a uint8 array) and each
+    one's length; `flatten` of `encode_rows`, without its padded rows."""
+    segments = _segments(cls, n, columns)
+    if not segments:
+        return np.zeros(0, dtype=np.uint8), np.zeros(n, dtype=np.int64)
+    return _join_flat(segments)
+
+
+def _segments(cls: Any, n: int, columns: Mapping[str, Any]) -> list[Segment] | None:
+    """Each given field's segment, in field-number order; None without rows."""
+    if not n:
+        return None
     segments: list[Segment] = []
     for name, _number, kind, repeated, tag in _fields(cls):
         if name not in columns:
@@ -198,9 +238,7 @@ def encode_rows(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[np.ndarra
             segments.append(_timestamps(n, tag, values))
         else:
             raise TypeError(f"{cls.DESCRIPTOR.full_name}.{name}: type {kind} is not encoded from columns")
-    if not segments:
-        return np.zeros((n, 0), dtype=np.uint8), np.zeros(n, dtype=np.int64)
-    return _join(segments)
+    return segments
 
 
 def encode_columns(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[bytes, np.ndarray]:
@@ -208,10 +246,8 @@ def encode_columns(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[bytes,
 
     The columns are those `encode_rows` takes.
     """
-    out, lens = encode_rows(cls, n, columns)
-    if not out.shape[1]:
-        return b"", np.zeros(n, dtype=np.int64)
-    return flatten(out, lens), np.cumsum(lens)
+    blob, lens = encode_flat(cls, n, columns)
+    return blob.tobytes(), np.cumsum(lens)
 
 
 def flatten(rows: np.ndarray, lens: np.ndarray) -> bytes:

@@ -12,7 +12,6 @@ time at all, get None, and the per-line path.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
-from itertools import repeat
 
 import numpy as np
 
@@ -24,7 +23,7 @@ from formats.units import DAY_NS, NS
 
 from .base import Batch, Columns, Ignored, LogContext, Output, batched
 from .clock import DayClock, date_to_ns
-from .gnss_covariance import fix_covariance
+from .gnss_covariance import fix_covariance_columns
 from .gnss_velocity import NO_VELOCITY, SUFFIX, components_column
 from .nmea_epochs import vtg_valid
 
@@ -162,7 +161,7 @@ def convert_columns(cols: NmeaColumns, ctx: LogContext, no_date: str, clock: Day
     source = np.where(gga_pos, _pick(cols.rows["GGA"], g, 0), np.where(
         gll_pos, _pick(cols.rows["GLL"], ll, 0), np.where(rmc_pos, _pick(cols.rows["RMC"], r, 0), starts)))
     hdop = _pick(gv["hdop"], g, NAN)
-    cov, cov_kind = _covariance(v["GST"], m["GST"], hdop, quality, ctx)
+    cov_rows, cov_kind, cov_known = _covariance(v["GST"], m["GST"], hdop, quality, ctx)
     dates, date_tods = _dates(cols, z, r, valid)
     alone = np.diff(np.append(starts, len(cols.kind))) == 1
     silent = (alone & (z >= 0)).tolist() if len(cols.rows["ZDA"]) else [False] * n
@@ -178,7 +177,8 @@ def convert_columns(cols: NmeaColumns, ctx: LogContext, no_date: str, clock: Day
         status = zip(quality.tolist(), satellites.tolist(), hdop.tolist(),
                      sources, speed.tolist(), course.tolist(), heading.tolist())
         velocity = zip(moving, north.tolist(), east.tolist())
-        fix = zip(has_pos.tolist(), lat.tolist(), lon.tolist(), alt.tolist(), cov, cov_kind)
+        cov = [tuple(row) if known else None for row, known in zip(cov_rows.tolist(), cov_known.tolist())]
+        fix = zip(has_pos.tolist(), lat.tolist(), lon.tolist(), alt.tolist(), cov, cov_kind.tolist())
         where = zip(offsets[source].tolist(), numbers[source].tolist())
         first = zip(offsets[first_timed].tolist(), numbers[first_timed].tolist(), cols.tod[first_timed].tolist())
         return _emit(ctx, times, silent, fix, status, velocity, where, first, no_date)
@@ -187,15 +187,9 @@ def convert_columns(cols: NmeaColumns, ctx: LogContext, no_date: str, clock: Day
         return outputs()  # a Reject among them: message by message
     columns = {"frame_id": ctx.vehicle, "fix_quality": quality, "satellites": satellites, "hdop": hdop,
                "speed_over_ground_mps": speed, "course_over_ground_deg": course, "heading_deg": heading}
-    covariance = [c if c is not None else _NAN9 for c in cov]
-    if any(len(c) != 9 for c in covariance):
-        return outputs()
-    batch = _batch(ctx, times, silent, has_pos, moving, columns, sources, (lat, lon, alt, covariance, cov_kind),
+    batch = _batch(ctx, times, silent, has_pos, moving, columns, sources, (lat, lon, alt, cov_rows, cov_kind),
                    (north, east), offsets[source], outputs)
     return batched(ctx, batch)
-
-
-_NAN9 = (NAN,) * 9
 
 
 def _batch(ctx: LogContext, times: list, silent: list[bool], has_pos: np.ndarray, moving: list, status: dict,
@@ -215,8 +209,7 @@ def _batch(ctx: LogContext, times: list, silent: list[bool], has_pos: np.ndarray
     vehicle = ctx.vehicle
     fix_cols = {"timestamp": t[pos], "frame_id": vehicle, "latitude": lat[rows][pos], "longitude": lon[rows][pos],
                 "altitude": alt[rows][pos],
-                "position_covariance": np.array(cov, dtype=np.float64).reshape(-1, 9)[rows][pos],
-                "position_covariance_type": np.array(kind, dtype=np.int64)[rows][pos]}
+                "position_covariance": cov[rows][pos], "position_covariance_type": kind[rows][pos]}
     status_cols = {k: (v[rows] if isinstance(v, np.ndarray) else v) for k, v in status.items()}
     status_cols.update(timestamp=t, source_format=src)
     north, east = velocity
@@ -294,11 +287,11 @@ def _clock(ctx: LogContext) -> DayClock:
 
 
 def _covariance(sv: dict, s: np.ndarray, hdop: np.ndarray, quality: np.ndarray, ctx: LogContext
-                ) -> tuple[list, list[int]]:
-    """`fix_covariance` per epoch: GST's sigmas (NaN where the epoch has no GST), else GGA's HDOP, else None."""
-    lat_std, lon_std, alt_std = (_pick(sv[k], s, NAN).tolist() for k in ("lat_std", "lon_std", "alt_std"))
-    pairs = list(map(fix_covariance, lat_std, lon_std, alt_std, hdop.tolist(), quality.tolist(), repeat(ctx.options)))
-    return [p[0] for p in pairs], [p[1] for p in pairs]
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`fix_covariance` per epoch (`fix_covariance_columns`): GST's sigmas (NaN where the epoch has no GST), else
+    GGA's HDOP, else none."""
+    lat_std, lon_std, alt_std = (_pick(sv[k], s, NAN).astype(np.float64) for k in ("lat_std", "lon_std", "alt_std"))
+    return fix_covariance_columns(lat_std, lon_std, alt_std, hdop.astype(np.float64), quality, ctx.options)
 
 
 def _emit(ctx: LogContext, times: list, silent: list[bool], fix: zip, status: zip, velocity: zip, where: zip,

@@ -31,11 +31,14 @@ What each record produces (everything else is parsed, validated and counted):
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from functools import partial
 from typing import Any
+
+import numpy as np
 
 from formats import acoustic_messages as AM
 from formats import regex_lines as rx
@@ -49,7 +52,20 @@ from formats.scanned import positions
 from formats.schemas import AcousticRange, Log, timestamp
 from formats.units import DAY_NS, NS
 
-from .base import BlockConverter, Converter, Ignored, LogContext, Output, blockwise, output
+from .base import (
+    ROWS_PER_BATCH,
+    Batch,
+    BlockConverter,
+    Columns,
+    Converter,
+    Ignored,
+    LogContext,
+    Output,
+    batched,
+    blockwise,
+    int64_times,
+    output,
+)
 from .clock import DayClock
 
 SUFFIX = "modem/range"
@@ -187,13 +203,28 @@ def modem_event(ctx: LogContext, where: Where, text: str, utc_ns: int | None = N
     """An event of a modem log (a ping sent or heard, a data cycle) on ``/<vehicle>/modem/events``, a
     foxglove.Log at the modem's own time when it gives one, else the line's host time; Ignored, saying so,
     when the line has neither (an event is worth its time)."""
+    times = event_times(ctx, where, utc_ns)
+    if times is None:
+        return Ignored(where, NO_EVENT_TIME)
+    t, publish = times
+    return Output(f"/{ctx.vehicle}/{EVENTS}", event_message(ctx, t, text), t, publish, where)
+
+
+NO_EVENT_TIME = "modem event without a time (no host timestamp)"
+
+
+def event_times(ctx: LogContext, where: Where, utc_ns: int | None = None) -> tuple[int, int] | None:
+    """A modem event's (log, publish) times: the modem's own time (offset applied) when it gives one, else the
+    line's host time; publish the host time when the line has one. None without either."""
     host = host_time(ctx, where)
     t = utc_ns + ctx.clock_offset_ns if utc_ns is not None else host
-    if t is None:
-        return Ignored(where, "modem event without a time (no host timestamp)")
+    return None if t is None else (t, t if host is None else host)
+
+
+def event_message(ctx: LogContext, t_ns: int, text: str) -> Log:
+    """The foxglove.Log of a modem event at `t_ns`."""
     # no line number in the message: a live capture decodes a log in windows, and the same event must come out
-    msg = Log(timestamp=timestamp(t), level=Log.INFO, name=ctx.vehicle, file=ctx.path, message=text)
-    return Output(f"/{ctx.vehicle}/{EVENTS}", msg, t, t if host is None else host, where)
+    return Log(timestamp=timestamp(t_ns), level=Log.INFO, name=ctx.vehicle, file=ctx.path, message=text)
 
 
 def micromodem_event_text(kind: str, src: int, dest: int, detail: object) -> str:
@@ -231,6 +262,19 @@ class _ScanPings:
         self.names: dict[int, str] = {}
 
     def __call__(self, v: tuple, offset: int, line: int | None, host: int | None) -> Output | Reject:
+        row = self.row(v, offset, line, host)
+        return row if isinstance(row, Reject) else self.output(*row)
+
+    def output(self, t: int, publish: int, where: Where, name: str, heard: int, measurer: int, owtt: float,
+               range_m: float) -> Output:
+        """The range Output of a `row`."""
+        return Output(self.topic, AM.acoustic_range(t, name, self.ctx.vehicle, heard, measurer, owtt, range_m, self.c,
+                                                    "ping", "micromodem"), t, publish, where)
+
+    def row(self, v: tuple, offset: int, line: int | None, host: int | None
+            ) -> Reject | tuple[int, int, Where, str, int, int, float, float]:
+        """A ping reply's range as (time, publish time, where, heard name, heard and measurer addresses, one-way
+        travel time, range), or its Reject."""
         heard, measurer, owtt, utc = v
         own = self.own
         if own and heard in own and measurer not in own:
@@ -247,58 +291,184 @@ class _ScanPings:
         name = self.names.get(heard)
         if name is None:
             name = self.names[heard] = self.ctx.vehicle_for_address(heard)
-        msg = AM.acoustic_range(t, name, self.ctx.vehicle, heard, measurer, owtt, owtt * self.c, self.c, "ping",
-                                "micromodem")
-        return Output(self.topic, msg, t, t if publish is None else publish, Where(offset, line, host))
+        return t, t if publish is None else publish, Where(offset, line, host), name, heard, measurer, owtt, \
+            owtt * self.c
 
 
-def _micromodem_scan(data: LogText, ctx: LogContext, opts: MicromodemOptions) -> Iterator[Output | Reject | Ignored]:
+class _ModemRows:
+    """A Micro-Modem log's events and ping ranges gathered as rows in arrival order (Ignored items among them),
+    taken as one Batch of two parts whose items one by one are `modem_event`'s and `_ScanPings`' Outputs."""
+
+    def __init__(self, ctx: LogContext, ping: _ScanPings):
+        self.ctx, self.ping = ctx, ping
+        self.topic = f"/{ctx.vehicle}/{EVENTS}"
+        self.items: list[Any] = []  # (0, t, publish, where, text) or (1, *ping row), or an Ignored
+        self.messages = 0
+
+    @property
+    def full(self) -> bool:
+        """Whether the rows should be taken now."""
+        return self.messages >= ROWS_PER_BATCH
+
+    def event(self, where: Where, text: str, utc_ns: int | None = None) -> None:
+        """`modem_event`, as a row."""
+        times = event_times(self.ctx, where, utc_ns)
+        if times is None:
+            self.items.append(Ignored(where, NO_EVENT_TIME))
+        else:
+            self.items.append((0, times[0], times[1], where, text))
+            self.messages += 1
+
+    def add(self, item: Any) -> None:
+        """A ping row (`_ScanPings.row`) or an Ignored."""
+        if type(item) is Ignored:
+            self.items.append(item)
+        else:
+            self.items.append((1, *item))
+            self.messages += 1
+
+    def take(self) -> Batch | None:
+        """The rows so far as one Batch (None without any), and a fresh start."""
+        items, ctx, ping, topic = self.items, self.ctx, self.ping, self.topic
+        if not items:
+            return None
+        self.items, self.messages = [], 0
+
+        def outputs() -> Iterator[Output | Ignored]:
+            for item in items:
+                if type(item) is Ignored:
+                    yield item
+                elif item[0] == 0:
+                    _, t, publish, where, text = item
+                    yield Output(topic, event_message(ctx, t, text), t, publish, where)
+                else:
+                    yield ping.output(*item[1:])
+
+        rows: list[tuple] = [item for item in items if type(item) is not Ignored]
+        ignored = Counter(item.reason for item in items if type(item) is Ignored)
+        last = items[-1].where if type(items[-1]) is Ignored else items[-1][3]
+        times, publish = int64_times([r[1] for r in rows]), int64_times([r[2] for r in rows])
+        if rows and (times is None or publish is None or not all(
+                -2**31 <= r[k] < 2**31 for r in rows if r[0] == 1 for k in (5, 6))):
+            return Batch([], np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), last, outputs, one_by_one=True)
+        kinds = np.array([r[0] for r in rows], dtype=np.int64)
+        parts: list[Columns] = []
+        numbers = np.zeros(2, dtype=np.int64)
+        for kind in (0, 1):
+            mine = [r for r in rows if r[0] == kind]
+            if not mine:
+                continue
+            numbers[kind] = len(parts)
+            at = np.flatnonzero(kinds == kind)
+            t, p = times[at], publish[at]  # type: ignore[index]
+            if kind == 0:
+                columns: dict[str, Any] = {"timestamp": t, "level": Log.INFO, "name": ctx.vehicle, "file": ctx.path,
+                                           "message": [r[4] for r in mine]}
+                parts.append(Columns(topic, Log, columns, t, p))
+            else:
+                columns = {"timestamp": t, "source": [r[4] for r in mine], "destination": ctx.vehicle,
+                           "source_address": np.array([r[5] for r in mine], dtype=np.int64),
+                           "destination_address": np.array([r[6] for r in mine], dtype=np.int64),
+                           "travel_time_s": np.array([r[7] for r in mine], dtype=np.float64),
+                           "range_m": np.array([r[8] for r in mine], dtype=np.float64), "sound_speed_mps": ping.c,
+                           "kind": "ping", "source_format": "micromodem"}
+                parts.append(Columns(ping.topic, AcousticRange, columns, t, p))
+        return Batch(parts, numbers[kinds], np.array([r[3].offset for r in rows], dtype=np.int64), last, outputs,
+                     dict(ignored))
+
+
+def _micromodem_scan(data: LogText, ctx: LogContext, opts: MicromodemOptions
+                     ) -> Iterator[Output | Reject | Ignored | Batch]:
+    """The log's items; for a consumer of batches (`LogContext.batches`) its events, ping ranges and Ignored items
+    gathered as rows (`_ModemRows`), taken before anything else (a Reject, a TOA range) and when full."""
+    for item in _micromodem_items(data, ctx, opts):
+        if isinstance(item, _ModemRows):
+            yield from batched(ctx, item.take())
+        else:
+            yield item
+
+
+def _micromodem_items(data: LogText, ctx: LogContext, opts: MicromodemOptions
+                      ) -> Iterator[Output | Reject | Ignored | _ModemRows]:
+    """The log's items one by one; or, for a consumer of batches, its rows whenever they are to be taken."""
     clock = DayClock(ctx.trial_date, ctx.clock_offset_ns)
     ping = _ScanPings(ctx, opts.c)
     own = ping.own
+    rows = _ModemRows(ctx, ping) if ctx.batches else None
     last_src: int | None = None
     for item in mms.scan(data, ctx.prefix, opts.round_trip):
         if isinstance(item, Reject):
+            if rows is not None:
+                yield rows
             yield item
             continue
         kind, v, offset, line, host = item
+        if rows is not None and rows.full:
+            yield rows
         if kind == "reply":
-            yield ping(v, offset, line, host)
-        elif kind == "heard":
-            src, dest, what, heard_utc = v
-            if src not in own:
-                last_src = src
-            yield modem_event(ctx, Where(offset, line, host), micromodem_event_text(kind, src, dest, what), heard_utc)
-        elif kind == "sent":
-            src, dest, echo = v
-            yield modem_event(ctx, Where(offset, line, host), micromodem_event_text(kind, src, dest, echo))
+            if rows is None:
+                yield ping(v, offset, line, host)
+                continue
+            row = ping.row(v, offset, line, host)
+            if isinstance(row, Reject):
+                yield rows
+                yield row
+            else:
+                rows.add(row)
+        elif kind == "heard" or kind == "sent":
+            if kind == "heard":
+                src, dest, what, heard_utc = v
+                if src not in own:
+                    last_src = src
+            else:
+                (src, dest, what), heard_utc = v, None
+            text = micromodem_event_text(kind, src, dest, what)
+            if rows is None:
+                yield modem_event(ctx, Where(offset, line, host), text, heard_utc)
+            else:
+                rows.event(Where(offset, line, host), text, heard_utc)
         elif kind == "other":
-            yield Ignored(Where(offset, line, host), f"${v[0]}: nothing archived")
-        elif kind == "date":
-            day, tod_s = v
-            clock.set_date(day, tod_s)
-            yield Ignored(Where(offset, line, host), MICROMODEM_UNUSED[kind])
-        elif kind == "clock":
-            (utc_ns,) = v
-            set_modem_date(clock, mm.Clock(Where(offset, line, host), utc_ns))
-            yield Ignored(Where(offset, line, host), MICROMODEM_UNUSED[kind])
-        elif kind == "rxstats":
-            src, tod_s = v
-            last_src = src
-            if opts.period_s is not None:
-                yield toa_range(ctx, Where(offset, line, host), clock.resolve(tod_s), src, opts)
+            ignored = Ignored(Where(offset, line, host), f"${v[0]}: nothing archived")
+            if rows is None:
+                yield ignored
             else:
-                yield Ignored(Where(offset, line, host), MICROMODEM_UNUSED[kind])
-        elif kind == "toa":
-            tod_s, utc_ns = v
-            if opts.period_s is not None:
-                arrival = clock.resolve(tod_s) if tod_s is not None else utc_ns + ctx.clock_offset_ns
-                yield toa_range(ctx, Where(offset, line, host), arrival, last_src, opts)
+                rows.add(ignored)
+        elif kind == "date" or kind == "clock":
+            if kind == "date":
+                day, tod_s = v
+                clock.set_date(day, tod_s)
             else:
+                (utc_ns,) = v
+                set_modem_date(clock, mm.Clock(Where(offset, line, host), utc_ns))
+            ignored = Ignored(Where(offset, line, host), MICROMODEM_UNUSED[kind])
+            if rows is None:
+                yield ignored
+            else:
+                rows.add(ignored)
+        elif kind == "rxstats" or kind == "toa":
+            if kind == "rxstats":
+                src, tod_s = v
+                last_src = src
+                arrival = clock.resolve(tod_s) if opts.period_s is not None else None
+                heard_src: int | None = src
+            else:
+                tod_s, utc_ns = v
+                arrival = (clock.resolve(tod_s) if tod_s is not None else utc_ns + ctx.clock_offset_ns) \
+                    if opts.period_s is not None else None
+                heard_src = last_src
+            if opts.period_s is not None:
+                if rows is not None:
+                    yield rows
+                yield toa_range(ctx, Where(offset, line, host), arrival, heard_src, opts)
+            elif rows is None:
                 yield Ignored(Where(offset, line, host), MICROMODEM_UNUSED[kind])
+            else:
+                rows.add(Ignored(Where(offset, line, host), MICROMODEM_UNUSED[kind]))
+    if rows is not None:
+        yield rows
 
 
-def convert_micromodem(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | Ignored]:
+def convert_micromodem(data: LogText, ctx: LogContext) -> Iterator[Output | Reject | Ignored | Batch]:
     """WHOI Micro-Modem log -> ranges (options are checked before the first record)."""
     return _micromodem_scan(data, ctx, micromodem_options(ctx))
 

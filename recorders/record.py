@@ -22,7 +22,7 @@ import formats.log_blocks as log_blocks
 from formats import schemas as S
 from formats.log_blocks import ChangedWhileRead, LogFiles, blocks_of
 from formats.mcap_writer import ArchiveWriter
-from formats.proto_encode import encode_columns, encode_rows, flatten, split
+from formats.proto_encode import encode_columns, encode_flat, split
 from formats.records import FormatError, Reject, Where
 from formats.units import NS, archivable_ns
 
@@ -285,6 +285,34 @@ class RecordCount:
         if len(order) > RECORDS_WINDOW:
             seen.discard(order.popleft())
 
+    def add_many(self, keys: np.ndarray) -> None:
+        """`add` of each key in turn but a key equal to the one before it (a record's second message): at once
+        when they rise above every key remembered (a log read forward: each one new), else one by one."""
+        if not len(keys):
+            return
+        keys = keys[np.flatnonzero(np.diff(keys, prepend=keys[0] - 1))]
+        if int(keys[0]) == self.last:
+            keys = keys[1:]
+            if not len(keys):
+                return
+        order, seen = self.order, self.seen
+        if (order and int(keys[0]) <= max(order)) or (np.diff(keys) <= 0).any():
+            for key in keys.tolist():
+                if key != self.last:
+                    self.add(key)
+            return
+        keys = keys.tolist()
+        self.count += len(keys)
+        self.last = keys[-1]
+        order.extend(keys)
+        seen.update(keys)
+        excess = len(order) - RECORDS_WINDOW
+        if excess > RECORDS_WINDOW:  # more gone than kept: the window made again from its last keys
+            kept = list(order)[excess:]
+            self.order, self.seen = deque(kept), set(kept)
+        elif excess > 0:
+            seen.difference_update([order.popleft() for _ in range(excess)])
+
 
 class LogRecorder:
     """Writes one log's outputs and diagnostics, keeping its statistics."""
@@ -386,18 +414,13 @@ class LogRecorder:
         else:
             # every part's messages as rows of bytes, put in write order: one blob, one write_blob per stretch
             # between two parts' first messages (a channel is registered there, as write() registers it)
-            encoded = [encode_rows(p.message_class, len(p.log_times_ns), p.columns) for p in parts]
+            encoded = [encode_flat(p.message_class, len(p.log_times_ns), p.columns) for p in parts]
             rows = [np.flatnonzero(order == j) for j in range(len(parts))] if len(parts) > 1 else [np.arange(n)]
-            width = max(mat.shape[1] for mat, _ in encoded)
-            matrix = encoded[0][0] if len(parts) == 1 else np.zeros((n, width), dtype=np.uint8)
-            lens = encoded[0][1] if len(parts) == 1 else np.empty(n, dtype=np.int64)
+            flat, lens = encoded[0] if len(parts) == 1 else _interleaved(encoded, rows, n)
             publish_all = np.empty(n, dtype=np.int64)
-            for p, (mat, mat_lens), mine in zip(parts, encoded, rows):
-                if len(parts) > 1:
-                    matrix[mine, :mat.shape[1]] = mat
-                    lens[mine] = mat_lens
+            for p, mine in zip(parts, rows):
                 publish_all[mine] = p.publish_times_ns
-            blob, ends = flatten(matrix, lens), np.cumsum(lens)
+            blob, ends = flat.tobytes(), np.cumsum(lens)
             firsts = sorted((int(mine[0]), j) for j, mine in enumerate(rows) if len(mine))
             ids = np.zeros(n, dtype=np.int64)
             for (first, j), stop in zip(firsts, [f for f, _ in firsts[1:]] + [n]):
@@ -433,12 +456,7 @@ class LogRecorder:
         st = self.stats
         st.messages += len(log_all)
         keys = np.asarray(keys, dtype=np.int64)
-        records = self.records
-        last = records.last
-        for key in keys[np.flatnonzero(np.diff(keys, prepend=keys[0] - 1))].tolist():
-            if key != last:  # not a record's second message: one count
-                records.add(key)
-                last = key
+        self.records.add_many(keys)
         for topic, times in topic_times:
             t = np.asarray(times, dtype=np.int64)
             if not len(t):
@@ -540,6 +558,22 @@ class LogRecorder:
                     st.notes.append(f"{part['path']}: {gap / NS:.3f} s gap after the file before it")
             if span:
                 previous = span
+
+
+def _interleaved(encoded: list[tuple[np.ndarray, np.ndarray]], rows: list[np.ndarray], n: int
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Parts' messages (each part's bytes one after the other, and their lengths) put in write order, where
+    `rows[j]` are part j's messages' places: one blob and each message's length, by one gather of the bytes."""
+    lens = np.empty(n, dtype=np.int64)
+    source = np.empty(n, dtype=np.int64)  # each message's start in the parts' blobs end to end
+    base = 0
+    for (blob, part_lens), mine in zip(encoded, rows):
+        lens[mine] = part_lens
+        source[mine] = base + np.cumsum(part_lens) - part_lens
+        base += len(blob)
+    starts = np.cumsum(lens) - lens
+    at = np.arange(int(lens.sum()), dtype=np.int64) + np.repeat(source - starts, lens)
+    return np.concatenate([blob for blob, _ in encoded])[at], lens
 
 
 def trial_metadata(manifest: Manifest) -> dict:

@@ -3,7 +3,10 @@
 
 from __future__ import annotations
 
+from collections import Counter
+from dataclasses import replace
 from datetime import date
+from functools import partial
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -14,8 +17,9 @@ from formats.micromodem import sentences as mm
 from formats.nmea.framing import build
 from formats.schemas import AcousticRange, timestamp
 from recorders import modem
-from recorders.base import LogContext, Output
+from recorders.base import Batch, Ignored, LogContext, Output, one_by_one
 from tests import reference_converters as reference
+from tests.test_novatel_scan import assert_batch_is_its_items
 
 T0 = 1476237600 * 1_000_000_000  # 2016-10-12T02:00:00Z
 _LINES = st.sampled_from([
@@ -99,6 +103,40 @@ def test_fast_micromodem_path_equals_the_record_based_reference(data, options, b
                      clock_offset_ns=offset_s * 1_000_000_000)
     fast = list(modem.convert_micromodem(data, ctx))
     assert _outputs(fast) == _outputs(list(reference.convert_micromodem_reference(data, ctx)))
+
+
+@settings(max_examples=300, deadline=None)
+@given(_logs(), _OPTIONS, _BOOKS, st.sampled_from([None, date(2016, 10, 12)]), st.integers(-2, 2))
+def test_micromodem_batches_are_their_items_and_the_reference(data, options, book, day, offset_s) -> None:
+    """Given as batches (the recording's way), the events and ranges are the items one by one: each batch's
+    columns its items' messages, the items in order the record-based reference's (Ignored ones included)."""
+    ctx = LogContext("follower", options=options, address_book=book, trial_date=day,
+                     clock_offset_ns=offset_s * 1_000_000_000, batches=True)
+    items = list(modem.convert_micromodem(data, ctx))
+    for item in items:
+        if type(item) is Batch and not item.one_by_one:
+            assert_batch_is_its_items(replace(item, outputs=partial(_messages, item)))
+            assert item.ignored == Counter(o.reason for o in item.outputs() if type(o) is Ignored)
+    assert _outputs(list(one_by_one(items))) == _outputs(list(reference.convert_micromodem_reference(data, ctx)))
+
+
+def test_a_long_micromodem_log_comes_in_batches_of_bounded_size() -> None:
+    lines = [f"2016-10-12T02:{k // 60:02d}:{k % 60:02d}.5Z " + mm.encode_campr(1, 3, 0.25 + k * 1e-4)
+             for k in range(1500)]
+    lines[700] = "2016-10-12T02:11:40.5Z " + mm.encode_campc(3, 1)
+    items = list(modem.convert_micromodem("".join(lines).encode(), LogContext("follower", batches=True)))
+    assert [type(item) for item in items] == [Batch, Batch]
+    assert [len(item.order) for item in items] == [1024, 476]
+    assert [[part.topic for part in item.parts] for item in items] == [
+        ["/follower/modem/events", "/follower/modem/range"], ["/follower/modem/range"]]
+    assert items[0].order.tolist().count(0) == 1  # the event
+    for item in items:
+        assert_batch_is_its_items(item)
+
+
+def _messages(batch: Batch) -> list[Output]:
+    """A batch's items without the Ignored ones among them (counted in `Batch.ignored`)."""
+    return [o for o in batch.outputs() if type(o) is not Ignored]
 
 
 _DOUBLE = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.just(-0.0), st.just(0.0))

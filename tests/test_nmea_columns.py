@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import math
 from datetime import date
 
+import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -13,6 +15,7 @@ from formats.nmea.framing import build
 from formats.units import NS as S1
 from recorders import gps, gps_columns
 from recorders.base import LogContext, Output
+from recorders.gnss_covariance import fix_covariance, fix_covariance_columns
 from tests import reference_converters as reference
 
 DAY = date(2016, 10, 12)
@@ -131,3 +134,23 @@ def test_a_clean_receiver_log_takes_the_columnar_path() -> None:
                    for k in range(5)).encode()
     assert nmea_columns.decode_columns(data) is not None
     assert nmea_columns.decode_columns(data.replace(b"*", b"*0", 1)) is None  # damage: the per-line path
+
+
+_SIGMA = st.one_of(st.just(math.nan), st.floats(0.0, 1e3), st.floats(allow_nan=True, allow_infinity=True))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(_SIGMA, _SIGMA, _SIGMA, _SIGMA, st.integers(-1, 10)), max_size=20),
+       st.sampled_from([{}, {"uere_m": 2.0}, {"uere_m": "0.5"}]))
+def test_covariance_columns_are_the_rule_per_epoch(rows, options) -> None:
+    """`fix_covariance_columns` against `fix_covariance` epoch by epoch: the same doubles (bits), types and None."""
+    lat, lon, alt, hdop, quality = (np.array(c, dtype=t) for c, t in zip(
+        zip(*rows) if rows else ([],) * 5, (np.float64,) * 4 + (np.int64,)))
+    matrix, kinds, known = fix_covariance_columns(lat, lon, alt, hdop, quality, options)
+    for k, row in enumerate(rows):
+        cov, kind = fix_covariance(*row, options)
+        assert (kinds[k], bool(known[k])) == (kind, cov is not None)
+        if cov is None:
+            assert np.isnan(matrix[k]).all()
+        else:
+            assert np.array(cov, dtype=np.float64).tobytes() == matrix[k].tobytes()

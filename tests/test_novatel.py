@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from formats import gpstime
 from formats.gpstime import gps_to_unix_ns
 from formats.novatel import logs as nv
 from formats.records import Reject
@@ -154,3 +155,21 @@ def test_no_log_like_text_makes_decode_raise(parts: list[str], head: str) -> Non
     list(nv.decode(line.encode("latin-1")))
     length = struct.pack("<H", len(parts))
     list(nv.decode(b"\xaa\x44\x12\x1c\x2a\x00\x00\x20" + length + "".join(parts).encode("latin-1")))
+
+
+def _gps_to_unix_ns_reference(week: int, seconds_of_week: float) -> int:
+    """The conversion worked out for the one time, no week's count kept: `gps_to_unix_ns`' judge."""
+    gps_ns = (gpstime.GPS_EPOCH_UNIX_S + week * 604800) * 10**9 + round(seconds_of_week * 10**9)
+    approx = gps_ns / 10**9
+    return gps_ns - gpstime.leap_seconds_at_utc(approx - gpstime.leap_seconds_at_utc(approx)) * 10**9
+
+
+@settings(max_examples=500, deadline=None)
+@given(st.one_of(st.integers(0, 3000), st.sampled_from([1930, 1929, 1851, 1850, 1694, 0, 2163]),
+                 st.integers(-10**6, 10**12)),
+       st.one_of(st.floats(0.0, 604800.0, exclude_max=True), st.floats(-1e7, 1e7),
+                 st.sampled_from([0.0, 604799.999999999, 604782.0, 604783.0, 604799.5, 17.5, 18.0])))
+def test_gps_time_is_the_reference_whatever_the_week(week: int, seconds: float) -> None:
+    """A week's one leap count (kept per week) gives each time what the conversion of that time alone gives,
+    in the weeks a leap second falls in (1930: 2017-01-01) and around them too."""
+    assert gps_to_unix_ns(week, seconds) == _gps_to_unix_ns_reference(week, seconds)

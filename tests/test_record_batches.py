@@ -186,12 +186,14 @@ def test_a_batch_write_is_the_writes_one_by_one(tmp_path_factory, messages, chun
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.lists(st.tuples(st.sampled_from([0, 1]), st.binary(max_size=300), st.integers(0, 2 ** 40)), max_size=60),
-       st.integers(64, 2000), st.integers(0, 3))
-def test_a_blob_write_is_the_writes_one_by_one(tmp_path_factory, messages, chunk_size, before):
+@given(st.lists(st.tuples(st.sampled_from([0, 1]), st.binary(max_size=300), st.integers(0, 2 ** 40) | st.integers(0, 3)),
+                max_size=60),
+       st.integers(64, 2000), st.integers(0, 3), st.integers(0, 3))
+def test_a_blob_write_is_the_writes_one_by_one(tmp_path_factory, messages, chunk_size, before, after):
     """`ArchiveWriter.write_blob` against write_serialized per message: the same file, chunks cut at the same
-    messages (small chunk sizes), after `before` messages one by one; and a worker's Capture of the same blob
-    written by `write_captured` too."""
+    messages (small chunk sizes), after `before` messages one by one and before `after` more (a chunk's index
+    of both kinds of writes, times in any order); and a worker's Capture of the same blob written by
+    `write_captured` too."""
     out = tmp_path_factory.mktemp("w")
     files = []
     for how in ("one", "blob", "captured"):
@@ -200,7 +202,7 @@ def test_a_blob_write_is_the_writes_one_by_one(tmp_path_factory, messages, chunk
             ids = [w.channel(topic, S.GnssStatus) for topic in ("/a", "/b")]
             for k, data, t in messages[:before]:
                 w.write_serialized(ids[k], data, t, t + 1)
-            rest = messages[before:]
+            rest, tail = messages[before:len(messages) - after], messages[max(before, len(messages) - after):]
             blob = b"".join(m[1] for m in rest)
             ends = np.cumsum([len(m[1]) for m in rest], dtype=np.int64)
             channels = np.array([ids[m[0]] for m in rest], dtype=np.int64)
@@ -216,6 +218,8 @@ def test_a_blob_write_is_the_writes_one_by_one(tmp_path_factory, messages, chunk
                 capture.write_blob(np.array([numbers[m[0]] for m in rest], dtype=np.int64), blob, ends, times,
                                    times + 1)
                 write_captured(w, capture.finish(None))
+            for k, data, t in tail:
+                w.write_serialized(ids[k], data, t, t + 1)
         files.append(path.read_bytes())
     assert files[0] == files[1] == files[2]
 
@@ -238,3 +242,37 @@ def test_a_batch_write_needs_a_channel_and_as_many_times(tmp_path):
         with pytest.raises(ValueError):
             w.write_serialized_batch("/a", [b"", b""], [1])
         w.write_serialized_batch("/a", [b"x"], [5])  # publish time defaults to the log time
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.lists(st.one_of(st.integers(-3, 40), st.integers(0, 10 ** 6)), min_size=1, max_size=40),
+                max_size=8),
+       st.lists(st.integers(-3, 60), max_size=10), st.integers(1, 12), st.booleans())
+def test_a_batch_of_record_keys_counts_as_the_keys_one_by_one(batches, singles, window, rising):
+    """`RecordCount.add_many` against `add` key by key as `_batch_stats` called it (a key equal to the one before
+    it skipped): the same count, last key and window, for keys in any order or rising (its path at once),
+    with keys one by one between the batches and a window small enough to be crossed."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(recording, "RECORDS_WINDOW", window)
+        _count_both(batches, singles, rising)
+
+
+def _count_both(batches: list[list[int]], singles: list[int], rising: bool) -> None:
+    if rising:  # a log read forward: each batch's keys above the last
+        top, rose = 0, []
+        for batch in batches:
+            rose.append([top + k for k in np.cumsum(np.abs(batch)).tolist()])
+            top = rose[-1][-1]
+        batches = rose
+    many, one = recording.RecordCount(), recording.RecordCount()
+    for k, batch in enumerate(batches):
+        many.add_many(np.array(batch, dtype=np.int64))
+        last = one.last
+        for key in batch:
+            if key != last:
+                one.add(key)
+                last = key
+        if k < len(singles):
+            many.add(singles[k])
+            one.add(singles[k])
+        assert (many.count, many.last, list(many.order), many.seen) == (one.count, one.last, list(one.order), one.seen)
