@@ -78,10 +78,37 @@ def test_calibration_leaves_out_the_stale_and_fixed_rows() -> None:
     x[:300, Z] = 50.0
     x[:300, INN] = 1.0
     sa = StaleAwareDetector(StackConfig())
+    gate0 = sa.inner.gate
     assert sa.calibrate(x, 0.02)
     plain = np.abs(x[300:, Z])
     assert sa.threshold == pytest.approx(np.quantile(plain, 0.98), rel=0.05)
     assert sa.inner.threshold == sa.threshold == sa.threshold_z
+    assert sa.inner.gate == gate0          # no row under a fresh fix: chi-square's gate stays configured
+
+
+def test_calibration_sets_the_gate_on_every_row_under_a_fresh_fix_repeated_or_not() -> None:
+    """The gate decides every row with a fresh fix (repeats too): its quantile is over all of them, as fix_aware's."""
+    rng = np.random.default_rng(4)
+    n = 1200
+    x = np.full((n, len(FEATURE_NAMES)), np.nan)
+    x[:, RES] = rng.normal(0, 30, n)
+    x[:, Z] = rng.normal(0, 1, n)
+    x[:, REP] = 0.0
+    x[:, F2] = rng.chisquare(1, n) * 2.0    # twice chi-square's spread: the gate must rise from 6.63
+    x[:600, USBL] = 1.0                     # under a fresh fix: the gate decides these
+    x[:200, REP] = 3.0                      # ... repeated ones among them too
+    x[600:800, REP] = 3.0                   # repeated without a fix: the stale test (T1), left out
+    x[600:800, Z] = 50.0
+    x[600:800, INN] = 1.0
+    sa = StaleAwareDetector(StackConfig())
+    assert sa.calibrate(x, 0.02)
+    assert sa.inner.gate == pytest.approx(np.quantile(x[:600, F2], 0.98), rel=0.05)
+    assert sa.inner.gate > 9.0
+    alone = FixAwareDetector(StackConfig())
+    assert alone.calibrate(x[800:], 0.02)           # the plain rows: drift_reference's h, as fix_aware's own
+    assert sa.threshold == alone.threshold and 1.5 < sa.threshold < 3.5
+    assert sa.thresholds["chi_square_gate"] == sa.inner.gate
+    assert sa.thresholds["calibration_rows_fresh"] == 600.0
     entry = METHOD_TABLE["stale_aware"]
     assert entry.detects and entry.wide and entry.calibrated and not entry.default
 

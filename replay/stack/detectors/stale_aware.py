@@ -25,9 +25,10 @@ So at each epoch, in order:
   predicted error and the decision is |e| > T1 whatever h is calibrated to;
 - otherwise drift_reference's score and decision.
 
-No new key, nothing read from truth; the threshold of the drift part is
-calibrated on the training trial's normal epochs that are neither repeated
-nor under a fresh fix (`calibrate`).
+No new key, nothing read from truth; both of fix_aware's thresholds are
+calibrated on the training trial's normal epochs they decide (`calibrate`):
+the drift part's on those neither repeated nor under a fresh fix, the
+gate on those under a fresh fix.
 """
 
 from __future__ import annotations
@@ -86,17 +87,23 @@ class StaleAwareDetector:
         self._after()
 
     def calibrate(self, rows: np.ndarray, target: float) -> bool:
-        """Calibrate drift_reference's h on the normal rows (n, F) neither repeated nor under a fresh fix."""
+        """fix_aware's calibration on the normal rows (n, F) its tests decide: every row but a repeat without a fix.
+
+        drift_reference's h on the rows neither repeated nor under a fresh
+        fix, chi-square's gate on every row under one (repeated or not:
+        the gate decides them all), as `FixAwareDetector.calibrate`; the
+        stale test's cut is T1 and is not calibrated.
+        """
         x = np.asarray(rows, dtype=float).reshape(-1, len(FEATURE_NAMES))
-        plain = ~(x[:, _REPEAT] > 0) & ~np.isfinite(x[:, _USBL])
-        done = self.inner.drift.calibrate(x[plain], target)
+        judged = ~(x[:, _REPEAT] > 0) | np.isfinite(x[:, _USBL])
+        done = self.inner.calibrate(x[judged], target)
         self._after()
         return done
 
     def _after(self) -> None:
         # fix_aware's threshold is drift_reference's (calibrated here, not by fix_aware)
         self.threshold = self.inner.threshold = self.inner.drift.threshold
-        self.thresholds = {**self.inner.drift.thresholds, "chi_square_gate": self.inner.gate, "stale_t1_m": self.t1}
+        self.thresholds = {**self.inner.thresholds, "stale_t1_m": self.t1}
 
     def _stale(self, rows: np.ndarray) -> np.ndarray:
         """True where a row is a repeated range with a model innovation and no fresh fix."""
