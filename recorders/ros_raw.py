@@ -49,6 +49,7 @@ class RosTopics:
     def __init__(self, ctx: LogContext):
         self.ctx = ctx
         self.prefix = f"/{ctx.vehicle}/{TOPIC}/"
+        self.offset_ns = ctx.clock_offset_ns
         self.topics: dict[tuple[str, RosSchema], str] = {}   # (bag topic, its type's schema) -> archive topic
         self.types: dict[str, str] = {}                      # archive topic -> its schema's text (one per channel)
         self.counts: Counter[str] = Counter()
@@ -65,7 +66,7 @@ class RosTopics:
         topic = self.topics.get((m.topic, schema))
         if topic is None:
             topic = self._topic(m.topic, schema)
-        t = m.bag_time_ns + self.ctx.clock_offset_ns
+        t = m.bag_time_ns + self.offset_ns
         batch = self.batches.get(topic)
         if EARLIEST_NS <= t <= LATEST_NS and self.batching:
             if batch is None and topic in self.seen:

@@ -46,7 +46,7 @@ from __future__ import annotations
 import functools
 import math
 import re
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -299,6 +299,25 @@ class _Bag:
             if type(item) is Output:
                 self.sources.place(item, m.topic)
             yield item
+
+    def take(self, m: rb.BagMessage, where: Where) -> Iterable[Output | Reject | Ignored | Batch] | None:
+        """The archive messages of ours of one bag message (`item`'s), or None when it gives none now: its topic is
+        not mapped, or it went into its topic's Imu batch (`kept_imu`). An Odometry or NavSatFix read from its
+        bytes gives a list (`standard`)."""
+        mapped = self.targets.get((m.topic, m.msgtype))
+        if mapped is None:
+            mapped = self.maps(m.topic, m.msgtype)
+        if not mapped:
+            return None
+        if m.undecoded:
+            if m.msgtype == IMU:
+                if self.kept_imu(m, where):
+                    return None
+            else:
+                items = self.standard(m, where)
+                if items is not None:
+                    return items
+        return self.item(m, where)
 
     def standard(self, m: rb.BagMessage, where: Where) -> list[Output | Reject] | None:
         """`item`'s archive messages of an Odometry or NavSatFix read from its bytes (`OWN`), as a list; None for
@@ -553,11 +572,13 @@ class _ImuBatch:
     def __init__(self, ctx: LogContext):
         self.ctx = ctx
         self.rows: list[tuple[int, int, Where, bytes]] = []   # (time, publish time, where, frame_id)
+        self.frames: list[bytes] = []                          # each one's frame_id (most often one name)
         self.data: list[bytes] = []
 
     def add(self, t: int, publish: int, where: Where, frame: bytes, data: bytes) -> bool:
         """Keep one message; whether the batch is full."""
         self.rows.append((t, publish, where, frame))
+        self.frames.append(frame)
         self.data.append(data)
         return len(self.data) >= IMU_BATCH
 
@@ -565,12 +586,15 @@ class _ImuBatch:
         """The batch's InsStates (or rejects, as `_imu` gives them), in the order the messages came: one Batch of
         columns on `topic` (the ROS topic's own source) when the recording takes them and none is refused here,
         else one by one on the vehicle's INS topic (the caller places them, as `_imu`'s)."""
-        rows, data = self.rows, self.data
+        rows, data, frames = self.rows, self.data, self.frames
         if not rows:
             return
-        self.rows, self.data = [], []
+        self.rows, self.data, self.frames = [], [], []
         v = ros_imu.values(data)
-        frd = np.array([_ned_bytes(frame) for _, _, _, frame in rows])
+        if frames.count(frames[0]) == len(frames):   # one frame name: one look at it
+            frd = np.full(len(frames), _ned_bytes(frames[0]))
+        else:
+            frd = np.array([_ned_bytes(frame) for frame in frames])
         x, y, z, w = (v[:, k] for k in range(4))
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             n = np.sqrt(x * x + y * y + z * z + w * w)
@@ -648,14 +672,16 @@ def _imu_batch(topic: str, vehicle: str, rows: list[tuple[int, int, Where, bytes
         "position_std_north_m": NAN, "position_std_east_m": NAN, "roll_std_deg": sigma[:, 0],
         "pitch_std_deg": sigma[:, 4], "altitude_m": NAN}
     for names, (values, given) in ((IMU_RATES, angular), (IMU_FORCES, linear)):
-        if given.any():   # a masked row leaves the three unset, as `_imu_state` does without them
+        if given.all():   # set in every row
+            for k, name in enumerate(names):
+                columns[name] = values[:, k]
+        elif given.any():   # a masked row leaves the three unset, as `_imu_state` does without them
             for k, name in enumerate(names):
                 columns[name] = np.ma.masked_array(values[:, k], mask=~given)
-    sigma_rows = sigma.tolist()
 
     def outputs() -> Iterator[Output]:
         for (t, p, where, _), r, pt, h, s, av, la, av_given, la_given in zip(
-                rows, roll.tolist(), pitch.tolist(), heading.tolist(), sigma_rows, angular[0].tolist(),
+                rows, roll.tolist(), pitch.tolist(), heading.tolist(), sigma.tolist(), angular[0].tolist(),
                 linear[0].tolist(), angular[1].tolist(), linear[1].tolist()):
             yield Output(topic, _imu_state(t, vehicle, r, pt, h, s[0], s[4], s[8], av if av_given else None,
                                            la if la_given else None), t, p, where)
@@ -822,9 +848,9 @@ def _bag_items(ctx: LogContext, bag: _Bag, files: list[Path], first: rb.OpenBag 
                 item = raw.output(m, where)
                 if item is not None:   # not in its topic's batch
                     yield from raw.released(iter((item,)))
-                if bag.maps(m.topic, m.msgtype) and not bag.kept_imu(m, where):
-                    items = bag.standard(m, where)
-                    yield from raw.released(bag.item(m, where) if items is None else items)
+                items = bag.take(m, where)
+                if items is not None:
+                    yield from raw.released(items)
             if bag.due(number):
                 yield from raw.released(bag.flush())
             if raw.due(number):
