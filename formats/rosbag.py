@@ -327,18 +327,19 @@ def _messages(reader: Any, ros1: bool, types: dict[str, Any], own: dict[str, Own
         _, msgtype, refused, read_own, schema = known
         problem = problem or refused
         if not problem:
+            data = raw if raw is not None else b""   # (a row without a problem carries its bytes)
             if read_own is not None:
-                read = read_own(raw, ros1)
+                read = read_own(data, ros1)
                 if read is not None:
-                    yield BagMessage(conn.topic, msgtype, t_ns, index, read, "", raw, schema, True)
+                    yield BagMessage(conn.topic, msgtype, t_ns, index, read, "", data, schema, True)
                     index += 1
                     continue
             try:
-                message = deserialize(raw, conn.msgtype)
+                message = deserialize(data, conn.msgtype)
             except Exception as exc:  # noqa: BLE001 - unknown type, short or garbled payload: this message only
                 problem = f"does not decode as {msgtype} ({library_error(exc)})"
             else:
-                yield BagMessage(conn.topic, msgtype, t_ns, index, message, "", raw, schema)
+                yield BagMessage(conn.topic, msgtype, t_ns, index, message, "", data, schema)
                 index += 1
                 continue
         yield BagMessage(conn.topic, msgtype, t_ns, index, None, problem)

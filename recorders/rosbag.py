@@ -339,10 +339,11 @@ class _Bag:
         out: list[Output | Reject] = []
         if m.msgtype == ODOMETRY:
             _, frame, child, v = head   # the doubles: `ros_standard.ODOMETRY_DOUBLES`
-            fields = _odometry_fields(frame, child, (_num(v[0]), _num(v[1]), _num(v[2])),
-                                      (_num(v[3]), _num(v[4]), _num(v[5]), _num(v[6])),
-                                      (_num(v[LINEAR]), _num(v[LINEAR + 1]), _num(v[LINEAR + 2])),
-                                      (_num(v[POSE_COV]), _num(v[POSE_COV + 7]), _num(v[POSE_COV + 35])), self.origin)
+            # position, orientation, linear velocity, the x, y and yaw variances: read from bytes, so floats
+            used = (*v[0:7], *v[LINEAR:LINEAR + 3], v[POSE_COV], v[POSE_COV + 7], v[POSE_COV + 35])
+            if not all(map(math.isfinite, used)):
+                used = tuple(map(_num, used))
+            fields = _odometry_fields(frame, child, used[0:3], used[3:7], used[7:10], used[10:13], self.origin)
             if fields is None:
                 out.append(Reject(where, NO_ODOMETRY))
             else:
