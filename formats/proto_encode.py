@@ -22,6 +22,7 @@ descriptor, never written by hand. Fields not given stay unset.
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Mapping, Sequence
 from functools import lru_cache
 from typing import Any
@@ -65,24 +66,6 @@ def _fields(cls: Any) -> tuple[tuple[str, int, int, bool, bytes], ...]:
     return tuple(out)
 
 
-def _rows(data: bytes, n: int) -> np.ndarray:
-    """`data` in each of n rows, an (n, len(data)) uint8 matrix."""
-    return np.frombuffer(data * n, dtype=np.uint8).reshape(n, len(data))
-
-
-def _column(values: np.ndarray, n: int) -> np.ndarray:
-    """A value per row: `values` itself when it is one already, else its one value repeated."""
-    return values if values.shape == (n,) and values.flags.c_contiguous else \
-        np.ascontiguousarray(np.broadcast_to(values, (n,)))
-
-
-def _const(n: int, data: bytes, present: np.ndarray | None = None) -> Segment:
-    """The same bytes in every row (none where `present` is False)."""
-    mat = _rows(data, n)
-    lens = np.full(n, len(data), dtype=np.int64)
-    return mat, lens if present is None else np.where(present, lens, 0)
-
-
 def varints(values: np.ndarray) -> Segment:
     """Base-128 varints of uint64 values (a negative int64 as its two's complement: ten bytes)."""
     v = np.asarray(values).astype(np.uint64, copy=False)[:, None]
@@ -92,11 +75,8 @@ def varints(values: np.ndarray) -> Segment:
     return (groups | np.where(higher, np.uint64(0x80), np.uint64(0))).astype(np.uint8), lens
 
 
-def _strings(n: int, tag: bytes, values: str | Sequence[str]) -> Segment:
+def _strings(n: int, tag: bytes, values: Sequence[str]) -> Segment:
     """Tag, length and UTF-8 bytes per row; nothing for an empty string. One encoding per distinct value."""
-    if isinstance(values, str):
-        text = values.encode("utf-8")
-        return _const(n, tag + varint(len(text)) + text, None if text else np.zeros(n, dtype=bool))
     # the distinct values in order of first use (a dict keeps it), each row's number among them: C loops only
     codes = {s: k for k, s in enumerate(dict.fromkeys(values))}
     index = np.fromiter(map(codes.__getitem__, values), dtype=np.int64, count=n)
@@ -112,30 +92,44 @@ def _strings(n: int, tag: bytes, values: str | Sequence[str]) -> Segment:
     return table[index], lens[index]
 
 
+def _tagged(n: int, tag: bytes, width: int) -> np.ndarray:
+    """An (n, len(tag) + width) byte matrix with the tag in every row's first bytes, the rest to fill."""
+    out = np.empty((n, len(tag) + width), dtype=np.uint8)
+    out[:, :len(tag)] = np.frombuffer(tag, dtype=np.uint8)
+    return out
+
+
 def _doubles(n: int, tag: bytes, values: Any) -> Segment:
     """Tag and 8 little-endian bytes per row; nothing where the bits are zero (0.0, not -0.0)."""
-    v = _column(np.asarray(values, dtype="<f8"), n)
-    raw = v.view(np.uint8).reshape(n, 8)
-    tags = _rows(tag, n)
-    present = v.view(np.uint64) != 0
-    return np.concatenate([tags, raw], axis=1), np.where(present, len(tag) + 8, 0)
+    v = np.ascontiguousarray(values, dtype="<f8")
+    if v.shape != (n,):
+        v = np.ascontiguousarray(np.broadcast_to(v, (n,)))
+    out = _tagged(n, tag, 8)
+    out[:, len(tag):] = v.view(np.uint8).reshape(n, 8)
+    return out, (v.view(np.uint64) != 0) * (len(tag) + 8)
 
 
 def _optional_doubles(n: int, tag: bytes, values: Any) -> Segment:
     """Tag and 8 little-endian bytes per row where the value is set (every row, but those a masked array masks),
     zero included: explicit presence."""
-    present = ~np.broadcast_to(np.ma.getmaskarray(values), (n,))
-    v = np.ascontiguousarray(np.broadcast_to(np.ma.getdata(values).astype("<f8", copy=False), (n,)))
-    tags = _rows(tag, n)
-    return np.concatenate([tags, v.view(np.uint8).reshape(n, 8)], axis=1), np.where(present, len(tag) + 8, 0)
+    mask = np.ma.getmaskarray(values)
+    v = np.ascontiguousarray(np.ma.getdata(values), dtype="<f8")
+    if v.shape != (n,):
+        v = np.ascontiguousarray(np.broadcast_to(v, (n,)))
+    out = _tagged(n, tag, 8)
+    out[:, len(tag):] = v.view(np.uint8).reshape(n, 8)
+    if not mask.any():
+        return out, np.full(n, len(tag) + 8, dtype=np.int64)
+    return out, np.where(np.broadcast_to(mask, (n,)), 0, len(tag) + 8)
 
 
 def _ints(n: int, tag: bytes, values: Any) -> Segment:
     """Tag and varint per row; nothing where the value is 0."""
-    v = _column(np.asarray(values, dtype=np.int64), n)
+    v = np.broadcast_to(np.asarray(values, dtype=np.int64), (n,))
     mat, lens = varints(v)
-    tags = _rows(tag, n)
-    return _join([(tags, np.full(n, len(tag))), (mat, lens)], v != 0)
+    out = _tagged(n, tag, mat.shape[1])
+    out[:, len(tag):] = mat
+    return out, np.where(v != 0, len(tag) + lens, 0)
 
 
 def _packed(n: int, tag: bytes, values: Any) -> Segment:
@@ -145,20 +139,22 @@ def _packed(n: int, tag: bytes, values: Any) -> Segment:
     if not k:
         return np.zeros((n, 0), dtype=np.uint8), np.zeros(n, dtype=np.int64)
     head = tag + varint(8 * k)
-    tags = _rows(head, n)
-    return np.concatenate([tags, v.view(np.uint8).reshape(n, 8 * k)], axis=1), np.full(n, len(head) + 8 * k)
+    out = _tagged(n, head, 8 * k)
+    out[:, len(head):] = v.view(np.uint8).reshape(n, 8 * k)
+    return out, np.full(n, len(head) + 8 * k)
 
 
 def _timestamps(n: int, tag: bytes, values: Any) -> Segment:
     """A Timestamp sub-message of integer ns per row, where archivable; seconds and nanos left out when 0."""
-    t = _column(np.asarray(values, dtype=np.int64), n)
+    t = np.broadcast_to(np.asarray(values, dtype=np.int64), (n,))
     present = (t >= TIME_MIN_NS) & (t < TIME_MAX_NS)
     sec, nanos = np.divmod(np.where(present, t, 0), NS)
-    inner = [_ints(n, b"\x08", sec), _ints(n, b"\x10", nanos)]
-    size = inner[0][1] + inner[1][1]  # at most 6 + 5 bytes: the length is one varint byte
-    tags = _rows(tag, n)
-    head = np.concatenate([tags, size.astype(np.uint8)[:, None]], axis=1)
-    return _join([(head, np.full(n, len(tag) + 1)), *inner], present)
+    (sec_mat, sec_lens), nanos_part = _ints(n, b"\x08", sec), _ints(n, b"\x10", nanos)
+    size = sec_lens + nanos_part[1]  # at most 6 + 5 bytes: the length is one varint byte
+    head = _tagged(n, tag, 1 + sec_mat.shape[1])   # tag, length, then the seconds: left-aligned as they are
+    head[:, len(tag)] = size
+    head[:, len(tag) + 1:] = sec_mat
+    return _join([(head, len(tag) + 1 + sec_lens), nanos_part], present)
 
 
 def _join(segments: list[Segment], present: np.ndarray | None = None) -> Segment:
@@ -201,7 +197,7 @@ def encode_rows(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[np.ndarra
         return np.zeros((0, 0), dtype=np.uint8), np.zeros(0, dtype=np.int64)
     if not segments:
         return np.zeros((n, 0), dtype=np.uint8), np.zeros(n, dtype=np.int64)
-    return _join(segments)
+    return segments[0] if len(segments) == 1 else _join(segments)
 
 
 def encode_flat(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
@@ -214,10 +210,15 @@ def encode_flat(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[np.ndarra
 
 
 def _segments(cls: Any, n: int, columns: Mapping[str, Any]) -> list[Segment] | None:
-    """Each given field's segment, in field-number order; None without rows."""
+    """Each given field's segment in field-number order, runs of fields every row writes whole merged into one;
+    None without rows."""
     if not n:
         return None
+    # runs of fields every row writes whole (one value for all rows, a double never zero...) are put side by side
+    # at once; only the fields whose length differs between rows go through `_join`'s mask
     segments: list[Segment] = []
+    whole: list[np.ndarray] = []   # the current run of whole fields' matrices
+    const = b""                    # the bytes of the run's latest fields of one value for every row
     for name, _number, kind, repeated, tag in _fields(cls):
         if name not in columns:
             continue
@@ -225,20 +226,78 @@ def _segments(cls: Any, n: int, columns: Mapping[str, Any]) -> list[Segment] | N
         if repeated:
             if kind != _T_DOUBLE:
                 raise TypeError(f"{cls.DESCRIPTOR.full_name}.{name}: only packed repeated doubles are encoded")
-            segments.append(_packed(n, tag, values))
+            seg: Segment | bytes | None = _packed(n, tag, values)
+        elif type(values) in _SCALARS and kind in _SCALAR_KINDS:
+            seg = _scalar(kind, tag, values)
         elif kind == _T_DOUBLE:
-            segments.append(_doubles(n, tag, values))
+            seg = _doubles(n, tag, values)
         elif kind == _T_OPTIONAL_DOUBLE:
-            segments.append(_optional_doubles(n, tag, values))
+            seg = _optional_doubles(n, tag, values)
         elif kind in _INTS or kind == _T_BOOL:
-            segments.append(_ints(n, tag, values))
+            seg = _ints(n, tag, values)
         elif kind == _T_STRING:
-            segments.append(_strings(n, tag, values))
+            seg = _strings(n, tag, values)
         elif kind == _T_MESSAGE and _is_timestamp(cls, name):
-            segments.append(_timestamps(n, tag, values))
+            seg = _timestamps(n, tag, values)
         else:
             raise TypeError(f"{cls.DESCRIPTOR.full_name}.{name}: type {kind} is not encoded from columns")
+        if type(seg) is bytes:
+            const += seg
+            continue
+        assert isinstance(seg, tuple)
+        mat, lens = seg
+        if const:
+            whole.append(_row(n, const))
+            const = b""
+        high = lens.max()
+        if not high:   # written in no row
+            continue
+        if high == mat.shape[1] == lens.min():
+            whole.append(mat)
+            continue
+        if whole:   # a run of whole fields before this one: its fixed prefix
+            prefix = _whole(n, whole)
+            seg = np.concatenate([prefix[0], mat], axis=1), prefix[1] + lens
+            whole = []
+        segments.append(seg)
+    if const:
+        whole.append(_row(n, const))
+    if whole:
+        segments.append(_whole(n, whole))
     return segments
+
+
+# scalars given as one value for every row, and the field kinds `_scalar` encodes from one
+_SCALARS = frozenset({float, int, bool, str, np.float64, np.int64, np.int32, np.bool_})
+_SCALAR_KINDS = frozenset({_T_DOUBLE, _T_OPTIONAL_DOUBLE, *_INTS, _T_BOOL, _T_STRING})
+_F8 = struct.Struct("<d")
+_U64_MASK = (1 << 64) - 1
+
+
+def _scalar(kind: int, tag: bytes, value: Any) -> bytes:
+    """The bytes of a field of one value for every row, as the column encoders give each row."""
+    if kind == _T_STRING:
+        if not isinstance(value, str):
+            raise TypeError(f"a string field given {type(value).__name__}")
+        text = value.encode("utf-8")
+        return tag + varint(len(text)) + text if text else b""
+    if kind == _T_DOUBLE or kind == _T_OPTIONAL_DOUBLE:
+        if isinstance(value, str):
+            raise TypeError("a double field given a string")
+        bits = _F8.pack(float(value))
+        return tag + bits if kind == _T_OPTIONAL_DOUBLE or bits != bytes(8) else b""
+    v = int(np.int64(value))   # as the int64 column would hold it (a bool is 0 or 1)
+    return tag + varint(v & _U64_MASK) if v else b""
+
+
+def _row(n: int, data: bytes) -> np.ndarray:
+    return np.broadcast_to(np.frombuffer(data, dtype=np.uint8), (n, len(data)))
+
+
+def _whole(n: int, mats: list[np.ndarray]) -> Segment:
+    """A run of whole segments side by side: one segment."""
+    mat = mats[0] if len(mats) == 1 else np.concatenate(mats, axis=1)
+    return mat, np.full(n, mat.shape[1], dtype=np.int64)
 
 
 def encode_columns(cls: Any, n: int, columns: Mapping[str, Any]) -> tuple[bytes, np.ndarray]:

@@ -303,9 +303,12 @@ def _messages(reader: Any, ros1: bool, types: dict[str, Any], own: dict[str, Own
             except Exception as exc:  # noqa: BLE001 - rosbags' type errors are of many kinds: this type only
                 broken[conn.msgtype] = f"no message definition to archive it by ({library_error(exc)})"
     undecoded = {t: own[t][1] for t in schemas if t in own and _md5(store, t, ros1) == own[t][0].get(1 if ros1 else 2)}
+    deserialize = store.deserialize_ros1 if ros1 else store.deserialize_cdr
     index = 0
     stream = _ros1_rows(reader) if ros1 else _ros2_rows(reader)
-    names: dict[str, str] = {}   # rosbags' type name -> ours (`ros_type`)
+    # per connection (by identity: the storage gives the same object for each of its messages), what every one of
+    # its messages shares: our type name, the reason none decodes ("" when they may), its type's own reader, schema
+    facts: dict[int, tuple[Any, str, str, Callable[[bytes, bool], Any] | None, RosSchema | None]] = {}
     while True:
         try:
             conn, t_ns, raw, problem = next(stream)
@@ -318,31 +321,42 @@ def _messages(reader: Any, ros1: bool, types: dict[str, Any], own: dict[str, Own
             yield BagMessage("", "", t_ns, index, None, problem or "a message of no connection the bag defines")
             index += 1
             continue
-        msgtype = names.get(conn.msgtype) or names.setdefault(conn.msgtype, ros_type(conn.msgtype))
-        problem = problem or broken.get(conn.msgtype, "")
-        message = None
-        if not problem and conn.msgtype in undecoded and getattr(conn.ext, "serialization_format", "cdr") == "cdr":
-            read = undecoded[conn.msgtype](raw or b"", ros1)
-            if read is not None:
-                yield BagMessage(conn.topic, msgtype, t_ns, index, read, "", raw or b"", schemas[conn.msgtype], True)
-                index += 1
-                continue
+        known = facts.get(id(conn))
+        if known is None or known[0] is not conn:
+            known = facts[id(conn)] = _facts(conn, ros1, broken, undecoded, schemas)
+        _, msgtype, refused, read_own, schema = known
+        problem = problem or refused
         if not problem:
-            fmt = getattr(conn.ext, "serialization_format", "cdr")
+            data = raw if raw is not None else b""   # (a row without a problem carries its bytes)
+            if read_own is not None:
+                read = read_own(data, ros1)
+                if read is not None:
+                    yield BagMessage(conn.topic, msgtype, t_ns, index, read, "", data, schema, True)
+                    index += 1
+                    continue
             try:
-                if ros1:
-                    message = store.deserialize_ros1(raw, conn.msgtype)
-                elif fmt == "cdr":
-                    message = store.deserialize_cdr(raw, conn.msgtype)
-                else:
-                    problem = f"serialization {fmt!r} is not CDR"
+                message = deserialize(data, conn.msgtype)
             except Exception as exc:  # noqa: BLE001 - unknown type, short or garbled payload: this message only
                 problem = f"does not decode as {msgtype} ({library_error(exc)})"
-        if problem:
-            yield BagMessage(conn.topic, msgtype, t_ns, index, None, problem)
-        else:
-            yield BagMessage(conn.topic, msgtype, t_ns, index, message, "", raw or b"", schemas[conn.msgtype])
+            else:
+                yield BagMessage(conn.topic, msgtype, t_ns, index, message, "", data, schema)
+                index += 1
+                continue
+        yield BagMessage(conn.topic, msgtype, t_ns, index, None, problem)
         index += 1
+
+
+def _facts(conn: Any, ros1: bool, broken: dict[str, str], undecoded: dict[str, Callable[[bytes, bool], Any]],
+           schemas: dict[str, RosSchema]) -> tuple[Any, str, str, Callable[[bytes, bool], Any] | None,
+                                                   RosSchema | None]:
+    """(conn, our type name, why none of its messages decodes or "", its type's own reader, its schema) of a
+    connection whose topic and type are text."""
+    refused = broken.get(conn.msgtype, "")
+    fmt = getattr(conn.ext, "serialization_format", "cdr")
+    if not refused and not ros1 and fmt != "cdr":
+        refused = f"serialization {fmt!r} is not CDR"
+    read_own = undecoded.get(conn.msgtype) if fmt == "cdr" else None
+    return conn, ros_type(conn.msgtype), refused, read_own, schemas.get(conn.msgtype)
 
 
 def _md5(store: Any, msgtype: str, ros1: bool) -> str:
@@ -357,9 +371,14 @@ def _ros2_rows(reader: Any) -> Iterator[RawRow]:
     """A ROS 2 bag's rows, each value checked (a database row may hold anything: a NULL, text, a float); each MCAP
     chunk the bounded storage refused or found damaged as one row of its own (its messages are not read)."""
     problems = storage_problems(reader)
-    for row in _ros2_checked(reader):
-        if problems:   # MCAP storage only
-            yield from _storage_rows(problems)
+    if not problems:   # sqlite3 storage: the rows alone
+        return _ros2_checked(reader)
+    return _with_storage_rows(_ros2_checked(reader), problems)
+
+
+def _with_storage_rows(rows: Iterator[RawRow], problems: list[list[str]]) -> Iterator[RawRow]:
+    for row in rows:
+        yield from _storage_rows(problems)
         yield row
     yield from _storage_rows(problems)
 
@@ -372,18 +391,23 @@ def _storage_rows(problems: list[list[str]]) -> Iterator[RawRow]:
 
 def _ros2_checked(reader: Any) -> Iterator[RawRow]:
     compressed = getattr(getattr(reader, "storage", None), "message_compressed", False)
+    text: dict[int, tuple[Any, bool]] = {}   # per connection (by identity): whether its topic and type are text
     for conn, t_ns, raw in reader.messages():
-        if not (isinstance(conn.topic, str) and isinstance(conn.msgtype, str)):   # the topics table's row
+        known = text.get(id(conn))
+        if known is None or known[0] is not conn:
+            known = text[id(conn)] = (conn, isinstance(conn.topic, str) and isinstance(conn.msgtype, str))
+        if not known[1]:   # the topics table's row
             yield None, 0, None, f"topic {conn.topic!r} of type {conn.msgtype!r}: not text"
             continue
-        problem = ""
         if type(t_ns) is not int or not 0 <= t_ns < 1 << 63:
-            problem, t_ns = f"timestamp {t_ns!r} is not a time in ns", 0
-        elif not isinstance(raw, (bytes, bytearray, memoryview)):
-            problem = f"data {type(raw).__name__} is not bytes"
+            yield conn, 0, None, f"timestamp {t_ns!r} is not a time in ns"
+        elif type(raw) is not bytes and not isinstance(raw, (bytes, bytearray, memoryview)):
+            yield conn, t_ns, None, f"data {type(raw).__name__} is not bytes"
         elif compressed:   # compression mode "message": each message inflated here, bounded
-            raw, problem = inflate_message(bytes(raw))
-        yield conn, t_ns, None if problem else bytes(raw), problem
+            data, problem = inflate_message(bytes(raw))
+            yield conn, t_ns, data if not problem else None, problem
+        else:
+            yield conn, t_ns, raw if type(raw) is bytes else bytes(raw), ""
 
 
 def _ros1_rows(reader: Any) -> Iterator[RawRow]:

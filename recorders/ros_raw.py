@@ -19,7 +19,7 @@ channel, one schema.
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 
 from formats.records import Reject, Where
 from formats.ros_messages import TOPIC, RosMessage, RosSchema, topic_path
@@ -49,6 +49,7 @@ class RosTopics:
     def __init__(self, ctx: LogContext):
         self.ctx = ctx
         self.prefix = f"/{ctx.vehicle}/{TOPIC}/"
+        self.offset_ns = ctx.clock_offset_ns
         self.topics: dict[tuple[str, RosSchema], str] = {}   # (bag topic, its type's schema) -> archive topic
         self.types: dict[str, str] = {}                      # archive topic -> its schema's text (one per channel)
         self.counts: Counter[str] = Counter()
@@ -59,28 +60,29 @@ class RosTopics:
 
     def output(self, m: BagMessage, where: Where) -> Output | None:
         """The archive message of one bag message that decoded (its `schema` set), or None when it went into its
-        topic's batch."""
+        topic's batch (counted when the batch is given out)."""
         schema = m.schema
         assert schema is not None
         topic = self.topics.get((m.topic, schema))
         if topic is None:
             topic = self._topic(m.topic, schema)
-        self.counts[topic] += 1
-        t = m.bag_time_ns + self.ctx.clock_offset_ns
-        if self.batching and EARLIEST_NS <= t <= LATEST_NS:
-            batch = self.batches.get(topic)
+        t = m.bag_time_ns + self.offset_ns
+        batch = self.batches.get(topic)
+        if EARLIEST_NS <= t <= LATEST_NS and self.batching:
             if batch is None and topic in self.seen:
                 if not self.batches:
                     self.oldest = where.message or 0
-                batch = self.batches[topic] = SourceBatch(topic, RosMessage(schema, b""), [], [], [], [])
+                times: list[int] = []   # log and publish times are the same: one list for both
+                batch = self.batches[topic] = SourceBatch(topic, RosMessage(schema, b""), [], times, times, [])
             if batch is not None:
-                batch.payloads.append(m.data)
+                data = m.data
+                batch.payloads.append(data)
                 batch.log_times_ns.append(t)
-                batch.publish_times_ns.append(t)
                 batch.wheres.append(where)
-                self.held += len(m.data)
+                self.held += len(data)
                 return None
             self.seen.add(topic)
+        self.counts[topic] += 1
         return Output(topic, RosMessage(schema, m.data), t, t, where)
 
     def due(self, number: int) -> bool:
@@ -89,13 +91,15 @@ class RosTopics:
 
     def flush(self) -> Iterator[SourceBatch]:
         """Every batch, each topic's messages in order."""
+        counts = self.counts
         for batch in self.batches.values():
             batch.where = batch.wheres[-1]
+            counts[batch.topic] += len(batch.payloads)
             yield batch
         self.batches = {}
         self.held = 0
 
-    def released(self, items: Iterator[Output | Reject | Ignored | Batch]
+    def released(self, items: Iterable[Output | Reject | Ignored | Batch]
                  ) -> Iterator[Output | Reject | Ignored | Batch | SourceBatch]:
         """The items, with the batches given out before each that the recording may refuse (a Reject, an Output
         outside 1980-2100 that `containers.checked_times` turns into one; a converter's Batch holds none of

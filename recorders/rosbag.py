@@ -46,7 +46,7 @@ from __future__ import annotations
 import functools
 import math
 import re
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -84,6 +84,7 @@ from .manifest import SENSORS
 from .ros_raw import RosTopics
 
 NAN = math.nan
+LINEAR, POSE_COV = ros_standard.LINEAR.start, ros_standard.POSE_COV.start   # in an Odometry's doubles
 IMU, ODOMETRY, NAVSATFIX = "sensor_msgs/Imu", "nav_msgs/Odometry", "sensor_msgs/NavSatFix"
 RAW_TYPES = ("nmea_msgs/Sentence", "std_msgs/String")
 INS_TYPES = ("sensor_msgs/Imu", "nav_msgs/Odometry")
@@ -148,6 +149,8 @@ def _frame(msg: Any) -> str:
 
 # a bag's few frame names, each looked at once (Imu and Odometry ask at every message)
 _ned = functools.lru_cache(maxsize=1024)(is_ned)
+_world = functools.lru_cache(maxsize=1024)(is_world)
+_UNROUTED = object()
 
 
 def _num(x: Any) -> float:
@@ -216,6 +219,7 @@ class _Sources:
     def __init__(self) -> None:
         self.owner: dict[tuple[str, str], str] = {}   # (vehicle, archive topic below it) -> the ROS topic there
         self.name: dict[str, str] = {}                # ROS topic -> "" (owns its topic) or its name below it
+        self.places: dict[tuple[str, str], str] = {}  # (archive topic, ROS topic) -> `placed`, once claimed
 
     def claim(self, vehicle: str, key: str, topic: str) -> None:
         """The ROS topic's place, once: its archive topic, or its own name below the one another topic holds."""
@@ -230,11 +234,17 @@ class _Sources:
     def placed(self, archive_topic: str, topic: str) -> str:
         """The archive topic an output of a ROS topic goes to: its own source's (claimed by its first output if
         not yet)."""
+        place = self.places.get((archive_topic, topic))
+        if place is not None:
+            return place
         parts = archive_topic.split("/", 3)   # "", vehicle, family, rest
         if topic not in self.name and len(parts) >= 3:
             self.claim(parts[1], parts[2], topic)
         name = self.name.get(topic)
-        return "/".join([*parts[:3], name, *parts[3:]]) if name else archive_topic
+        place = "/".join([*parts[:3], name, *parts[3:]]) if name else archive_topic
+        if topic in self.name:   # claimed: its place never changes
+            self.places[(archive_topic, topic)] = place
+        return place
 
 
 class _Bag:
@@ -248,6 +258,8 @@ class _Bag:
         self.targets: dict[tuple[str, str], bool] = {}   # (topic, type) -> mapped to ours
         self.found: dict[tuple[str, str], tuple[str, str, str] | None] = {}   # (topic, type) -> its `_target`
         self.imus: dict[str, _ImuBatch] = {}              # Imu topic -> its messages read from their bytes
+        # (topic, type) -> the context an Odometry or NavSatFix of it converts in, None when `item` must take it
+        self.routes: dict[tuple[str, str], LogContext | None] = {}
         self.oldest: int | None = None   # the number of the earliest bag message an Imu batch holds
         # typed topics claim their archive topics first, a position (Odometry) before an attitude alone (Imu)
         ranked = []
@@ -287,6 +299,73 @@ class _Bag:
             if type(item) is Output:
                 self.sources.place(item, m.topic)
             yield item
+
+    def take(self, m: rb.BagMessage, where: Where) -> Iterable[Output | Reject | Ignored | Batch] | None:
+        """The archive messages of ours of one bag message (`item`'s), or None when it gives none now: its topic is
+        not mapped, or it went into its topic's Imu batch (`kept_imu`). An Odometry or NavSatFix read from its
+        bytes gives a list (`standard`)."""
+        mapped = self.targets.get((m.topic, m.msgtype))
+        if mapped is None:
+            mapped = self.maps(m.topic, m.msgtype)
+        if not mapped:
+            return None
+        if m.undecoded:
+            if m.msgtype == IMU:
+                if self.kept_imu(m, where):
+                    return None
+            else:
+                items = self.standard(m, where)
+                if items is not None:
+                    return items
+        return self.item(m, where)
+
+    def standard(self, m: rb.BagMessage, where: Where) -> list[Output | Reject] | None:
+        """`item`'s archive messages of an Odometry or NavSatFix read from its bytes (`OWN`), as a list; None for
+        any other message (`item` takes it)."""
+        if not m.undecoded or (m.msgtype != ODOMETRY and m.msgtype != NAVSATFIX):
+            return None
+        key = (m.topic, m.msgtype)
+        ctx = self.routes.get(key, _UNROUTED)
+        if ctx is _UNROUTED:
+            ctx = self.routes[key] = self._route(key)
+        if ctx is None:
+            return None
+        assert isinstance(ctx, LogContext)
+        head = m.message
+        offset = ctx.clock_offset_ns
+        publish = m.bag_time_ns + offset
+        t = (head[0] if head[0] > 0 else m.bag_time_ns) + offset
+        vehicle = ctx.vehicle
+        out: list[Output | Reject] = []
+        if m.msgtype == ODOMETRY:
+            _, frame, child, v = head   # the doubles: `ros_standard.ODOMETRY_DOUBLES`
+            # position, orientation, linear velocity, the x, y and yaw variances: read from bytes, so floats
+            used = (*v[0:7], *v[LINEAR:LINEAR + 3], v[POSE_COV], v[POSE_COV + 7], v[POSE_COV + 35])
+            if not all(map(math.isfinite, used)):
+                used = tuple(map(_num, used))
+            fields = _odometry_fields(frame, child, used[0:3], used[3:7], used[7:10], used[10:13], self.origin)
+            if fields is None:
+                out.append(Reject(where, NO_ODOMETRY))
+            else:
+                out.append(Output(self.sources.placed(f"/{vehicle}/ins", m.topic), S.ins_state(t, vehicle, *fields),
+                                  t, publish, where))
+            return out
+        _, _, status, v, kind = head
+        fix, quality = _navsatfix_values(status, _num(v[0]), _num(v[1]), _num(v[2]), _finite(v[3:]), kind)
+        if fix is not None:
+            out.append(Output(self.sources.placed(f"/{vehicle}/gps", m.topic), _fix(t, vehicle, *fix), t, publish,
+                              where))
+        out.append(Output(self.sources.placed(f"/{vehicle}/gps/status", m.topic), _status(t, vehicle, quality), t,
+                          publish, where))
+        return out
+
+    def _route(self, key: tuple[str, str]) -> LogContext | None:
+        """The context a topic's messages convert in (its vehicle's); None when its target is none, or refused
+        (`item` says why, message by message)."""
+        target = self.found[key] if key in self.found else self.found.setdefault(key, _target(*key, self.ctx))
+        if target is None or (target[0] and target[0] not in SENSORS):
+            return None
+        return self.ctx if target[1] == self.ctx.vehicle else _with_vehicle(self.ctx, target[1])
 
     def due(self, number: int) -> bool:
         """Whether an Imu batch holds a message more than IMU_SPAN bag messages before message `number`."""
@@ -329,9 +408,10 @@ class _Bag:
             if m.msgtype == ODOMETRY:
                 _, frame, child, v = head
                 x, y, z, qx, qy, qz, qw = map(_num, v[:7])   # position, orientation (`ros_standard.ODOMETRY_DOUBLES`)
-                vx, vy, vz = map(_num, v[ros_standard.LINEAR])
+                vx, vy, vz = map(_num, v[LINEAR:LINEAR + 3])
+                cov = v[POSE_COV:POSE_COV + 36]
                 fields = _odometry_fields(frame, child, (x, y, z), (qx, qy, qz, qw), (vx, vy, vz),
-                                          _finite(v[ros_standard.POSE_COV]), self.origin)
+                                          (_num(cov[0]), _num(cov[7]), _num(cov[35])), self.origin)
                 if fields is None:
                     yield Reject(where, NO_ODOMETRY)
                 else:
@@ -493,11 +573,13 @@ class _ImuBatch:
     def __init__(self, ctx: LogContext):
         self.ctx = ctx
         self.rows: list[tuple[int, int, Where, bytes]] = []   # (time, publish time, where, frame_id)
+        self.frames: list[bytes] = []                          # each one's frame_id (most often one name)
         self.data: list[bytes] = []
 
     def add(self, t: int, publish: int, where: Where, frame: bytes, data: bytes) -> bool:
         """Keep one message; whether the batch is full."""
         self.rows.append((t, publish, where, frame))
+        self.frames.append(frame)
         self.data.append(data)
         return len(self.data) >= IMU_BATCH
 
@@ -505,12 +587,15 @@ class _ImuBatch:
         """The batch's InsStates (or rejects, as `_imu` gives them), in the order the messages came: one Batch of
         columns on `topic` (the ROS topic's own source) when the recording takes them and none is refused here,
         else one by one on the vehicle's INS topic (the caller places them, as `_imu`'s)."""
-        rows, data = self.rows, self.data
+        rows, data, frames = self.rows, self.data, self.frames
         if not rows:
             return
-        self.rows, self.data = [], []
+        self.rows, self.data, self.frames = [], [], []
         v = ros_imu.values(data)
-        frd = np.array([_ned_bytes(frame) for _, _, _, frame in rows])
+        if frames.count(frames[0]) == len(frames):   # one frame name: one look at it
+            frd = np.full(len(frames), _ned_bytes(frames[0]))
+        else:
+            frd = np.array([_ned_bytes(frame) for frame in frames])
         x, y, z, w = (v[:, k] for k in range(4))
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             n = np.sqrt(x * x + y * y + z * z + w * w)
@@ -588,14 +673,16 @@ def _imu_batch(topic: str, vehicle: str, rows: list[tuple[int, int, Where, bytes
         "position_std_north_m": NAN, "position_std_east_m": NAN, "roll_std_deg": sigma[:, 0],
         "pitch_std_deg": sigma[:, 4], "altitude_m": NAN}
     for names, (values, given) in ((IMU_RATES, angular), (IMU_FORCES, linear)):
-        if given.any():   # a masked row leaves the three unset, as `_imu_state` does without them
+        if given.all():   # set in every row
+            for k, name in enumerate(names):
+                columns[name] = values[:, k]
+        elif given.any():   # a masked row leaves the three unset, as `_imu_state` does without them
             for k, name in enumerate(names):
                 columns[name] = np.ma.masked_array(values[:, k], mask=~given)
-    sigma_rows = sigma.tolist()
 
     def outputs() -> Iterator[Output]:
         for (t, p, where, _), r, pt, h, s, av, la, av_given, la_given in zip(
-                rows, roll.tolist(), pitch.tolist(), heading.tolist(), sigma_rows, angular[0].tolist(),
+                rows, roll.tolist(), pitch.tolist(), heading.tolist(), sigma.tolist(), angular[0].tolist(),
                 linear[0].tolist(), angular[1].tolist(), linear[1].tolist()):
             yield Output(topic, _imu_state(t, vehicle, r, pt, h, s[0], s[4], s[8], av if av_given else None,
                                            la if la_given else None), t, p, where)
@@ -624,7 +711,7 @@ def _odometry_state(ctx: LogContext, frame: str, child: str, position: tuple[flo
                     pcov: list[float], t: int, publish: int, where: Where,
                     origin: tuple[float, float] | None) -> Iterator[Output | Reject]:
     """An Odometry's InsState from its fields (non-finite numbers NaN), or why it gives none."""
-    fields = _odometry_fields(frame, child, position, quaternion, linear, pcov, origin)
+    fields = _odometry_fields(frame, child, position, quaternion, linear, (pcov[0], pcov[7], pcov[35]), origin)
     if fields is None:
         yield Reject(where, NO_ODOMETRY)
         return
@@ -637,23 +724,23 @@ ODOMETRY_SOURCE = "rosbag:nav_msgs/Odometry"
 
 def _odometry_fields(frame: str, child: str, position: tuple[float, float, float],
                      quaternion: tuple[float, float, float, float], linear: tuple[float, float, float],
-                     pcov: list[float], origin: tuple[float, float] | None) -> tuple | None:
+                     variances: tuple[float, float, float], origin: tuple[float, float] | None) -> tuple | None:
     """An Odometry's InsState as S.ins_state's arguments after time and frame (`ins.INS_FIELDS`), or None when it
-    has neither position, orientation nor velocity."""
+    has neither position, orientation nor velocity. `variances`: its pose covariance's x, y and yaw ones."""
     ned = _ned(frame)
     north, east, down = position if ned else enu_to_ned(position)
     roll, pitch, heading = attitude_deg(quaternion, ned)
     lat, lon = local_to_geodetic(north, east, origin)
-    if is_world(child):  # a twist given in a world frame, against REP-103's child frame
-        vn, ve, vd = linear if is_ned(child) else enu_to_ned(linear)
+    if _world(child):  # a twist given in a world frame, against REP-103's child frame
+        vn, ve, vd = linear if _ned(child) else enu_to_ned(linear)
     elif math.isfinite(heading):
-        vn, ve, vd = body_to_ned(linear if is_ned(child) else flu_to_frd(linear), roll, pitch, heading)
+        vn, ve, vd = body_to_ned(linear if _ned(child) else flu_to_frd(linear), roll, pitch, heading)
     else:
         vn = ve = vd = NAN
-    sn, se = (pcov[0], pcov[7]) if ned else (pcov[7], pcov[0])
+    sn, se = (variances[0], variances[1]) if ned else (variances[1], variances[0])
     if not any(map(math.isfinite, (north, east, down, heading, vn))):
         return None
-    return (ODOMETRY_SOURCE, "", lat, lon, down, roll, pitch, heading, vn, ve, vd, _sigma_deg(pcov[35]),
+    return (ODOMETRY_SOURCE, "", lat, lon, down, roll, pitch, heading, vn, ve, vd, _sigma_deg(variances[2]),
             math.sqrt(sn) if sn >= 0 else NAN, math.sqrt(se) if se >= 0 else NAN, NAN, NAN, NAN)
 
 
@@ -762,8 +849,9 @@ def _bag_items(ctx: LogContext, bag: _Bag, files: list[Path], first: rb.OpenBag 
                 item = raw.output(m, where)
                 if item is not None:   # not in its topic's batch
                     yield from raw.released(iter((item,)))
-                if bag.maps(m.topic, m.msgtype) and not bag.kept_imu(m, where):
-                    yield from raw.released(bag.item(m, where))
+                items = bag.take(m, where)
+                if items is not None:
+                    yield from raw.released(items)
             if bag.due(number):
                 yield from raw.released(bag.flush())
             if raw.due(number):

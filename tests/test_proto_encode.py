@@ -157,3 +157,28 @@ def test_optional_doubles_are_written_where_set(data, n):
                 row[name] = v
     blob, ends = encode_columns(S.InsState, n, columns)
     assert [bytes(b) for b in split(blob, ends)] == [_reference(S.InsState, row) for row in rows]
+
+
+@pytest.mark.parametrize("cls", CLASSES, ids=lambda c: c.DESCRIPTOR.name)
+@settings(max_examples=60, deadline=None)
+@given(data=st.data(), n=st.integers(1, 5))
+def test_one_value_for_every_row_is_each_rows_value(cls, data, n):
+    """A column given as one Python or numpy value (written once, then side by side with the others) gives each row
+    what an array of that value does, and upb's bytes."""
+    names = [name for name in _encodable(cls) if name != "timestamp" and not cls.DESCRIPTOR.fields_by_name[name].is_repeated
+             and data.draw(st.booleans(), label=f"give {name}")]
+    row = {name: data.draw(_strategy(cls, name), label=name) for name in names}
+    columns: dict = {"timestamp": np.arange(n, dtype=np.int64) * 10 ** 9 + 1_476_237_600 * 10 ** 9}
+    for name, value in row.items():
+        f = cls.DESCRIPTOR.fields_by_name[name]
+        if f.type == f.TYPE_DOUBLE:
+            columns[name] = data.draw(st.sampled_from([float, np.float64]), label="as")(value)
+        elif f.type == f.TYPE_STRING:
+            columns[name] = value
+        else:
+            columns[name] = data.draw(st.sampled_from([int, np.int64]), label="as")(value)
+    blob, ends = encode_columns(cls, n, columns)
+    expected = [_reference(cls, {**row, "timestamp": int(t)}) for t in columns["timestamp"]]
+    assert [bytes(b) for b in split(blob, ends)] == expected
+    arrays = {k: (v if isinstance(v, (str, np.ndarray)) else np.full(n, v)) for k, v in columns.items()}
+    assert encode_columns(cls, n, arrays)[0] == blob

@@ -246,3 +246,24 @@ def test_a_bag_read_from_its_bytes_and_batched_is_archived_as_one_by_one(tmp_pat
     Log = S.MESSAGE_CLASSES["foxglove.Log"]
     assert [Log.FromString(m[3]).message for m in fast_log] == [Log.FromString(m[3]).message for m in slow_log]
     assert all(f[1] <= s[1] for f, s in zip(fast_log, slow_log))
+
+
+@pytest.mark.parametrize("ros1", [True, False])
+@settings(max_examples=150, deadline=None)
+@given(data=st.data(), frames=st.sampled_from([("odom", "base_link"), ("map", "a"), ("", "x" * 9)]))
+def test_a_transform_found_once_decides_only_for_messages_alike_where_it_is_read(ros1, data, frames):
+    """A TFMessage of one transform is checked once per frame pair: a message equal to a checked one but in its
+    header's seq and stamp and its numbers is one; any other change is read as it would be, and so decided as
+    rosbags decides."""
+    store = _store(ros1)
+    good = _serialize(store, ros1, _message(store, ros1, ros_standard.TF, [0.5, -1.0, 2.0], (1_476_237_600, 137),
+                                            frames), ros_standard.TF)
+    assert ros_standard.transforms(good, ros1) == 1   # now known
+    changed = bytearray(good)
+    for _ in range(data.draw(st.integers(1, 4), label="changes")):
+        at = data.draw(st.integers(0, len(good) - 1), label="at")
+        changed[at] = data.draw(st.integers(0, 255), label="byte")
+    cut = data.draw(st.sampled_from([0, 0, 1, 3, -1, -4]), label="length change")
+    message = bytes(changed[:len(changed) + cut] if cut < 0 else changed + bytes(cut))
+    assert ros_standard.transforms(message, ros1) == ros_standard._transforms(message, ros1)
+    _read_as_rosbags(store, ros1, ros_standard.TF, message)
