@@ -392,10 +392,11 @@ def test_with_a_fresh_usbl_fix_the_drift_residual_is_the_current_innovation(monk
         z = range_to(lat0, lon0, depth, *geo) + 5.0 * math.sin(k)
         drift = tracker.epoch(t, f"leader{k % 2 + 1}", z, z, depth, geo)[EXTRA_FEATURES.index("drift_residual_m")]
         res = seen[-1]
+        # the range-scale state's share k·r is put back: the residual is the range's error against the truth
         if t - fix_until <= 60.0:            # a fix within lag_s (60 s): the current innovation
-            assert drift == res.innovation_m
+            assert drift == res.innovation_m + res.scale_m
         elif t > 60.0:                       # no fresh fix, a lagged state: the lagged residual
-            assert drift == res.lagged_m and drift != res.innovation_m
+            assert drift == res.lagged_m + res.scale_m and drift != res.innovation_m + res.scale_m
 
 
 def _settled(gate_cap: int = 10) -> tuple[DrErrorModel, DrErrorModel]:
