@@ -31,6 +31,12 @@ drift does not pull the state either, while a real change of the DR error
 (which every leader sees) is taken after ``gate_cap`` ranges. A position
 fix (USBL) is gated the same way, on its Mahalanobis distance.
 
+With ``range_scale_sigma`` > 0 a last state k, shared by every link, is a
+range-scale error (a sound-speed error: each range is (1 + k) times the
+true one), so a range measures z ~ r - u·d + k·r and d no longer takes a
+bias that points away from every leader at once; ``LaggedResidual.scale_m``
+is its share k·r of the current prediction.
+
 Propagation is lazy: the DR displacement and time are summed between
 events, and the state moves by F = I + G(sums) at the next range or fix,
 exact for the mean (psi and s are constant between updates; G·G = 0); the
