@@ -40,7 +40,8 @@ filter, and are the same for every method of a run:
   forward (`replay.stack.dr_error_model`: DR error, heading error and DVL
   scale error, fed the USBL fixes too; its current innovation for the
   first ``lag_s`` and while a USBL fix younger than ``lag_s`` exists,
-  since fixes keep the filter off a drift); with "stiff" the innovation of the `StiffReference` (a
+  since fixes keep the filter off a drift; the share k·r of its range-scale
+  state, an error of the range against the truth, included); with "stiff" the innovation of the `StiffReference` (a
   2-D random walk of the DR error, the default before 95521e9, which takes the
   USBL fixes too); otherwise ``usbl_residual_m`` where finite, else
   ``exclusion_residual_m`` or ``lag_residual_m`` (``drift_source``), else
@@ -62,7 +63,11 @@ filter, and are the same for every method of a run:
   a young drift; long, because over seeds 0-19 a longer pool separated
   drift from normal better (stiff reference: drift recall at 0.3 m/s at
   2 % FPR 0.47, 0.61, 0.75 for 300, 600, 900 s). With ``scale_pooled`` False: per leader over ``scale_window_s``
-  (300 s), repeated ranges included (the form before 4b6fc32);
+  (300 s), repeated ranges included (the form before 4b6fc32). The model's
+  range-scale share k·r (a sound-speed error) is added after the median,
+  in x's units, and is not in the values the median is taken over, so the
+  mission's median does not take a sound-speed bias away (issue 26:
+  docs/detection.md section 5);
 - ``exclusion_z``: ``exclusion_residual_m`` standardized the same way (its
   offset is the follower's DR error across the other links' lines of
   sight, which changes slowly along the mission);
@@ -70,7 +75,9 @@ filter, and are the same for every method of a run:
   residual per leader, restarting after each of its own alarms;
 - ``model_innovation_m``: the range minus the DR error model's current
   prediction, before this range's update (NaN without the model). A
-  repeated range never updates the model, so on a stale run this is the
+  repeated range never updates the model (and its range-scale share k·r
+  is left out: a k pulled by other links' biases, times r, pushed normal
+  stale ranges past T1), so on a stale run this is the
   stale value against where the leader is now: the range error that
   the label thresholds, predicted (``stale_aware`` tests it;
   docs/detection.md section 5).
