@@ -392,10 +392,11 @@ def test_with_a_fresh_usbl_fix_the_drift_residual_is_the_current_innovation(monk
         z = range_to(lat0, lon0, depth, *geo) + 5.0 * math.sin(k)
         drift = tracker.epoch(t, f"leader{k % 2 + 1}", z, z, depth, geo)[EXTRA_FEATURES.index("drift_residual_m")]
         res = seen[-1]
+        # the range-scale state's share k·r is put back: the residual is the range's error against the truth
         if t - fix_until <= 60.0:            # a fix within lag_s (60 s): the current innovation
-            assert drift == res.innovation_m
+            assert drift == res.innovation_m + res.scale_m
         elif t > 60.0:                       # no fresh fix, a lagged state: the lagged residual
-            assert drift == res.lagged_m and drift != res.innovation_m
+            assert drift == res.lagged_m + res.scale_m and drift != res.innovation_m + res.scale_m
 
 
 def _settled(gate_cap: int = 10) -> tuple[DrErrorModel, DrErrorModel]:
@@ -468,3 +469,108 @@ def test_a_fix_beyond_the_gate_is_left_out_until_the_cap() -> None:
     near.fix(201.0, near.x[0] + 2.0, near.x[1] - 2.0, (4.0, 0.0, 4.0))
     assert near.last_fix_s == 201.0
 
+
+
+class ScaleStepwise:
+    """The slow obvious filter with the range-scale state: 5 states (d_n, d_e, psi, s, k), z = r + h·d + k·r."""
+
+    def __init__(self, q: float, sigma: float) -> None:
+        self.q = np.array([q, q, 0.0, 0.0, 0.0])
+        self.x = np.zeros(5)
+        self.p = np.diag([1.0, 4.0, math.radians(3.0) ** 2, 1e-4, sigma ** 2])
+        self.history: list[tuple[float, np.ndarray, np.ndarray, int]] = []
+        self.steps: list[np.ndarray] = []
+
+    def step(self, dt: float, n: float, e: float) -> None:
+        f = np.eye(5)
+        f[:4, :4] = transition((-e, n), (n, e))
+        self.x = f @ self.x
+        self.p = f @ (self.p + np.diag(self.q * dt)) @ f.T
+        self.steps.append(np.concatenate([f.ravel(), self.q * dt]))
+
+    def range(self, t: float, z: float, north: float, east: float, lag_s: float) -> tuple[float, ...]:
+        r = math.hypot(north, east)
+        h = np.array([-north / r, -east / r, 0.0, 0.0, r])
+        v, s = z - r - h @ self.x, h @ self.p @ h + 9.0
+        vl = sl = math.nan
+        old = [st_ for st_ in self.history if st_[0] <= t - lag_s]
+        if old:
+            _, x, p, k = old[-1]
+            for packed in self.steps[k:]:
+                f = packed[:25].reshape(5, 5)
+                x, p = f @ x, f @ (p + np.diag(packed[25:])) @ f.T
+            vl, sl = z - r - h @ x, h @ p @ h + 9.0
+        scale = r * self.x[4]
+        k = self.p @ h / s
+        self.x = self.x + k * v
+        self.p = (np.eye(5) - np.outer(k, h)) @ self.p
+        self.history.append((t, self.x.copy(), self.p.copy(), len(self.steps)))
+        return float(v), float(s), float(vl), float(sl), float(scale)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.tuples(st.floats(0.2, 3.0), st.floats(-2.0, 2.0), st.floats(-2.0, 2.0), st.integers(0, 3),
+                          st.floats(-1500, 1500), st.floats(-1500, 1500), st.floats(-30, 30)),
+                min_size=1, max_size=60),
+       st.floats(1e-4, 0.02))
+def test_the_range_scale_state_is_the_per_step_filter(events: list[tuple[float, float, float, int, float, float,
+                                                                          float]], sigma: float) -> None:
+    """With ``range_scale_sigma`` a fifth state k, each range measuring r + h·d + k·r: innovation, lagged
+    residual, the scale's share k·r and the state as the per-step 5-state filter gives them, exactly (no walks,
+    no gate)."""
+    fast = DrErrorModel(DrErrorParams(1e-2, 0.0, 0.0, 3.0, (1.0, 2.0), math.radians(3.0), 0.01, 10.0, 1e9, 0,
+                                      range_scale_sigma=sigma))
+    slow = ScaleStepwise(1e-2, sigma)
+    t = 0.0
+    for dt, vn, ve, nsteps, north, east, err in events:
+        for _ in range(nsteps):
+            t += dt
+            fast.step(dt, vn * dt, ve * dt)
+            slow.step(dt, vn * dt, ve * dt)
+        if math.hypot(north, east) < 1.0:
+            continue
+        z = math.hypot(north, east) * (1.0 + 0.005) + err
+        got = fast.range(t, "leader1", z, north, east, False)
+        want = slow.range(t, z, north, east, 10.0)
+        tol = dict(rel=1e-6, abs=1e-6)
+        assert (got.innovation_m, got.innovation_var_m2, got.scale_m) == pytest.approx(
+            (want[0], want[1], want[4]), **tol)
+        if math.isnan(want[2]):
+            assert math.isnan(got.lagged_m)
+        else:
+            assert (got.lagged_m, got.lagged_var_m2) == pytest.approx((want[2], want[3]), **tol)
+    fast._propagate()
+    np.testing.assert_allclose(fast.x, slow.x, atol=1e-6)
+    np.testing.assert_allclose(fast.p, slow.p, rtol=1e-6, atol=1e-9)
+
+
+def test_the_range_scale_state_learns_a_sound_speed_bias() -> None:
+    """Every range 0.5 % long (a sound speed 0.5 % high) on the turning track with a 2 deg heading bias: the
+    scale state finds 0.005 and the residuals vanish; without it the DR state cannot hold a bias that points
+    away from every leader, and the residuals keep metres of it."""
+    def run(sigma: float) -> tuple[DrErrorModel, np.ndarray]:
+        m = DrErrorModel(DrErrorParams(1e-2, HEADING_WALK, 1e-4, 3.0, (1.0, 2.0), math.radians(3.0), 0.01, 60.0,
+                                       4.0, 10, range_scale_sigma=sigma))
+        t, dr_step, err = _turning_track(1600.0, 2.0)
+        dr = np.cumsum(dr_step, axis=0)
+        rows, k, ping = [], 0, 2.4
+        for i, ti in enumerate(t):
+            m.step(1.0, *dr_step[i])
+            if ti < ping:
+                continue
+            ping += 2.4
+            rel = dr[i] - _leaders(k)
+            z = 1.005 * float(np.hypot(*(rel - err[i])))
+            res = m.range(float(ti), f"leader{k % 2 + 1}", z, float(rel[0]), float(rel[1]), False)
+            rows.append((ti, res.innovation_m, res.lagged_m, res.scale_m, float(np.hypot(*rel))))
+            k += 1
+        return m, np.array(rows)
+    with_k, rows = run(0.005)
+    late = rows[rows[:, 0] > 800.0]
+    assert with_k.x[with_k.ks] == pytest.approx(0.005, abs=3e-4)
+    assert np.max(np.abs(late[:, 1])) < 0.5 and np.max(np.abs(late[:, 2])) < 1.0
+    # the scale's share of the prediction is k·r, the bias each range carries
+    np.testing.assert_allclose(late[:, 3], 0.005 * late[:, 4], atol=0.3)
+    without, plain = run(0.0)
+    assert without.ks == -1 and np.all(plain[:, 3] == 0.0)
+    assert np.max(np.abs(plain[plain[:, 0] > 800.0, 1])) > 1.0

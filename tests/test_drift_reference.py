@@ -141,17 +141,21 @@ def test_drift_z_is_the_residual_against_both_leaders_recent_non_repeated_residu
     leaders with a finite residual and no repeated range; per leader
     (``scale_pooled`` False): that leader's aged lag_s..scale_window_s, repeated or not. NaN with fewer
     than scale_min_samples of them. Ranges are noisy, a fifth repeated. With ``scale_by_model`` (the
-    default) x is first scaled to the range noise by the model's predicted sigma: x·r / sqrt(var).
+    default) x is first scaled to the range noise by the model's predicted sigma: x·r / sqrt(var). The
+    range-scale state's share k·r is in x but not in the values remembered for the median (it is put back
+    after the median).
     """
     cfg = replace(FeatureConfig(), scale_pooled=pooled, scale_by_model=by_model)
     tracker = FeatureTracker(cfg, ("leader1", "leader2"), (LAT, LON))
     assert tracker.model is not None
     model_range = tracker.model.range
     var: list[float] = []
+    shares: list[float] = []
 
     def spied(*args: Any, **kwargs: Any) -> Any:
         res = model_range(*args, **kwargs)
         var.append(res.lagged_var_m2 if math.isfinite(res.lagged_m) else res.innovation_var_m2)
+        shares.append(res.scale_m)
         return res
 
     tracker.model.range = spied  # type: ignore[method-assign]
@@ -169,6 +173,7 @@ def test_drift_z_is_the_residual_against_both_leaders_recent_non_repeated_residu
         last[leader] = slant
         out = tracker.epoch(t, leader, slant, slant, 0.0, geos[leader])
         x = out[ix] * 3.0 / math.sqrt(var[-1]) if by_model else out[ix]
+        clean = (out[ix] - shares[-1]) * (3.0 / math.sqrt(var[-1]) if by_model else 1.0)
         window = cfg.scale_pooled_window_s if pooled else cfg.scale_window_s
         old = [x for s, ld, x, rep in seen if t - window <= s <= t - cfg.lag_s
                and (not rep if pooled else ld == leader)]
@@ -179,8 +184,9 @@ def test_drift_z_is_the_residual_against_both_leaders_recent_non_repeated_residu
             scale = max(1.4826 * float(np.median(np.abs(np.array(old) - med))), cfg.scale_floor_m)
             assert out[iz] == pytest.approx((x - med) / scale, rel=1e-9, abs=1e-9)
             checked += 1
-        seen.append((t, leader, x, out[irep] > 0))
+        seen.append((t, leader, clean, out[irep] > 0))
     assert checked > 400 and sum(rep for *_, rep in seen) > 50
+    assert max(abs(s) for s in shares) > 0.0
 
 
 def test_z_threshold_is_configured_and_keeps_the_t1_floor() -> None:

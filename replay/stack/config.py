@@ -101,6 +101,10 @@ class FeatureConfig:
     model_deviation_sigma_deg: float = 0.0
     # ... or, without states, the heading error walks by this much per square root of a radian turned
     model_turn_deg_per_sqrt_rad: float = 0.0
+    # a range-scale error shared by every link (a sound-speed error: each range is (1 + k) times the true one,
+    # k 0.1-1 %), a state of this initial sigma learned from the ranges themselves (0: no such state); 0.001
+    # chosen on development seeds 3001-3008 over 0.002 and 0.005, which the other links' biases pulled further
+    model_range_scale_sigma: float = 0.001
     # drift_z standardizes the drift residual by the model's predicted sigma before the pooled median and MAD
     # (so a held step or a turn, which the model says widens the residual, raises no alarm by itself);
     # False: the residual in metres, as before

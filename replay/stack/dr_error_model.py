@@ -31,6 +31,12 @@ drift does not pull the state either, while a real change of the DR error
 (which every leader sees) is taken after ``gate_cap`` ranges. A position
 fix (USBL) is gated the same way, on its Mahalanobis distance.
 
+With ``range_scale_sigma`` > 0 a last state k, shared by every link, is a
+range-scale error (a sound-speed error: each range is (1 + k) times the
+true one), so a range measures z ~ r - u·d + k·r and d no longer takes a
+bias that points away from every leader at once; ``LaggedResidual.scale_m``
+is its share k·r of the current prediction.
+
 Propagation is lazy: the DR displacement and time are summed between
 events, and the state moves by F = I + G(sums) at the next range or fix,
 exact for the mean (psi and s are constant between updates; G·G = 0); the
@@ -54,6 +60,7 @@ class LaggedResidual(NamedTuple):
     innovation_var_m2: float
     lagged_m: float         # z - the predicted range from the state of lag_s ago carried forward
     lagged_var_m2: float
+    scale_m: float = 0.0    # the range-scale state's share of the current prediction, k·r (0 without it)
 
 
 def _moved(x: list[float], g: list[float]) -> list[float]:
@@ -77,7 +84,9 @@ class DrErrorParams:
     the last velocity is carried on: bottom lock lost); deviation_sigma_rad: the initial sigma of each of the
     four coefficients of a compass deviation with heading (0: no such states); turn_sigma_rad_per_sqrt_rad: the
     heading error's walk per square root of a radian turned (a deviation with heading, without states: after
-    a turn the heading error is less known, so the filter learns the new one from the ranges).
+    a turn the heading error is less known, so the filter learns the new one from the ranges);
+    range_scale_sigma: the initial sigma of a range-scale error k shared by every link, each range measuring
+    (1 + k) times the true one (a sound-speed error of 0.1-1 %; 0: no such state).
     """
 
     q_m2_per_s: float
@@ -94,6 +103,7 @@ class DrErrorParams:
     hold_grace_s: float = 2.0
     deviation_sigma_rad: float = 0.0
     turn_sigma_rad_per_sqrt_rad: float = 0.0
+    range_scale_sigma: float = 0.0
 
 
 class DrErrorModel:
@@ -111,7 +121,10 @@ class DrErrorModel:
         """Start at x = 0 with P = diag(p0_m², heading_sigma², scale_sigma²[, deviation_sigma² x 4])."""
         c = params
         self.deviation = float(c.deviation_sigma_rad) > 0.0
-        self.n = 8 if self.deviation else 4
+        scaled = float(c.range_scale_sigma) > 0.0
+        self.n = (8 if self.deviation else 4) + scaled
+        # the range-scale state is the last; it does not move d (its columns of G stay 0)
+        self.ks = self.n - 1 if scaled else -1
         self.q = (float(c.q_m2_per_s), float(c.q_m2_per_s), float(c.heading_walk_rad_per_sqrt_s) ** 2,
                   float(c.scale_walk_per_sqrt_s) ** 2) + (0.0,) * (self.n - 4)
         self.hold_q = float(c.hold_q_m2_per_s3)
@@ -124,7 +137,8 @@ class DrErrorModel:
         self.gate_cap = int(c.gate_cap)
         self.x = [0.0] * self.n
         diag = (float(c.p0_m[0]) ** 2, float(c.p0_m[1]) ** 2, float(c.heading_sigma_rad) ** 2,
-                float(c.scale_sigma) ** 2) + (float(c.deviation_sigma_rad) ** 2,) * (self.n - 4)
+                float(c.scale_sigma) ** 2) + (float(c.deviation_sigma_rad) ** 2,) * (4 * self.deviation) \
+            + (float(c.range_scale_sigma) ** 2,) * scaled
         self.p = [[diag[i] if i == j else 0.0 for j in range(self.n)] for i in range(self.n)]
         # since the last propagation: G's entries (rows 0, 1 of the columns of states 2..n-1), dt, the
         # held position variance (m²) and the heading turned (rad)
@@ -208,7 +222,7 @@ class DrErrorModel:
         self._snaps.append((float(t_s), list(self.x), [list(row) for row in self.p], self._cum))
         self._forget(t_s)
 
-    def _lagged(self, t_s: float, h0: float, h1: float) -> tuple[float, float] | None:
+    def _lagged(self, t_s: float, h0: float, h1: float, r: float) -> tuple[float, float] | None:
         """h·x and h·P·hᵀ of the state of lag_s ago (the newest at least that old) carried forward, or None."""
         self._forget(t_s)
         snaps = self._snaps
@@ -220,6 +234,8 @@ class DrErrorModel:
         dt, held, turned = d[-3], d[-2], d[-1]
         # g = Fᵀ·hᵀ: h on d, and on each state k >= 2 the sum of h along its column of G
         g = [h0, h1] + [h0 * d[2 * k - 4] + h1 * d[2 * k - 3] for k in range(2, n)]
+        if self.ks >= 0:
+            g[self.ks] = r
         hx = sum(g[i] * x[i] for i in range(n))
         # h·F·(P + Q dt)·Fᵀ·hᵀ = g·(P + Q dt)·gᵀ (the noise of the whole interval put at its start, the held
         # variance too: a bound rather than the exact sum over the steps)
@@ -237,16 +253,18 @@ class DrErrorModel:
         if not r > 0.0 or not math.isfinite(z_m):
             return LaggedResidual(NAN, NAN, NAN, NAN)
         h0, h1 = -north_m / r, -east_m / r
-        x, p, n = self.x, self.p, self.n
-        ph = [p[i][0] * h0 + p[i][1] * h1 for i in range(n)]
-        s = h0 * ph[0] + h1 * ph[1] + self.r_var
-        v = z_m - r - (h0 * x[0] + h1 * x[1])
-        lagged = self._lagged(t_s, h0, h1)
+        x, p, n, ks = self.x, self.p, self.n, self.ks
+        # z ~ (1 + k)·(r + h·d) ~ r + h·d + k·r: the range-scale state's row of H is r
+        ph = [p[i][0] * h0 + p[i][1] * h1 + (p[i][ks] * r if ks >= 0 else 0.0) for i in range(n)]
+        s = h0 * ph[0] + h1 * ph[1] + (r * ph[ks] if ks >= 0 else 0.0) + self.r_var
+        scale = r * x[ks] if ks >= 0 else 0.0
+        v = z_m - r - (h0 * x[0] + h1 * x[1]) - scale
+        lagged = self._lagged(t_s, h0, h1, r)
         vl = sl = NAN
         if lagged is not None:
             vl = z_m - r - lagged[0]
             sl = lagged[1] + self.r_var
-        out = LaggedResidual(v, s, vl, sl)
+        out = LaggedResidual(v, s, vl, sl, scale)
         gated = math.isfinite(vl) and abs(vl) > self.gate_sigma * math.sqrt(sl)
         gated_out = self._gated_out.get(leader, 0)
         # a repeated range leaves the gate's count (of fresh ranges) as it was

@@ -40,7 +40,8 @@ filter, and are the same for every method of a run:
   forward (`replay.stack.dr_error_model`: DR error, heading error and DVL
   scale error, fed the USBL fixes too; its current innovation for the
   first ``lag_s`` and while a USBL fix younger than ``lag_s`` exists,
-  since fixes keep the filter off a drift); with "stiff" the innovation of the `StiffReference` (a
+  since fixes keep the filter off a drift; the share k·r of its range-scale
+  state, an error of the range against the truth, included); with "stiff" the innovation of the `StiffReference` (a
   2-D random walk of the DR error, the default before 95521e9, which takes the
   USBL fixes too); otherwise ``usbl_residual_m`` where finite, else
   ``exclusion_residual_m`` or ``lag_residual_m`` (``drift_source``), else
@@ -62,7 +63,11 @@ filter, and are the same for every method of a run:
   a young drift; long, because over seeds 0-19 a longer pool separated
   drift from normal better (stiff reference: drift recall at 0.3 m/s at
   2 % FPR 0.47, 0.61, 0.75 for 300, 600, 900 s). With ``scale_pooled`` False: per leader over ``scale_window_s``
-  (300 s), repeated ranges included (the form before 4b6fc32);
+  (300 s), repeated ranges included (the form before 4b6fc32). The model's
+  range-scale share k·r (a sound-speed error) is added after the median,
+  in x's units, and is not in the values the median is taken over, so the
+  mission's median does not take a sound-speed bias away (issue 26:
+  docs/detection.md section 5);
 - ``exclusion_z``: ``exclusion_residual_m`` standardized the same way (its
   offset is the follower's DR error across the other links' lines of
   sight, which changes slowly along the mission);
@@ -70,7 +75,9 @@ filter, and are the same for every method of a run:
   residual per leader, restarting after each of its own alarms;
 - ``model_innovation_m``: the range minus the DR error model's current
   prediction, before this range's update (NaN without the model). A
-  repeated range never updates the model, so on a stale run this is the
+  repeated range never updates the model (and its range-scale share k·r
+  is left out: a k pulled by other links' biases, times r, pushed normal
+  stale ranges past T1), so on a stale run this is the
   stale value against where the leader is now: the range error that
   the label thresholds, predicted (``stale_aware`` tests it;
   docs/detection.md section 5).
@@ -214,6 +221,7 @@ class FeatureTracker:
             config.model_scale_sigma, config.lag_s, config.model_gate_sigma, config.model_gate_cap,
             config.model_hold_q_m2_per_s3, config.model_hold_grace_s,
             math.radians(config.model_deviation_sigma_deg), math.radians(config.model_turn_deg_per_sqrt_rad),
+            config.model_range_scale_sigma,
         )) if config.drift_source == "model" else None
         self._range_sigma_m = float(range_sigma_m)
         self.dr = [float(position[0]), float(position[1])]
@@ -283,6 +291,7 @@ class FeatureTracker:
         cfg = self.config
         lag = self._lag_residual(t_s, z_m, depth_m, geo, reference)
         scaled = innovation = NAN
+        post = 0.0
         self._repeats[leader] = self._repeats[leader] + 1 if self._last_slant.get(leader) == slant_m else 0
         self._last_slant[leader] = slant_m
         e = z_m - range_to(self.dr[0], self.dr[1], depth_m, *geo)
@@ -316,6 +325,15 @@ class FeatureTracker:
             if cfg.scale_by_model and var > 0.0:
                 # in metres at the range noise alone: the pooled median and MAD then see one spread
                 scaled = drift * self._range_sigma_m / math.sqrt(var)
+            if res.scale_m != 0.0:
+                # the range-scale state's share k·r is an error of the range against the truth (what the label
+                # thresholds), not of the DR: the model's prediction leaves it out of the residual, and it is put
+                # back in after the mission's median, in the residual's units, so drift_z does not normalize a
+                # sound-speed bias away (docs/detection.md section 5); the stale test's innovation stays without it
+                shown = self._range_sigma_m / math.sqrt(var) if cfg.scale_by_model and var > 0.0 else 1.0
+                post = res.scale_m * shown
+                scaled = drift * shown
+                drift = drift + res.scale_m
         elif self.stiff is not None:
             drift = self.stiff.range(leader, z_m, *rel, self._repeats[leader] > 0)
         else:
@@ -326,11 +344,11 @@ class FeatureTracker:
         return (float(self._repeats[leader]), d, consistency, usbl, lag, drift, max(up, down), excl,
                 self._standardized(t_s, pool, scaled if math.isfinite(scaled) else drift,
                                    keep=not (cfg.scale_pooled and self._repeats[leader] > 0),
-                                   window_s=cfg.scale_pooled_window_s if cfg.scale_pooled else None),
+                                   window_s=cfg.scale_pooled_window_s if cfg.scale_pooled else None, post=post),
                 self._standardized(t_s, ("excl", leader), excl) if self.exclusion is not None else NAN, innovation)
 
     def _standardized(self, t_s: float, key: tuple[str, str], x: float, keep: bool = True,
-                      window_s: float | None = None) -> float:
+                      window_s: float | None = None, post: float = 0.0) -> float:
         """x against the median and MAD of its series' (key) values aged lag_s to window_s; NaN if few.
 
         ``window_s`` None: ``scale_window_s``. ``keep`` False: x is standardized
@@ -349,7 +367,7 @@ class FeatureTracker:
             return NAN
         med = statistics.median(old)
         mad = statistics.median(abs(v - med) for v in old)
-        return (x - med) / max(1.4826 * mad, cfg.scale_floor_m)
+        return (x + post - med) / max(1.4826 * mad, cfg.scale_floor_m)
 
     def _lag_residual(self, t_s: float, z_m: float, depth_m: float, geo: tuple[float, float, float],
                       reference: tuple[float, float] | None) -> float:
