@@ -313,27 +313,7 @@ class FeatureTracker:
         b, a = metric_scales_scalar(0.5 * (self.dr[0] + lat), 0.5 * (depth_m + ldepth))
         rel = (b * (self.dr[0] - lat), a * (self.dr[1] - lon))
         if self.model is not None:
-            res = self.model.range(t_s, leader, z_m, *rel, self._repeats[leader] > 0)
-            innovation = res.innovation_m
-            # the current innovation before the first lagged state (lag_s into the run), and while a USBL fix
-            # younger than lag_s holds the filter: the lagged state has not seen that fix, and fixes keep the
-            # filter off a drift (dev seeds 1-9 with fixes: FNR at 2 % 0.051 against the lagged one's 0.071)
-            fresh_fix = t_s - self.model.last_fix_s <= cfg.lag_s
-            lagged = math.isfinite(res.lagged_m) and not fresh_fix
-            drift = res.lagged_m if lagged else res.innovation_m
-            var = res.lagged_var_m2 if lagged else res.innovation_var_m2
-            if cfg.scale_by_model and var > 0.0:
-                # in metres at the range noise alone: the pooled median and MAD then see one spread
-                scaled = drift * self._range_sigma_m / math.sqrt(var)
-            if res.scale_m != 0.0:
-                # the range-scale state's share k·r is an error of the range against the truth (what the label
-                # thresholds), not of the DR: the model's prediction leaves it out of the residual, and it is put
-                # back in after the mission's median, in the residual's units, so drift_z does not normalize a
-                # sound-speed bias away (docs/detection.md section 5); the stale test's innovation stays without it
-                shown = self._range_sigma_m / math.sqrt(var) if cfg.scale_by_model and var > 0.0 else 1.0
-                post = res.scale_m * shown
-                scaled = drift * shown
-                drift = drift + res.scale_m
+            innovation, drift, scaled, post = self._model_drift(t_s, leader, z_m, rel)
         elif self.stiff is not None:
             drift = self.stiff.range(leader, z_m, *rel, self._repeats[leader] > 0)
         else:
@@ -346,6 +326,35 @@ class FeatureTracker:
                                    keep=not (cfg.scale_pooled and self._repeats[leader] > 0),
                                    window_s=cfg.scale_pooled_window_s if cfg.scale_pooled else None, post=post),
                 self._standardized(t_s, ("excl", leader), excl) if self.exclusion is not None else NAN, innovation)
+
+    def _model_drift(self, t_s: float, leader: str, z_m: float, rel: tuple[float, float]) -> tuple[float, ...]:
+        """The DR error model's view of one range: (its innovation, the drift residual, that residual in metres at
+        the range noise alone (NaN: not scaled by the model), the range-scale share put back after the median)."""
+        cfg, model = self.config, self.model
+        assert model is not None
+        scaled = NAN
+        post = 0.0
+        res = model.range(t_s, leader, z_m, *rel, self._repeats[leader] > 0)
+        # the current innovation before the first lagged state (lag_s into the run), and while a USBL fix
+        # younger than lag_s holds the filter: the lagged state has not seen that fix, and fixes keep the
+        # filter off a drift (dev seeds 1-9 with fixes: FNR at 2 % 0.051 against the lagged one's 0.071)
+        fresh_fix = t_s - model.last_fix_s <= cfg.lag_s
+        lagged = math.isfinite(res.lagged_m) and not fresh_fix
+        drift = res.lagged_m if lagged else res.innovation_m
+        var = res.lagged_var_m2 if lagged else res.innovation_var_m2
+        if cfg.scale_by_model and var > 0.0:
+            # in metres at the range noise alone: the pooled median and MAD then see one spread
+            scaled = drift * self._range_sigma_m / math.sqrt(var)
+        if res.scale_m != 0.0:
+            # the range-scale state's share k·r is an error of the range against the truth (what the label
+            # thresholds), not of the DR: the model's prediction leaves it out of the residual, and it is put
+            # back in after the mission's median, in the residual's units, so drift_z does not normalize a
+            # sound-speed bias away (docs/detection.md section 5); the stale test's innovation stays without it
+            shown = self._range_sigma_m / math.sqrt(var) if cfg.scale_by_model and var > 0.0 else 1.0
+            post = res.scale_m * shown
+            scaled = drift * shown
+            drift = drift + res.scale_m
+        return res.innovation_m, drift, scaled, post
 
     def _standardized(self, t_s: float, key: tuple[str, str], x: float, keep: bool = True,
                       window_s: float | None = None, post: float = 0.0) -> float:
