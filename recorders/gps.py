@@ -557,9 +557,9 @@ def _novatel_column_batches(cols: novatel_columns.NovatelColumns, ctx: LogContex
         satellites[has_bp] = used
         fix[has_bp] = [s == "SOL_COMPUTED" and p != "NONE" for s, p in zip(status, ptype)]
         take = np.maximum(bp_row, 0)
-        lat, lon, height, und = (bp[k][take] for k in (2, 3, 4, 5))  # type: ignore[index]
+        lat, lon, height, und = (bp[k][take] for k in (2, 3, 4, 5))
         alt = np.where(np.isnan(und), height, height + und)
-        lat_std, lon_std, h_std = (bp[k][take] for k in (7, 8, 9))  # type: ignore[index]
+        lat_std, lon_std, h_std = (bp[k][take] for k in (7, 8, 9))
     speed, course, up = np.full(n, NAN), np.full(n, NAN), np.full(n, NAN)
     velocity = np.zeros(n, dtype=bool)
     bv = cols.values.get("BESTVEL")
@@ -567,9 +567,9 @@ def _novatel_column_batches(cols: novatel_columns.NovatelColumns, ctx: LogContex
         r = bv_row[has_bv]
         velocity[has_bv] = [bv[0][i] == "SOL_COMPUTED" for i in r.tolist()]
         take = np.maximum(bv_row, 0)
-        speed = np.where(velocity, bv[4][take], NAN)  # type: ignore[index]
-        course = np.where(velocity, bv[5][take], NAN)  # type: ignore[index]
-        up = bv[6][take]  # type: ignore[index]
+        speed = np.where(velocity, bv[4][take], NAN)
+        course = np.where(velocity, bv[5][take], NAN)
+        up = bv[6][take]
     north, east = np.full(n, NAN), np.full(n, NAN)
     both = np.flatnonzero(velocity & np.isfinite(speed) & np.isfinite(course))
     if len(both):

@@ -520,7 +520,7 @@ def _span_column_batches(cols: novatel_columns.NovatelColumns, ctx: LogContext) 
             for k, v in stds.items():
                 out[k][e] = v
             out["depth_m"][e] = np.where(np.isnan(und), NAN, -(height - und))  # type: ignore[operator]
-            words = [s if s == p else s + " " + p for s, p in zip(values[0], values[1])]  # type: ignore[arg-type]
+            words = [s if s == p else s + " " + p for s, p in zip(values[0], values[1])]
         else:
             lat, lon, height, north, east, up, roll, pitch, azimuth = values[2:11]
             words = values[11]  # type: ignore[assignment]

@@ -116,7 +116,7 @@ def _check_headers(heads: list[str]) -> tuple[list[str], np.ndarray, np.ndarray]
     for k, rule in ((2, int), (3, finite), (7, partial(int, base=16)), (8, partial(int, base=16)), (9, int)):
         for s in set(h[k]):
             if s or k == 2:
-                rule(s)  # type: ignore[operator]  # int or finite, by position
+                rule(s)
     weeks = _by_distinct(partial(integer, name="week"), h[5])
     seconds = _floats(h[6]) if "" not in h[6] else np.array([finite(s) for s in h[6]])
     names = [s[:-1] if s[-1:] == "A" else s for s in h[0]]
@@ -187,7 +187,7 @@ def decode_columns(data: bytes) -> NovatelColumns | None:
         except (ValueError, IndexError, OverflowError):
             return None
         if name in ("INSPVA", "INSPVAS"):  # the record's own time
-            week[pos] = np.array(cols[0], dtype=np.int64) if max(map(abs, cols[0])) < 1 << 62 else 0  # type: ignore[arg-type]
+            week[pos] = np.array(cols[0], dtype=np.int64) if max(map(abs, cols[0])) < 1 << 62 else 0
             sow[pos] = cols[1]
         rows[name], values[name] = pos, cols
     return NovatelColumns(code[kept], week, sow, s[kept], idx[kept] + 1, rows, values)
