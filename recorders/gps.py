@@ -69,9 +69,10 @@ from .gnss_velocity import NO_VELOCITY, components, components_column, gnss_velo
 from .gnss_velocity import SUFFIX as VELOCITY
 from .nmea_epochs import NO_DATE, NO_TIME, vtg_speed, vtg_valid
 from .novatel_epochs import (
+    ColumnEpochs,
     chunks,
     epoch_member,
-    novatel_column_epochs,
+    novatel_column_path,
     novatel_publish_ns,
     novatel_scan_epochs,
     novatel_scan_time,
@@ -423,14 +424,14 @@ def convert_novatel(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
 
     For a consumer of batches a clean file takes the column path (`_novatel_column_batches`), any other the
     per-line one."""
+    resume = (0, 1)
     if ctx.batches and ctx.prefix in PREFIX_STYLES:
-        cols = novatel_columns.decode_columns(data)
-        batches = None if cols is None else _novatel_column_batches(cols, ctx)
-        if batches is not None:
-            yield from batches
+        went_on = yield from novatel_column_path(data, ctx, _GNSS_KINDS, _novatel_column_batches)
+        if went_on is None:
             return
+        resume = went_on
     rows = _NovatelRows(ctx)
-    for epoch in novatel_scan_epochs(data, ctx, _GNSS_KINDS):
+    for epoch in novatel_scan_epochs(data, ctx, _GNSS_KINDS, resume):
         reject = epoch if isinstance(epoch, Reject) else rows.add(epoch)
         if reject is not None or rows.full:
             yield from batched(ctx, rows.take())
@@ -530,12 +531,10 @@ class _NovatelRows:
         return Batch(parts, np.array(order, dtype=np.int64), np.array(keys, dtype=np.int64), last, outputs)
 
 
-def _novatel_column_batches(cols: novatel_columns.NovatelColumns, ctx: LogContext) -> list[Batch] | None:
-    """The Batches `_NovatelRows` would take of a clean file's epochs, made from its columns at once; None where
-    the per-line path must decide (`novatel_column_epochs`, or a satellite count no int32 holds)."""
-    epochs = novatel_column_epochs(cols, ctx, _GNSS_KINDS)
-    if epochs is None:
-        return None
+def _novatel_column_batches(cols: novatel_columns.NovatelColumns, epochs: ColumnEpochs, ctx: LogContext
+                            ) -> list[tuple[int, Batch]]:
+    """The Batches `_NovatelRows` would take of a clean block's epochs, made from its columns at once, each with
+    its first epoch; none where the per-line path must decide (a satellite count no int32 holds)."""
     n = len(epochs.starts)
     bp_log, bp_row = epoch_member(epochs, cols, ("BESTPOS",))
     bv_log, bv_row = epoch_member(epochs, cols, ("BESTVEL",))
@@ -552,7 +551,7 @@ def _novatel_column_batches(cols: novatel_columns.NovatelColumns, ctx: LogContex
         status, ptype = [bp[0][i] for i in r.tolist()], [bp[1][i] for i in r.tolist()]
         used = [bp[14][i] for i in r.tolist()]
         if any(not -2**31 <= x < 2**31 for x in used):
-            return None
+            return []
         quality[has_bp] = [NOVATEL_QUALITY.get(p, -1) for p in ptype]
         satellites[has_bp] = used
         fix[has_bp] = [s == "SOL_COMPUTED" and p != "NONE" for s, p in zip(status, ptype)]
@@ -615,8 +614,8 @@ def _novatel_column_batches(cols: novatel_columns.NovatelColumns, ctx: LogContex
             for epoch in scanned_epochs(cols, epochs, a, b):
                 yield from _novatel_scan_outputs(epoch, ctx, ctx_topics)
 
-        batches.append(Batch(parts, order, keys, Where(int(cols.offsets[last_log]), int(cols.numbers[last_log])),
-                             outputs))
+        batches.append((a, Batch(parts, order, keys, Where(int(cols.offsets[last_log]), int(cols.numbers[last_log])),
+                                 outputs)))
     return batches
 
 

@@ -68,7 +68,14 @@ from .nmea_epochs import (
     nmea_update_date,
     record_epochs,
 )
-from .novatel_epochs import chunks, novatel_column_epochs, novatel_publish_ns, novatel_scan_epochs, novatel_scan_time
+from .novatel_epochs import (
+    ColumnEpochs,
+    chunks,
+    novatel_column_path,
+    novatel_publish_ns,
+    novatel_scan_epochs,
+    novatel_scan_time,
+)
 
 NAN = float("nan")
 
@@ -472,14 +479,14 @@ def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ign
 
     For a consumer of batches a clean file takes the column path (`_span_column_batches`), any other the
     per-line one."""
+    resume = (0, 1)
     if ctx.batches and ctx.prefix in PREFIX_STYLES:
-        cols = novatel_columns.decode_columns(data)
-        batches = None if cols is None else _span_column_batches(cols, ctx)
-        if batches is not None:
-            yield from batches
+        went_on = yield from novatel_column_path(data, ctx, _SPAN_KINDS, _span_column_batches)
+        if went_on is None:
             return
+        resume = went_on
     rows = ins_rows(ctx)
-    for epoch in novatel_scan_epochs(data, ctx, _SPAN_KINDS):
+    for epoch in novatel_scan_epochs(data, ctx, _SPAN_KINDS, resume):
         if isinstance(epoch, Reject):
             yield from _taken(rows, ctx, epoch)
             continue
@@ -497,13 +504,13 @@ def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ign
     yield from _taken(rows, ctx)
 
 
-def _span_column_batches(cols: novatel_columns.NovatelColumns, ctx: LogContext) -> list[Batch] | None:
-    """The Batches `convert_span`'s rows would take of a clean file, made from its columns at once; None where
-    the per-line path must decide (`novatel_column_epochs`), or where an epoch merges two logs (INSPVA and
-    INSPVAX of one time: `_span_scan_fields` merges them, the per-line path does)."""
-    epochs = novatel_column_epochs(cols, ctx, _SPAN_KINDS)
-    if epochs is None or len(epochs.starts) != len(epochs.logs):
-        return None
+def _span_column_batches(cols: novatel_columns.NovatelColumns, epochs: ColumnEpochs, ctx: LogContext
+                         ) -> list[tuple[int, Batch]]:
+    """The Batches `convert_span`'s rows would take of a clean block, made from its columns at once, each with its
+    first epoch; none where an epoch merges two logs (INSPVA and INSPVAX of one time: `_span_scan_fields` merges
+    them, the per-line path does)."""
+    if len(epochs.starts) != len(epochs.logs):
+        return []
     n = len(epochs.logs)
     out = {name: np.full(n, NAN) for name in INS_FIELDS[2:]}
     status: list[str] = [""] * n
@@ -536,9 +543,9 @@ def _span_column_batches(cols: novatel_columns.NovatelColumns, ctx: LogContext) 
     batches = []
     for a, b in chunks(np.ones(n, dtype=np.int64), ROWS_PER_BATCH):
         columns = [source[a:b], status[a:b], *(out[k][a:b] for k in INS_FIELDS[2:])]
-        batches.append(columns_batch(
+        batches.append((a, columns_batch(
             f"/{vehicle}/ins", S.InsState, lambda t_ns, *v: S.ins_state(t_ns, vehicle, *v), {"frame_id": vehicle},
-            INS_FIELDS, columns, t[a:b], t[a:b], cols.offsets[logs[a:b]], cols.numbers[logs[a:b]]))
+            INS_FIELDS, columns, t[a:b], t[a:b], cols.offsets[logs[a:b]], cols.numbers[logs[a:b]])))
     return batches
 
 

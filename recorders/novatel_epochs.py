@@ -8,27 +8,29 @@ arrival order; values sit at the positions of the record fields.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
-from dataclasses import dataclass
+from collections.abc import Callable, Generator, Iterator
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from formats.gpstime import gps_to_unix_ns
 from formats.novatel import columns as novatel_columns
+from formats.novatel import logs as N
 from formats.novatel import scan as novatel_scan
 from formats.records import Reject
 from formats.units import archivable_ns
 
-from .base import LogContext
+from .base import Batch, LogContext
 
 
-def novatel_scan_epochs(data: bytes, ctx: LogContext, kinds: frozenset[str]
+def novatel_scan_epochs(data: bytes, ctx: LogContext, kinds: frozenset[str], start: tuple[int, int] = (0, 1)
                         ) -> Iterator[dict[str, novatel_scan.Scanned] | Reject]:
-    """`group_epochs(records, novatel_key)` over scanned logs of the given record kinds ('BestPos', ...)."""
+    """`group_epochs(records, novatel_key)` over scanned logs of the given record kinds ('BestPos', ...), from
+    `start` on (`novatel_scan.scan`)."""
     names = novatel_scan.KINDS
     epoch: dict[str, novatel_scan.Scanned] = {}
     epoch_time: tuple[int, int] | None = None
-    for item in novatel_scan.scan(data, ctx.prefix):
+    for item in novatel_scan.scan(data, ctx.prefix, start):
         if isinstance(item, Reject):
             yield item
             continue
@@ -176,3 +178,48 @@ def chunks(counts: np.ndarray, size: int) -> list[tuple[int, int]]:
     if first < len(counts):
         out.append((first, len(counts)))
     return out
+
+
+BLOCK_BYTES = 4 << 20  # the column path reads a clean file this much at a time: bounded memory
+
+# the Batches of a clean block's epochs, each with its first epoch (`chunks`)
+ColumnBuilder = Callable[[novatel_columns.NovatelColumns, ColumnEpochs, LogContext], list[tuple[int, Batch]]]
+
+
+def novatel_column_path(data: bytes, ctx: LogContext, kinds: frozenset[str], build: ColumnBuilder
+                        ) -> Generator[Batch, None, tuple[int, int] | None]:
+    """A file's Batches from the column path, block by block (`BLOCK_BYTES`); returns None when it took the whole
+    file, else where the per-line path must go on (offset, line number): a block that is not clean.
+
+    A block's last run of epochs (its last Batch, which may go on in the next block) is read again with the
+    next block, so epochs and Batches are the whole file's, as the per-line path makes them.
+    """
+    if N._next_sync(data, 0) >= 0:  # binary logs: the record path reads the whole file
+        return 0, 1
+    start, line = 0, 1
+    while start < len(data):
+        end = len(data) if len(data) - start <= BLOCK_BYTES else data.rfind(b"\n", start, start + BLOCK_BYTES) + 1
+        if end <= start:  # no line end in the window: the line whole
+            found = data.find(b"\n", start + BLOCK_BYTES)
+            end = len(data) if found < 0 else found + 1
+        last = end == len(data)
+        cols = novatel_columns.decode_columns(data[start:end])
+        epochs = None if cols is None else novatel_column_epochs(cols, ctx, kinds)
+        if cols is None or epochs is None:
+            return start, line
+        cols = replace(cols, offsets=cols.offsets + start, numbers=cols.numbers + (line - 1))
+        batches = build(cols, epochs, ctx)
+        if not batches:
+            return start, line
+        if not last:
+            if len(batches) == 1 and end < len(data):
+                return start, line  # one run in a whole block: the per-line path
+            first, _ = batches.pop()
+            log = int(epochs.logs[epochs.starts[first]])
+            end, line_end = int(cols.offsets[log]), int(cols.numbers[log])
+        else:
+            line_end = line
+        for _, batch in batches:
+            yield batch
+        start, line = end, line_end
+    return None

@@ -15,7 +15,7 @@ from formats.novatel import logs as nv
 from formats.novatel import scan as novatel_scan
 from formats.records import Reject
 from formats.units import NS as S1
-from recorders import gps, ins
+from recorders import base, gps, ins, novatel_epochs
 from recorders.base import Batch, LogContext
 from tests.test_novatel_scan import _comparable, _outputs, assert_batch_is_its_items
 
@@ -158,6 +158,18 @@ def test_column_batches_are_the_row_batches(data: bytes, offset_s: int) -> None:
     ctx = LogContext("boat", clock_offset_ns=offset_s * S1, batches=True)
     for convert in (gps.convert_novatel, ins.convert_span):
         _same_batches(_items(convert, data, ctx, True), _items(convert, data, ctx, False))
+
+
+@settings(max_examples=300, deadline=None)
+@given(_file(), st.integers(300, 3000), st.integers(2, 6))
+def test_small_blocks_and_batches_give_the_row_batches(data: bytes, block: int, rows: int) -> None:
+    """Blocks of a few lines and Batches of a few messages: runs carried over block ends, a damaged block met
+    after clean ones (the per-line path goes on from its start)."""
+    ctx = LogContext("boat", batches=True)
+    with mock.patch.object(novatel_epochs, "BLOCK_BYTES", block), mock.patch.object(base, "ROWS_PER_BATCH", rows), \
+            mock.patch.object(gps, "ROWS_PER_BATCH", rows), mock.patch.object(ins, "ROWS_PER_BATCH", rows):
+        for convert in (gps.convert_novatel, ins.convert_span):
+            _same_batches(_items(convert, data, ctx, True), _items(convert, data, ctx, False))
 
 
 def test_a_long_clean_log_takes_the_column_path_in_batches_of_bounded_size() -> None:
