@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from formats.gpstime import gps_to_unix_ns
+from formats.gpstime import gps_to_unix_ns, gps_to_unix_ns_column
 from formats.novatel import columns as novatel_columns
 from formats.novatel import logs as N
 from formats.novatel import scan as novatel_scan
@@ -108,14 +108,16 @@ def novatel_column_epochs(cols: novatel_columns.NovatelColumns, ctx: LogContext,
     first_week, first_sow = week[starts], sow[starts]
     if (first_week <= 0).any():
         return None  # GPS week 0: the host time, or a Reject
-    offset = ctx.clock_offset_ns
     try:
-        times = [gps_to_unix_ns(w, s) + offset for w, s in zip(first_week.tolist(), first_sow.tolist())]
+        gps_ns = gps_to_unix_ns_column(first_week, first_sow)
     except OverflowError:
         return None
-    if not all(map(archivable_ns, times)):
+    if gps_ns is None or not -(1 << 62) < ctx.clock_offset_ns < 1 << 62:
         return None
-    return ColumnEpochs(logs, epoch, starts, np.array(times, dtype=np.int64))
+    times = gps_ns + ctx.clock_offset_ns  # both within 2**62: no int64 wrap
+    if not (archivable_ns(int(times.min())) and archivable_ns(int(times.max()))):
+        return None
+    return ColumnEpochs(logs, epoch, starts, times)
 
 
 def kind_code(kind: str, kinds: frozenset[str]) -> int:
@@ -203,7 +205,7 @@ def novatel_column_path(data: bytes, ctx: LogContext, kinds: frozenset[str], bui
             found = data.find(b"\n", start + BLOCK_BYTES)
             end = len(data) if found < 0 else found + 1
         last = end == len(data)
-        cols = novatel_columns.decode_columns(data[start:end])
+        cols = novatel_columns.decode_columns(data[start:end], binary_checked=True)
         epochs = None if cols is None else novatel_column_epochs(cols, ctx, kinds)
         if cols is None or epochs is None:
             return start, line

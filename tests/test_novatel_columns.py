@@ -10,6 +10,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from formats import gpstime
 from formats.novatel import columns as novatel_columns
 from formats.novatel import logs as nv
 from formats.novatel import scan as novatel_scan
@@ -121,7 +122,7 @@ def test_a_clean_file_takes_the_column_path(data: bytes) -> None:
 def _items(convert, data: bytes, ctx: LogContext, columns: bool) -> list:
     if columns:
         return list(convert(data, ctx))
-    with mock.patch.object(novatel_columns, "decode_columns", lambda data: None):
+    with mock.patch.object(novatel_columns, "decode_columns", lambda data, binary_checked=False: None):
         return list(convert(data, ctx))
 
 
@@ -187,3 +188,15 @@ def test_a_long_clean_log_takes_the_column_path_in_batches_of_bounded_size() -> 
     assert [len(b.order) for b in fast[ins.convert_span]] == [700]
     for convert, items in fast.items():
         _same_batches(items, _items(convert, data, ctx, False))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from([1, 1917, 1918, 1930, 2086, 5000]),
+                          st.one_of(st.floats(-100.0, 605000.0), st.sampled_from([0.0, 604799.9995, 0.0005]))),
+                min_size=1, max_size=30))
+def test_gps_time_column_is_the_per_time_conversion(times: list[tuple[int, float]]) -> None:
+    weeks = np.array([w for w, _ in times], dtype=np.int64)
+    seconds = np.array([s for _, s in times], dtype=np.float64)
+    column = gpstime.gps_to_unix_ns_column(weeks, seconds)
+    assert column is not None
+    assert column.tolist() == [gpstime.gps_to_unix_ns(w, s) for w, s in times]

@@ -92,7 +92,11 @@ def _by_distinct(rule: Callable[[str], object], column: list[str]) -> list:
 def _floats(column: list[str]) -> np.ndarray:
     """`formats.numbers.optional` of every string (float(), NaN when empty); ValueError where it refuses one."""
     try:
-        values = np.fromiter(map(float, column), dtype=np.float64, count=len(column))
+        if len(set(column[:64])) <= 8:  # sigmas, undulations: each distinct string converted once
+            table = {s: float(s) for s in set(column)}
+            values = np.fromiter(map(table.__getitem__, column), dtype=np.float64, count=len(column))
+        else:
+            values = np.fromiter(map(float, column), dtype=np.float64, count=len(column))
         given = None
     except ValueError:  # an empty field (NaN) or no number at all
         values = np.array([float(s) if s else NAN for s in column], dtype=np.float64)
@@ -123,11 +127,12 @@ def _check_headers(heads: list[str]) -> tuple[list[str], np.ndarray, np.ndarray]
     return names, np.array(weeks, dtype=np.int64), seconds
 
 
-def decode_columns(data: bytes) -> NovatelColumns | None:
+def decode_columns(data: bytes, binary_checked: bool = False) -> NovatelColumns | None:
     """A clean file's BESTPOS, BESTVEL, INSPVA(S) and INSPVAX logs as columns, or None when the per-line path
-    (`scan.scan`) must read it. Logs of other names with a good CRC are dropped, as `scan` drops them."""
+    (`scan.scan`) must read it. Logs of other names with a good CRC are dropped, as `scan` drops them.
+    `binary_checked`: the caller knows the data holds no binary log's sync."""
     buf = np.frombuffer(data, dtype=np.uint8)
-    if not len(buf) or N._next_sync(data, 0) >= 0:
+    if not len(buf) or (not binary_checked and N._next_sync(data, 0) >= 0):
         return None
     nl = np.flatnonzero(buf == 10)
     starts = np.concatenate(([0], nl + 1))
@@ -157,10 +162,11 @@ def decode_columns(data: bytes) -> NovatelColumns | None:
                            dtype=np.int64, count=len(s)) ^ 0xFFFFFFFF
     if not np.array_equal(given, computed):
         return None  # a bad CRC: a Reject, the per-line path's job
-    commas = np.concatenate(([0], np.cumsum(buf == 44)))
-    if not np.array_equal(commas[semi] - commas[s], np.full(len(s), 9)):
+    commas = np.flatnonzero(buf == 44)
+    at_semi = np.searchsorted(commas, semi)
+    if not (at_semi - np.searchsorted(commas, s) == 9).all():
         return None  # not a long header of ten fields
-    body_commas = commas[star] - commas[semi]
+    body_commas = np.searchsorted(commas, star) - at_semi
     text = data.decode("latin-1")
     heads = [text[a:b] for a, b in zip((s + 1).tolist(), semi.tolist())]
     try:
