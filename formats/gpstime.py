@@ -5,6 +5,8 @@ from __future__ import annotations
 import bisect
 import calendar
 
+import numpy as np
+
 from .units import NS
 
 GPS_EPOCH_UNIX_S = 315964800  # 1980-01-06T00:00:00Z
@@ -59,6 +61,30 @@ def _week_leap(week: int) -> int | None:
         _WEEK_LEAPS.clear()
     _WEEK_LEAPS[week] = leap if same else None
     return _WEEK_LEAPS[week]
+
+
+def gps_to_unix_ns_column(weeks: np.ndarray, seconds: np.ndarray) -> np.ndarray | None:
+    """`gps_to_unix_ns` of every (week, seconds) pair as int64, in numpy where the week has one leap count and the
+    seconds lie within it (`round` and numpy's `rint` both round half to even, and every product below 2**53 is
+    exact); None where a time is beyond int64."""
+    out = np.zeros(len(weeks), dtype=np.int64)
+    inside = (seconds >= 0.0) & (seconds < 604800.0)
+    for week in np.unique(weeks).tolist():
+        leap = _WEEK_LEAPS.get(week, -1)
+        if leap == -1:
+            leap = _week_leap(week)
+        at = np.flatnonzero((weeks == week) & inside) if leap is not None else np.zeros(0, dtype=np.int64)
+        base = (GPS_EPOCH_UNIX_S + week * 604800 - (leap or 0)) * NS
+        if not -(1 << 62) < base < 1 << 62:
+            return None
+        out[at] = base + np.rint(seconds[at] * NS).astype(np.int64)
+        rest = np.flatnonzero((weeks == week) & ~inside) if leap is not None else np.flatnonzero(weeks == week)
+        for i in rest.tolist():
+            t = gps_to_unix_ns(week, float(seconds[i]))
+            if not -(1 << 63) <= t < 1 << 63:
+                return None
+            out[i] = t
+    return out
 
 
 def unix_ns_to_gps(unix_ns: int) -> tuple[int, float]:

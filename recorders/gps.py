@@ -46,6 +46,7 @@ from formats.log_blocks import Block, blocks_of
 from formats.nmea import columns as nmea_columns
 from formats.nmea import sentences as nmea
 from formats.nmea.sentences import KNOT_MPS
+from formats.novatel import columns as novatel_columns
 from formats.novatel import scan as novatel_scan
 from formats.records import Reject, Where
 
@@ -64,10 +65,19 @@ from .base import (
 )
 from .clock import DayClock
 from .gnss_covariance import Covariance, fix_covariance, sigma_covariance
-from .gnss_velocity import NO_VELOCITY, components, gnss_velocity
+from .gnss_velocity import NO_VELOCITY, components, components_column, gnss_velocity
 from .gnss_velocity import SUFFIX as VELOCITY
 from .nmea_epochs import NO_DATE, NO_TIME, vtg_speed, vtg_valid
-from .novatel_epochs import novatel_publish_ns, novatel_scan_epochs, novatel_scan_time
+from .novatel_epochs import (
+    ColumnEpochs,
+    chunks,
+    epoch_member,
+    novatel_column_path,
+    novatel_publish_ns,
+    novatel_scan_epochs,
+    novatel_scan_time,
+    scanned_epochs,
+)
 
 NAN = math.nan
 
@@ -410,9 +420,18 @@ _GNSS_KINDS = frozenset(("BestPos", "BestVel"))
 
 
 def convert_novatel(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored | Batch]:
-    """NovAtel BESTPOS/BESTVEL logs, ASCII (long or short header) or binary."""
+    """NovAtel BESTPOS/BESTVEL logs, ASCII (long or short header) or binary.
+
+    For a consumer of batches a clean file takes the column path (`_novatel_column_batches`), any other the
+    per-line one."""
+    resume = (0, 1)
+    if ctx.batches and ctx.prefix in PREFIX_STYLES:
+        went_on = yield from novatel_column_path(data, ctx, _GNSS_KINDS, _novatel_column_batches)
+        if went_on is None:
+            return
+        resume = went_on
     rows = _NovatelRows(ctx)
-    for epoch in novatel_scan_epochs(data, ctx, _GNSS_KINDS):
+    for epoch in novatel_scan_epochs(data, ctx, _GNSS_KINDS, resume):
         reject = epoch if isinstance(epoch, Reject) else rows.add(epoch)
         if reject is not None or rows.full:
             yield from batched(ctx, rows.take())
@@ -510,6 +529,108 @@ class _NovatelRows:
         parts = [Columns(topic, cls, cols, t, p) for topic, cls, cols, t, p in zip(
             topics, (S.LocationFix, S.GnssStatus, S.GnssVelocity), columns, times, publish)]
         return Batch(parts, np.array(order, dtype=np.int64), np.array(keys, dtype=np.int64), last, outputs)
+
+
+def _novatel_column_batches(cols: novatel_columns.NovatelColumns, epochs: ColumnEpochs, ctx: LogContext
+                            ) -> list[tuple[int, Batch]]:
+    """The Batches `_NovatelRows` would take of a clean block's epochs, made from its columns at once, each with
+    its first epoch; none where the per-line path must decide (a satellite count no int32 holds)."""
+    n = len(epochs.starts)
+    bp_log, bp_row = epoch_member(epochs, cols, ("BESTPOS",))
+    bv_log, bv_row = epoch_member(epochs, cols, ("BESTVEL",))
+    has_bp, has_bv = bp_row >= 0, bv_row >= 0
+    first_log = epochs.logs[epochs.starts]
+    # BESTPOS values per epoch (rows of epochs without one are read from row 0 and masked)
+    bp = cols.values.get("BESTPOS")
+    quality = np.full(n, -1, dtype=np.int64)
+    satellites = np.full(n, -1, dtype=np.int64)
+    fix = np.zeros(n, dtype=bool)
+    lat = lon = alt = lat_std = lon_std = h_std = np.zeros(n)
+    if bp is not None:
+        r = bp_row[has_bp]
+        status, ptype = [bp[0][i] for i in r.tolist()], [bp[1][i] for i in r.tolist()]
+        used = [bp[14][i] for i in r.tolist()]
+        if any(not -2**31 <= x < 2**31 for x in used):
+            return []
+        quality[has_bp] = [NOVATEL_QUALITY.get(p, -1) for p in ptype]
+        satellites[has_bp] = used
+        fix[has_bp] = [s == "SOL_COMPUTED" and p != "NONE" for s, p in zip(status, ptype)]
+        take = np.maximum(bp_row, 0)
+        lat, lon, height, und = (bp[k][take] for k in (2, 3, 4, 5))
+        alt = np.where(np.isnan(und), height, height + und)
+        lat_std, lon_std, h_std = (bp[k][take] for k in (7, 8, 9))
+    speed, course, up = np.full(n, NAN), np.full(n, NAN), np.full(n, NAN)
+    velocity = np.zeros(n, dtype=bool)
+    bv = cols.values.get("BESTVEL")
+    if bv is not None:
+        r = bv_row[has_bv]
+        velocity[has_bv] = [bv[0][i] == "SOL_COMPUTED" for i in r.tolist()]
+        take = np.maximum(bv_row, 0)
+        speed = np.where(velocity, bv[4][take], NAN)
+        course = np.where(velocity, bv[5][take], NAN)
+        up = bv[6][take]
+    north, east = np.full(n, NAN), np.full(n, NAN)
+    both = np.flatnonzero(velocity & np.isfinite(speed) & np.isfinite(course))
+    if len(both):
+        north[both], east[both] = components_column(speed[both], course[both].tolist())
+    sources = _novatel_sources(cols, epochs)
+    status_log = np.where(fix, bp_log, first_log)
+    counts = 1 + fix.astype(np.int64) + velocity
+    ctx_topics = (f"/{ctx.vehicle}/gps", f"/{ctx.vehicle}/gps/status", f"/{ctx.vehicle}/{VELOCITY}")
+    vehicle, t = ctx.vehicle, epochs.t_ns
+    batches = []
+    for a, b in chunks(counts, ROWS_PER_BATCH):
+        f, v = np.flatnonzero(fix[a:b]) + a, np.flatnonzero(velocity[a:b]) + a
+        c = counts[a:b]
+        at = np.cumsum(c) - c  # each epoch's first message in the batch
+        order = np.ones(int(c.sum()), dtype=np.int64)
+        keys = np.empty(len(order), dtype=np.int64)
+        order[at[f - a]] = 0
+        keys[at[f - a]] = cols.offsets[bp_log[f]]
+        st = at + fix[a:b]
+        keys[st] = cols.offsets[status_log[a:b]]
+        vel_at = st[v - a] + 1
+        order[vel_at] = 2
+        keys[vel_at] = cols.offsets[bv_log[v]]
+        last_log = bv_log[b - 1] if velocity[b - 1] else status_log[b - 1]
+        src = sources[a:b]
+        cov = np.zeros((len(f), 9))
+        cov[:, 0], cov[:, 4], cov[:, 8] = lon_std[f] * lon_std[f], lat_std[f] * lat_std[f], h_std[f] * h_std[f]
+        columns: tuple[dict[str, Any], ...] = (
+            {"timestamp": t[f], "frame_id": vehicle, "latitude": lat[f], "longitude": lon[f], "altitude": alt[f],
+             "position_covariance": cov,
+             "position_covariance_type": np.full(len(f), S.COVARIANCE_DIAGONAL_KNOWN, dtype=np.int64)},
+            {"timestamp": t[a:b], "frame_id": vehicle, "fix_quality": quality[a:b], "satellites": satellites[a:b],
+             "hdop": NAN, "source_format": src, "speed_over_ground_mps": speed[a:b],
+             "course_over_ground_deg": course[a:b], "heading_deg": NAN},
+            {"timestamp": t[v], "frame_id": vehicle, "velocity_north_mps": north[v], "velocity_east_mps": east[v],
+             "velocity_up_mps": up[v], "speed_over_ground_mps": speed[v], "course_over_ground_deg": course[v],
+             "speed_std_mps": NAN, "source_format": [sources[i] for i in v.tolist()]},
+        )
+        parts = [Columns(topic, cls, cols_, times, times) for topic, cls, cols_, times in zip(
+            ctx_topics, (S.LocationFix, S.GnssStatus, S.GnssVelocity), columns, (t[f], t[a:b], t[v]))]
+
+        def outputs(a: int = a, b: int = b) -> Iterator[Output | Reject | Ignored]:
+            for epoch in scanned_epochs(cols, epochs, a, b):
+                yield from _novatel_scan_outputs(epoch, ctx, ctx_topics)
+
+        batches.append((a, Batch(parts, order, keys, Where(int(cols.offsets[last_log]), int(cols.numbers[last_log])),
+                                 outputs)))
+    return batches
+
+
+def _novatel_sources(cols: novatel_columns.NovatelColumns, epochs: Any) -> list[str]:
+    """'novatel:BESTPOSA,BESTVELA' per epoch: its logs' names in arrival order."""
+    n = len(epochs.starts)
+    code = cols.code[epochs.logs]
+    first = code[epochs.starts]
+    ends = np.append(epochs.starts[1:], len(epochs.logs))
+    second = np.where(ends - epochs.starts > 1, code[np.minimum(epochs.starts + 1, len(code) - 1)], -1)
+    sig = first * 8 + second + 1  # an epoch holds BESTPOS and BESTVEL at most once each: two logs at most
+    names = novatel_columns.NAMES
+    table = {s: "novatel:" + ",".join(names[c] + "A" for c in (s // 8, s % 8 - 1) if c >= 0)
+             for s in np.unique(sig).tolist()}
+    return [table[s] for s in sig.tolist()] if n else []
 
 
 CONVERTERS: dict[str, Converter] = {"nmea": convert_nmea, "novatel": convert_novatel}

@@ -33,8 +33,10 @@ import numpy as np
 
 from formats import pashr, phins, phins_columns
 from formats import schemas as S
+from formats.lines import PREFIX_STYLES
 from formats.log_blocks import Block, LogText, blocks_in
 from formats.nmea import sentences as nmea
+from formats.novatel import columns as novatel_columns
 from formats.novatel import scan as novatel_scan
 from formats.records import Reject, Where
 from formats.units import DAY_NS, NS
@@ -66,7 +68,14 @@ from .nmea_epochs import (
     nmea_update_date,
     record_epochs,
 )
-from .novatel_epochs import novatel_publish_ns, novatel_scan_epochs, novatel_scan_time
+from .novatel_epochs import (
+    ColumnEpochs,
+    chunks,
+    novatel_column_path,
+    novatel_publish_ns,
+    novatel_scan_epochs,
+    novatel_scan_time,
+)
 
 NAN = float("nan")
 
@@ -466,9 +475,18 @@ def _span_scan_fields(epoch: dict[str, novatel_scan.Scanned]) -> tuple:
 
 
 def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ignored | Batch]:
-    """NovAtel SPAN INSPVA / INSPVAS / INSPVAX logs (ASCII or binary), merged per GPS time."""
+    """NovAtel SPAN INSPVA / INSPVAS / INSPVAX logs (ASCII or binary), merged per GPS time.
+
+    For a consumer of batches a clean file takes the column path (`_span_column_batches`), any other the
+    per-line one."""
+    resume = (0, 1)
+    if ctx.batches and ctx.prefix in PREFIX_STYLES:
+        went_on = yield from novatel_column_path(data, ctx, _SPAN_KINDS, _span_column_batches)
+        if went_on is None:
+            return
+        resume = went_on
     rows = ins_rows(ctx)
-    for epoch in novatel_scan_epochs(data, ctx, _SPAN_KINDS):
+    for epoch in novatel_scan_epochs(data, ctx, _SPAN_KINDS, resume):
         if isinstance(epoch, Reject):
             yield from _taken(rows, ctx, epoch)
             continue
@@ -484,6 +502,51 @@ def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ign
         if rows.full:
             yield from _taken(rows, ctx)
     yield from _taken(rows, ctx)
+
+
+def _span_column_batches(cols: novatel_columns.NovatelColumns, epochs: ColumnEpochs, ctx: LogContext
+                         ) -> list[tuple[int, Batch]]:
+    """The Batches `convert_span`'s rows would take of a clean block, made from its columns at once, each with its
+    first epoch; none where an epoch merges two logs (INSPVA and INSPVAX of one time: `_span_scan_fields` merges
+    them, the per-line path does)."""
+    if len(epochs.starts) != len(epochs.logs):
+        return []
+    n = len(epochs.logs)
+    out = {name: np.full(n, NAN) for name in INS_FIELDS[2:]}
+    status: list[str] = [""] * n
+    source: list[str] = [""] * n
+    for name in ("INSPVA", "INSPVAS", "INSPVAX"):
+        values = cols.values.get(name)
+        if values is None:
+            continue
+        e = np.searchsorted(epochs.logs, cols.rows[name])  # one log an epoch: its position is its epoch
+        if name == "INSPVAX":
+            lat, lon, height, und, north, east, up, roll, pitch, azimuth = values[2:12]
+            stds = dict(zip(("position_std_north_m", "position_std_east_m", "heading_std_deg", "roll_std_deg",
+                             "pitch_std_deg"), (values[12], values[13], values[20], values[18], values[19])))
+            for k, v in stds.items():
+                out[k][e] = v
+            out["depth_m"][e] = np.where(np.isnan(und), NAN, -(height - und))  # type: ignore[operator]
+            words = [s if s == p else s + " " + p for s, p in zip(values[0], values[1])]
+        else:
+            lat, lon, height, north, east, up, roll, pitch, azimuth = values[2:11]
+            words = values[11]  # type: ignore[assignment]
+        for k, v in (("latitude", lat), ("longitude", lon), ("altitude_m", height), ("velocity_north_mps", north),
+                     ("velocity_east_mps", east), ("roll_deg", roll), ("pitch_deg", pitch), ("heading_deg", azimuth)):
+            out[k][e] = v
+        out["velocity_down_mps"][e] = 0.0 - up  # type: ignore[operator]
+        for i, w in zip(e.tolist(), words):
+            status[i] = w
+            source[i] = "novatel:" + name + "A"
+    vehicle, t = ctx.vehicle, epochs.t_ns
+    logs = epochs.logs
+    batches = []
+    for a, b in chunks(np.ones(n, dtype=np.int64), ROWS_PER_BATCH):
+        columns = [source[a:b], status[a:b], *(out[k][a:b] for k in INS_FIELDS[2:])]
+        batches.append((a, columns_batch(
+            f"/{vehicle}/ins", S.InsState, lambda t_ns, *v: S.ins_state(t_ns, vehicle, *v), {"frame_id": vehicle},
+            INS_FIELDS, columns, t[a:b], t[a:b], cols.offsets[logs[a:b]], cols.numbers[logs[a:b]])))
+    return batches
 
 
 # ---------------------------------------------------------------- NMEA heading / INS-as-NMEA

@@ -141,16 +141,17 @@ def from_record(rec: N.NovatelRecord) -> Scanned:
     return h.message, source, week, seconds, values, w.offset, w.line, w.host_time_ns
 
 
-def scan(data: bytes, prefix: str = "auto") -> Iterator[Scanned | Reject]:
-    """What `novatel.decode` yields, as `Scanned` tuples instead of records."""
+def scan(data: bytes, prefix: str = "auto", start: tuple[int, int] = (0, 1)) -> Iterator[Scanned | Reject]:
+    """What `novatel.decode` yields, as `Scanned` tuples instead of records; from `start` (the byte offset and
+    1-based number of a line) on, in a file without binary logs."""
     if prefix not in PREFIX_STYLES:
         raise ValueError(f"unknown host-timestamp prefix style {prefix!r}; use one of {PREFIX_STYLES}")
     if N._next_sync(data, 0) >= 0:  # binary logs in the file: ASCII lines are located by offset only
         for rec in N.decode(data, prefix):
             yield rec if isinstance(rec, Reject) else from_record(rec)
         return
-    offset = 0
-    for number, raw in enumerate(data.decode("latin-1").split("\n"), start=1):
+    offset = start[0]
+    for number, raw in enumerate(data[offset:].decode("latin-1").split("\n"), start=start[1]):
         line_start = offset
         offset += len(raw) + 1
         fast = _fast_line(raw.rstrip("\r"), (line_start, number)) if raw[:1] == "#" else _SLOW
