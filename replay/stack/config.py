@@ -99,6 +99,9 @@ class FeatureConfig:
     model_hold_q_m2_per_s3: float = 0.01
     model_hold_grace_s: float = 2.0
     model_deviation_sigma_deg: float = 0.0
+    # ... whose states a range leaves alone while its link's running mean of standardized innovations stands
+    # this many sigmas above every other link's (a one-link bias, multipath, is not the heading's; 0: no gate)
+    model_deviation_link_gate: float = 0.0
     # ... or, without states, the heading error walks by this much per square root of a radian turned
     model_turn_deg_per_sqrt_rad: float = 0.0
     # a range-scale error shared by every link (a sound-speed error: each range is (1 + k) times the true one,
