@@ -574,3 +574,101 @@ def test_the_range_scale_state_learns_a_sound_speed_bias() -> None:
     without, plain = run(0.0)
     assert without.ks == -1 and np.all(plain[:, 3] == 0.0)
     assert np.max(np.abs(plain[plain[:, 0] > 800.0, 1])) > 1.0
+
+
+def _deviation_model(gate: float) -> DrErrorModel:
+    return DrErrorModel(DrErrorParams(1e-2, HEADING_WALK, 1e-4, 3.0, (1.0, 2.0), math.radians(3.0), 0.01, 60.0,
+                                      4.0, 10, deviation_sigma_rad=math.radians(1.0), deviation_link_gate=gate))
+
+
+def test_a_range_on_a_link_that_stands_out_leaves_the_deviation_states_as_they_are() -> None:
+    """With the link gate, a range whose link's running mean of standardized innovations stands out is a
+    Schmidt update: x += K·v and P = (I - K·H)·P·(I - K·H)ᵀ + K·R·Kᵀ with the deviation states' rows of the
+    optimal K set to 0, so their mean and covariance do not move; the other states take it as before."""
+    m = _deviation_model(1.0)
+    for k in range(40):
+        m.step(1.0, 1.5 * math.cos(k / 10.0), 1.5 * math.sin(k / 10.0), 0.0, k / 10.0)
+        if k % 5 == 4:
+            m.range(float(k), "leader1", 500.0 + 0.1 * k, 480.0, 120.0, False)
+    # a leader 12 m long for a while (one link only: multipath)
+    for k in range(40, 80):
+        m.step(1.0, 1.5 * math.cos(k / 10.0), 1.5 * math.sin(k / 10.0), 0.0, k / 10.0)
+        if k % 5 != 4:
+            continue
+        m._propagate()
+        x0, p0 = np.array(m.x), np.array(m.p)
+        north, east = 480.0, 120.0 + k
+        r = math.hypot(north, east)
+        h = np.zeros(8)
+        h[:2] = -north / r, -east / r
+        z = r + 12.0
+        mean_before = m._link_mean.get("leader1", 0.0)
+        got = m.range(float(k), "leader1", z, north, east, False)
+        w = got.innovation_m / math.sqrt(got.innovation_var_m2)
+        considered = abs(mean_before + 0.2 * (w - mean_before)) > 1.0
+        gain = p0 @ h / (h @ p0 @ h + 9.0)
+        if considered:
+            gain[4:8] = 0.0
+        a = np.eye(8) - np.outer(gain, h)
+        np.testing.assert_allclose(m.x, x0 + gain * got.innovation_m, atol=1e-9)
+        np.testing.assert_allclose(m.p, a @ p0 @ a.T + 9.0 * np.outer(gain, gain), rtol=1e-9, atol=1e-12)
+        if considered:
+            np.testing.assert_array_equal(np.array(m.x)[4:8], x0[4:8])
+            np.testing.assert_array_equal(np.array(m.p)[4:8, 4:8], p0[4:8, 4:8])
+    assert m._link_mean["leader1"] > 1.0
+
+
+def test_the_link_gate_looks_at_how_much_one_link_stands_out_from_the_others() -> None:
+    """Two links biased alike (a DR error both see) keep the deviation states learning; one biased link
+    alone does not. Without deviation states the gate is off."""
+    m = _deviation_model(1.0)
+    assert not m._one_link("leader1", 3.0)          # the mean after one range: 0.6
+    assert m._one_link("leader1", 3.0)              # 1.08, no other link
+    assert not m._one_link("leader2", 2.0)          # 0.4
+    for _ in range(6):
+        m._one_link("leader2", 2.0)
+    assert m._link_mean["leader2"] == pytest.approx(2.0 * (1 - 0.8 ** 7))
+    assert not m._one_link("leader1", 3.0)          # 1.46 against the other's 1.58
+    assert _deviation_model(0.0).link_gate == 0.0
+    plain = DrErrorModel(DrErrorParams(1e-2, HEADING_WALK, 1e-4, 3.0, (1.0, 2.0), math.radians(3.0), 0.01, 60.0,
+                                       4.0, 10, deviation_link_gate=1.0))
+    assert plain.link_gate == 0.0
+
+
+def _multipath_run(gate: float) -> tuple[DrErrorModel, np.ndarray]:
+    """The turning track (2 deg heading bias), noise-free ranges to two leaders, leader 1's 15 m long over
+    600-900 s (multipath): per range t, link, lagged residual and the deviation coefficients' norm (deg)."""
+    m = DrErrorModel(DrErrorParams(1e-2, HEADING_WALK, 1e-4, 3.0, (1.0, 2.0), math.radians(3.0), 0.01, 60.0,
+                                   4.0, 10, deviation_sigma_rad=math.radians(1.0), deviation_link_gate=gate))
+    t, dr_step, err = _turning_track(1200.0, 2.0)
+    dr = np.cumsum(dr_step, axis=0)
+    rows, k, ping = [], 0, 2.4
+    for i, ti in enumerate(t):
+        m.step(1.0, *dr_step[i], 0.0, 2.0 * math.pi * float(ti) / 400.0)
+        if ti < ping:
+            continue
+        ping += 2.4
+        rel = dr[i] - _leaders(k)
+        bias = 15.0 if (k % 2 == 0 and 600.0 <= ti < 900.0) else 0.0
+        res = m.range(float(ti), f"leader{k % 2 + 1}", float(np.hypot(*(rel - err[i]))) + bias, float(rel[0]),
+                      float(rel[1]), False)
+        rows.append((ti, k % 2, res.lagged_m, math.degrees(math.hypot(*m.x[4:8]))))
+        k += 1
+    return m, np.array(rows)
+
+
+def test_the_link_gate_keeps_a_one_link_bias_out_of_the_deviation_states() -> None:
+    """A 15 m multipath bias on one link for 300 s: the ungated deviation states take it as a heading
+    deviation (their coefficients reach 3.1 deg; the track has none), and after it ends the lagged residuals
+    still carry 12 m of it; with the link gate the coefficients stay near 1.1 deg and the residuals after it
+    within 7.1 m. Before the bias both are the same filter (1.4 m at most, noise-free)."""
+    plain, gated = _multipath_run(0.0)[1], _multipath_run(1.0)[1]
+    before = (plain[:, 0] > 100.0) & (plain[:, 0] < 600.0)
+    np.testing.assert_array_equal(plain[before], gated[before])
+    assert np.nanmax(np.abs(plain[before, 2])) < 1.5
+    during = (plain[:, 0] >= 600.0) & (plain[:, 0] < 900.0)
+    assert plain[during, 3].max() > 3.0
+    assert gated[during, 3].max() < 1.2
+    late = plain[:, 0] > 1000.0
+    assert np.max(np.abs(plain[late, 2])) > 11.5
+    assert np.max(np.abs(gated[late, 2])) < 7.5

@@ -116,6 +116,7 @@ RANGES: dict[str, Range] = {
     "stack.features.model_hold_q_m2_per_s3": Range(0, 1e6, "[]", "a held-velocity walk (m^2/s^3): not negative"),
     "stack.features.model_hold_grace_s": Range(0, 86400, "[]", "a grace (s): 0 to a day"),
     "stack.features.model_deviation_sigma_deg": Range(0, 180, "[]", "a deviation sigma (deg): 0 (none) to 180"),
+    "stack.features.model_deviation_link_gate": Range(0, math.inf, "[]", "a link gate (sigmas): 0 (none) or more"),
     "stack.features.model_turn_deg_per_sqrt_rad": Range(0, 180, "[]", "a heading walk per turn (deg/sqrt(rad))"),
     "stack.features.model_range_scale_sigma": Range(0, 0.1, "[]", "a range-scale sigma: a fraction, 0 (none) to 0.1"),
     "stack.features.stiff_q_m2_per_s": Range(0, 1e6, "(]", "a random-walk intensity (m^2/s): positive"),

@@ -98,7 +98,12 @@ class FeatureConfig:
     # four states, the one- and two-cycle terms' coefficients, each of this initial sigma (0: no such states)
     model_hold_q_m2_per_s3: float = 0.01
     model_hold_grace_s: float = 2.0
-    model_deviation_sigma_deg: float = 0.0
+    # 0.5 deg with the link gate below, chosen on development seeds 2001-2008 and 3001-3008 (docs/detection.md
+    # section 5, "Deviation states that a one-link bias does not reach"); without the gate they took in multipath
+    model_deviation_sigma_deg: float = 0.5
+    # ... whose states a range leaves alone while its link's running mean of standardized innovations stands
+    # this many sigmas above every other link's (a one-link bias, multipath, is not the heading's; 0: no gate)
+    model_deviation_link_gate: float = 1.0
     # ... or, without states, the heading error walks by this much per square root of a radian turned
     model_turn_deg_per_sqrt_rad: float = 0.0
     # a range-scale error shared by every link (a sound-speed error: each range is (1 + k) times the true one,

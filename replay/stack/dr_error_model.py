@@ -86,7 +86,10 @@ class DrErrorParams:
     heading error's walk per square root of a radian turned (a deviation with heading, without states: after
     a turn the heading error is less known, so the filter learns the new one from the ranges);
     range_scale_sigma: the initial sigma of a range-scale error k shared by every link, each range measuring
-    (1 + k) times the true one (a sound-speed error of 0.1-1 %; 0: no such state).
+    (1 + k) times the true one (a sound-speed error of 0.1-1 %; 0: no such state); deviation_link_gate: with the
+    deviation states, a range leaves them as they are (a Schmidt update: they are considered, not estimated)
+    while its link's running mean of standardized innovations is beyond this many sigmas more than every other
+    link's (a bias on one link, multipath, is not a property of the heading; 0: no such gate).
     """
 
     q_m2_per_s: float
@@ -104,6 +107,7 @@ class DrErrorParams:
     deviation_sigma_rad: float = 0.0
     turn_sigma_rad_per_sqrt_rad: float = 0.0
     range_scale_sigma: float = 0.0
+    deviation_link_gate: float = 0.0
 
 
 class DrErrorModel:
@@ -135,6 +139,8 @@ class DrErrorModel:
         self.lag_s = float(c.lag_s)
         self.gate_sigma = float(c.gate_sigma)
         self.gate_cap = int(c.gate_cap)
+        self.link_gate = float(c.deviation_link_gate) if self.deviation else 0.0
+        self._link_mean: dict[str, float] = {}          # running mean of standardized innovations, per leader
         self.x = [0.0] * self.n
         diag = (float(c.p0_m[0]) ** 2, float(c.p0_m[1]) ** 2, float(c.heading_sigma_rad) ** 2,
                 float(c.scale_sigma) ** 2) + (float(c.deviation_sigma_rad) ** 2,) * (4 * self.deviation) \
@@ -267,16 +273,39 @@ class DrErrorModel:
         out = LaggedResidual(v, s, vl, sl, scale)
         gated = math.isfinite(vl) and abs(vl) > self.gate_sigma * math.sqrt(sl)
         gated_out = self._gated_out.get(leader, 0)
+        considered = not repeated and self.link_gate > 0.0 and self._one_link(leader, v / math.sqrt(s))
         # a repeated range leaves the gate's count (of fresh ranges) as it was
         if not repeated and gated and gated_out < self.gate_cap:
             self._gated_out[leader] = gated_out + 1
         elif not repeated:
             self._gated_out[leader] = 0
             k = [ph[i] / s for i in range(n)]
-            self.x = [x[i] + k[i] * v for i in range(n)]
-            self.p = [[p[i][j] - k[i] * ph[j] for j in range(n)] for i in range(n)]
+            if considered:
+                # Schmidt update: the deviation states (4-7) keep their value and covariance; the others take the
+                # range with their optimal gain, and their cross-covariance with the deviation as usual
+                for i in range(4, 8):
+                    k[i] = 0.0
+                self.x = [x[i] + k[i] * v for i in range(n)]
+                self.p = [[p[i][j] if 4 <= i < 8 and 4 <= j < 8 else p[i][j] - (ph[i] * ph[j]) / s
+                           for j in range(n)] for i in range(n)]
+            else:
+                self.x = [x[i] + k[i] * v for i in range(n)]
+                self.p = [[p[i][j] - k[i] * ph[j] for j in range(n)] for i in range(n)]
         self._remember(t_s)
         return out
+
+    def _one_link(self, leader: str, w: float) -> bool:
+        """Take standardized innovation w into the leader's running mean: True if it stands out from every other link's.
+
+        A compass deviation moves the DR error, which every link sees; a multipath bias is on one link and lasts
+        30-300 s. The mean's weight 0.2 (about five ranges, 25 s of one leader) follows a bias within a minute
+        and keeps a normal link's mean within about 0.35 sigma.
+        """
+        m = self._link_mean.get(leader, 0.0)
+        m += 0.2 * (w - m)
+        self._link_mean[leader] = m
+        others = [abs(v) for ld, v in self._link_mean.items() if ld != leader]
+        return abs(m) > self.link_gate + (max(others) if others else 0.0)
 
     def fix(self, t_s: float, north_m: float, east_m: float, cov_m2: tuple[float, float, float]) -> None:
         """A position fix: d measured as (north_m, east_m), DR minus the fix, with covariance (nn, ne, ee) m²."""

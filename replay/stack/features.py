@@ -221,7 +221,7 @@ class FeatureTracker:
             config.model_scale_sigma, config.lag_s, config.model_gate_sigma, config.model_gate_cap,
             config.model_hold_q_m2_per_s3, config.model_hold_grace_s,
             math.radians(config.model_deviation_sigma_deg), math.radians(config.model_turn_deg_per_sqrt_rad),
-            config.model_range_scale_sigma,
+            config.model_range_scale_sigma, config.model_deviation_link_gate,
         )) if config.drift_source == "model" else None
         self._range_sigma_m = float(range_sigma_m)
         self.dr = [float(position[0]), float(position[1])]
