@@ -20,8 +20,16 @@ from __future__ import annotations
 import math
 from collections.abc import Collection
 
+import numpy as np
+
 MAX_INT_DIGITS = 18  # an int64 holds every integer of 18 digits; a field of more is no field of ours
 _FLOAT_MAX_CHARS = 300  # below this many characters, a number without an exponent cannot overflow a double
+
+# a byte's value as a hexadecimal digit (either case), -1 for any other byte: checksums read as columns
+HEX_VALUE = np.full(256, -1, dtype=np.int64)
+HEX_VALUE[np.frombuffer(b"0123456789abcdef", dtype=np.uint8)] = np.arange(16)
+HEX_VALUE[np.frombuffer(b"ABCDEF", dtype=np.uint8)] = np.arange(10, 16)
+HEX_VALUE.setflags(write=False)
 
 
 def finite(text: str, name: str = "field") -> float:

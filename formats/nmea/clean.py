@@ -21,14 +21,8 @@ from operator import itemgetter
 
 import numpy as np
 
+from ..numbers import HEX_VALUE
 from .framing import prefix_xor
-
-# byte -> hex digit value, -1 for anything else
-_HEX_VALUE = np.full(256, -1, dtype=np.int16)
-for _i, _c in enumerate(b"0123456789ABCDEF"):
-    _HEX_VALUE[_c] = _i
-for _i, _c in enumerate(b"abcdef"):
-    _HEX_VALUE[_c] = 10 + _i
 
 
 @dataclass(frozen=True, slots=True)
@@ -73,7 +67,7 @@ def clean_lines(data: bytes) -> CleanLines | None:
         # exactly one of each per kept line, at its place; none on the skipped (empty) lines
         if len(pos) != len(idx) or not np.array_equal(pos, where):
             return None
-    hi, lo = _HEX_VALUE[buf[s + n - 2]], _HEX_VALUE[buf[s + n - 1]]
+    hi, lo = HEX_VALUE[buf[s + n - 2]], HEX_VALUE[buf[s + n - 1]]
     if (hi < 0).any() or (lo < 0).any():
         return None
     pxor = np.frombuffer(prefix_xor(data), dtype=np.uint8)

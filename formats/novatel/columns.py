@@ -24,7 +24,7 @@ from functools import partial
 
 import numpy as np
 
-from ..numbers import finite, integer, optional_integer
+from ..numbers import HEX_VALUE, finite, integer, optional_integer
 from . import logs as N
 from .scan import _enum, _hex
 
@@ -57,13 +57,6 @@ _SPEC: dict[str, tuple[tuple[int, Callable[[str], object] | str], ...]] = {
     "INSPVAX": ((0, _INS), (1, _PT), *((k, _FLOAT) for k in range(2, 21)), (21, _hex), (22, optional_integer)),
 }
 _SPEC["INSPVAS"] = _SPEC["INSPVA"]
-
-# byte -> hex digit value, -1 for anything else
-_HEX_VALUE = np.full(256, -1, dtype=np.int64)
-for _i, _c in enumerate(b"0123456789abcdef"):
-    _HEX_VALUE[_c] = _i
-for _i, _c in enumerate(b"ABCDEF"):
-    _HEX_VALUE[_c] = 10 + _i
 
 
 @dataclass(frozen=True, slots=True)
@@ -153,7 +146,7 @@ def decode_columns(data: bytes, binary_checked: bool = False) -> NovatelColumns 
             return None
     if len(semi) != len(idx) or not ((semi > s + 1) & (semi < star)).all():
         return None  # exactly one ';' in each line, after a name
-    digits = _HEX_VALUE[buf[star[:, None] + np.arange(1, 9)]]
+    digits = HEX_VALUE[buf[star[:, None] + np.arange(1, 9)]]
     if (digits < 0).any():
         return None
     given = (digits << (4 * np.arange(7, -1, -1))).sum(axis=1)
