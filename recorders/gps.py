@@ -424,12 +424,9 @@ def convert_novatel(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | 
 
     For a consumer of batches a clean file takes the column path (`_novatel_column_batches`), any other the
     per-line one."""
-    resume = (0, 1)
-    if ctx.batches and ctx.prefix in PREFIX_STYLES:
-        went_on = yield from novatel_column_path(data, ctx, _GNSS_KINDS, _novatel_column_batches)
-        if went_on is None:
-            return
-        resume = went_on
+    resume = yield from novatel_column_path(data, ctx, _GNSS_KINDS, _novatel_column_batches)
+    if resume is None:
+        return
     rows = _NovatelRows(ctx)
     for epoch in novatel_scan_epochs(data, ctx, _GNSS_KINDS, resume):
         reject = epoch if isinstance(epoch, Reject) else rows.add(epoch)

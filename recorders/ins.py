@@ -33,7 +33,6 @@ import numpy as np
 
 from formats import pashr, phins, phins_columns
 from formats import schemas as S
-from formats.lines import PREFIX_STYLES
 from formats.log_blocks import Block, LogText, blocks_in
 from formats.nmea import sentences as nmea
 from formats.novatel import columns as novatel_columns
@@ -479,12 +478,9 @@ def convert_span(data: bytes, ctx: LogContext) -> Iterator[Output | Reject | Ign
 
     For a consumer of batches a clean file takes the column path (`_span_column_batches`), any other the
     per-line one."""
-    resume = (0, 1)
-    if ctx.batches and ctx.prefix in PREFIX_STYLES:
-        went_on = yield from novatel_column_path(data, ctx, _SPAN_KINDS, _span_column_batches)
-        if went_on is None:
-            return
-        resume = went_on
+    resume = yield from novatel_column_path(data, ctx, _SPAN_KINDS, _span_column_batches)
+    if resume is None:
+        return
     rows = ins_rows(ctx)
     for epoch in novatel_scan_epochs(data, ctx, _SPAN_KINDS, resume):
         if isinstance(epoch, Reject):

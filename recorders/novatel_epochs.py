@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from formats.gpstime import gps_to_unix_ns, gps_to_unix_ns_column
+from formats.lines import PREFIX_STYLES
 from formats.novatel import columns as novatel_columns
 from formats.novatel import logs as N
 from formats.novatel import scan as novatel_scan
@@ -191,11 +192,14 @@ ColumnBuilder = Callable[[novatel_columns.NovatelColumns, ColumnEpochs, LogConte
 def novatel_column_path(data: bytes, ctx: LogContext, kinds: frozenset[str], build: ColumnBuilder
                         ) -> Generator[Batch, None, tuple[int, int] | None]:
     """A file's Batches from the column path, block by block (`BLOCK_BYTES`); returns None when it took the whole
-    file, else where the per-line path must go on (offset, line number): a block that is not clean.
+    file, else where the per-line path must go on (offset, line number): from the start for a consumer of
+    messages or a line prefix the column reader does not take, else at a block that is not clean.
 
     A block's last run of epochs (its last Batch, which may go on in the next block) is read again with the
     next block, so epochs and Batches are the whole file's, as the per-line path makes them.
     """
+    if not (ctx.batches and ctx.prefix in PREFIX_STYLES):  # a consumer of messages, or lines the column reader
+        return 0, 1                                          # does not take: the per-line path from the start
     if N._next_sync(data, 0) >= 0:  # binary logs: the record path reads the whole file
         return 0, 1
     start, line = 0, 1

@@ -85,6 +85,7 @@ def _collect(child: tuple[int, int, Sequence[int]]) -> dict[int, T]:
         os.waitpid(pid, 0)
     out: dict[int, T] = {}
     try:
+        # only our own forked child wrote this pipe (never a file, archive or log byte): pickle is safe here
         parts = pickle.loads(b"".join(chunks))
         for i, part in zip(group, parts, strict=False):
             if part:
