@@ -67,6 +67,19 @@ def test_a_burst_of_marginal_exceedances_raises_it_within_a_few_epochs() -> None
     assert out[1].threshold == pytest.approx(H * math.exp(GAIN * (1 - SHARE)))
 
 
+def test_an_epoch_that_does_not_step_down_raises_it_when_marginal_and_never_lowers_it() -> None:
+    """``steps_down`` False (stale_aware's stale ranges, cut at T1 whatever g is): only a marginal flag moves g."""
+    rt = RunningThreshold(StackConfig(), 1.0)
+    for s in (0.5, 3 * H, 0.0, 20.0):           # under the threshold and beyond the band: g stays
+        rt.decide(Decision(bool(s > H), s, H, steps_down=False))
+        assert rt.g == 1.0
+    rt.decide(Decision(True, 1.1 * H, H, steps_down=False))
+    assert rt.g == pytest.approx(math.exp(GAIN * (1 - SHARE)))
+    g = rt.g
+    rt.decide(Decision(False, 0.5, H))          # an ordinary epoch steps down as before
+    assert rt.g == pytest.approx(g * math.exp(-GAIN * SHARE))
+
+
 @settings(max_examples=100, deadline=None)
 @given(st.lists(st.one_of(st.floats(0, 50), st.just(math.nan)), min_size=1, max_size=60))
 def test_off_it_is_the_detectors_decision_and_a_nan_score_moves_nothing(scores: list[float]) -> None:

@@ -63,6 +63,7 @@ def test_a_stale_range_is_judged_by_its_predicted_error_and_any_other_as_fix_awa
         d = sa.decide(row)
         if st_:
             assert d.flagged == (abs(row[INN]) > 9.0) == (d.score > d.threshold)
+            assert not d.steps_down     # the running threshold's multiplier may rise on it, never fall
         else:
             assert d == fa.decide(row)
 

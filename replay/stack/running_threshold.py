@@ -24,6 +24,13 @@ rate on the clutter around each cell):
   too, so ``share`` (2.5 % of every epoch) is set on development trials
   for a false-alarm rate near 2 % (3.5 % with a band of 1.5 put it at the
   band's upper edge, 3 %);
+- an epoch whose decision does not step down (``Decision.steps_down``
+  False: `stale_aware`'s stale ranges, cut at T1 whatever g is, as their
+  score is h·(|e|/T1)^8) raises g when it is a marginal exceedance and
+  never lowers it: their false alarms (0.4-1.0 % of the normal epochs on
+  development seeds) then hold g up as the drift test's do, where before
+  each stale range lowered g by ``gain * share`` (docs/detection.md
+  section 5, "Stale ranges in the running threshold's share");
 - it starts at the lower of the calibrated threshold and the configured
   multiple (``drift_reference_z``) and never falls under ``floor`` times
   that: it rises in a few epochs but falls over hundreds, so starting
@@ -70,13 +77,15 @@ class RunningThreshold:
         return cls(config, start)
 
     def decide(self, decision: Decision) -> Decision:
-        """The decision against g times its threshold, then g's step; a NaN score is not flagged and moves nothing."""
+        """The decision against g times its threshold, then g's step (up only where ``steps_down`` is False);
+        a NaN score is not flagged and moves nothing."""
         score, base = decision.score, decision.threshold
         if not (math.isfinite(score) and math.isfinite(base)):
             return decision
         h = self.g * base
         flagged = score > h
         marginal = flagged and score < self.band * h
-        self.g = max(self.low, self.g * math.exp(self.gain * (float(marginal) - self.share)))
+        if marginal or decision.steps_down:
+            self.g = max(self.low, self.g * math.exp(self.gain * (float(marginal) - self.share)))
         self.decided += 1
         return replace(decision, flagged=flagged, threshold=h)

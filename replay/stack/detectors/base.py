@@ -24,12 +24,16 @@ class Decision:
 
     `correction_m` is non-zero only for compensation-mode detectors: the range
     is corrected by it (Z - correction) and used instead of being isolated.
+    `steps_down` False: a closed-loop running threshold may raise its
+    multiplier on this epoch but not lower it (a test whose cut the
+    multiplier hardly moves, as `stale_aware`'s stale ranges against T1).
     """
 
     flagged: bool
     score: float
     threshold: float
     correction_m: float = 0.0
+    steps_down: bool = True
 
 
 class Detector(Protocol):

@@ -120,7 +120,9 @@ class StaleAwareDetector:
         x = np.asarray(features, dtype=float)
         if bool(self._stale(x.reshape(1, -1))[0]):
             score = float(self.scores(x)[0])
-            return Decision(flagged=bool(abs(float(x[_INNOVATION])) > self.t1), score=score, threshold=self.threshold)
+            # its cut is T1 whatever g is, so a stale range only raises the running threshold (when marginal)
+            return Decision(flagged=bool(abs(float(x[_INNOVATION])) > self.t1), score=score, threshold=self.threshold,
+                            steps_down=False)
         return self.inner.decide(x)
 
     def reset(self) -> None:
