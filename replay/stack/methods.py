@@ -156,7 +156,7 @@ METHOD_TABLE: dict[str, Method] = {m.name: m for m in (
     # model's innovation, and the ACKF's separates better: docs/detection.md section 5)
     Method("fix_aware", "detector", "detect", _TRAINED, "ACKF + DR error reference, chi-square under a fresh fix",
            "fixaw", (120, 90, 60), fix_aware.FixAwareDetector, _WIDE, fix_aware.why_line,
-           score_plot=("fix_aware vs h (sd)", "chi-square's h*(f2/gate)^2 with a fresh fix, else drift_reference's"),
+           score_plot=("fix_aware vs h (sd)", "chi-square's h*sqrt(f2/gate) with a fresh fix, else drift_reference's"),
            pooled_training=True, calibrated=True),
     # fix_aware, and a repeated range judged by its error predicted now against T1 (the DR error model never
     # takes a repeated range, so its innovation there is the stale run's error: docs/detection.md section 5)
