@@ -16,9 +16,10 @@ from replay.run.matrix import _config
 from replay.stack.config import StackConfig
 from replay.stack.detectors.chi_square import chi_square_threshold
 from replay.stack.detectors.drift_reference import DriftReferenceDetector
-from replay.stack.detectors.fix_aware import FixAwareDetector
+from replay.stack.detectors.fix_aware import FRESH_POWER, FixAwareDetector
 from replay.stack.features import FEATURE_NAMES
 from replay.stack.methods import METHOD_TABLE, why_line
+from replay.stack.running_threshold import RunningThreshold
 from replay.stack.scoring import roc_auc, roc_curve
 from samples.scenario import AnomalyEvent, Scenario
 
@@ -53,7 +54,7 @@ def test_a_fresh_fix_gives_chi_squares_test_and_none_gives_drift_references(valu
     fresh = np.isfinite(x[:, USBL])
     s = fa.scores(x)
     assert np.array_equal(s[~fresh], dr.scores(x[~fresh]), equal_nan=True)
-    assert np.allclose(s[fresh], 2.5 * np.sqrt(x[fresh, F2] / gate))
+    assert np.allclose(s[fresh], 2.5 * (x[fresh, F2] / gate) ** FRESH_POWER)
     for row, fr in zip(x, fresh):
         d = fa.decide(row)
         if fr:     # flagged exactly where chi-square flags, whatever the drift residual says
@@ -106,7 +107,7 @@ def test_on_a_trial_it_separates_the_drift_as_the_test_its_fix_age_picks(
     assert _auc(no_fix["fix_aware"]) > 0.9
     # with fixes every scored epoch has a fresh one: chi-square's ranking, on the h_z scale
     gate = chi_square_threshold(StackConfig().chi_square_alpha)
-    assert np.allclose(fixes["fix_aware"]["score"], 2.5 * np.sqrt(fixes["chi_square"]["score"] / gate))
+    assert np.allclose(fixes["fix_aware"]["score"], 2.5 * (fixes["chi_square"]["score"] / gate) ** FRESH_POWER)
     assert _auc(fixes["fix_aware"]) == pytest.approx(_auc(fixes["chi_square"])) and _auc(fixes["fix_aware"]) > 0.9
     # and the drifted epochs score above nearly every normal one in both
     for o in (no_fix["fix_aware"], fixes["fix_aware"]):
@@ -158,3 +159,26 @@ def test_a_part_with_too_few_rows_keeps_its_threshold() -> None:
     fa, _ = _trained()
     assert fa.calibrate(x, 0.02) and fa.threshold == 2.5 and fa.gate > chi_square_threshold(0.01)
     assert not fa.calibrate(x[:100], 0.02)
+
+
+def test_under_a_fresh_fix_the_running_thresholds_band_and_step_on_f2_are_set_by_the_power() -> None:
+    """The cut on f2 is gate·g^(1/p), a marginal exceedance is f2 within 1.3^(1/p) of it, and a step moves it by gain/p."""
+    config = StackConfig()
+    fa, _ = _trained()
+    row = np.full(len(FEATURE_NAMES), np.nan)
+    row[USBL] = 1.0
+    band_f2 = config.running_threshold_band ** (1.0 / FRESH_POWER)
+    cases = (((1.0 + band_f2) / 2, True), (band_f2 * 1.05, False), (0.9, False))   # f2 / gate -> marginal?
+    for ratio, marginal in cases:
+        rt = RunningThreshold(config, 1.0)
+        row[F2] = ratio * fa.gate
+        d = rt.decide(fa.decide(row))
+        assert d.flagged == (ratio > 1.0)
+        step = config.running_threshold_gain * (float(marginal) - config.running_threshold_share)
+        assert rt.g == pytest.approx(math.exp(step))
+        # the next cut on f2: gate * g^(1/p), moved by gain/p in log
+        assert fa.gate * rt.g ** (1.0 / FRESH_POWER) == pytest.approx(fa.gate * math.exp(step / FRESH_POWER))
+        row[F2] = fa.gate * rt.g ** (1.0 / FRESH_POWER) * 1.001
+        assert rt.decide(fa.decide(row)).flagged
+        row[F2] = fa.gate * rt.g ** (1.0 / FRESH_POWER) * 0.999
+        assert not rt.decide(fa.decide(row)).flagged

@@ -19,9 +19,18 @@ So at each epoch the test is the one that is informative at that fix age:
 - a fresh fix (``usbl_residual_m`` finite; ``usbl_max_age_s`` and ``lag_s``
   are both 60 s by default, so this is when the drift residual is the
   model's innovation): f2 against chi-square's gate χ²₁(1 - α), the score
-  put on drift_reference's scale as h_z·sqrt(f2 / gate), so one threshold
-  h_z serves both and the open-loop ranking within the fresh epochs is
-  chi-square's.
+  put on drift_reference's scale as h_z·(f2 / gate)^`FRESH_POWER` (the
+  innovation in sigmas, p = 1/2), so one threshold h_z serves both and the
+  open-loop ranking within the fresh epochs is chi-square's.
+
+The power sets what the running threshold (`replay.stack.running_threshold`)
+does to the gate: its band (1.3 h) and its step act on the score, so on f2
+they are 1.3^(1/p) and gain/p (p = 1/2: f2 in (T, 1.69 T), the cut moved
+by twice the gain). A larger power (1, 2, 4) lifts the conditions whose
+label noise lies in that band (sound speed, heavy tails, combined) but
+slows g where the training gate is too low (drawn_usbl on 2001-2008: 3.6 %
+to 8.1 % at p = 2), so it stays 1/2 (docs/detection.md section 5, "The
+fresh-fix gate's power").
 
 Calibrated (`calibrate`, marked in the method table): each test's threshold
 flags the target share of the training trial's normal rows of its own fix
@@ -56,6 +65,8 @@ from replay.stack.training import TrainingSet
 
 _F2 = FEATURE_NAMES.index("f2")
 _USBL = FEATURE_NAMES.index("usbl_residual_m")
+FRESH_POWER = 0.5
+"""The power of f2/gate in a fresh epoch's score: the running threshold's band and step on f2 are 1.3^(1/p), gain/p."""
 
 
 class FixAwareDetector:
@@ -135,10 +146,10 @@ class FixAwareDetector:
         return self.drift.decide(x)
 
     def scores(self, features: np.ndarray) -> np.ndarray:
-        """Open-loop scores of wide rows (n, F) on drift_reference's scale: h_z·sqrt(f2/gate) where a fix is fresh."""
+        """Open-loop scores of wide rows (n, F) on drift_reference's scale: h_z·(f2/gate)^p where a fix is fresh."""
         rows = np.asarray(features, dtype=float).reshape(-1, len(FEATURE_NAMES))
         fresh = np.isfinite(rows[:, _USBL])
-        chi = self._scale() * np.sqrt(np.abs(rows[:, _F2]) / self.gate)
+        chi = self._scale() * (np.abs(rows[:, _F2]) / self.gate) ** FRESH_POWER
         return np.where(fresh, chi, self.drift.scores(rows))
 
     def reset(self) -> None:
