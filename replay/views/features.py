@@ -177,8 +177,9 @@ def log_detector_scores(rec: rr.RecordingStream, run: Run) -> None:
 
 def score_top(runs: list[Run], method: str) -> float | None:
     """A score plot's y extent: four times the method's largest threshold (scores reach hundreds)."""
-    v = np.concatenate([floats(r.review.detections[r.review.detections["method"].astype(str) == method],
-                               "threshold") for r in runs if "method" in r.review.detections] or [np.zeros(0)])
+    v = np.concatenate([floats(rows, "threshold") for r in runs
+                        for (m,), rows in r.groups(r.review.detections, ["method"]) if str(m) == method]
+                       or [np.zeros(0)])
     v = v[np.isfinite(v)]
     return float(4.0 * v.max()) if v.size and v.max() > 0 else None
 

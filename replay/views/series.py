@@ -46,8 +46,9 @@ TRUTH_ROW = 0.05
 
 def anfis_top(runs: list[Run]) -> float | None:
     """The ANFIS plot's y extent: four times the largest T2 (outputs reach 1000 m where T2 is a few)."""
-    thr = [floats(r.review.detections[r.review.detections["method"].astype(str).isin(anfis_family())],
-                  "threshold") for r in runs if "method" in r.review.detections]
+    family = anfis_family()
+    thr = [floats(rows, "threshold") for r in runs for (m,), rows in r.groups(r.review.detections, ["method"])
+           if str(m) in family]
     v = np.concatenate(thr) if thr else np.zeros(0)
     v = v[np.isfinite(v)]
     return float(4.0 * v.max()) if v.size else None
