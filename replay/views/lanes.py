@@ -20,6 +20,8 @@ alarms and misses read the same in every lane; rows on `time` and `mission_s`, o
 
 from __future__ import annotations
 
+from functools import cache
+
 import numpy as np
 import pandas as pd
 import rerun as rr
@@ -100,9 +102,14 @@ def _configure(rec: rr.RecordingStream, path: str, labelled: bool) -> None:
     """A lane's states and colours; `labelled`: the state's name written in its segments (else blank: a lane of
     one-epoch segments would show "mi", "fals"; the key lane names the colours). Blank is a space: Rerun
     0.41 writes the raw value for an empty label."""
-    rec.log(path, rr.StateConfiguration(values=[s for s, _ in STATES],
-                                        labels=[s if labelled else " " for s, _ in STATES],
-                                        colors=[c for _, c in STATES]), static=True)
+    rec.log(path, _state_configuration(labelled), static=True)
+
+
+@cache
+def _state_configuration(labelled: bool) -> rr.StateConfiguration:
+    """The lanes' configuration, built once (every lane logs one of the two)."""
+    return rr.StateConfiguration(values=[s for s, _ in STATES], labels=[s if labelled else " " for s, _ in STATES],
+                                 colors=[c for _, c in STATES])
 
 
 def _send(rec: rr.RecordingStream, run: Run, path: str, t_s: np.ndarray, states: np.ndarray,
