@@ -213,6 +213,11 @@ def no_cycle_collection() -> Iterator[None]:
             gc.enable()
 
 
+def epochs_of(run: Run, rows: pd.DataFrame) -> pd.DataFrame:
+    """The first row of each instant of a group's rows (one per ranging epoch), once per group and run."""
+    return run.memo("epochs", (rows,), lambda: rows.drop_duplicates("t_s"))
+
+
 def track_pairs(run: Run) -> list[tuple[str, str]]:
     """Every (vehicle, source) of a run's tracks, sorted (the tracks' groups, as the views draw them)."""
     return [(str(v), str(s)) for (v, s), _ in run.groups(run.review.tracks, ["vehicle", "source"])]

@@ -27,7 +27,7 @@ import pandas as pd
 import rerun as rr
 
 from replay.review.scoreboard import detectors_by_merit, scoreboard
-from replay.views.common import Run, floats, part
+from replay.views.common import Run, epochs_of, floats, part
 
 # state -> colour; the same in every lane and every run (errors loud, correct silence quiet)
 STATES: tuple[tuple[str, tuple[int, int, int]], ...] = (
@@ -150,7 +150,7 @@ def log_lanes(rec: rr.RecordingStream, run: Run, order: list[str] | None = None)
             if pair_follower != follower:
                 continue
             paths = lane_paths(run, where, str(leader), methods)
-            epochs = rows.drop_duplicates("t_s")
+            epochs = epochs_of(run, rows)
             label = pd.to_numeric(epochs["label"], errors="coerce").fillna(-1).to_numpy(dtype=int)
             _send(rec, run, paths[0], epochs["t_s"].to_numpy(dtype=float), truth_states(label))
             by_method = {str(k[0]): r for k, r in run.groups(rows, ["method"])}
