@@ -93,6 +93,9 @@ class Run:
     # (name, ids of the tables it was derived from) -> (the tables, the value): several views derive the same
     _memo: dict[tuple, tuple[tuple, object]] = field(default_factory=dict, init=False, repr=False, compare=False)
 
+    # the time columns of each distinct array of instants (its bytes)
+    _times: dict[bytes, list[rr.TimeColumn]] = field(default_factory=dict, init=False, repr=False, compare=False)
+
     def memo(self, name: str, tables: tuple, make: Callable[[], T]) -> T:
         """`make()`, computed once per name and tables (the same objects; held, so their ids stay theirs)."""
         key = (name, *(id(t) for t in tables))
@@ -119,9 +122,13 @@ class Run:
 
     def times(self, t_s: np.ndarray | pd.Series) -> list[rr.TimeColumn]:
         """The two timelines of every logged row: `time` (UTC, trial_start_ns + t_s) and `mission_s`."""
-        t = np.asarray(t_s, dtype=float)
-        ns = self.review.trial_start_ns + np.round(t * 1e9).astype(np.int64)
-        return [rr.TimeColumn("time", timestamp=ns.astype("datetime64[ns]")), mission_column(t)]
+        t = np.ascontiguousarray(t_s, dtype=float)
+        key = t.tobytes()               # the views send many series at the same instants (a pair's epochs)
+        hit = self._times.get(key)
+        if hit is None:
+            ns = self.review.trial_start_ns + np.round(t * 1e9).astype(np.int64)
+            hit = self._times[key] = [rr.TimeColumn("time", timestamp=ns.astype("datetime64[ns]")), mission_column(t)]
+        return list(hit)
 
     @property
     def tag(self) -> str:
