@@ -29,6 +29,7 @@ firing, normalized weighted sum of linear consequents), batched over epochs.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 import pandas as pd
@@ -131,10 +132,15 @@ def premise_of(params: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def history_of(rows: pd.DataFrame) -> ModelHistory | None:
     """Stack one model's epochs (rows of anfis_epochs); None when the params cannot be read."""
     rows = rows.sort_values("epoch", kind="stable")
+    params = rows["params"].tolist()
     try:
-        prem = [premise_of(p) for p in rows["params"]]
-        q = np.stack([np.asarray(p["consequents"], dtype=float) for p in rows["params"]])
-        a, b, c = (np.stack([x[i] for x in prem]) for i in range(3))
+        if all("membership" in p for p in params):        # the stack's own form: every epoch in one array
+            abc = np.asarray([p["membership"] for p in params], dtype=float)
+            a, b, c = abc[..., 0], abc[..., 1], abc[..., 2]
+        else:
+            prem = [premise_of(p) for p in params]
+            a, b, c = (np.stack([x[i] for x in prem]) for i in range(3))
+        q = np.asarray([p["consequents"] for p in params], dtype=float)
     except (KeyError, TypeError, ValueError, IndexError):
         return None
     first = rows["params"].iloc[0]
@@ -258,15 +264,13 @@ def _log_mf_axes(rec: rr.RecordingStream, run: Run, model: str, h: ModelHistory,
     first MF_TICKS labels), and the grade scale beside it (the last three)."""
     d = h.a.shape[1]
     grey = (150, 150, 150)
-    lines = [np.array([[0.0, 0.0], [1.0, 0.0]])] + [np.array([[x, 0.0], [x, 0.04]]) for x in MF_TICKS] \
-        + [np.array([[0.0, -g], [-0.03, -g]]) for g in (0.0, 0.5, 1.0)]
     spots = np.vstack([np.column_stack([MF_TICKS, np.full(MF_TICKS.size, 0.07)]), [[-0.06, 0.0], [-0.06, -0.5],
                                                                                   [-0.06, -1.0]]])
     for i in range(d):
         lo = float(h.input_min[i]) if i < h.input_min.size else 0.0
         hi = float(h.input_max[i]) if i < h.input_max.size else 1.0
         base = model_path(run, model, "training", "mf", f"in{i + 1}", "axis")
-        rec.log(base, rr.LineStrips2D(lines, colors=[grey]), static=True)
+        rec.log(base, _mf_axis_lines(), static=True)
         rec.log(base + "/values", rr.Points2D(spots, labels=[*axis_labels(lo, hi), "0", "0.5", "1"], colors=[grey],
                                               radii=rr.Radius.ui_points(0.5)), static=True)
 
@@ -356,6 +360,8 @@ def _log_training(rec: rr.RecordingStream, run: Run, model: str, h: ModelHistory
     thr = float(floats(explain, "threshold")[0]) if explain is not None and not explain.empty else float("nan")
     frame = surface_frame(grid, explain, thr)
     best = int(np.searchsorted(shown, h.best))
+    if h.a.shape[1] >= 2:
+        rec.log(model_path(run, model, "training", "surface"), _surface_triangles(), static=True)
     for sel, rows, index in ((shown, np.arange(shown.size), [rr.TimeColumn("anfis_epoch", sequence=h.epochs[shown])]),
                              (np.array([h.best]), np.array([best]), run.times(np.array([_training_end(explain)])))):
         _log_mfs(rec, run, model, h, sel, index)
@@ -429,11 +435,32 @@ def _log_surface(rec: rr.RecordingStream, run: Run, model: str, x: np.ndarray, o
     e, n = out.shape
     verts = frame.xyz(np.broadcast_to(x[None, :, :], (e, *x.shape)), out)
     path = model_path(run, model, "training", "surface")
-    rec.log(path, rr.Mesh3D.from_fields(triangle_indices=grid_triangles(SURFACE_GRID)), static=True)
     cols = rr.Mesh3D.columns(vertex_positions=verts.reshape(-1, 3),
                              vertex_colors=surface_colors(np.clip(out, None, frame.z_top),
                                                           frame.threshold).reshape(-1, 3))
     rec.send_columns(path, indexes=index, columns=cols.partition(np.full(e, n)))
+
+
+@cache
+def _surface_triangles() -> rr.Mesh3D:
+    """The surface's triangles (the same grid for every model and frame), built once."""
+    return rr.Mesh3D.from_fields(triangle_indices=grid_triangles(SURFACE_GRID))
+
+
+@cache
+def _mf_axis_lines() -> rr.LineStrips2D:
+    """Under an MF plot: the input axis, its tick marks at MF_TICKS and the grade scale's (the same for every plot)."""
+    lines = [np.array([[0.0, 0.0], [1.0, 0.0]])] + [np.array([[x, 0.0], [x, 0.04]]) for x in MF_TICKS] \
+        + [np.array([[0.0, -g], [-0.03, -g]]) for g in (0.0, 0.5, 1.0)]
+    return rr.LineStrips2D(lines, colors=[(150, 150, 150)])
+
+
+@cache
+def _firing_axis_lines() -> rr.LineStrips2D:
+    """The firing plot's axis and its grid lines at w = 0.5 and 1 (the same for every model)."""
+    return rr.LineStrips2D([np.array([[-0.05, 0.0], [1.05, 0.0]])]
+                           + [np.array([[-0.12, -g], [1.05, -g]]) for g in (0.5, 1.0)],
+                           colors=[(150, 150, 150), (70, 70, 70), (70, 70, 70)])
 
 
 def _rule_names(rules: np.ndarray, m: int, names: tuple[str, ...] = PAPER_INPUTS) -> list[str]:
@@ -523,9 +550,7 @@ def _log_firing_axis(rec: rr.RecordingStream, run: Run, model: str, r: int) -> N
     step = 1 if r <= 12 else 2
     grey = (150, 150, 150)
     base = model_path(run, model, "explain", "firing_axis")
-    rec.log(base, rr.LineStrips2D([np.array([[-0.05, 0.0], [1.05, 0.0]])]
-                                  + [np.array([[-0.12, -g], [1.05, -g]]) for g in (0.5, 1.0)],
-                                  colors=[grey, (70, 70, 70), (70, 70, 70)]), static=True)
+    rec.log(base, _firing_axis_lines(), static=True)
     spots = np.vstack([np.column_stack([xs[::step], np.full(xs[::step].size, 0.06)]), [[-0.24, -0.5], [-0.24, -1.0]]])
     rec.log(base + "/labels", rr.Points2D(spots, labels=[f"R{k + 1}" for k in range(0, r, step)] + ["0.5", "1"],
                                           colors=[grey], radii=rr.Radius.ui_points(0.5)), static=True)

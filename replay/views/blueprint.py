@@ -39,7 +39,7 @@ from replay.review.data import ReviewData
 from replay.stack.methods import METHOD_TABLE
 from replay.views.anfis import input_short, input_title, model_inputs, model_order, model_parts, model_path
 from replay.views.cdf import HEIGHT, WIDTH
-from replay.views.common import MISSION, Run, floats
+from replay.views.common import MISSION, Run, floats, track_pairs
 from replay.views.features import (
     FEATURE_GROUPS,
     feature_note,
@@ -99,10 +99,8 @@ def _up_to_cursor() -> rrb.VisibleTimeRanges:
 
 def _trail_overrides(runs: list[Run], view: str) -> dict[EntityPathLike, VisualizerLike]:
     """Every trail entity shows its samples from the start up to the cursor."""
-    pairs = [(r, r.review.tracks[["vehicle", "source"]].drop_duplicates()) for r in runs
-             if {"vehicle", "source"} <= set(r.review.tracks.columns)]
-    return {r.path(view, str(v), str(s), "trail"): _up_to_cursor()
-            for r, p in pairs for v, s in zip(p["vehicle"], p["source"], strict=True)}
+    ranges = _up_to_cursor()            # one value, the same for every trail
+    return {r.path(view, v, s, "trail"): ranges for r in runs for v, s in track_pairs(r)}
 
 
 def _merge(*parts: dict[EntityPathLike, VisualizerLike]) -> dict[EntityPathLike, Any]:
@@ -237,7 +235,8 @@ def _scores(runs: list[Run]) -> rrb.Container:
 def _features(runs: list[Run]) -> rrb.Container:
     """Per leader: paper A's features, the ranges, and the computed new features by group (3 x 3 plots)."""
     have = {f for r in runs for f in present_features(r.review.detections)}
-    det = [r.review.detections for r in runs]
+    by_pair = [{(str(k[0]), str(k[1])): rows for k, rows in r.groups(r.review.detections, ["follower", "leader"])}
+               for r in runs]
     pairs = _pairs(runs)
     many = len({f for f, _ in pairs}) > 1
     tabs = []
@@ -250,7 +249,7 @@ def _features(runs: list[Run]) -> rrb.Container:
             shown = [n for n in names if n in have]
             if not shown:
                 continue
-            mine = [d[(d["follower"].astype(str) == f) & (d["leader"].astype(str) == ld)] for d in det]
+            mine = [d[(f, ld)] for d in by_pair if (f, ld) in d]
             v = np.concatenate([floats(d, n) for d in mine for n in shown] or [np.zeros(0)])
             plots.append(_series(f"{ld}: {group_title(title, shown)}", [f"+ {r.path('features', f, ld, key)}/**"
                                                                         for r in runs],

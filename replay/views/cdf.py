@@ -21,7 +21,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 import rerun as rr
 
 from replay.review.scoreboard import scoreboard
@@ -60,18 +59,14 @@ class LogAxis:
         return t[(t >= self.lo * 0.999) & (t <= self.hi * 1.001)]
 
 
-def scored(run: Run, rows: pd.DataFrame) -> pd.DataFrame:
-    """The rows inside the run's metrics window (from t_a on, as the metrics count them)."""
-    return rows[floats(rows, "t_s") >= training_end_s(run)]
-
-
 def error_axis(runs: list[Run]) -> dict[str, LogAxis]:
     """Per follower, the x axis holding every method's scored errors (1st to 99th percentile; beyond, curves
     run up the right edge)."""
     out: dict[str, list[np.ndarray]] = {}
     for run in runs:
+        t_a = training_end_s(run)
         for (follower, _method), rows in run.groups(run.review.errors, ["follower", "method"]):
-            v = floats(scored(run, rows), "error_m")
+            v = floats(rows, "error_m")[floats(rows, "t_s") >= t_a]  # from t_a on, as the metrics count
             v = v[np.isfinite(v) & (v > 0)]
             if v.size:
                 out.setdefault(str(follower), []).append(np.quantile(v, [0.01, 0.99]))
@@ -125,16 +120,21 @@ def log_cdfs(rec: rr.RecordingStream, run: Run, axes: dict[str, LogAxis]) -> Gro
     probs = np.linspace(0.0, 1.0, CDF_POINTS)
     marks = np.array(PERCENTILES)
     growth: Growth = {}
-    for (follower,), f_rows in run.groups(run.review.errors, ["follower"]):
-        f, axis = str(follower), axes.get(str(follower))
+    t_a = training_end_s(run)
+    by_method: dict[str, list[tuple[str, np.ndarray, np.ndarray]]] = {}
+    for (follower, method), rows in run.groups(run.review.errors, ["follower", "method"]):
+        t = floats(rows, "t_s")
+        kept = t >= t_a  # from t_a on, as the metrics count
+        if kept.any():
+            by_method.setdefault(str(follower), []).append((str(method), t[kept], floats(rows, "error_m")[kept]))
+    for f, methods in by_method.items():
+        axis = axes.get(f)
         if axis is None:
             continue
-        f_rows = scored(run, f_rows)
-        at = snapshot_times(floats(f_rows, "t_s"))
+        at = snapshot_times(np.concatenate([t for _, t, _ in methods]))
         table: dict[str, np.ndarray] = {}
-        for (method,), rows in run.groups(f_rows, ["method"]):
-            m = str(method)
-            q = expanding_quantiles(floats(rows, "t_s"), floats(rows, "error_m"), at, np.concatenate([probs, marks]))
+        for m, t, e in methods:
+            q = expanding_quantiles(t, e, at, np.concatenate([probs, marks]))
             _log_curve(rec, run, f, m, at, q, axis)
             table[m] = q[:, CDF_POINTS:]
         _log_table(rec, run, f, at, table)
@@ -259,8 +259,10 @@ def _log_table(rec: rr.RecordingStream, run: Run, follower: str, at: np.ndarray,
     head = "| method | " + " | ".join(f"p{int(p * 100)} (m)" for p in PERCENTILES) + " |\n|---|" + "---:|" * len(
         PERCENTILES) + "\n"
     order = sorted(table, key=lambda m: (np.nan_to_num(table[m][-1, 0], nan=np.inf), m))
-    rows = [[f"| {m} | " + " | ".join(np.char.mod("%.2f", table[m][i]).tolist()) + " |" for m in order]
-            for i in range(at.size)]
+    # every figure formatted at once: (methods, instants) cells of the percentiles joined
+    cells = [" | ".join(c) for c in np.char.mod("%.2f", np.stack([table[m] for m in order])).reshape(
+        -1, len(PERCENTILES)).tolist()]
+    rows = [[f"| {m} | {cells[j * at.size + i]} |" for j, m in enumerate(order)] for i in range(at.size)]
     tag = f" [{run.tag}]" if run.tag else ""
     docs = [f"**Errors of {follower}{tag} from t_a = {t_a:.0f} s to {t:.0f} s** (mission seconds; the metrics "
             f"window, so at the end these are the scoreboard's p50/p90)\n\n" + head + "\n".join(rows[i])

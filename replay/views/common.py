@@ -9,10 +9,14 @@ and ignore view coordinates (rerun issue #1387), so the 2D views log
 from __future__ import annotations
 
 import colorsys
+import gc
 import json
 import re
 import zlib
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import numpy as np
 import pandas as pd
@@ -31,6 +35,7 @@ FIRST_FREE_ID = 100
 # KMCDF cluster of a preliminary fix: 1 = C1 (consistent, kept) green, 2 = C2 red; 0 = unclustered grey
 CLUSTER_COLORS = np.array([[160, 160, 160], [60, 200, 90], [220, 60, 50], [230, 200, 60]], dtype=np.uint8)
 _SAFE = re.compile(r"[^A-Za-z0-9_.-]+")
+T = TypeVar("T")
 
 
 def class_id(name: str) -> int:
@@ -85,6 +90,19 @@ class Run:
     # (id of a table, keys) -> (the table, its groups): several views group the same rows the same way
     _groups: dict[tuple[int, tuple[str, ...]], tuple[pd.DataFrame, list[tuple[tuple, pd.DataFrame]]]] = field(
         default_factory=dict, init=False, repr=False, compare=False)
+    # (name, ids of the tables it was derived from) -> (the tables, the value): several views derive the same
+    _memo: dict[tuple, tuple[tuple, object]] = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    # the time columns of each distinct array of instants (its bytes)
+    _times: dict[bytes, list[rr.TimeColumn]] = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def memo(self, name: str, tables: tuple, make: Callable[[], T]) -> T:
+        """`make()`, computed once per name and tables (the same objects; held, so their ids stay theirs)."""
+        key = (name, *(id(t) for t in tables))
+        hit = self._memo.get(key)
+        if hit is None or any(a is not b for a, b in zip(hit[0], tables, strict=True)):
+            hit = self._memo[key] = (tables, make())
+        return hit[1]  # type: ignore[return-value]
 
     def groups(self, frame: pd.DataFrame, keys: list[str]) -> list[tuple[tuple, pd.DataFrame]]:
         """`groups(frame, keys)`, computed once per table and keys for this run (read it, never change it).
@@ -104,9 +122,13 @@ class Run:
 
     def times(self, t_s: np.ndarray | pd.Series) -> list[rr.TimeColumn]:
         """The two timelines of every logged row: `time` (UTC, trial_start_ns + t_s) and `mission_s`."""
-        t = np.asarray(t_s, dtype=float)
-        ns = self.review.trial_start_ns + np.round(t * 1e9).astype(np.int64)
-        return [rr.TimeColumn("time", timestamp=ns.astype("datetime64[ns]")), mission_column(t)]
+        t = np.ascontiguousarray(t_s, dtype=float)
+        key = t.tobytes()               # the views send many series at the same instants (a pair's epochs)
+        hit = self._times.get(key)
+        if hit is None:
+            ns = self.review.trial_start_ns + np.round(t * 1e9).astype(np.int64)
+            hit = self._times[key] = [rr.TimeColumn("time", timestamp=ns.astype("datetime64[ns]")), mission_column(t)]
+        return list(hit)
 
     @property
     def tag(self) -> str:
@@ -184,11 +206,37 @@ def groups(frame: pd.DataFrame, keys: list[str]) -> list[tuple[tuple, pd.DataFra
     return out
 
 
+@contextmanager
+def no_cycle_collection() -> Iterator[None]:
+    """Python's cycle collector paused while a recording is built: its full passes walk every object of the
+    review tables (ANFIS parameters and explanations are lists per row) again and again, for garbage that
+    reference counting frees anyway (any cycle made meanwhile is collected after)."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
+
+
+def epochs_of(run: Run, rows: pd.DataFrame) -> pd.DataFrame:
+    """The first row of each instant of a group's rows (one per ranging epoch), once per group and run."""
+    return run.memo("epochs", (rows,), lambda: rows.drop_duplicates("t_s"))
+
+
+def track_pairs(run: Run) -> list[tuple[str, str]]:
+    """Every (vehicle, source) of a run's tracks, sorted (the tracks' groups, as the views draw them)."""
+    return [(str(v), str(s)) for (v, s), _ in run.groups(run.review.tracks, ["vehicle", "source"])]
+
+
 def floats(rows: pd.DataFrame, column: str) -> np.ndarray:
     """A column as float64 (missing column: NaN)."""
     if column not in rows:
         return np.full(len(rows), np.nan)
     col = rows[column]
+    if col.dtype == np.float64:          # the tables' usual case: no conversion, no NA to fill
+        return col.to_numpy()
     if pd.api.types.is_float_dtype(col.dtype) or pd.api.types.is_integer_dtype(col.dtype):
         return col.to_numpy(dtype=float, na_value=np.nan)
     return pd.to_numeric(col, errors="coerce").to_numpy(dtype=float)

@@ -28,7 +28,7 @@ import rerun as rr
 
 from replay.stack.features import EXTRA_FEATURES
 from replay.stack.methods import methods
-from replay.views.common import Run, floats
+from replay.views.common import Run, epochs_of, floats
 from replay.views.lanes import epoch_states, training_end_s
 from replay.views.series import LEADER_RGB, log_truth_marks
 
@@ -129,7 +129,7 @@ def log_features(rec: rr.RecordingStream, run: Run) -> None:
         rec.log(run.path("features", "note"), rr.TextDocument(note), static=True)
     have = set(present_features(det))
     for (follower, leader), rows in run.groups(det, ["follower", "leader"]):
-        epochs = rows.drop_duplicates("t_s")
+        epochs = epochs_of(run, rows)
         t = floats(epochs, "t_s")
         for key, _, names in FEATURE_GROUPS:
             for f in names:
@@ -177,8 +177,9 @@ def log_detector_scores(rec: rr.RecordingStream, run: Run) -> None:
 
 def score_top(runs: list[Run], method: str) -> float | None:
     """A score plot's y extent: four times the method's largest threshold (scores reach hundreds)."""
-    v = np.concatenate([floats(r.review.detections[r.review.detections["method"].astype(str) == method],
-                               "threshold") for r in runs if "method" in r.review.detections] or [np.zeros(0)])
+    v = np.concatenate([floats(rows, "threshold") for r in runs
+                        for (m,), rows in r.groups(r.review.detections, ["method"]) if str(m) == method]
+                       or [np.zeros(0)])
     v = v[np.isfinite(v)]
     return float(4.0 * v.max()) if v.size and v.max() > 0 else None
 

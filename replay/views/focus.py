@@ -23,7 +23,7 @@ from rerun.encodings import EntityPathLike
 from replay.navigation.review import DR_METHOD
 from replay.review.scoreboard import best_detector, best_of_groups, scoreboard
 from replay.stack.methods import METHOD_TABLE
-from replay.views.common import Run
+from replay.views.common import Run, track_pairs
 
 ALL = "all"
 REFERENCES: tuple[str, ...] = ("chi_square", "anfis")   # the paper's baseline and its ANFIS
@@ -47,6 +47,12 @@ def focus_of(run: Run, focus: Sequence[str] | None) -> tuple[str, ...] | None:
 
 def hidden_methods(run: Run, focus: Sequence[str] | None) -> list[str]:
     """The methods of the method table the run drew that its focus leaves out, in table order."""
+    key = "hidden " + repr(None if focus is None else tuple(focus))
+    review = run.review
+    return list(run.memo(key, (review.tracks, review.errors, review.metrics), lambda: _hidden(run, focus)))
+
+
+def _hidden(run: Run, focus: Sequence[str] | None) -> list[str]:
     shown = focus_of(run, focus)
     if shown is None:
         return []
@@ -72,16 +78,12 @@ def hide(runs: list[Run], focus: Sequence[str] | None, view: str) -> dict[Entity
         if not hidden:
             continue
         if view in ("map", "local"):
-            pairs = run.review.tracks[["vehicle", "source"]].drop_duplicates() if "source" in run.review.tracks \
-                else None
-            keys = [] if pairs is None else [(str(v), str(s)) for v, s in zip(pairs["vehicle"], pairs["source"],
-                                                                               strict=True) if str(s) in hidden]
+            keys = [(v, s) for v, s in track_pairs(run) if s in hidden]
             # every leaf entity: a Spatial view does not carry a parent's visibility to its children
             out.update({run.path(view, v, s, leaf): rrb.EntityBehavior(visible=False) for v, s in keys
                         for leaf in ("track", "position", "trail")})
         else:
-            followers = sorted({str(f) for f in run.review.errors["follower"].unique()}) \
-                if "follower" in run.review.errors else []
+            followers = sorted({str(k[0]) for k, _ in run.groups(run.review.errors, ["follower"])})
             if view == "error":
                 out.update({run.path("series", "error", f, m): rrb.EntityBehavior(visible=False)
                             for f in followers for m in hidden})

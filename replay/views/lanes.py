@@ -20,12 +20,14 @@ alarms and misses read the same in every lane; rows on `time` and `mission_s`, o
 
 from __future__ import annotations
 
+from functools import cache
+
 import numpy as np
 import pandas as pd
 import rerun as rr
 
 from replay.review.scoreboard import detectors_by_merit, scoreboard
-from replay.views.common import Run, floats, part
+from replay.views.common import Run, epochs_of, floats, part
 
 # state -> colour; the same in every lane and every run (errors loud, correct silence quiet)
 STATES: tuple[tuple[str, tuple[int, int, int]], ...] = (
@@ -100,9 +102,14 @@ def _configure(rec: rr.RecordingStream, path: str, labelled: bool) -> None:
     """A lane's states and colours; `labelled`: the state's name written in its segments (else blank: a lane of
     one-epoch segments would show "mi", "fals"; the key lane names the colours). Blank is a space: Rerun
     0.41 writes the raw value for an empty label."""
-    rec.log(path, rr.StateConfiguration(values=[s for s, _ in STATES],
-                                        labels=[s if labelled else " " for s, _ in STATES],
-                                        colors=[c for _, c in STATES]), static=True)
+    rec.log(path, _state_configuration(labelled), static=True)
+
+
+@cache
+def _state_configuration(labelled: bool) -> rr.StateConfiguration:
+    """The lanes' configuration, built once (every lane logs one of the two)."""
+    return rr.StateConfiguration(values=[s for s, _ in STATES], labels=[s if labelled else " " for s, _ in STATES],
+                                 colors=[c for _, c in STATES])
 
 
 def _send(rec: rr.RecordingStream, run: Run, path: str, t_s: np.ndarray, states: np.ndarray,
@@ -143,7 +150,7 @@ def log_lanes(rec: rr.RecordingStream, run: Run, order: list[str] | None = None)
             if pair_follower != follower:
                 continue
             paths = lane_paths(run, where, str(leader), methods)
-            epochs = rows.drop_duplicates("t_s")
+            epochs = epochs_of(run, rows)
             label = pd.to_numeric(epochs["label"], errors="coerce").fillna(-1).to_numpy(dtype=int)
             _send(rec, run, paths[0], epochs["t_s"].to_numpy(dtype=float), truth_states(label))
             by_method = {str(k[0]): r for k, r in run.groups(rows, ["method"])}

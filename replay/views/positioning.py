@@ -48,12 +48,14 @@ def log_kmcdf(rec: rr.RecordingStream, run: Run) -> None:
 
 def truth_at(run: Run, target: str, t_s: np.ndarray) -> np.ndarray:
     """(n, 2) east/north of the target's GPS at each instant, linearly interpolated; NaN outside its track."""
-    tr = run.review.tracks
-    gps = tr[(tr["vehicle"] == target) & (tr["source"] == "gps")].sort_values("t_s") if not tr.empty else tr
-    if gps.empty:
+    tracks = run.review.tracks
+    found = run.memo("gps tracks", (tracks,), lambda: {
+        str(v): (floats(rows, "t_s"), floats(rows, "east_m"), floats(rows, "north_m"))
+        for (v, s), rows in run.groups(tracks, ["vehicle", "source"]) if s == "gps"})
+    if target not in found:
         return np.full((t_s.size, 2), np.nan)
-    gt = floats(gps, "t_s")
-    out = np.column_stack([np.interp(t_s, gt, floats(gps, "east_m")), np.interp(t_s, gt, floats(gps, "north_m"))])
+    gt, east, north = found[target]
+    out = np.column_stack([np.interp(t_s, gt, east), np.interp(t_s, gt, north)])
     out[(t_s < gt[0]) | (t_s > gt[-1])] = np.nan
     return out
 
@@ -109,6 +111,11 @@ def _log_epochs(rec: rr.RecordingStream, run: Run, target: str, method: str, row
 
 def kmcdf_half_width(run: Run, target: str) -> float:
     """Half the zoomed view's width (m): 1.5 x the 90th percentile of the fixes' distance to the truth, >= 10 m."""
+    return run.memo("kmcdf half width " + target, (run.review.kmcdf, run.review.tracks),
+                    lambda: _half_width(run, target))
+
+
+def _half_width(run: Run, target: str) -> float:
     rows = run.review.kmcdf[run.review.kmcdf["target"] == target] if not run.review.kmcdf.empty else run.review.kmcdf
     if rows.empty:
         return 10.0

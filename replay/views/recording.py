@@ -32,7 +32,7 @@ from replay.review.data import ReviewData
 from replay.views.anfis import log_anfis
 from replay.views.blueprint import build_blueprint
 from replay.views.cdf import Growth, error_axis, log_cdf_frame, log_cdf_legend, log_cdfs
-from replay.views.common import Run, annotation_context, make_runs, run_names
+from replay.views.common import Run, annotation_context, make_runs, no_cycle_collection, run_names
 from replay.views.features import log_detector_scores, log_features, log_why
 from replay.views.focus import hidden_methods
 from replay.views.lanes import detector_order, log_lanes
@@ -113,13 +113,14 @@ def build_recording(reviews: list[ReviewData], application_id: str = "auvreplay"
                     path: str | os.PathLike[str] | None = None, active_tab: int | str = 0,
                     focus: Sequence[str] | None = None) -> rr.RecordingStream:
     """A recording of one or two runs with the blueprint; streamed to `path` (.rrd) when given, else buffered."""
-    runs, axes, error_top, blueprint = prepare(reviews, active_tab, focus)
-    rec = rr.RecordingStream(application_id, recording_id=recording_id(reviews), send_properties=False)
-    if path is not None:
-        rec.save(str(path), default_blueprint=blueprint)
-    else:
-        rec.send_blueprint(blueprint)
-    log_runs(rec, reviews, runs, axes, error_top, focus)
+    with no_cycle_collection():
+        runs, axes, error_top, blueprint = prepare(reviews, active_tab, focus)
+        rec = rr.RecordingStream(application_id, recording_id=recording_id(reviews), send_properties=False)
+        if path is not None:
+            rec.save(str(path), default_blueprint=blueprint)
+        else:
+            rec.send_blueprint(blueprint)
+        log_runs(rec, reviews, runs, axes, error_top, focus)
     return rec
 
 

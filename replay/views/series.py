@@ -20,7 +20,7 @@ import rerun as rr
 
 from replay.review.scoreboard import method_kind
 from replay.stack.methods import anfis_family
-from replay.views.common import Run, floats, method_rgb
+from replay.views.common import Run, epochs_of, floats, method_rgb
 from replay.views.lanes import training_end_s
 
 FEATURES = ("f1_innovation_m", "f2_mahalanobis2", "f3_r_adapted_m2")
@@ -46,8 +46,9 @@ TRUTH_ROW = 0.05
 
 def anfis_top(runs: list[Run]) -> float | None:
     """The ANFIS plot's y extent: four times the largest T2 (outputs reach 1000 m where T2 is a few)."""
-    thr = [floats(r.review.detections[r.review.detections["method"].astype(str).isin(anfis_family())],
-                  "threshold") for r in runs if "method" in r.review.detections]
+    family = anfis_family()
+    thr = [floats(rows, "threshold") for r in runs for (m,), rows in r.groups(r.review.detections, ["method"])
+           if str(m) in family]
     v = np.concatenate(thr) if thr else np.zeros(0)
     v = v[np.isfinite(v)]
     return float(4.0 * v.max()) if v.size else None
@@ -62,7 +63,7 @@ def log_truth_marks(rec: rr.RecordingStream, run: Run, path: str, rows: pd.DataF
                     top: float | None, row: int | None = None) -> None:
     """Triangles below zero at the epochs whose truth label is anomalous, in leader k's colour, on its row (k's
     unless given): the truth windows under a detector's statistic."""
-    epochs = rows.drop_duplicates("t_s")
+    epochs = epochs_of(run, rows)
     anomalous = pd.to_numeric(epochs["label"], errors="coerce").to_numpy() == 1 if "label" in epochs else []
     t = floats(epochs, "t_s")[anomalous]
     if t.size == 0:
@@ -95,7 +96,7 @@ def log_detections(rec: rr.RecordingStream, run: Run) -> None:
     top = anfis_top([run])
     for k, ((follower, leader), rows) in enumerate(run.groups(det, ["follower", "leader"])):
         f, ld = str(follower), str(leader)
-        epochs = rows.drop_duplicates("t_s")
+        epochs = epochs_of(run, rows)
         if "method" in rows and family & set(rows["method"].astype(str).unique()):      # one leader a plot: row 0
             log_truth_marks(rec, run, run.path("series", "anfis", f, ld, "truth"), rows, k, top, row=0)
         for feature in FEATURES:

@@ -207,13 +207,23 @@ def geo_bounds(runs: list[ReviewData]) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 def _epoch_labels(run: Run, ranges: pd.DataFrame) -> np.ndarray:
-    """The truth label (1, 0, -1) of each range epoch, from the detections table."""
+    """The truth label (1, 0, -1) of each range epoch of one follower and leader (`ranges`), from the detections."""
     det = run.review.detections
-    if det.empty or "label" not in det:
+    if det.empty or "label" not in det or ranges.empty:
         return np.full(len(ranges), -1)
-    first = det.drop_duplicates(["t_s", "follower", "leader"])[["t_s", "follower", "leader", "label"]]
-    merged = ranges[["t_s", "follower", "leader"]].merge(first, how="left", on=["t_s", "follower", "leader"])
-    return merged["label"].fillna(-1).to_numpy(dtype=int)
+    # the pair's detections in time order (groups: a stable sort), so the first row of an instant is the table's
+    # first of that instant and pair
+    pairs = dict(run.groups(det, ["follower", "leader"]))
+    rows = pairs.get((ranges["follower"].iloc[0], ranges["leader"].iloc[0]))
+    if rows is None:
+        return np.full(len(ranges), -1)
+    t = floats(rows, "t_s")
+    first = np.flatnonzero(np.r_[True, t[1:] != t[:-1]])
+    t, label = t[first], pd.to_numeric(rows["label"], errors="coerce").to_numpy(dtype=float)[first]
+    rt = floats(ranges, "t_s")
+    k = np.clip(np.searchsorted(t, rt), 0, t.size - 1)
+    found = (t[k] == rt) & np.isfinite(label[k])
+    return np.where(found, label[k], -1).astype(int)
 
 
 def log_range_circles(rec: rr.RecordingStream, run: Run) -> None:
