@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_left
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from operator import attrgetter
 from typing import Any
 
 import numpy as np
@@ -38,6 +39,42 @@ TRACK_COLUMNS = ("t_s", "vehicle", "source", "lat_deg", "lon_deg", "east_m", "no
 
 PAPER_INPUTS = ("f1", "f2", "f3")
 """The inputs of paper A's ANFIS detectors (a wide detector names its own: `inputs`)."""
+
+COLUMNS: dict[str, tuple[str, ...]] = {
+    "ranges": ("t_s", "follower", "leader", "measured_m", "true_m", "residual_m", "leader_east_m", "leader_north_m",
+               "horizontal_m"),
+    "detections": ("t_s", "follower", "leader", "method", "flagged", "score", "threshold", "f1_innovation_m",
+                   "f2_mahalanobis2", "f3_r_adapted_m2", "label", "isolated", "capped", *EXTRA_FEATURES, "why"),
+    "errors": ("t_s", "follower", "method", "error_m"),
+    "anfis_epochs": ("model", "epoch", "rmse", "params"),
+    "anfis_explain": ("t_s", "model", "inputs", "memberships", "firing", "output", "threshold", "flagged"),
+    "kmcdf": ("t_s", "target", "method", "east_m", "north_m", "fixes_east_m", "fixes_north_m", "fixes_cluster",
+              "nodes_east_m", "nodes_north_m", "delay_normal", "phase_normal", "nodes"),
+    "events": ("t_s", "level", "text"),
+}
+"""Each table's columns but the tracks', in order: its rows are tuples (anfis_explain's lists, filled later) of
+these."""
+_EXPLAIN = COLUMNS["anfis_explain"].index("inputs")     # where an anfis_explain row's explanation starts
+_extra = attrgetter(*EXTRA_FEATURES)
+_FLOATS = frozenset({float, np.float64})
+
+
+def column(values: Sequence[Any]) -> Any:
+    """One table column for a frame: plain floats, bools or ints as the numpy array pandas would infer from the
+    list (the same dtype and bits, without its inference per element); anything else as the list."""
+    kinds = set(map(type, values))
+    if kinds <= _FLOATS and kinds:
+        return np.array(values, dtype=np.float64)
+    if kinds == {bool}:
+        return np.array(values, dtype=bool)
+    if kinds == {int}:
+        return np.array(values, dtype=np.int64)
+    return list(values)
+
+
+def frame(columns: Sequence[str], rows: Sequence[Sequence[Any]]) -> pd.DataFrame:
+    """A frame of rows (tuples in the order of `columns`), built column by column."""
+    return pd.DataFrame(dict(zip(columns, map(column, zip(*rows, strict=True)), strict=True)))
 
 
 def anfis_core(det: Any) -> Any | None:
@@ -85,8 +122,7 @@ class ReviewCollector(Listener):
         # with one follower, events need not name it
         self._many = sum(role == "follower" for role in dict(layout.roles).values()) > 1
         self._origin: tuple[float, float] | None = None
-        self.rows: dict[str, list[dict[str, Any]]] = {k: [] for k in (
-            "ranges", "detections", "errors", "anfis_epochs", "anfis_explain", "kmcdf", "events")}
+        self.rows: dict[str, list[Any]] = {k: [] for k in COLUMNS}     # each table's rows (COLUMNS)
         # tracks as tuples of TRACK_COLUMNS but east/north, which are kept apart: the rows of a latitude and
         # longitude get theirs at once, over the whole column (`_resolve`), as horizontal_offset_m gives them
         self._tracks: list[tuple[Any, ...]] = []
@@ -100,7 +136,7 @@ class ReviewCollector(Listener):
         self._detectors: dict[str, dict[str, dict[str, Any]]] = {}     # follower -> method -> leader -> detector
         # anfis_explain rows of plain ANFIS detectors waiting for their model's internals, per detector (its id):
         # the detector, the epochs' features and their rows; `_explain_pending` fills them, one call a detector
-        self._unexplained: dict[int, tuple[Any, list[list[float]], list[dict[str, Any]]]] = {}
+        self._unexplained: dict[int, tuple[Any, list[list[float]], list[list[Any]]]] = {}
 
     def origin(self, lat_rad: float, lon_rad: float) -> None:
         self._resolve()     # rows before keep the origin they were collected under
@@ -147,12 +183,7 @@ class ReviewCollector(Listener):
             if name == "anfis_explain":
                 self._explain_pending()
             rows = self.rows[name][start:]
-            if not rows:
-                return None
-            keys = tuple(rows[0])
-            if all(len(r) == len(keys) and tuple(r) == keys for r in rows):     # one shape: by columns
-                return pd.DataFrame({k: [r[k] for r in rows] for k in keys})
-            return pd.DataFrame(rows)
+            return frame(COLUMNS[name], rows) if rows else None
         if start >= len(self._tracks):
             return None
         self._resolve()
@@ -210,24 +241,21 @@ class ReviewCollector(Listener):
         r0 = results[0]
         le, ln = self._en(leader_fix.lat_rad, leader_fix.lon_rad) if leader_fix else (math.nan, math.nan)
         truth = getattr(r0, "truth_range_m", math.nan)
-        self.rows["ranges"].append({"t_s": r0.time_s, "follower": follower, "leader": r0.leader,
-                                    "measured_m": r0.range_m, "true_m": truth, "residual_m": r0.range_m - truth,
-                                    "leader_east_m": le, "leader_north_m": ln, "horizontal_m": r0.range_m})
+        self.rows["ranges"].append((r0.time_s, follower, r0.leader, r0.range_m, truth, r0.range_m - truth, le, ln,
+                                    r0.range_m))
         models = self._models.get(follower)
         self._interval(follower, r0)
         if models is not None and r0.time_s > models.training_end_s:
             self._verdict_event(follower, [r for r in results if r.method in self._detecting])
         dets = self._detectors.get(follower, {}) if models is not None and r0.time_s > models.training_end_s else None
-        extra = {n: getattr(r0, n) for n in EXTRA_FEATURES}        # the same for every method of an epoch
+        extra = _extra(r0)        # the same for every method of an epoch
+        detections = self.rows["detections"]
         for r in results:
             if r.method not in self._detecting:
                 continue
-            self.rows["detections"].append({
-                "t_s": r.time_s, "follower": follower, "leader": r.leader, "method": r.method,
-                "flagged": bool(r.flagged), "score": r.score, "threshold": r.threshold, "f1_innovation_m": r.f1,
-                "f2_mahalanobis2": r.f2, "f3_r_adapted_m2": r.f3, "label": int(r.label),
-                "isolated": bool(r.isolated), "capped": bool(r.capped), **extra,
-                "why": why_line(r, dets.get(r.method, {}).get(r.leader)) if dets is not None else ""})
+            detections.append((r.time_s, follower, r.leader, r.method, bool(r.flagged), r.score, r.threshold, r.f1,
+                               r.f2, r.f3, int(r.label), bool(r.isolated), bool(r.capped), *extra,
+                               why_line(r, dets.get(r.method, {}).get(r.leader)) if dets is not None else ""))
             if r.method in self._anfis and models is not None and r.time_s > models.training_end_s:
                 self._explain(follower, models, r)
 
@@ -285,9 +313,8 @@ class ReviewCollector(Listener):
         det: Any = models.detectors(r.method).get(r.leader)
         if anfis_core(det) is None:
             return
-        row = {"t_s": r.time_s, "model": self._model_key(r.method, follower, r.leader), "inputs": None,
-               "memberships": None, "firing": None, "output": math.nan, "threshold": r.threshold,
-               "flagged": bool(r.flagged)}
+        row = [r.time_s, self._model_key(r.method, follower, r.leader), None, None, None, math.nan, r.threshold,
+               bool(r.flagged)]
         self.rows["anfis_explain"].append(row)
         if hasattr(det, "explain_rows"):     # explained with the detector's other epochs when a table is taken
             _, features, rows = self._unexplained.setdefault(id(det), (det, [], []))
@@ -305,18 +332,17 @@ class ReviewCollector(Listener):
         self._unexplained.clear()
 
     @staticmethod
-    def _explained(rows: list[dict[str, Any]], ex: Any) -> None:
+    def _explained(rows: list[list[Any]], ex: Any) -> None:
         """Fill anfis_explain rows from an explanation of as many epochs (or of one, without its row axis)."""
         inputs, mu = np.asarray(ex.normalized_inputs).tolist(), np.asarray(ex.memberships).tolist()
         firing, output = np.asarray(ex.normalized_firing).tolist(), np.asarray(ex.output).tolist()
         if len(rows) == 1 and np.ndim(ex.output) == 0:
             inputs, mu, firing, output = [inputs], [mu], [firing], [output]
         for k, row in enumerate(rows):
-            row.update(inputs=inputs[k], memberships=mu[k], firing=firing[k], output=float(output[k]))
+            row[_EXPLAIN:_EXPLAIN + 4] = inputs[k], mu[k], firing[k], float(output[k])
 
     def errors(self, follower: str, samples: list[ErrorSample]) -> None:
-        self.rows["errors"].extend({"t_s": s.t_s, "follower": follower, "method": s.method, "error_m": s.error_m}
-                                   for s in samples)
+        self.rows["errors"].extend((t, follower, method, e) for t, method, e in samples)
 
     def trained(self, follower: str, models: TrainedDetectors, t_s: float) -> None:
         self._models[follower] = models
@@ -333,12 +359,11 @@ class ReviewCollector(Listener):
                          "training_samples": core.training_samples}
                 model = self._model_key(method, follower, leader)
                 for snap in core.snapshots():
-                    self.rows["anfis_epochs"].append({"model": model, "epoch": int(snap.epoch),
-                                                      "rmse": float(snap.training_rmse), "params": {
+                    self.rows["anfis_epochs"].append((model, int(snap.epoch), float(snap.training_rmse), {
                         "a": snap.a.tolist(), "b": snap.b.tolist(), "c": snap.c.tolist(),
                         "consequents": snap.consequents.tolist(), "input_min": snap.input_min.tolist(),
                         "input_max": snap.input_max.tolist(), "threshold": float(core.threshold),
-                        "rule_structure": snap.rule_structure, **about}})
+                        "rule_structure": snap.rule_structure, **about}))
 
     def usbl(self, epoch: UsblEpoch, positions: dict[str, tuple[float, float]]) -> None:
         # the preliminary fixes as columns, not PreliminaryFix objects (the same numbers)
@@ -353,16 +378,13 @@ class ReviewCollector(Listener):
                 self._tracks.append((epoch.t_s, epoch.target, method, lat * RAD, lon * RAD, math.nan, math.nan))
                 self._east.append(e)
                 self._north.append(n)
-            self.rows["kmcdf"].append({
-                "t_s": epoch.t_s, "target": epoch.target, "method": method, "east_m": e, "north_m": n,
-                "fixes_east_m": fix_e if method == "kmcdf2" else [],
-                "fixes_north_m": fix_n if method == "kmcdf2" else [],
-                "fixes_cluster": fix_cluster if method == "kmcdf2" else [],
-                "nodes_east_m": nodes_e, "nodes_north_m": nodes_n, "delay_normal": delay, "phase_normal": phase,
-                "nodes": nodes})
+            fixes = method == "kmcdf2"
+            self.rows["kmcdf"].append((epoch.t_s, epoch.target, method, e, n, fix_e if fixes else [],
+                                       fix_n if fixes else [], fix_cluster if fixes else [], nodes_e, nodes_n, delay,
+                                       phase, nodes))
 
     def event(self, t_s: float, level: str, text: str) -> None:
-        self.rows["events"].append({"t_s": t_s, "level": level, "text": text})
+        self.rows["events"].append((t_s, level, text))
 
     def finished(self, follower: str, results: RunResults) -> None:
         pass
