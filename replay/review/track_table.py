@@ -24,6 +24,7 @@ TRACK_COLUMNS = ("t_s", "vehicle", "source", "lat_deg", "lon_deg", "east_m", "no
 """The tracks table's columns, in order."""
 
 _FLOATS = frozenset({float, np.float64})
+_STR = pd.Series(["a"]).dtype     # the dtype pandas infers for strings (pyarrow's large strings, NaN missing)
 
 
 def column(values: Sequence[Any]) -> Any:
@@ -36,7 +37,27 @@ def column(values: Sequence[Any]) -> Any:
         return np.array(values, dtype=bool)
     if kinds == {int}:
         return np.array(values, dtype=np.int64)
+    if kinds == {str}:
+        return strings(values)
     return list(values)
+
+
+def strings(values: Sequence[str]) -> Any:
+    """A column of strings as pandas infers it (its "str" dtype), built by pyarrow at once: pandas checks and
+    converts the list row by row. One of few distinct values (names of vehicles, methods, sources) is taken from
+    its distinct values. Without pyarrow storage, the list as it is."""
+    if getattr(_STR, "storage", None) != "pyarrow":
+        return list(values)
+    import pyarrow as pa
+
+    distinct = dict.fromkeys(values)
+    if len(distinct) * 8 > len(values):
+        arr = pa.array(values, type=pa.large_string())
+    else:
+        code = {v: i for i, v in enumerate(distinct)}
+        codes = np.fromiter(map(code.__getitem__, values), dtype=np.int64, count=len(values))
+        arr = pa.array(list(distinct), type=pa.large_string()).take(pa.array(codes))
+    return pd.arrays.ArrowStringArray(arr, dtype=_STR)
 
 
 class TrackTable:
@@ -129,5 +150,6 @@ class TrackTable:
         std_e = np.sqrt(np.where(var_e < 0.0, 0.0, var_e))
         std_n = np.sqrt(np.where(var_n < 0.0, 0.0, var_n))
         return pd.DataFrame(dict(zip(TRACK_COLUMNS, (
-            column(self.t[start:]), self.vehicle[start:], self.source[start:], lat * RAD, lon * RAD, east, north,
+            column(self.t[start:]), column(self.vehicle[start:]), column(self.source[start:]), lat * RAD, lon * RAD,
+            east, north,
             std_e, std_n), strict=True)))
