@@ -51,12 +51,15 @@ def strings(values: Sequence[str]) -> Any:
     import pyarrow as pa
 
     distinct = dict.fromkeys(values)
-    if len(distinct) * 8 > len(values):
-        arr = pa.array(values, type=pa.large_string())
-    else:
-        code = {v: i for i, v in enumerate(distinct)}
-        codes = np.fromiter(map(code.__getitem__, values), dtype=np.int64, count=len(values))
-        arr = pa.array(list(distinct), type=pa.large_string()).take(pa.array(codes))
+    try:
+        if len(distinct) * 8 > len(values):
+            arr = pa.array(values, type=pa.large_string())
+        else:
+            code = {v: i for i, v in enumerate(distinct)}
+            codes = np.fromiter(map(code.__getitem__, values), dtype=np.int64, count=len(values))
+            arr = pa.array(list(distinct), type=pa.large_string()).take(pa.array(codes))
+    except (UnicodeError, pa.ArrowException):      # a lone surrogate (a damaged name): pandas decides, as before
+        return list(values)
     return pd.arrays.ArrowStringArray(arr, dtype=_STR)
 
 
