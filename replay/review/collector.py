@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_left
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from itertools import repeat
+from operator import attrgetter
 from typing import Any
 
 import numpy as np
@@ -22,22 +24,38 @@ from replay.events import (
 )
 from replay.navigation.review import DR_METHOD, NavigationReview
 from replay.review.data import ReviewData
+from replay.review.track_table import RAD, TrackTable, column
 from replay.stack.detectors.why_text import epoch_features
 from replay.stack.features import EXTRA_FEATURES
 from replay.stack.methods import anfis_models, detecting_names, short_names, why_line
 from replay.stack.model import horizontal_offset_m, offset_to_latlon
 
-RAD = 180.0 / math.pi
 INS_DECIMATE_S = 1.0
 # mission seconds are float differences of ns times: a 1 Hz source's 1.4 - 0.4 is 0.9999999999999999 s
 DECIMATE_SLACK_S = 1e-6
 
-
-TRACK_COLUMNS = ("t_s", "vehicle", "source", "lat_deg", "lon_deg", "east_m", "north_m", "std_east_m", "std_north_m")
-"""The tracks table's columns, in order."""
-
 PAPER_INPUTS = ("f1", "f2", "f3")
 """The inputs of paper A's ANFIS detectors (a wide detector names its own: `inputs`)."""
+
+COLUMNS: dict[str, tuple[str, ...]] = {
+    "ranges": ("t_s", "follower", "leader", "measured_m", "true_m", "residual_m", "leader_east_m", "leader_north_m",
+               "horizontal_m"),
+    "detections": ("t_s", "follower", "leader", "method", "flagged", "score", "threshold", "f1_innovation_m",
+                   "f2_mahalanobis2", "f3_r_adapted_m2", "label", "isolated", "capped", *EXTRA_FEATURES, "why"),
+    "errors": ("t_s", "follower", "method", "error_m"),
+    "anfis_epochs": ("model", "epoch", "rmse", "params"),
+    "anfis_explain": ("t_s", "model", "inputs", "memberships", "firing", "output", "threshold", "flagged"),
+    "kmcdf": ("t_s", "target", "method", "east_m", "north_m", "fixes_east_m", "fixes_north_m", "fixes_cluster",
+              "nodes_east_m", "nodes_north_m", "delay_normal", "phase_normal", "nodes"),
+    "events": ("t_s", "level", "text"),
+}
+"""Each table's columns but the tracks', in order: its rows are tuples (anfis_explain's lists, filled later) of
+these."""
+_EXPLAIN = COLUMNS["anfis_explain"].index("inputs")     # where an anfis_explain row's explanation starts
+_extra = attrgetter(*EXTRA_FEATURES)
+def frame(columns: Sequence[str], rows: Sequence[Sequence[Any]]) -> pd.DataFrame:
+    """A frame of rows (tuples in the order of `columns`), built column by column."""
+    return pd.DataFrame(dict(zip(columns, map(column, zip(*rows, strict=True)), strict=True)))
 
 
 def anfis_core(det: Any) -> Any | None:
@@ -85,14 +103,11 @@ class ReviewCollector(Listener):
         # with one follower, events need not name it
         self._many = sum(role == "follower" for role in dict(layout.roles).values()) > 1
         self._origin: tuple[float, float] | None = None
-        self.rows: dict[str, list[dict[str, Any]]] = {k: [] for k in (
-            "ranges", "detections", "errors", "anfis_epochs", "anfis_explain", "kmcdf", "events")}
-        # tracks as tuples of TRACK_COLUMNS but east/north, which are kept apart: the rows of a latitude and
-        # longitude get theirs at once, over the whole column (`_resolve`), as horizontal_offset_m gives them
-        self._tracks: list[tuple[Any, ...]] = []
-        self._east: list[float] = []
-        self._north: list[float] = []
-        self._pending: tuple[list[int], list[float], list[float]] = ([], [], [])   # rows, their lat and lon (rad)
+        self.rows: dict[str, list[Any]] = {k: [] for k in COLUMNS if k != "errors"}    # each table's rows (COLUMNS)
+        # the errors (a row per method at every GPS fix: the most rows after the tracks) as columns of floats and
+        # strings: a tuple a row would start a garbage collection every few hundred rows
+        self._errors: tuple[list[float], list[str], list[str], list[float]] = ([], [], [], [])
+        self._tracks = TrackTable()
         self._last_drawn: dict[tuple[str, str], float] = {}    # (vehicle, source) -> its last track point
         self._models: dict[str, TrainedDetectors] = {}
         self._detecting = detecting_names()     # the method table's detectors, in its order
@@ -100,10 +115,10 @@ class ReviewCollector(Listener):
         self._detectors: dict[str, dict[str, dict[str, Any]]] = {}     # follower -> method -> leader -> detector
         # anfis_explain rows of plain ANFIS detectors waiting for their model's internals, per detector (its id):
         # the detector, the epochs' features and their rows; `_explain_pending` fills them, one call a detector
-        self._unexplained: dict[int, tuple[Any, list[list[float]], list[dict[str, Any]]]] = {}
+        self._unexplained: dict[int, tuple[Any, list[list[float]], list[list[Any]]]] = {}
 
     def origin(self, lat_rad: float, lon_rad: float) -> None:
-        self._resolve()     # rows before keep the origin they were collected under
+        self._tracks.set_origin(lat_rad, lon_rad)     # rows before keep the origin they were collected under
         self._origin = (lat_rad, lon_rad)
 
     def _en(self, lat: float, lon: float) -> tuple[float, float]:
@@ -112,54 +127,23 @@ class ReviewCollector(Listener):
         n, e = horizontal_offset_m(lat, lon, *self._origin)
         return float(e), float(n)
 
-    def _track_row(self, t_s: float, vehicle: str, source: str, lat: float, lon: float,
-                   std_e: float = math.nan, std_n: float = math.nan) -> None:
-        """One track row; its east/north (about the origin) computed with the others' by `_resolve`."""
-        if self._origin is not None:
-            rows, lats, lons = self._pending
-            rows.append(len(self._tracks))
-            lats.append(lat)
-            lons.append(lon)
-        self._tracks.append((t_s, vehicle, source, lat * RAD, lon * RAD, std_e, std_n))
-        self._east.append(math.nan)
-        self._north.append(math.nan)
-
-    def _resolve(self) -> None:
-        """East/north of the rows waiting for theirs: horizontal_offset_m over the column, element for element
-        what it gives one point at a time."""
-        rows, lats, lons = self._pending
-        if not rows or self._origin is None:
-            return
-        n, e = horizontal_offset_m(np.array(lats), np.array(lons), *self._origin)
-        east, north = self._east, self._north
-        for i, ei, ni in zip(rows, e.tolist(), n.tolist(), strict=True):
-            east[i] = ei
-            north[i] = ni
-        self._pending = ([], [], [])
-
     def count(self, name: str) -> int:
         """How many rows the table `name` has so far."""
-        return len(self._tracks) if name == "tracks" else len(self.rows[name])
+        return len(self._tracks) if name == "tracks" else len(self._errors[0]) if name == "errors" else \
+            len(self.rows[name])
 
     def table(self, name: str, start: int = 0) -> pd.DataFrame | None:
         """The rows of table `name` from `start` on, as a frame; None when there are none."""
+        if name == "errors":
+            if start >= len(self._errors[0]):
+                return None
+            return pd.DataFrame(dict(zip(COLUMNS[name], (column(c[start:]) for c in self._errors), strict=True)))
         if name != "tracks":
             if name == "anfis_explain":
                 self._explain_pending()
             rows = self.rows[name][start:]
-            if not rows:
-                return None
-            keys = tuple(rows[0])
-            if all(len(r) == len(keys) and tuple(r) == keys for r in rows):     # one shape: by columns
-                return pd.DataFrame({k: [r[k] for r in rows] for k in keys})
-            return pd.DataFrame(rows)
-        if start >= len(self._tracks):
-            return None
-        self._resolve()
-        t, vehicle, source, lat, lon, std_e, std_n = zip(*self._tracks[start:], strict=True)
-        return pd.DataFrame(dict(zip(TRACK_COLUMNS, (list(t), list(vehicle), list(source), list(lat), list(lon),
-                                                     self._east[start:], self._north[start:], list(std_e),
-                                                     list(std_n)), strict=True)))
+            return frame(COLUMNS[name], rows) if rows else None
+        return self._tracks.frame(start)
 
     def position(self, vehicle: str, source: str, fix: Fix) -> None:
         if source != "gps":       # INS and other solutions come at tens of Hz: one point a second is a track
@@ -168,7 +152,7 @@ class ReviewCollector(Listener):
             if fix.t_s - last < INS_DECIMATE_S - DECIMATE_SLACK_S:
                 return
             self._last_drawn[key] = fix.t_s
-        self._track_row(fix.t_s, vehicle, source, fix.lat_rad, fix.lon_rad)
+        self._tracks.add(fix.t_s, vehicle, source, fix.lat_rad, fix.lon_rad)
 
     def positions(self, vehicle: str, source: str, t_s: Any, lat_rad: Any, lon_rad: Any, depth_m: Any) -> None:
         """A block's positions: the rows `position` would keep of each (one a second but GPS), east/north at once."""
@@ -185,49 +169,32 @@ class ReviewCollector(Listener):
         idx = np.asarray(keep)
         lat = np.asarray(lat_rad, dtype=float)[idx]
         lon = np.asarray(lon_rad, dtype=float)[idx]
-        self._track_rows([ts[i] for i in keep], vehicle, source, lat.tolist(), lon.tolist(),
-                         (lat * RAD).tolist(), (lon * RAD).tolist())
-
-    def _track_rows(self, ts: list[float], vehicle: str, source: str, lat: list[float], lon: list[float],
-                    lat_deg: list[float], lon_deg: list[float]) -> None:
-        """`_track_row` for many points of one vehicle and source (no standard deviations)."""
-        first = len(self._tracks)
-        if self._origin is not None:
-            rows, lats, lons = self._pending
-            rows.extend(range(first, first + len(ts)))
-            lats.extend(lat)
-            lons.extend(lon)
-        nan = math.nan
-        self._tracks.extend((t, vehicle, source, la, lo, nan, nan) for t, la, lo in zip(ts, lat_deg, lon_deg))
-        self._east.extend([nan] * len(ts))
-        self._north.extend([nan] * len(ts))
+        self._tracks.add_many([ts[i] for i in keep], vehicle, [source] * len(keep), lat.tolist(), lon.tolist())
 
     def estimates(self, follower: str, t_s: float, est: Mapping[str, tuple[float, ...]]) -> None:
-        for method, (lat, lon, nn, _ne, ee) in est.items():
-            self._track_row(t_s, follower, method, lat, lon, math.sqrt(max(ee, 0.0)), math.sqrt(max(nn, 0.0)))
+        if est:     # a row per method, its standard deviations from the variances (east-east, north-north)
+            lat, lon, nn, _ne, ee = zip(*est.values(), strict=True)
+            self._tracks.add_many([t_s] * len(lat), follower, list(est), lat, lon, ee, nn)
 
     def epoch(self, follower: str, results: list[EpochResult], leader_fix: Fix | None) -> None:
         r0 = results[0]
         le, ln = self._en(leader_fix.lat_rad, leader_fix.lon_rad) if leader_fix else (math.nan, math.nan)
         truth = getattr(r0, "truth_range_m", math.nan)
-        self.rows["ranges"].append({"t_s": r0.time_s, "follower": follower, "leader": r0.leader,
-                                    "measured_m": r0.range_m, "true_m": truth, "residual_m": r0.range_m - truth,
-                                    "leader_east_m": le, "leader_north_m": ln, "horizontal_m": r0.range_m})
+        self.rows["ranges"].append((r0.time_s, follower, r0.leader, r0.range_m, truth, r0.range_m - truth, le, ln,
+                                    r0.range_m))
         models = self._models.get(follower)
         self._interval(follower, r0)
         if models is not None and r0.time_s > models.training_end_s:
             self._verdict_event(follower, [r for r in results if r.method in self._detecting])
         dets = self._detectors.get(follower, {}) if models is not None and r0.time_s > models.training_end_s else None
-        extra = {n: getattr(r0, n) for n in EXTRA_FEATURES}        # the same for every method of an epoch
+        extra = _extra(r0)        # the same for every method of an epoch
+        detections = self.rows["detections"]
         for r in results:
             if r.method not in self._detecting:
                 continue
-            self.rows["detections"].append({
-                "t_s": r.time_s, "follower": follower, "leader": r.leader, "method": r.method,
-                "flagged": bool(r.flagged), "score": r.score, "threshold": r.threshold, "f1_innovation_m": r.f1,
-                "f2_mahalanobis2": r.f2, "f3_r_adapted_m2": r.f3, "label": int(r.label),
-                "isolated": bool(r.isolated), "capped": bool(r.capped), **extra,
-                "why": why_line(r, dets.get(r.method, {}).get(r.leader)) if dets is not None else ""})
+            detections.append((r.time_s, follower, r.leader, r.method, bool(r.flagged), r.score, r.threshold, r.f1,
+                               r.f2, r.f3, int(r.label), bool(r.isolated), bool(r.capped), *extra,
+                               why_line(r, dets.get(r.method, {}).get(r.leader)) if dets is not None else ""))
             if r.method in self._anfis and models is not None and r.time_s > models.training_end_s:
                 self._explain(follower, models, r)
 
@@ -285,9 +252,8 @@ class ReviewCollector(Listener):
         det: Any = models.detectors(r.method).get(r.leader)
         if anfis_core(det) is None:
             return
-        row = {"t_s": r.time_s, "model": self._model_key(r.method, follower, r.leader), "inputs": None,
-               "memberships": None, "firing": None, "output": math.nan, "threshold": r.threshold,
-               "flagged": bool(r.flagged)}
+        row = [r.time_s, self._model_key(r.method, follower, r.leader), None, None, None, math.nan, r.threshold,
+               bool(r.flagged)]
         self.rows["anfis_explain"].append(row)
         if hasattr(det, "explain_rows"):     # explained with the detector's other epochs when a table is taken
             _, features, rows = self._unexplained.setdefault(id(det), (det, [], []))
@@ -305,18 +271,23 @@ class ReviewCollector(Listener):
         self._unexplained.clear()
 
     @staticmethod
-    def _explained(rows: list[dict[str, Any]], ex: Any) -> None:
+    def _explained(rows: list[list[Any]], ex: Any) -> None:
         """Fill anfis_explain rows from an explanation of as many epochs (or of one, without its row axis)."""
         inputs, mu = np.asarray(ex.normalized_inputs).tolist(), np.asarray(ex.memberships).tolist()
         firing, output = np.asarray(ex.normalized_firing).tolist(), np.asarray(ex.output).tolist()
         if len(rows) == 1 and np.ndim(ex.output) == 0:
             inputs, mu, firing, output = [inputs], [mu], [firing], [output]
         for k, row in enumerate(rows):
-            row.update(inputs=inputs[k], memberships=mu[k], firing=firing[k], output=float(output[k]))
+            row[_EXPLAIN:_EXPLAIN + 4] = inputs[k], mu[k], firing[k], float(output[k])
 
     def errors(self, follower: str, samples: list[ErrorSample]) -> None:
-        self.rows["errors"].extend({"t_s": s.t_s, "follower": follower, "method": s.method, "error_m": s.error_m}
-                                   for s in samples)
+        if samples:
+            t, method, error = zip(*samples, strict=True)
+            cols = self._errors
+            cols[0].extend(t)
+            cols[1].extend(repeat(follower, len(t)))
+            cols[2].extend(method)
+            cols[3].extend(error)
 
     def trained(self, follower: str, models: TrainedDetectors, t_s: float) -> None:
         self._models[follower] = models
@@ -333,12 +304,11 @@ class ReviewCollector(Listener):
                          "training_samples": core.training_samples}
                 model = self._model_key(method, follower, leader)
                 for snap in core.snapshots():
-                    self.rows["anfis_epochs"].append({"model": model, "epoch": int(snap.epoch),
-                                                      "rmse": float(snap.training_rmse), "params": {
+                    self.rows["anfis_epochs"].append((model, int(snap.epoch), float(snap.training_rmse), {
                         "a": snap.a.tolist(), "b": snap.b.tolist(), "c": snap.c.tolist(),
                         "consequents": snap.consequents.tolist(), "input_min": snap.input_min.tolist(),
                         "input_max": snap.input_max.tolist(), "threshold": float(core.threshold),
-                        "rule_structure": snap.rule_structure, **about}})
+                        "rule_structure": snap.rule_structure, **about}))
 
     def usbl(self, epoch: UsblEpoch, positions: dict[str, tuple[float, float]]) -> None:
         # the preliminary fixes as columns, not PreliminaryFix objects (the same numbers)
@@ -350,19 +320,14 @@ class ReviewCollector(Listener):
         for method, (e, n) in positions.items():
             if self._origin is not None and math.isfinite(e) and math.isfinite(n):
                 lat, lon = offset_to_latlon(n, e, *self._origin)
-                self._tracks.append((epoch.t_s, epoch.target, method, lat * RAD, lon * RAD, math.nan, math.nan))
-                self._east.append(e)
-                self._north.append(n)
-            self.rows["kmcdf"].append({
-                "t_s": epoch.t_s, "target": epoch.target, "method": method, "east_m": e, "north_m": n,
-                "fixes_east_m": fix_e if method == "kmcdf2" else [],
-                "fixes_north_m": fix_n if method == "kmcdf2" else [],
-                "fixes_cluster": fix_cluster if method == "kmcdf2" else [],
-                "nodes_east_m": nodes_e, "nodes_north_m": nodes_n, "delay_normal": delay, "phase_normal": phase,
-                "nodes": nodes})
+                self._tracks.add_placed(epoch.t_s, epoch.target, method, lat, lon, e, n)
+            fixes = method == "kmcdf2"
+            self.rows["kmcdf"].append((epoch.t_s, epoch.target, method, e, n, fix_e if fixes else [],
+                                       fix_n if fixes else [], fix_cluster if fixes else [], nodes_e, nodes_n, delay,
+                                       phase, nodes))
 
     def event(self, t_s: float, level: str, text: str) -> None:
-        self.rows["events"].append({"t_s": t_s, "level": level, "text": text})
+        self.rows["events"].append((t_s, level, text))
 
     def finished(self, follower: str, results: RunResults) -> None:
         pass
@@ -376,20 +341,18 @@ class ReviewCollector(Listener):
             # the first sample of each second (none for a vehicle whose DR never started: no DVL or no heading)
             second = np.diff(np.floor(t / INS_DECIMATE_S), prepend=-np.inf) > 0
             lat_s, lon_s = lat[second], lon[second]
-            # radians as _track_row was given them (la / RAD), and degrees back as it made them (* RAD)
+            # radians (la / RAD), whose degrees the table makes back (* RAD)
             lat_r, lon_r = lat_s / RAD, lon_s / RAD
-            self._track_rows(t[second].tolist(), vehicle, DR_METHOD, lat_r.tolist(), lon_r.tolist(),
-                             (lat_r * RAD).tolist(), (lon_r * RAD).tolist())
+            ts = t[second].tolist()
+            self._tracks.add_many(ts, vehicle, [DR_METHOD] * len(ts), lat_r.tolist(), lon_r.tolist())
+        for note in metrics.get("notes", []):
+            self.event(0.0, "WARN", note)
+        # the tables that have rows; the others keep ReviewData's empty frames
+        frames = {name: f for name in ("tracks", *COLUMNS) if (f := self.table(name)) is not None}
         origin = self._origin
         data = ReviewData(self.run_id, str(self.trial.get("name", "")), self.t0_ns,
                           origin[0] * RAD if origin else math.nan, origin[1] * RAD if origin else math.nan,
-                          dict(self.layout.roles), list(metrics.get("methods", {})), metrics=metrics)
-        for note in metrics.get("notes", []):
-            self.event(0.0, "WARN", note)
-        for name in ("tracks", *self.rows):
-            frame = self.table(name)
-            if frame is not None:
-                setattr(data, name, frame)
+                          dict(self.layout.roles), list(metrics.get("methods", {})), metrics=metrics, **frames)
         data.parameters = self.parameters
         data.navigation = dict(navigation or {})
         data.events = data.events.sort_values("t_s", kind="stable", ignore_index=True)

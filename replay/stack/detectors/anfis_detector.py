@@ -229,9 +229,10 @@ class AnfisDetector:
 
     def explain_rows(self, features: np.ndarray) -> Explanation:
         """`explain` of each row of features (n, 3), stacked: element for element what it gives one row at a
-        time (the tests check). The element-wise layers run over every row at once; the sums over the rules
-        and the rule outputs run row by row, because numpy sums a stack of rows in another order than one
-        row (the last bit of the firing sums would change)."""
+        time (the tests check). Every layer runs over all rows at once; the rule outputs as a stack of one-row
+        products, because a plain (n, D) product takes another BLAS kernel than one row's (the last bits would
+        change), while a stack of (1, D) rows takes one row's kernel row by row. The sums over the rules run along
+        C-ordered rows, the same pairwise order as one row alone."""
         if self.result is None:
             raise RuntimeError("explain_rows() needs a trained model")
         x = normalize(np.atleast_2d(np.asarray(features, dtype=float)), self.input_min, self.input_max)
@@ -240,15 +241,10 @@ class AnfisDetector:
         w = mu[..., 0, m.rules[:, 0]]     # the product over inputs, as `firing_from` takes it
         for d in range(1, m.rules.shape[1]):
             w = w * mu[..., d, m.rules[:, d]]
-        total = np.empty((x.shape[0], 1))
-        f = np.empty_like(w)
-        out = np.empty(x.shape[0])
-        for k in range(x.shape[0]):
-            total[k] = np.maximum(w[k:k + 1].sum(axis=-1, keepdims=True), _S_FLOOR)[0]
-            f[k] = rule_outputs(x[k:k + 1], m.consequents)[0]
+        total = np.maximum(np.ascontiguousarray(w).sum(axis=-1, keepdims=True), _S_FLOOR)
+        f = rule_outputs(x[:, None, :], m.consequents)[:, 0, :]
         wbar = w / total
-        for k in range(x.shape[0]):
-            out[k] = (wbar[k:k + 1] * f[k:k + 1]).sum(axis=-1)[0]
+        out = np.ascontiguousarray(wbar * f).sum(axis=-1)
         return Explanation(x, mu, w, wbar, f, out)
 
     def surface(self, pair: tuple[int, int] = (0, 1), fixed: float | np.ndarray = 0.5,
