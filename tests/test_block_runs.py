@@ -5,6 +5,7 @@ consumed bytes that long."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -36,7 +37,7 @@ def test_blocks_equal_messages_and_runs_let_go_of_taken_bytes(tmp_path: Path, mo
     held: list[int] = []
     take = mcap_blocks._take
 
-    def spy(runs, before, *args):      # type: ignore[no-untyped-def]
+    def spy(runs: list[Any], before: int | None, *args: Any) -> Any:
         out = take(runs, before, *args)
         held.append(sum(len(r.data) for r in runs))
         return out
