@@ -53,6 +53,8 @@ COLUMNS: dict[str, tuple[str, ...]] = {
 these."""
 _EXPLAIN = COLUMNS["anfis_explain"].index("inputs")     # where an anfis_explain row's explanation starts
 _extra = attrgetter(*EXTRA_FEATURES)
+
+
 def frame(columns: Sequence[str], rows: Sequence[Sequence[Any]]) -> pd.DataFrame:
     """A frame of rows (tuples in the order of `columns`), built column by column."""
     return pd.DataFrame(dict(zip(columns, map(column, zip(*rows, strict=True)), strict=True)))

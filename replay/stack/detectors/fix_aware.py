@@ -30,7 +30,7 @@ by twice the gain). A larger power (1, 2, 4) lifts the conditions whose
 label noise lies in that band (sound speed, heavy tails, combined) but
 slows g where the training gate is too low (drawn_usbl on 2001-2008: 3.6 %
 to 8.1 % at p = 2), so it stays 1/2 (docs/detection.md section 5, "The
-fresh-fix gate's power").
+fresh-fix gate with USBL").
 
 Calibrated (`calibrate`, marked in the method table): each test's threshold
 flags the target share of the training trial's normal rows of its own fix
