@@ -17,6 +17,10 @@ settled:
   whatever follows them, up to MAX_WARMUP bytes): the next bytes may still
   belong to it.
 
+A budgeted window that settles nothing (one epoch longer than the budget)
+is not converted again whole: the next window is twice as long, so the
+bytes converted stay within twice the window that settles.
+
 Offsets and line numbers are rebased to the whole stream, so statistics
 and diagnostics count as `record` counts a file. At the end (`final`)
 everything left is committed, as `record` decodes a file to its end.
@@ -49,10 +53,6 @@ from ..registry import is_binary
 
 MIN_WARMUP = 256
 MAX_WARMUP = 16 << 10
-# a window converts again its warm-up and the epoch held last time: it waits for REUSE new bytes per such byte,
-# or at most WAIT_S (then `pending` again), so a log decoded often is not converted again in each small window
-REUSE = 4
-WAIT_S = 0.05
 HOLD_BYTES = 4096  # kept back while a window gives no output at all (noise, or a record still arriving)
 MAX_LINE_BYTES = 1 << 20  # an unfinished line longer than this is no record of any text format we decode
 
@@ -94,8 +94,6 @@ class StreamDecoder:
         self._pending = False       # bytes since the last decode
         self._stretch = 1           # budgets per window: doubled while a budgeted window settles nothing
         self.converted = 0          # bytes given to the converter (windows overlap: warm-up, the held epoch)
-        self._converted_to = 0      # the stream offset the last window ended at
-        self._waiting: float | None = None   # when a window first waited for more new bytes (monotonic s)
 
     def feed(self, data: bytes, receive_ns: int, peer: int = 0) -> None:
         """Append bytes received at `receive_ns` (ns UTC) from `peer` (a listener's client; else 0)."""
@@ -160,21 +158,7 @@ class StreamDecoder:
     @property
     def pending(self) -> bool:
         """True when bytes arrived since the last decode, or a budget left some undecoded."""
-        return self._pending or (self._waiting is not None and time.monotonic() - self._waiting >= WAIT_S)
-
-    def _wait(self) -> bool:
-        """True while the next window would convert more again than REUSE-th of its new bytes, up to WAIT_S."""
-        again = max(self._converted_to - self._base, 0)
-        if len(self._buf) - again >= REUSE * again:
-            self._waiting = None
-            return False
-        now = time.monotonic()
-        if self._waiting is None:
-            self._waiting = now
-        if now - self._waiting < WAIT_S:
-            return True
-        self._waiting = None
-        return False
+        return self._pending
 
     @property
     def backlog(self) -> int:
@@ -222,7 +206,7 @@ class StreamDecoder:
             self._partials, self._carry = {}, bytearray()
         self._pending = False
         dropped, self._dropped = self._dropped, []
-        if not self._buf or not (self._windowed or final) or (not final and self._wait()):
+        if not self._buf or not (self._windowed or final):
             return dropped
         budgeted = budget is not None and not final and self._windowed
         end = self._window_end(budget * self._stretch) if budget is not None and budgeted else len(self._buf)
@@ -259,7 +243,6 @@ class StreamDecoder:
         with memoryview(self._buf) as view:   # released here: `_advance` resizes the buffer
             data = bytes(view[:end])
         self.converted += end
-        self._converted_to = self._base + end
         return [_rebase(item, self._base, lines) for item in one_by_one(self.convert(data, self.ctx))]
 
     def _cut(self, items: list[Item], window: int) -> int:
