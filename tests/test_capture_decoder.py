@@ -141,3 +141,45 @@ def test_the_decoder_reads_binariness_from_the_registry() -> None:
         assert d.text == (not is_binary(sensor, fmt)) and d.stamp == d.text, (sensor, fmt)
         # a line-based format's converter also takes its log in blocks (recorders.base); a binary one never does
         assert ((sensor, fmt) in blocks) == d.text, (sensor, fmt)
+
+
+@pytest.mark.parametrize("path", ["leader1/gps.log", "leader1/ins.log", "leader1/dvl.pd0", "leader2/gps.log"])
+@pytest.mark.parametrize("stamp", [False, True])
+def test_each_byte_is_converted_about_once(path, stamp):
+    # fed in datagrams and decoded every ~8 KB, as `bench/bench_capture.py` at 400x decodes these logs: the
+    # windows overlap only by a warm-up record and the held epoch (a stamped stream counts its stamps)
+    log = LOGS[path]
+    data = (MANIFEST.root / log.path).read_bytes()[:200_000]
+    d = StreamDecoder(TABLE[(log.sensor, log.format)], log_context(MANIFEST, log), log.sensor, log.format)
+    d.stamp = d.stamp and stamp
+    out = []
+    for pos in range(0, len(data), 1400):
+        d.feed(data[pos:pos + 1400], 1_800_000_000 * 10**9 + pos * 10**6)
+        if (pos // 1400) % 6 == 5:
+            out += d.decode(budget=128 << 10)
+    out += d.decode(final=True)
+    stream = d._base + len(d._buf)
+    assert stream == len(data) or stamp
+    assert d.converted <= 1.2 * stream
+    if not stamp:
+        assert [_key(i) for i in out] == [_key(i) for i in TABLE[(log.sensor, log.format)](data, d.ctx)]
+
+
+def test_an_epoch_longer_than_the_budget_doubles_the_window_not_converts_it_again():
+    # 64 GGA of one time (about 5 KB) in a budget of 500 bytes: windows of 0.5, 1, 2, 4, 8 KB, none repeated whole
+    log = LOGS["leader1/gps.log"]
+    line = (MANIFEST.root / log.path).read_bytes().split(b"\n", 1)[0] + b"\n"
+    data = line * 64 + (MANIFEST.root / log.path).read_bytes()[len(line):30_000]
+    data = data[:data.rfind(b"\n") + 1]
+    d = StreamDecoder(TABLE[(log.sensor, log.format)], log_context(MANIFEST, log), log.sensor, log.format)
+    d.stamp = False
+    d.feed(data, 1)
+    out: list = []
+    while not out:
+        out += d.decode(budget=500)
+    # settled after windows of 0.5 + 1 + 2 + 4 + 8 KB; converting the whole stream again would be 35 KB
+    assert d.converted <= 4 * 64 * len(line) < len(data)
+    while d.pending:
+        out += d.decode(budget=500)
+    out += d.decode(final=True)
+    assert [_key(i) for i in out] == [_key(i) for i in TABLE[(log.sensor, log.format)](data, d.ctx)]

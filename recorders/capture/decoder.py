@@ -17,6 +17,10 @@ settled:
   whatever follows them, up to MAX_WARMUP bytes): the next bytes may still
   belong to it.
 
+A budgeted window that settles nothing (one epoch longer than the budget)
+is not converted again whole: the next window is twice as long, so the
+bytes converted stay within twice the window that settles.
+
 Offsets and line numbers are rebased to the whole stream, so statistics
 and diagnostics count as `record` counts a file. At the end (`final`)
 everything left is committed, as `record` decodes a file to its end.
@@ -88,6 +92,8 @@ class StreamDecoder:
         self._dropped: list[Item] = []    # rejects of overlong lines, given by the next decode
         self._windowed = True       # False once a converter gives an output without a position
         self._pending = False       # bytes since the last decode
+        self._stretch = 1           # budgets per window: doubled while a budgeted window settles nothing
+        self.converted = 0          # bytes given to the converter (windows overlap: warm-up, the held epoch)
 
     def feed(self, data: bytes, receive_ns: int, peer: int = 0) -> None:
         """Append bytes received at `receive_ns` (ns UTC) from `peer` (a listener's client; else 0)."""
@@ -202,16 +208,20 @@ class StreamDecoder:
         dropped, self._dropped = self._dropped, []
         if not self._buf or not (self._windowed or final):
             return dropped
-        end = self._window_end(budget) if budget is not None and not final and self._windowed else len(self._buf)
+        budgeted = budget is not None and not final and self._windowed
+        end = self._window_end(budget * self._stretch) if budget is not None and budgeted else len(self._buf)
         items = self._convert(end)
-        if end < len(self._buf) and self._windowed and self._cut(items, end) <= self._frontier:
-            end = len(self._buf)   # one epoch longer than the budget: the whole stream, as without one
-            items = self._convert(end)
         self._pending = end < len(self._buf)
         if any(type(i) is Output and i.where is None for i in items):
             self._windowed = False  # positions unknown: decode the whole stream once, at the end
             if not final:
                 return dropped
+        if self._pending and self._cut(items, end) <= self._frontier:
+            # an epoch longer than the window: the next window is twice as long (not this one converted again
+            # whole), so a slice's work stays bounded and the bytes converted at most twice the settling window
+            self._stretch *= 2
+            return dropped
+        self._stretch = 1
         cut = len(self._buf) + self._base if final else self._cut(items, end)
         out = [i for i in items if self._frontier <= _offset(i) < cut]
         if cut > self._frontier:
@@ -232,6 +242,7 @@ class StreamDecoder:
         lines = self._lines_before
         with memoryview(self._buf) as view:   # released here: `_advance` resizes the buffer
             data = bytes(view[:end])
+        self.converted += end
         return [_rebase(item, self._base, lines) for item in one_by_one(self.convert(data, self.ctx))]
 
     def _cut(self, items: list[Item], window: int) -> int:
