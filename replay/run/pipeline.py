@@ -27,6 +27,7 @@ from replay.navigation.review import NavigationReview, review_metrics
 from replay.navigation.stream import StreamCollector
 from replay.review.collector import ReviewCollector
 from replay.run.config import canonical_json, run_id, to_dict
+from replay.run.heap import fix_mmap_threshold
 from replay.run.metrics import format_table, metrics_table, run_metrics
 from replay.run.outputs import claim_outputs
 from replay.run.results_writer import ResultsWriter
@@ -126,6 +127,7 @@ def replay_archive(archive: str | Path | bytes, config: RunConfig | None = None,
     leaves out the vehicles' navigation reviews (metrics["navigation"] empty), which `evaluate` never reads.
     """
     config = config or RunConfig()
+    fix_mmap_threshold()     # a long mission's freed blocks go back to the system (replay.run.heap)
     in_memory = isinstance(archive, bytes)
     if in_memory and (write_output or output is not None):
         raise ValueError("an archive given as bytes is replayed with write_output=False and no output")
