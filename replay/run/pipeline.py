@@ -127,7 +127,6 @@ def replay_archive(archive: str | Path | bytes, config: RunConfig | None = None,
     leaves out the vehicles' navigation reviews (metrics["navigation"] empty), which `evaluate` never reads.
     """
     config = config or RunConfig()
-    fix_mmap_threshold()     # a long mission's freed blocks go back to the system (replay.run.heap)
     in_memory = isinstance(archive, bytes)
     if in_memory and (write_output or output is not None):
         raise ValueError("an archive given as bytes is replayed with write_output=False and no output")
@@ -155,6 +154,8 @@ def replay_archive(archive: str | Path | bytes, config: RunConfig | None = None,
             raise UserError(_nothing_to_run(label, "the trial holds no position of any kind (no GPS fix and no "
                                             "INS or autopilot position)", layout.notes, reader))
         t0_ns = summary.start_ns
+        # an hour of mission or more: its freed blocks go back to the system (replay.run.heap)
+        fix_mmap_threshold((summary.end_ns - t0_ns) / NS if summary.end_ns is not None else 0.0)
         topics = [t for t in readable if t == "/diagnostics" or t in layout.sources
                   or any(t == f"/{v}/{s}" for v in layout.roles for s in SENSORS)]
         window = config.engine.window_s
