@@ -13,30 +13,37 @@ from replay.stack.methods import METHOD_TABLE
 from replay.stack.scoring import RESULT_KEYS, detection_scores, error_stats
 
 
-def _pool(parts: list[np.ndarray]) -> np.ndarray:
-    return np.concatenate(parts) if parts else np.empty(0)
+def _pool(parts: list[Any], dtype: Any) -> np.ndarray:
+    """One array of the followers' columns (typed arrays or numpy), read in place where one follower holds it."""
+    arrays = [np.asarray(p, dtype=dtype) for p in parts]
+    if len(arrays) == 1:
+        return arrays[0]
+    return np.concatenate(arrays) if arrays else np.empty(0, dtype=dtype)
+
+
+def _method_row(method: str, scores: RunScores, results: dict[str, RunResults]) -> dict[str, Any]:
+    """One method's figures. Its pooled columns are narrow (int8 labels, bool flags) and freed on return, so the
+    end of a long run holds one method's copies at a time."""
+    followers = scores.followers.values()
+    row = dict.fromkeys(RESULT_KEYS)
+    if method in METHOD_TABLE and METHOD_TABLE[method].detects:
+        flagged = _pool([s.flagged.get(method, ()) for s in followers], bool)
+        labels = _pool([s.labels.get(method, ()) for s in followers], np.int8)
+        ol = [r.open_loop[method] for r in results.values() if method in r.open_loop]
+        row.update(detection_scores(flagged, labels, _pool([o["label"] for o in ol], np.int8),
+                                    _pool([o["score"] for o in ol], float)))
+        del flagged, labels
+    row.update(error_stats(_pool([s.errors.get(method, ()) for s in followers], float)))
+    row["capped"] = int(sum(r.capped.get(method, 0) for r in results.values()))
+    return row
 
 
 def run_metrics(scores: RunScores, results: dict[str, RunResults], run_id: str, end_s: float) -> dict[str, Any]:
     """The `replay --json` object from the engine's scores: run id, scoring window, epoch counts, per-method figures."""
-    methods: dict[str, dict[str, Any]] = {}
-    names = list(scores.methods)
-    for method in names:
-        row: dict[str, Any] = {k: None for k in RESULT_KEYS}
-        flagged = _pool([np.asarray(s.flagged.get(method, []), dtype=bool) for s in scores.followers.values()])
-        labels = _pool([np.asarray(s.labels.get(method, []), dtype=int) for s in scores.followers.values()])
-        if method in METHOD_TABLE and METHOD_TABLE[method].detects:
-            ol = [r.open_loop[method] for r in results.values() if method in r.open_loop]
-            ol_labels = _pool([o["label"].astype(int) for o in ol])
-            ol_scores = _pool([o["score"].astype(float) for o in ol])
-            row.update(detection_scores(flagged, labels, ol_labels, ol_scores))
-        errors = _pool([np.asarray(s.errors.get(method, []), float) for s in scores.followers.values()])
-        row.update(error_stats(errors))
-        row["capped"] = int(sum(r.capped.get(method, 0) for r in results.values()))
-        methods[method] = row
+    methods: dict[str, dict[str, Any]] = {m: _method_row(m, scores, results) for m in scores.methods}
     for method, errs in scores.positioning_errors.items():
         if len(errs):
-            row = {k: None for k in RESULT_KEYS}
+            row: dict[str, Any] = {k: None for k in RESULT_KEYS}
             row.update(error_stats(np.asarray(errs)))
             row["epochs"] = len(errs)
             methods[method] = row

@@ -27,6 +27,7 @@ from replay.navigation.review import NavigationReview, review_metrics
 from replay.navigation.stream import StreamCollector
 from replay.review.collector import ReviewCollector
 from replay.run.config import canonical_json, run_id, to_dict
+from replay.run.heap import fix_mmap_threshold
 from replay.run.metrics import format_table, metrics_table, run_metrics
 from replay.run.outputs import claim_outputs
 from replay.run.results_writer import ResultsWriter
@@ -153,6 +154,8 @@ def replay_archive(archive: str | Path | bytes, config: RunConfig | None = None,
             raise UserError(_nothing_to_run(label, "the trial holds no position of any kind (no GPS fix and no "
                                             "INS or autopilot position)", layout.notes, reader))
         t0_ns = summary.start_ns
+        # an hour of mission or more: its freed blocks go back to the system (replay.run.heap)
+        fix_mmap_threshold((summary.end_ns - t0_ns) / NS if summary.end_ns is not None else 0.0)
         topics = [t for t in readable if t == "/diagnostics" or t in layout.sources
                   or any(t == f"/{v}/{s}" for v in layout.roles for s in SENSORS)]
         window = config.engine.window_s

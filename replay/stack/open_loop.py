@@ -39,8 +39,11 @@ class OpenLoopScores:
                 self._leaders.append(r.leader)
 
     def _table(self) -> np.ndarray:
-        """The kept rows (n, 2 + len(FEATURE_NAMES)): time, label, features."""
-        return np.array(self._num, dtype=float).reshape(-1, 2 + len(FEATURE_NAMES))
+        """The kept rows (n, 2 + len(FEATURE_NAMES)): time, label, features; a view of the kept doubles (no copy).
+
+        Callers drop it before `add` runs again (an array with a view on it cannot grow).
+        """
+        return np.frombuffer(self._num, dtype=float).reshape(-1, 2 + len(FEATURE_NAMES))
 
     def normal_features(self) -> np.ndarray:
         """The kept epochs labelled normal: their FEATURE_NAMES rows (n, F), what a threshold is calibrated on."""
@@ -48,18 +51,25 @@ class OpenLoopScores:
         return table[table[:, 1] == 0, 2:]
 
     def scores(self, methods: Iterable[ScoredMethod]) -> dict[str, dict[str, np.ndarray]]:
-        """Per method: time_s, leader, label and its detectors' score of each kept epoch (NaN: no detector)."""
+        """Per method: time_s, leader, label and its detectors' score of each kept epoch (NaN: no detector).
+
+        The methods share one time, leader and label column (read-only): only the scores are per method, each
+        read from the kept rows one method at a time, so the end of a day-long run copies no table.
+        """
         table = self._table()
         leaders = np.array(self._leaders, dtype=object)
-        wide_all = table[:, 2:]
+        rows = {leader: np.nonzero(leaders == leader)[0] for leader in dict.fromkeys(self._leaders)}
+        shared = {"time_s": table[:, 0].copy(), "leader": leaders, "label": table[:, 1].astype(np.int8)}
+        for column in shared.values():
+            column.flags.writeable = False
         out = {}
         for name, features, detectors in methods:
-            feats_all = wide_all[:, [FEATURE_NAMES.index(n) for n in features]]
+            columns = np.array([2 + FEATURE_NAMES.index(n) for n in features], dtype=np.intp)
             score = np.full(len(leaders), np.nan)
             for leader, det in detectors.items():
-                idx = np.nonzero(leaders == leader)[0]
-                if det is not None and idx.size:
-                    score[idx] = det.scores(feats_all[idx])
-            out[name] = {"time_s": table[:, 0].copy(), "leader": leaders,
-                         "label": table[:, 1].astype(np.int8), "score": score}
+                idx = rows.get(leader)
+                if det is not None and idx is not None and idx.size:
+                    score[idx] = det.scores(table[np.ix_(idx, columns)])
+            out[name] = {**shared, "score": score}
+        del table     # the view on the kept doubles: `add` may extend them again
         return out
