@@ -9,7 +9,8 @@ import pandas as pd
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from replay.review.track_table import TrackTable, column
+from replay.review.columns import column
+from replay.review.track_table import TrackTable
 
 NAMES = st.sampled_from(["auv1", "auv2", "ckf", "ackf", "gps", "dead_reckoning", ""])
 VALUES = st.one_of(

@@ -23,8 +23,9 @@ from replay.events import (
     UsblEpoch,
 )
 from replay.navigation.review import DR_METHOD, NavigationReview
+from replay.review.columns import column
 from replay.review.data import ReviewData
-from replay.review.track_table import RAD, TrackTable, column
+from replay.review.track_table import RAD, TrackTable
 from replay.stack.detectors.why_text import epoch_features
 from replay.stack.features import EXTRA_FEATURES
 from replay.stack.methods import anfis_models, detecting_names, short_names, why_line

@@ -11,57 +11,17 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from itertools import repeat
-from typing import Any
 
 import numpy as np
 import pandas as pd
 
+from replay.review.columns import column
 from replay.stack.model import horizontal_offset_m
 
 RAD = 180.0 / math.pi
 
 TRACK_COLUMNS = ("t_s", "vehicle", "source", "lat_deg", "lon_deg", "east_m", "north_m", "std_east_m", "std_north_m")
 """The tracks table's columns, in order."""
-
-_FLOATS = frozenset({float, np.float64})
-_STR = pd.Series(["a"]).dtype     # the dtype pandas infers for strings (pyarrow's large strings, NaN missing)
-
-
-def column(values: Sequence[Any]) -> Any:
-    """One table column for a frame: plain floats, bools or ints as the numpy array pandas would infer from the
-    list (the same dtype and bits, without its inference per element); anything else as the list."""
-    kinds = set(map(type, values))
-    if kinds and kinds <= _FLOATS:
-        return np.array(values, dtype=np.float64)
-    if kinds == {bool}:
-        return np.array(values, dtype=bool)
-    if kinds == {int}:
-        return np.array(values, dtype=np.int64)
-    if kinds == {str}:
-        return strings(values)
-    return list(values)
-
-
-def strings(values: Sequence[str]) -> Any:
-    """A column of strings as pandas infers it (its "str" dtype), built by pyarrow at once: pandas checks and
-    converts the list row by row. One of few distinct values (names of vehicles, methods, sources) is taken from
-    its distinct values. Without pyarrow storage, the list as it is."""
-    if getattr(_STR, "storage", None) != "pyarrow":
-        return list(values)
-    import pyarrow as pa
-
-    distinct = dict.fromkeys(values)
-    try:
-        if len(distinct) * 8 > len(values):
-            arr = pa.array(values, type=pa.large_string())
-        else:
-            code = {v: i for i, v in enumerate(distinct)}
-            codes = np.fromiter(map(code.__getitem__, values), dtype=np.int64, count=len(values))
-            arr = pa.array(list(distinct), type=pa.large_string()).take(pa.array(codes))
-    except (UnicodeError, pa.ArrowException):      # a lone surrogate (a damaged name): pandas decides, as before
-        return list(values)
-    return pd.arrays.ArrowStringArray(arr, dtype=_STR)
-
 
 class TrackTable:
     """Track rows (time, vehicle, source, latitude and longitude in rad, the estimate's east and north variances,
